@@ -1,0 +1,31 @@
+"""powerline_control: vibration of overhead power lines, on top of python-control.
+
+Data flows one way: model -> simulate -> identify -> estimate / sensors -> antinode -> plan ->
+closed loop -> report / CLI.  See ``docs/`` and the README.
+"""
+
+from .errors import (
+    EstimationError,
+    FileFormatError,
+    IdentificationError,
+    IllConditionedWarning,
+    InputError,
+    ModelError,
+    PlanningError,
+    PowerlineControlError,
+    SensorSelectionError,
+    TruncationWarning,
+    UnstableModelWarning,
+)
+
+# --- parameters and physics (line.py, fem.py, excitation.py, simulate.py) ---
+
+# --- identification (identify.py) ---
+
+# --- observability and estimation (observability.py, estimate.py) ---
+
+# --- sensor placement (sensors.py) ---
+
+# --- antinodes and motion planning (antinode.py, plan.py) ---
+
+__version__ = "0.1.0"

@@ -1,0 +1,66 @@
+"""Exceptions and warnings of powerline_control.
+
+Every exception derives from :class:`PowerlineControlError` *and* from the builtin that fits, so
+``except ValueError`` in user code keeps working (the pattern of python-control's
+``control/exception.py``).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "PowerlineControlError",
+    "InputError",
+    "ModelError",
+    "IdentificationError",
+    "EstimationError",
+    "SensorSelectionError",
+    "PlanningError",
+    "FileFormatError",
+    "IllConditionedWarning",
+    "UnstableModelWarning",
+    "TruncationWarning",
+]
+
+
+class PowerlineControlError(Exception):
+    """Base class of every error raised by powerline_control."""
+
+
+class InputError(PowerlineControlError, ValueError):
+    """An argument has a value without a defined meaning (wrong type, range, shape)."""
+
+
+class ModelError(PowerlineControlError, RuntimeError):
+    """A physical model cannot be built or solved (e.g. an eigen-solve that fails)."""
+
+
+class IdentificationError(PowerlineControlError, RuntimeError):
+    """Identification from data failed (rank-deficient data, no stable alpha, ...)."""
+
+
+class EstimationError(PowerlineControlError, RuntimeError):
+    """State estimation failed (singular innovation covariance, diverging filter, ...)."""
+
+
+class SensorSelectionError(PowerlineControlError, RuntimeError):
+    """Sensor selection failed or its constraints cannot be met."""
+
+
+class PlanningError(PowerlineControlError, RuntimeError):
+    """A motion plan is infeasible or its solver failed."""
+
+
+class FileFormatError(PowerlineControlError, ValueError):
+    """A saved file is truncated, corrupted, of another format or of an unknown version."""
+
+
+class IllConditionedWarning(UserWarning):
+    """A computation lost significant accuracy to ill-conditioning."""
+
+
+class UnstableModelWarning(UserWarning):
+    """An identified model has eigenvalues outside the unit circle."""
+
+
+class TruncationWarning(UserWarning):
+    """A modal truncation or time step cannot resolve the requested excitation."""
