@@ -23,6 +23,15 @@ from .errors import (
 # --- identification (identify.py) ---
 
 # --- observability and estimation (observability.py, estimate.py) ---
+from .observability import (
+    ObservabilityReport,
+    SensorSetComparison,
+    analyze_observability,
+    compare_sensor_sets,
+    observability_gramian,
+    observability_rank,
+    steady_state_covariance,
+)
 
 # --- sensor placement (sensors.py) ---
 

@@ -1,0 +1,634 @@
+"""Observability of a discrete model for a given sensor set: rank, Gramian, estimation error.
+
+Three views of "can these sensors see the whole span, and how well":
+
+* :func:`observability_rank` -- the rank of python-control's observability matrix
+  (``control.obsv``) with a tolerance at the round-off level of that matrix (yes/no answer);
+* :func:`observability_gramian` -- the finite-horizon discrete Gramian
+  ``W_N = sum_{k<N} (A^T)^k C^T C A^k``, computed by doubling, so it exists for marginally stable
+  and unstable models too (python-control's ``gram`` needs slycot and refuses those);
+* :func:`steady_state_covariance` -- the exact steady-state error covariance of the Kalman filter
+  from the discrete algebraic Riccati equation: the quantitative answer, in the units of the
+  states, that also accounts for the noise levels ``Q`` and ``R``.
+
+:func:`analyze_observability` gathers them (plus the per-node standard deviation of the estimated
+field) into an :class:`ObservabilityReport`; :func:`compare_sensor_sets` tabulates several sensor
+sets side by side.
+
+Sensors are always *indices into the outputs* of the system: the candidates are the outputs of
+``sys`` (e.g. ``dmd.to_statespace(measured=all_nodes)`` or a modal model with all nodal
+displacements as outputs), and a sensor set picks rows of ``C``.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import control as ct
+import numpy as np
+import scipy.linalg as sla
+
+from ._validation import check_array, check_int, check_psd
+from .errors import EstimationError, InputError
+
+__all__ = [
+    "observability_rank",
+    "observability_gramian",
+    "steady_state_covariance",
+    "ObservabilityReport",
+    "analyze_observability",
+    "SensorSetComparison",
+    "compare_sensor_sets",
+]
+
+
+# --------------------------------------------------------------------------- argument checks
+
+
+def _check_discrete_system(name: str, sys: object) -> ct.StateSpace:
+    """Return ``sys`` if it is a finite, discrete-time ``control.StateSpace``."""
+    if not isinstance(sys, ct.StateSpace):
+        raise InputError(
+            f"The {name!r} parameter must be a discrete-time control.StateSpace. "
+            f"Got an object of type {type(sys).__name__} instead."
+        )
+    if sys.dt is None or (sys.dt is not True and sys.dt == 0):
+        raise InputError(
+            f"The {name!r} parameter must be a discrete-time system (dt > 0 or dt=True). "
+            f"Got a continuous-time system (dt={sys.dt!r}); discretise it first, e.g. with "
+            "sys.sample(dt) or LineModel.to_statespace(dt=...)."
+        )
+    for label in ("A", "B", "C", "D"):
+        matrix = np.asarray(getattr(sys, label))
+        if not np.all(np.isfinite(matrix)):
+            raise InputError(
+                f"The {name!r} parameter has {int(np.count_nonzero(~np.isfinite(matrix)))} "
+                f"NaN or infinite entries in its {label} matrix; the model must be finite."
+            )
+    if sys.nstates == 0:
+        raise InputError(f"The {name!r} parameter must have at least one state. Got 0 states.")
+    return sys
+
+
+def _check_sensors(sensors: object, n_outputs: int) -> np.ndarray:
+    """Return sensor indices (sorted as given, no duplicates) into the outputs of the system."""
+    if sensors is None:
+        return np.arange(n_outputs)
+    if isinstance(sensors, numbers.Integral) or isinstance(sensors, str):
+        raise InputError(
+            "The 'sensors' parameter must be a sequence of output indices. "
+            f"Got {sensors!r} instead."
+        )
+    items = list(sensors)  # type: ignore[call-overload]
+    for item in items:
+        if isinstance(item, bool) or not isinstance(item, numbers.Integral):
+            raise InputError(
+                "The 'sensors' parameter must contain integer output indices. "
+                f"Got {item!r} of type {type(item).__name__}."
+            )
+    index = np.asarray(items, dtype=int)
+    if index.size == 0:
+        raise InputError("The 'sensors' parameter must name at least one output. Got none.")
+    if np.any(index < 0) or np.any(index >= n_outputs):
+        raise InputError(
+            f"The 'sensors' parameter must contain indices in [0, {n_outputs - 1}] "
+            f"(the outputs of the system). Got {index.tolist()}."
+        )
+    if np.unique(index).size != index.size:
+        raise InputError(
+            f"The 'sensors' parameter must not repeat an output. Got {index.tolist()}."
+        )
+    return index
+
+
+def _noise_covariance(name: str, value: object, size: int, index: np.ndarray | None = None):
+    """Return a PSD covariance of the given size from a scalar, a vector of variances or a matrix.
+
+    With ``index`` the value describes all ``size`` candidates and the rows/columns of ``index``
+    are returned.
+    """
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        variance = float(value)
+        if not np.isfinite(variance) or variance < 0:
+            raise InputError(
+                f"The {name!r} parameter must be a non-negative variance. Got {variance!r}."
+            )
+        out = variance * np.eye(size)
+    else:
+        array = check_array(name, value, ndim=(1, 2))
+        if array.ndim == 1:
+            if array.shape != (size,):
+                raise InputError(
+                    f"The {name!r} parameter has the wrong shape: expected a scalar, ({size},) "
+                    f"variances or a ({size}, {size}) matrix but found {array.shape}."
+                )
+            if np.any(array < 0):
+                raise InputError(
+                    f"The {name!r} parameter must contain non-negative variances. "
+                    f"Got a smallest value of {array.min():.3g}."
+                )
+            out = np.diag(array)
+        else:
+            if array.shape != (size, size):
+                raise InputError(
+                    f"The {name!r} parameter has the wrong shape: expected a scalar, ({size},) "
+                    f"variances or a ({size}, {size}) matrix but found {array.shape}."
+                )
+            out = check_psd(name, array, size)
+    if index is not None:
+        out = out[np.ix_(index, index)]
+    return (out + out.T) / 2
+
+
+# --------------------------------------------------------------------------- rank and Gramian
+
+
+def observability_rank(
+    sys: ct.StateSpace, sensors: Sequence[int] | None = None, *, tol: float | None = None
+) -> int:
+    """Numerical rank of the observability matrix ``[C; CA; ...; CA^(n-1)]``.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Discrete-time model; its outputs are the candidate sensors.
+    sensors : sequence of int, optional
+        Output indices that are measured (default: all outputs).
+    tol : float, optional
+        Singular values at or below ``tol`` count as zero. The default,
+        ``max(O.shape) * eps * sigma_max(O)``, is the round-off level of the SVD of ``O``: smaller
+        singular values cannot be told apart from zero in floating point. Note that
+        ``control.obsv`` forms powers of ``A``, so for lightly damped high-order models a
+        full-rank answer can still mean "observable only in theory"; the Gramian
+        (:func:`observability_gramian`) and the estimation error (:func:`steady_state_covariance`)
+        say how well.
+
+    Returns
+    -------
+    int
+        The rank; the pair is observable when it equals ``sys.nstates``.
+
+    Raises
+    ------
+    InputError
+        If ``sys`` is not a finite discrete-time StateSpace, or ``sensors``/``tol`` are invalid.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> import numpy as np
+    >>> sys = ct.ss(np.diag([0.5, 0.9]), np.ones((2, 1)), np.eye(2), 0, dt=0.01)
+    >>> observability_rank(sys, sensors=[0])
+    1
+    >>> observability_rank(sys)
+    2
+    """
+    sys = _check_discrete_system("sys", sys)
+    index = _check_sensors(sensors, sys.noutputs)
+    matrix = ct.obsv(sys.A, sys.C[index])
+    singular_values = np.linalg.svd(matrix, compute_uv=False)
+    if tol is None:
+        tol = max(matrix.shape) * np.finfo(float).eps * float(singular_values[0])
+    elif isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not tol >= 0:
+        raise InputError(f"The 'tol' parameter must be a non-negative real number. Got {tol!r}.")
+    return int(np.count_nonzero(singular_values > tol))
+
+
+def observability_gramian(
+    sys: ct.StateSpace, horizon: int, sensors: Sequence[int] | None = None
+) -> np.ndarray:
+    """Finite-horizon discrete observability Gramian ``sum_{k=0}^{N-1} (A^T)^k C^T C A^k``.
+
+    ``x0^T W_N x0`` is the output energy of the free response from ``x0`` over ``N`` samples, so
+    small eigenvalues mark state directions the sensors barely see. Being a finite sum, it exists
+    for marginally stable and unstable models (identified DMD models often have eigenvalues on or
+    near the unit circle), unlike the infinite-horizon Gramian.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Discrete-time model; its outputs are the candidate sensors.
+    horizon : int
+        Number of samples ``N >= 1``.
+    sensors : sequence of int, optional
+        Output indices that are measured (default: all outputs).
+
+    Returns
+    -------
+    numpy.ndarray
+        The symmetric positive semidefinite ``(n, n)`` Gramian.
+
+    Raises
+    ------
+    InputError
+        If an argument is invalid.
+
+    Notes
+    -----
+    Computed by doubling, ``W_{2N} = W_N + (A^N)^T W_N A^N``, with the binary expansion of ``N``:
+    ``O(n^3 log N)`` instead of ``O(n^3 N)`` for the plain sum.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> import numpy as np
+    >>> sys = ct.ss([[0.5]], [[1.0]], [[2.0]], 0, dt=1.0)
+    >>> float(observability_gramian(sys, 3)[0, 0])   # 4 * (1 + 0.25 + 0.0625)
+    5.25
+    """
+    sys = _check_discrete_system("sys", sys)
+    horizon = check_int("horizon", horizon, low=1)
+    index = _check_sensors(sensors, sys.noutputs)
+    a = np.asarray(sys.A, dtype=float)
+    c = np.asarray(sys.C, dtype=float)[index]
+    n = a.shape[0]
+    # block = W_m for the current power-of-two length m, power = A^m.
+    block = c.T @ c
+    power = a.copy()
+    total = np.zeros((n, n))
+    total_power = np.eye(n)  # A^(length accumulated so far)
+    remaining = horizon
+    while remaining:
+        if remaining & 1:
+            # Append the block after what has been accumulated: W += (A^s)^T W_m A^s.
+            total += total_power.T @ block @ total_power
+            total_power = power @ total_power
+        remaining >>= 1
+        if remaining:
+            block = block + power.T @ block @ power
+            power = power @ power
+    return (total + total.T) / 2
+
+
+# --------------------------------------------------------------------------- Riccati
+
+
+def steady_state_covariance(
+    sys: ct.StateSpace,
+    Q: object,
+    R: object,
+    sensors: Sequence[int] | None = None,
+    *,
+    form: str = "filter",
+) -> np.ndarray:
+    """Exact steady-state Kalman error covariance of the states for a sensor set.
+
+    Solves the discrete algebraic Riccati equation for the *predicted* covariance
+    ``P = A P A^T + Q - A P C^T (C P C^T + R)^-1 C P A^T`` and, for ``form="filter"``, returns the
+    *posterior* (filtered, after the measurement update) covariance
+    ``P - P C^T (C P C^T + R)^-1 C P``: the error covariance of ``x[k|k]``, what a
+    :class:`~powerline_control.estimate.KalmanFilter` reports once its gain has converged.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Discrete-time model ``x[k+1] = A x[k] + B u[k] + w[k]``, ``y = C x + D u + v``; its outputs
+        are the candidate sensors.
+    Q : array_like
+        Process-noise covariance ``(n, n)``, symmetric positive semidefinite.
+    R : float or array_like
+        Measurement-noise covariance of the candidates: one variance for all, one variance per
+        output ``(n_outputs,)``, or a full ``(n_outputs, n_outputs)`` matrix. The rows and columns of
+        ``sensors`` are used; they must be positive definite.
+    sensors : sequence of int, optional
+        Output indices that are measured (default: all outputs).
+    form : {"filter", "predicted"}
+        Posterior ``P[k|k]`` (default) or one-step predicted ``P[k|k-1]`` covariance.
+
+    Returns
+    -------
+    numpy.ndarray
+        Symmetric ``(n, n)`` covariance.
+
+    Raises
+    ------
+    InputError
+        If an argument is invalid.
+    EstimationError
+        If the Riccati equation has no stabilising solution (a mode on or outside the unit
+        circle that the sensors cannot see, or a singular measurement covariance).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.ss([[1.0]], [[0.0]], [[1.0]], 0, dt=1.0)   # random walk, measured directly
+    >>> P = steady_state_covariance(sys, Q=1.0 * np.eye(1), R=1.0)
+    >>> round(float(P[0, 0]), 6)   # (sqrt(5) - 1) / 2, the golden-ratio closed form
+    0.618034
+    """
+    if form not in ("filter", "predicted"):
+        raise InputError(
+            f"The 'form' parameter must be one of 'filter', 'predicted'. Got {form!r} instead."
+        )
+    sys = _check_discrete_system("sys", sys)
+    index = _check_sensors(sensors, sys.noutputs)
+    n = sys.nstates
+    q = _noise_covariance("Q", Q, n)
+    r = _noise_covariance("R", R, sys.noutputs, index)
+    a = np.asarray(sys.A, dtype=float)
+    c = np.asarray(sys.C, dtype=float)[index]
+    predicted = _solve_filter_dare(a, c, q, r)
+    if form == "predicted":
+        return predicted
+    return _posterior_from_predicted(predicted, c, r)
+
+
+def _solve_filter_dare(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Predicted steady-state covariance from the filter DARE (the dual of the LQR one)."""
+    try:
+        np.linalg.cholesky(r)
+    except np.linalg.LinAlgError as exc:
+        raise EstimationError(
+            "The measurement-noise covariance R of the chosen sensors is singular; the Riccati "
+            "equation needs R positive definite. Give every sensor a positive noise variance "
+            "(or use epsilon > 0 in KalmanFilter)."
+        ) from exc
+    try:
+        predicted = sla.solve_discrete_are(a.T, c.T, q, r)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise EstimationError(
+            "The Kalman Riccati equation has no stabilising solution for this sensor set: some "
+            "mode on or outside the unit circle is not detectable from the chosen outputs (or "
+            f"not excited by Q). SciPy said: {exc}"
+        ) from exc
+    if not np.all(np.isfinite(predicted)):
+        raise EstimationError("The Kalman Riccati solution is not finite for this sensor set.")
+    return (predicted + predicted.T) / 2
+
+
+def _posterior_from_predicted(
+    predicted: np.ndarray, c: np.ndarray, r: np.ndarray
+) -> np.ndarray:
+    """``P - P C^T S^-1 C P`` with ``S = C P C^T + R``, through a Cholesky solve."""
+    pct = predicted @ c.T
+    innovation = c @ pct + r
+    factor = sla.cho_factor((innovation + innovation.T) / 2)
+    posterior = predicted - pct @ sla.cho_solve(factor, pct.T)
+    return (posterior + posterior.T) / 2
+
+
+def _field_variances(covariance: np.ndarray, field_map: np.ndarray | None) -> np.ndarray:
+    """Diagonal of ``M P M^T`` without forming the full product (``diag(P)`` without a map)."""
+    if field_map is None:
+        return np.clip(np.diag(covariance).copy(), 0.0, None)
+    return np.clip(np.einsum("ij,jk,ik->i", field_map, covariance, field_map), 0.0, None)
+
+
+def _check_field_map(field_map: object, n: int) -> np.ndarray | None:
+    if field_map is None:
+        return None
+    matrix = check_array("field_map", field_map, ndim=2)
+    if matrix.shape[1] != n:
+        raise InputError(
+            "The 'field_map' parameter has the wrong shape: expected (n_nodes, "
+            f"{n}) (one column per model state) but found {matrix.shape}."
+        )
+    return matrix
+
+
+# --------------------------------------------------------------------------- reports
+
+
+@dataclass(frozen=True)
+class ObservabilityReport:
+    """How well a sensor set sees the model: rank, Gramian spectrum and estimation error.
+
+    Attributes
+    ----------
+    sensors : numpy.ndarray
+        Output indices measured, ``(p,)``.
+    n_states : int
+        Model order ``n``.
+    rank : int
+        Numerical rank of the observability matrix (see :func:`observability_rank`).
+    observable : bool
+        ``rank == n_states``.
+    horizon : int
+        Gramian horizon ``N`` in samples.
+    gramian_min_singular_value : float
+        Smallest singular value of the finite-horizon Gramian (output energy of the worst-seen
+        unit initial state over ``N`` samples).
+    gramian_condition_number : float
+        Largest over smallest singular value (``inf`` when the smallest is zero).
+    node_std : numpy.ndarray or None
+        Steady-state posterior standard deviation of each field value ``(n_nodes,)`` (of each
+        state without a field map), from the Riccati solution; ``None`` without ``Q`` and ``R``.
+    mean_std : float or None
+        Root mean square of ``node_std`` over the field (the average estimation error).
+    max_std : float or None
+        Largest entry of ``node_std`` (the worst-estimated point).
+    covariance : numpy.ndarray or None
+        Steady-state posterior state covariance ``(n, n)``; ``None`` without ``Q`` and ``R``.
+    """
+
+    sensors: np.ndarray
+    n_states: int
+    rank: int
+    observable: bool
+    horizon: int
+    gramian_min_singular_value: float
+    gramian_condition_number: float
+    node_std: np.ndarray | None
+    mean_std: float | None
+    max_std: float | None
+    covariance: np.ndarray | None
+
+
+def analyze_observability(
+    sys: ct.StateSpace,
+    sensors: Sequence[int] | None = None,
+    *,
+    Q: object = None,
+    R: object = None,
+    horizon: int | None = None,
+    field_map: object = None,
+    tol: float | None = None,
+) -> ObservabilityReport:
+    """Rank, Gramian and (with noise covariances) per-node steady-state estimation error.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Discrete-time model; its outputs are the candidate sensors.
+    sensors : sequence of int, optional
+        Output indices that are measured (default: all outputs).
+    Q : array_like, optional
+        Process-noise covariance ``(n, n)``; with ``R`` it enables the Riccati part.
+    R : float or array_like, optional
+        Measurement-noise covariance of the candidates (scalar, per-output vector or matrix).
+    horizon : int, optional
+        Gramian horizon in samples (default ``2 n``: long enough for every mode to show up in
+        the output of an observable model, short enough to stay finite for unstable ones).
+    field_map : array_like, optional
+        ``(n_nodes, n)`` map from the model state to the field of interest (e.g. the full nodal
+        displacement of a reduced or delay-embedded DMD model). Default: the states themselves.
+    tol : float, optional
+        Rank tolerance, see :func:`observability_rank`.
+
+    Returns
+    -------
+    ObservabilityReport
+        The analysis.
+
+    Raises
+    ------
+    InputError
+        If an argument is invalid, or only one of ``Q`` and ``R`` is given.
+    EstimationError
+        If the Riccati equation has no stabilising solution.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> import numpy as np
+    >>> sys = ct.ss(np.diag([0.5, 0.9]), np.zeros((2, 1)), np.eye(2), 0, dt=0.01)
+    >>> report = analyze_observability(sys, sensors=[1], Q=np.eye(2), R=1.0)
+    >>> report.rank, report.observable
+    (1, False)
+    >>> round(float(report.node_std[0]), 4)   # state 0 unseen: its stationary std 1/sqrt(1-0.25)
+    1.1547
+    """
+    sys = _check_discrete_system("sys", sys)
+    index = _check_sensors(sensors, sys.noutputs)
+    n = sys.nstates
+    horizon = 2 * n if horizon is None else check_int("horizon", horizon, low=1)
+    matrix = _check_field_map(field_map, n)
+    rank = observability_rank(sys, index, tol=tol)
+    singular_values = np.linalg.svd(
+        observability_gramian(sys, horizon, index), compute_uv=False
+    )
+    smallest = float(singular_values[-1])
+    condition = float(singular_values[0] / smallest) if smallest > 0 else float("inf")
+    if (Q is None) != (R is None):
+        raise InputError(
+            "The 'Q' and 'R' parameters must be given together (both or neither). "
+            f"Got Q={'set' if Q is not None else None}, R={'set' if R is not None else None}."
+        )
+    node_std = covariance = mean_std = max_std = None
+    if Q is not None:
+        covariance = steady_state_covariance(sys, Q, R, index)
+        node_std = np.sqrt(_field_variances(covariance, matrix))
+        mean_std = float(np.sqrt(np.mean(node_std**2)))
+        max_std = float(np.max(node_std))
+    return ObservabilityReport(
+        sensors=index,
+        n_states=n,
+        rank=rank,
+        observable=rank == n,
+        horizon=horizon,
+        gramian_min_singular_value=smallest,
+        gramian_condition_number=condition,
+        node_std=node_std,
+        mean_std=mean_std,
+        max_std=max_std,
+        covariance=covariance,
+    )
+
+
+@dataclass(frozen=True)
+class SensorSetComparison:
+    """Several sensor sets analysed with the same model, noise and horizon.
+
+    Attributes
+    ----------
+    names : tuple of str
+        One label per sensor set.
+    reports : tuple of ObservabilityReport
+        The analysis of each set, in the same order.
+    """
+
+    names: tuple[str, ...]
+    reports: tuple[ObservabilityReport, ...]
+
+    def to_markdown(self, unit_scale: float = 1.0, unit: str = "") -> str:
+        """Return the comparison as a markdown table.
+
+        Parameters
+        ----------
+        unit_scale : float
+            Factor applied to the standard deviations (e.g. ``1e3`` to print millimetres).
+        unit : str
+            Unit label printed in the header of the standard-deviation columns.
+
+        Returns
+        -------
+        str
+            One row per sensor set: sensors, rank, Gramian smallest singular value and
+            condition number, RMS and largest per-node standard deviation.
+        """
+        suffix = f" [{unit}]" if unit else ""
+        lines = [
+            f"| sensor set | p | rank / n | Gramian sigma_min | Gramian cond | "
+            f"RMS node std{suffix} | max node std{suffix} |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for name, rep in zip(self.names, self.reports, strict=True):
+            mean = "-" if rep.mean_std is None else f"{rep.mean_std * unit_scale:.4g}"
+            worst = "-" if rep.max_std is None else f"{rep.max_std * unit_scale:.4g}"
+            lines.append(
+                f"| {name} | {rep.sensors.size} | {rep.rank} / {rep.n_states} | "
+                f"{rep.gramian_min_singular_value:.3g} | {rep.gramian_condition_number:.3g} | "
+                f"{mean} | {worst} |"
+            )
+        return "\n".join(lines)
+
+
+def compare_sensor_sets(
+    sys: ct.StateSpace,
+    sensor_sets: dict[str, Sequence[int]] | Sequence[Sequence[int]],
+    *,
+    Q: object = None,
+    R: object = None,
+    horizon: int | None = None,
+    field_map: object = None,
+    tol: float | None = None,
+) -> SensorSetComparison:
+    """Analyse several sensor sets on the same model (see :func:`analyze_observability`).
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Discrete-time model; its outputs are the candidate sensors.
+    sensor_sets : dict of str to sequence of int, or sequence of sequences of int
+        The sets to compare; without names they are labelled by their indices.
+    Q, R, horizon, field_map, tol
+        As in :func:`analyze_observability`.
+
+    Returns
+    -------
+    SensorSetComparison
+        Reports in the given order; ``.to_markdown()`` prints the table.
+
+    Raises
+    ------
+    InputError
+        If an argument is invalid or no sensor set is given.
+    EstimationError
+        If the Riccati equation has no stabilising solution for one of the sets.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> import numpy as np
+    >>> sys = ct.ss(np.diag([0.5, 0.9]), np.zeros((2, 1)), np.eye(2), 0, dt=0.01)
+    >>> table = compare_sensor_sets(sys, {"first": [0], "both": [0, 1]}, Q=np.eye(2), R=1.0)
+    >>> [r.rank for r in table.reports]
+    [1, 2]
+    """
+    if isinstance(sensor_sets, dict):
+        names = tuple(str(name) for name in sensor_sets)
+        sets = list(sensor_sets.values())
+    else:
+        sets = list(sensor_sets)
+        names = tuple(str(list(map(int, s))) for s in sets)
+    if not sets:
+        raise InputError("The 'sensor_sets' parameter must contain at least one sensor set.")
+    reports = tuple(
+        analyze_observability(
+            sys, s, Q=Q, R=R, horizon=horizon, field_map=field_map, tol=tol
+        )
+        for s in sets
+    )
+    return SensorSetComparison(names=names, reports=reports)
