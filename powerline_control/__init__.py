@@ -19,6 +19,10 @@ from .errors import (
 )
 
 # --- parameters and physics (line.py, fem.py, excitation.py, simulate.py) ---
+from .excitation import AeolianForce, HarmonicForce, RandomForce, strouhal_frequency
+from .fem import MDR, LineModel, ModalBasis, ModalDamping, RayleighDamping
+from .line import Conductor, Span, conductors
+from .simulate import Snapshots, simulate
 
 # --- identification (identify.py) ---
 
