@@ -25,6 +25,15 @@ from .line import Conductor, Span, conductors
 from .simulate import Snapshots, simulate
 
 # --- identification (identify.py) ---
+from .identify import (
+    AlphaCurve,
+    DMDModel,
+    OnlineDMD,
+    StabilityReport,
+    fit_dmd,
+    select_alpha,
+)
+from .io import load_model, save_model
 
 # --- observability and estimation (observability.py, estimate.py) ---
 from .observability import (

@@ -1,0 +1,1244 @@
+"""Data-driven identification: DMD with Tikhonov regularisation, delays, inputs, online updates.
+
+The paper identifies a discrete-time linear model ``x_{k+1} = A x_k`` of the nodal displacements
+by Dynamic Mode Decomposition, ``A = X' X^+`` (its eq. 11), and stabilises it by Tikhonov
+regularisation, ``A = X' X^T (X X^T + alpha I)^{-1}`` (eq. 14).  This module computes both
+through an SVD or a Cholesky solve (never an explicit inverse) and adds what the paper leaves
+open:
+
+* time-delay embedding (``delays=d``): the state is the stacked window
+  ``z_k = [x_k; x_{k-1}; ...; x_{k-d+1}]``.  A line is second order, so displacements alone are
+  not a state; with ``d >= 2`` the linear model can be exact on noise-free data.  Without rank
+  truncation only the first block row of ``A`` is fitted; the shift rows are the exact identity.
+* rank truncation (``rank=r``): the state is the vector of the ``r`` leading POD coordinates of
+  the (delayed) data, so the cost follows ``r`` rather than the number of nodes;
+* known inputs (DMD with control): ``z_{k+1} = A z_k + B u_k``;
+* :class:`OnlineDMD`: recursive least squares with exponential forgetting;
+* :func:`select_alpha`: the whole alpha curve with the two choices of issue 3.
+
+Every model keeps :attr:`DMDModel.field_map`, the map from its state to the *current* nodal
+displacements, and exports itself as a discrete :class:`control.StateSpace`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import control as ct
+import numpy as np
+import scipy.linalg as sla
+
+from ._validation import check_array, check_choice, check_int, check_real
+from .errors import IdentificationError, IllConditionedWarning, InputError, UnstableModelWarning
+
+__all__ = [
+    "DMDModel",
+    "StabilityReport",
+    "AlphaCurve",
+    "OnlineDMD",
+    "fit_dmd",
+    "select_alpha",
+]
+
+#: alpha = 0 and a kept singular value below this fraction of the largest: the fit inverts noise
+#: or round-off, and fit_dmd says so.
+_ILL_CONDITIONED_RATIO = 1e-8
+#: The Gram/Cholesky route loses about eps * (1 + s_max**2 / alpha) relative accuracy; it is used
+#: only when that is below ~1e-10, i.e. alpha >= 1e-6 * trace(G) >= 1e-6 * s_max**2.
+_GRAM_ALPHA_FRACTION = 1e-6
+#: The Gram/eigh route for a rank-r POD basis needs s_r**2 well above eps * s_max**2.
+_GRAM_RANK_RATIO = 1e-8
+#: |lambda| above 1 + this counts as outside the unit circle (round-off of a marginal mode).
+_UNIT_CIRCLE_TOL = 1e-9
+
+
+# ----------------------------------------------------------------------------------------------
+# Results
+# ----------------------------------------------------------------------------------------------
+
+
+def _frozen(array: np.ndarray) -> np.ndarray:
+    array = np.ascontiguousarray(array)
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class StabilityReport:
+    """Stability of an identified model, with advice.
+
+    Attributes
+    ----------
+    spectral_radius : float
+        Largest eigenvalue magnitude of ``A``.
+    n_unstable : int
+        Number of eigenvalues outside the unit circle (``|lambda| > 1 + 1e-9``).
+    n_states : int
+        Size of ``A``.
+    alpha : float
+        Absolute Tikhonov parameter the model was fitted with.
+    is_stable : bool
+        ``n_unstable == 0``.
+    message : str
+        One paragraph in words, with the fix when unstable.
+    """
+
+    spectral_radius: float
+    n_unstable: int
+    n_states: int
+    alpha: float
+    is_stable: bool
+    message: str
+
+
+@dataclass(frozen=True, eq=False)
+class DMDModel:
+    """A discrete-time linear model identified from snapshots, ``z_{k+1} = A z_k + B u_k``.
+
+    Build it with :func:`fit_dmd` (or :meth:`OnlineDMD.model`); every field is set and read-only.
+
+    The model state ``z_k`` is the stacked window ``[x_k; x_{k-1}; ...; x_{k-d+1}]`` of nodal
+    displacements (``d = delays``) or, with rank truncation, its POD coordinates
+    ``basis.T @ window``.  :attr:`field_map` lifts the state back to the current nodal
+    displacements ``x_k = field_map @ z_k``.
+
+    Attributes
+    ----------
+    A : ndarray, shape (n_states, n_states)
+        State-transition matrix.
+    B : ndarray, shape (n_states, n_inputs) or None
+        Input matrix (DMD with control), ``None`` when no inputs were given.
+    dt : float
+        Sample time in seconds.
+    alpha : float
+        Absolute Tikhonov parameter used (eq. 14 of the paper).
+    alpha_relative : float
+        The same, as a fraction of the largest squared singular value of the state data.
+    delays : int
+        Number of stacked snapshots ``d``.
+    rank : int or None
+        Number of POD coordinates kept, ``None`` for no truncation.
+    n_nodes : int
+        Number of rows of the snapshot matrix (nodal displacements).
+    field_map : ndarray, shape (n_nodes, n_states)
+        Maps the state to the current nodal displacements (the full-field output matrix).
+    basis : ndarray, shape (n_nodes * delays, rank) or None
+        Orthonormal POD basis of the window (``None`` without rank truncation).
+    residual_covariance : ndarray, shape (n_states, n_states)
+        Covariance of the one-step training residuals ``z_{k+1} - A z_k - B u_k``, divided by
+        the number of pairs: a data-driven process-noise covariance ``Q`` in the model's state
+        coordinates.  Without rank truncation and with delays only its first
+        ``n_nodes x n_nodes`` block is non-zero (the shift rows are exact).
+    n_pairs : int
+        Number of snapshot pairs used for the fit.
+    initial_state : ndarray, shape (n_states,)
+        The first training state, used for the mode amplitudes.
+    """
+
+    A: np.ndarray
+    B: np.ndarray | None
+    dt: float
+    alpha: float
+    alpha_relative: float
+    delays: int
+    rank: int | None
+    n_nodes: int
+    field_map: np.ndarray
+    basis: np.ndarray | None
+    residual_covariance: np.ndarray
+    n_pairs: int
+    initial_state: np.ndarray = field(repr=False)
+
+    # --- sizes --------------------------------------------------------------------------------
+
+    @property
+    def n_states(self) -> int:
+        """Size of the model state."""
+        return int(self.A.shape[0])
+
+    @property
+    def n_inputs(self) -> int:
+        """Number of known inputs (0 without DMDc)."""
+        return 0 if self.B is None else int(self.B.shape[1])
+
+    # --- spectrum -----------------------------------------------------------------------------
+
+    @cached_property
+    def _eig(self) -> tuple[np.ndarray, np.ndarray]:
+        values, vectors = sla.eig(self.A)
+        order = np.lexsort((-values.imag, -np.abs(values)))
+        return _frozen(values[order]), _frozen(vectors[:, order])
+
+    @property
+    def eigenvalues(self) -> np.ndarray:
+        """Discrete-time eigenvalues of ``A``, by decreasing magnitude (complex, (n_states,))."""
+        return self._eig[0]
+
+    @property
+    def modes(self) -> np.ndarray:
+        """Eigenvectors of ``A`` in state coordinates, columns matching :attr:`eigenvalues`."""
+        return self._eig[1]
+
+    @property
+    def mode_shapes(self) -> np.ndarray:
+        """Nodal mode shapes ``field_map @ modes``, shape (n_nodes, n_states), complex."""
+        return _frozen(self.field_map @ self.modes)
+
+    @cached_property
+    def amplitudes(self) -> np.ndarray:
+        """Mode amplitudes ``b`` with ``modes @ b = initial_state`` (least squares), complex."""
+        b, *_ = sla.lstsq(self.modes, self.initial_state.astype(complex))
+        return _frozen(b)
+
+    @property
+    def spectral_radius(self) -> float:
+        """Largest eigenvalue magnitude."""
+        return float(np.abs(self.eigenvalues).max()) if self.n_states else 0.0
+
+    @property
+    def n_unstable(self) -> int:
+        """Number of eigenvalues outside the unit circle (beyond 1e-9 round-off)."""
+        return int(np.count_nonzero(np.abs(self.eigenvalues) > 1.0 + _UNIT_CIRCLE_TOL))
+
+    @property
+    def is_stable(self) -> bool:
+        """True when no eigenvalue lies outside the unit circle (beyond 1e-9 round-off)."""
+        return self.n_unstable == 0
+
+    @cached_property
+    def continuous_eigenvalues(self) -> np.ndarray:
+        """``s = log(lambda) / dt`` (rad/s).  An eigenvalue at 0 maps to ``log(tiny)/dt``."""
+        magnitude = np.maximum(np.abs(self.eigenvalues), np.finfo(float).tiny)
+        s = (np.log(magnitude) + 1j * np.angle(self.eigenvalues)) / self.dt
+        return _frozen(s)
+
+    @property
+    def frequencies(self) -> np.ndarray:
+        """Undamped natural frequency ``|s| / 2 pi`` of each eigenvalue, Hz (0 for lambda = 0)."""
+        f = np.abs(self.continuous_eigenvalues) / (2 * np.pi)
+        return _frozen(np.where(self._at_origin, 0.0, f))
+
+    @property
+    def damped_frequencies(self) -> np.ndarray:
+        """Damped frequency ``|Im s| / 2 pi`` of each eigenvalue, Hz."""
+        return _frozen(np.abs(self.continuous_eigenvalues.imag) / (2 * np.pi))
+
+    @property
+    def damping_ratios(self) -> np.ndarray:
+        """Damping ratio ``-Re(s) / |s|`` of each eigenvalue (1 for real decaying, 1 at 0)."""
+        s = self.continuous_eigenvalues
+        magnitude = np.abs(s)
+        safe = np.where(magnitude > 0, magnitude, 1.0)
+        zeta = np.where(magnitude > 0, -s.real / safe, 0.0)
+        return _frozen(np.where(self._at_origin, 1.0, zeta))
+
+    @property
+    def _at_origin(self) -> np.ndarray:
+        return np.abs(self.eigenvalues) <= np.finfo(float).tiny
+
+    def stability_report(self, *, warn: bool = True) -> StabilityReport:
+        """Summarise stability; warn with :class:`UnstableModelWarning` when unstable.
+
+        Parameters
+        ----------
+        warn : bool, default True
+            Emit an :class:`~powerline_control.errors.UnstableModelWarning` for an unstable model.
+
+        Returns
+        -------
+        StabilityReport
+            Spectral radius, count outside the unit circle and a message with the fix.
+
+        Examples
+        --------
+        >>> import numpy as np, powerline_control as plc
+        >>> X = np.array([[0.9 ** k for k in range(20)]])
+        >>> plc.fit_dmd(X, dt=0.1).stability_report().is_stable
+        True
+        """
+        rho, unstable = self.spectral_radius, self.n_unstable
+        if unstable == 0:
+            message = (
+                f"Stable: all {self.n_states} eigenvalues inside the unit circle "
+                f"(spectral radius {rho:.6g}, alpha {self.alpha:.3g})."
+            )
+        else:
+            message = (
+                f"Unstable: {unstable} of {self.n_states} eigenvalues lie outside the unit circle "
+                f"(spectral radius {rho:.6g}, alpha {self.alpha:.3g}). On noise-free or nearly "
+                "rank-deficient data plain DMD fits round-off; regularise with alpha > 0 (see "
+                "select_alpha), truncate with rank=..., or use noisy/longer data."
+            )
+            if warn:
+                warnings.warn(message, UnstableModelWarning, stacklevel=2)
+        return StabilityReport(rho, unstable, self.n_states, self.alpha, unstable == 0, message)
+
+    # --- states, prediction -------------------------------------------------------------------
+
+    def window_to_state(self, window: np.ndarray) -> np.ndarray:
+        """Model state from the last ``delays`` snapshots.
+
+        Parameters
+        ----------
+        window : array_like, shape (n_nodes, delays) or (n_nodes,) when ``delays == 1``
+            Snapshots ``x_{k-d+1}, ..., x_k`` as columns, oldest first (the layout of the data).
+
+        Returns
+        -------
+        ndarray, shape (n_states,)
+            ``z_k``.
+
+        Raises
+        ------
+        InputError
+            Wrong shape or non-finite values.
+
+        Examples
+        --------
+        >>> import numpy as np, powerline_control as plc
+        >>> X = np.array([[0.9 ** k for k in range(20)]])
+        >>> plc.fit_dmd(X, dt=0.1, delays=2).window_to_state([[2.0, 1.0]])
+        array([1., 2.])
+        """
+        window = check_array("window", window, ndim=(1, 2))
+        if window.ndim == 1:
+            window = window[:, None]
+        if window.shape != (self.n_nodes, self.delays):
+            raise InputError(
+                f"The 'window' parameter has the wrong shape: expected ({self.n_nodes}, "
+                f"{self.delays}) (n_nodes, delays) but found {window.shape}."
+            )
+        stacked = window[:, ::-1].T.reshape(-1)
+        return stacked if self.basis is None else self.basis.T @ stacked
+
+    def predict(
+        self, initial: np.ndarray, n_steps: int, inputs: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Free-run prediction of the nodal displacements.
+
+        Parameters
+        ----------
+        initial : array_like, shape (n_nodes, delays)
+            The last ``delays`` measured snapshots, oldest first (see :meth:`window_to_state`).
+        n_steps : int
+            Number of steps to predict (>= 1).
+        inputs : array_like, shape (n_inputs, n_steps), optional
+            Known inputs ``u_k, ..., u_{k+n_steps-1}``; required when the model has inputs.
+
+        Returns
+        -------
+        ndarray, shape (n_nodes, n_steps)
+            Predicted ``x_{k+1}, ..., x_{k+n_steps}``.
+
+        Raises
+        ------
+        InputError
+            Wrong shapes, missing or unexpected inputs.
+
+        Examples
+        --------
+        >>> import numpy as np, powerline_control as plc
+        >>> X = np.array([[0.5 ** k for k in range(10)]])
+        >>> plc.fit_dmd(X, dt=1.0).predict([[1.0]], 3).round(6)
+        array([[0.5  , 0.25 , 0.125]])
+        """
+        n_steps = check_int("n_steps", n_steps, low=1)
+        u = self._check_prediction_inputs(inputs, n_steps)
+        z = self.window_to_state(initial)
+        states = np.empty((self.n_states, n_steps))
+        for k in range(n_steps):
+            z = self.A @ z if u is None else self.A @ z + self.B @ u[:, k]
+            states[:, k] = z
+        return self.field_map @ states
+
+    def _check_prediction_inputs(self, inputs: object, n_steps: int) -> np.ndarray | None:
+        if self.B is None:
+            if inputs is not None:
+                raise InputError(
+                    "The 'inputs' parameter must be None: this model was fitted without inputs."
+                )
+            return None
+        if inputs is None:
+            raise InputError(
+                f"The 'inputs' parameter is required: this model has {self.n_inputs} input(s)."
+            )
+        u = check_array("inputs", inputs, ndim=(1, 2))
+        u = u[None, :] if u.ndim == 1 else u
+        if u.shape != (self.n_inputs, n_steps):
+            raise InputError(
+                f"The 'inputs' parameter has the wrong shape: expected ({self.n_inputs}, "
+                f"{n_steps}) but found {u.shape}."
+            )
+        return u
+
+    # --- export -------------------------------------------------------------------------------
+
+    @property
+    def state_names(self) -> list[str]:
+        """Names of the states: ``x{node}_lag{l}`` for a window, ``pod{i}`` for POD coordinates."""
+        if self.basis is not None:
+            return [f"pod{i}" for i in range(self.n_states)]
+        return [f"x{j}_lag{lag}" for lag in range(self.delays) for j in range(self.n_nodes)]
+
+    def to_statespace(
+        self,
+        measured: Sequence[int] | np.ndarray | None = None,
+        *,
+        inputs: Sequence[str] | None = None,
+    ) -> ct.StateSpace:
+        """Discrete :class:`control.StateSpace` whose outputs are measured nodal displacements.
+
+        Parameters
+        ----------
+        measured : sequence of int, optional
+            Node indices (rows of the snapshot matrix) to output; ``None`` outputs every node, so
+            ``C`` is :attr:`field_map`.  Output ``i`` is named ``node{measured[i]}``.
+        inputs : sequence of str, optional
+            Names of the known inputs (default ``u0, u1, ...``).  A model without inputs gets a
+            ``B`` with zero columns; for process noise use ``G = I`` with ``Q =``
+            :attr:`residual_covariance` (e.g. ``control.dlqe(A, I, C, Q, R)``).
+
+        Returns
+        -------
+        control.StateSpace
+            ``(A, B, C = field_map[measured], D = 0, dt)`` with named states/inputs/outputs.
+
+        Raises
+        ------
+        InputError
+            Node indices out of range, repeated or not integers; wrong number of input names.
+
+        Examples
+        --------
+        >>> import numpy as np, powerline_control as plc
+        >>> rng = np.random.default_rng(0)
+        >>> X = rng.standard_normal((3, 50))
+        >>> sys = plc.fit_dmd(X, dt=0.01).to_statespace(measured=[0, 2])
+        >>> sys.noutputs, sys.nstates, sys.dt, sys.output_labels
+        (2, 3, 0.01, ['node0', 'node2'])
+        """
+        nodes = _check_nodes("measured", measured, self.n_nodes)
+        C = self.field_map[nodes]
+        B = np.zeros((self.n_states, 0)) if self.B is None else self.B
+        if inputs is None:
+            input_names = [f"u{i}" for i in range(self.n_inputs)]
+        else:
+            input_names = [str(name) for name in inputs]
+            if len(input_names) != self.n_inputs:
+                raise InputError(
+                    f"The 'inputs' parameter must name {self.n_inputs} input(s). "
+                    f"Got {len(input_names)} name(s) instead."
+                )
+        return ct.ss(
+            self.A,
+            B,
+            C,
+            np.zeros((len(nodes), self.n_inputs)),
+            self.dt,
+            states=self.state_names,
+            inputs=input_names,
+            outputs=[f"node{j}" for j in nodes],
+        )
+
+
+def _check_nodes(name: str, nodes: object, n_nodes: int) -> list[int]:
+    if nodes is None:
+        return list(range(n_nodes))
+    values = np.atleast_1d(np.asarray(nodes))
+    ok_type = values.dtype.kind in "iu" or (values.size == 0 and values.dtype.kind == "f")
+    if values.ndim != 1 or not ok_type:
+        raise InputError(
+            f"The {name!r} parameter must be a sequence of integer node indices. Got {nodes!r}."
+        )
+    if values.size and (values.min() < 0 or values.max() >= n_nodes):
+        raise InputError(
+            f"The {name!r} parameter must hold node indices in [0, {n_nodes - 1}]. Got {nodes!r}."
+        )
+    if len(set(values.tolist())) != values.size:
+        raise InputError(f"The {name!r} parameter must not repeat a node. Got {nodes!r}.")
+    return [int(v) for v in values]
+
+
+# ----------------------------------------------------------------------------------------------
+# Fitting
+# ----------------------------------------------------------------------------------------------
+
+
+def _hankel(X: np.ndarray, delays: int) -> np.ndarray:
+    """Columns ``[x_k; x_{k-1}; ...; x_{k-d+1}]`` for ``k = d-1 .. N-1``."""
+    n_samples = X.shape[1]
+    return np.vstack([X[:, delays - 1 - i : n_samples - i] for i in range(delays)])
+
+
+def _largest_singular_value(M: np.ndarray) -> float:
+    if M.size == 0:
+        return 0.0
+    if min(M.shape) <= 400:
+        return float(sla.svdvals(M)[0])
+    # Lanczos on the smaller Gram matrix: a few matrix-vector products instead of an SVD.
+    from scipy.sparse.linalg import eigsh
+
+    gram = M @ M.T if M.shape[0] <= M.shape[1] else M.T @ M
+    start = np.ones(gram.shape[0])
+    top = eigsh(gram, k=1, which="LA", v0=start, tol=0, return_eigenvectors=False)[0]
+    return math.sqrt(max(float(top), 0.0))
+
+
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """A prepared regression ``target ~ coef @ regressor`` in model coordinates."""
+
+    target: np.ndarray  # (n_out, n_pairs): next states (first block only when `structured`)
+    regressor: np.ndarray  # (n_states + n_inputs, n_pairs)
+    n_states: int
+    n_inputs: int
+    n_nodes: int
+    delays: int
+    basis: np.ndarray | None
+    s_max: float  # largest singular value of the state data, for relative alpha
+    structured: bool  # True: delays without rank; only the first block row is fitted
+
+
+def _prepare(
+    X: np.ndarray, delays: int, rank: int | None, inputs: np.ndarray | None
+) -> _Problem:
+    """Embed the snapshots (and project them on the POD basis) into a regression problem."""
+    n_nodes = X.shape[0]
+    Z = _hankel(X, delays)
+    Z0, Z1 = Z[:, :-1], Z[:, 1:]
+    U0 = None if inputs is None else inputs[:, delays - 1 : delays - 1 + Z0.shape[1]]
+    if rank is None:
+        target = Z1[:n_nodes] if delays > 1 else Z1
+        regressor = Z0 if U0 is None else np.vstack([Z0, U0])
+        problem = _Problem(
+            target, regressor, Z0.shape[0], 0 if U0 is None else U0.shape[0], n_nodes, delays,
+            None, float("nan"), delays > 1,
+        )
+        return problem
+    basis, s_max = _pod_basis(Z0, rank)
+    A0, A1 = basis.T @ Z0, basis.T @ Z1
+    regressor = A0 if U0 is None else np.vstack([A0, U0])
+    problem = _Problem(
+        A1, regressor, rank, 0 if U0 is None else U0.shape[0], n_nodes, delays, basis, s_max,
+        False,
+    )
+    return problem
+
+
+def _numerical_rank(s: np.ndarray, shape: tuple[int, int]) -> int:
+    if s.size == 0 or s[0] == 0:
+        return 0
+    tol = s[0] * max(shape) * np.finfo(float).eps
+    return int(np.count_nonzero(s > tol))
+
+
+def _pod_basis(Z0: np.ndarray, rank: int) -> tuple[np.ndarray, float]:
+    """Leading ``rank`` left singular vectors of ``Z0`` and its largest singular value."""
+    n_rows, n_cols = Z0.shape
+    if n_rows <= n_cols and n_rows > 4 * rank:
+        # Gram + partial symmetric eigensolver: cheaper than a full SVD when rank << n_rows.
+        gram = Z0 @ Z0.T
+        lam, vec = sla.eigh(gram, subset_by_index=[n_rows - rank, n_rows - 1])
+        lam, vec = lam[::-1], vec[:, ::-1]
+        if lam[0] > 0 and lam[-1] >= _GRAM_RANK_RATIO * lam[0]:
+            return _sign_fixed(vec), math.sqrt(lam[0])
+    U, s, _ = sla.svd(Z0, full_matrices=False, lapack_driver="gesdd")
+    data_rank = _numerical_rank(s, Z0.shape)
+    if rank > data_rank:
+        raise InputError(
+            f"The 'rank' parameter must not exceed the numerical rank of the data "
+            f"({data_rank}). Got {rank} instead; pass rank <= {data_rank} or rank=None."
+        )
+    return _sign_fixed(U[:, :rank]), float(s[0])
+
+
+def _sign_fixed(U: np.ndarray) -> np.ndarray:
+    """Make the largest entry of each basis vector positive, so results are reproducible."""
+    signs = np.sign(U[np.argmax(np.abs(U), axis=0), np.arange(U.shape[1])])
+    return U * np.where(signs == 0, 1.0, signs)
+
+
+def _ridge(
+    target: np.ndarray,
+    regressor: np.ndarray,
+    alpha: float,
+    svd: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, float | None]:
+    """``coef = target R^T (R R^T + alpha I)^{-1}`` (alpha = 0: minimum-norm least squares).
+
+    ``svd`` is a precomputed ``(target @ V, s, U)`` of the regressor ``R = U diag(s) V^T``
+    (for alpha curves).  Returns the coefficients and, for alpha = 0, the smallest kept
+    singular value as a fraction of the largest.
+    """
+    n_reg, n_pairs = regressor.shape
+    if svd is None and alpha > 0 and n_reg <= n_pairs:
+        gram = regressor @ regressor.T
+        if alpha >= _GRAM_ALPHA_FRACTION * np.trace(gram):
+            gram[np.diag_indices_from(gram)] += alpha
+            factor = sla.cho_factor(gram, lower=True, check_finite=False)
+            return sla.cho_solve(factor, regressor @ target.T, check_finite=False).T, None
+    target_V, s, U = _ridge_svd(target, regressor) if svd is None else svd
+    if alpha > 0:
+        keep = s > 0
+        gain = s[keep] / (s[keep] ** 2 + alpha)
+        ratio = None
+    else:
+        keep = np.zeros(s.shape, dtype=bool)
+        keep[: _numerical_rank(s, regressor.shape)] = True
+        gain = 1.0 / s[keep]
+        ratio = float(s[keep][-1] / s[0]) if keep.any() else None
+    coef = (target_V[:, keep] * gain) @ U[:, keep].T
+    return coef, ratio
+
+
+def _ridge_svd(
+    target: np.ndarray, regressor: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    U, s, Vt = sla.svd(regressor, full_matrices=False, lapack_driver="gesdd")
+    return target @ Vt.T, s, U
+
+
+def _assemble(problem: _Problem, coef: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Split the coefficients into A and B (adding the exact shift rows when structured)."""
+    n, m = problem.n_states, problem.n_inputs
+    top_A, top_B = coef[:, :n], coef[:, n:]
+    if not problem.structured:
+        return top_A, (top_B if m else None)
+    A = np.zeros((n, n))
+    A[: problem.n_nodes] = top_A
+    block = problem.n_nodes * (problem.delays - 1)
+    A[problem.n_nodes :, :block] = np.eye(block)
+    B = None
+    if m:
+        B = np.zeros((n, m))
+        B[: problem.n_nodes] = top_B
+    return A, B
+
+
+def _fit_problem(
+    problem: _Problem,
+    alpha: float,
+    dt: float,
+    *,
+    warn: bool = True,
+    svd: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> DMDModel:
+    coef, kept_ratio = _ridge(problem.target, problem.regressor, alpha, svd)
+    if (
+        warn
+        and alpha == 0
+        and kept_ratio is not None
+        and kept_ratio < _ILL_CONDITIONED_RATIO
+    ):
+        warnings.warn(
+            f"Plain DMD (alpha=0) inverts singular values down to {kept_ratio:.2g} of the largest: "
+            "the operator fits noise or round-off and is likely unstable. Use alpha > 0 "
+            "(e.g. alpha_mode='relative', alpha=1e-8..1e-4; see select_alpha) or rank=...",
+            IllConditionedWarning,
+            stacklevel=3,
+        )
+    A, B = _assemble(problem, coef)
+    residual = problem.target - coef @ problem.regressor
+    n_pairs = problem.regressor.shape[1]
+    Q = np.zeros((problem.n_states, problem.n_states))
+    k = residual.shape[0]
+    Q[:k, :k] = residual @ residual.T / n_pairs
+    n_states, n_nodes = problem.n_states, problem.n_nodes
+    if problem.basis is None:
+        field_map = np.eye(n_nodes, n_states)
+    else:
+        field_map = problem.basis[:n_nodes]
+    s_max = problem.s_max
+    return DMDModel(
+        A=_frozen(A),
+        B=None if B is None else _frozen(B),
+        dt=dt,
+        alpha=alpha,
+        alpha_relative=alpha / s_max**2 if s_max > 0 else 0.0,
+        delays=problem.delays,
+        rank=None if problem.basis is None else n_states,
+        n_nodes=n_nodes,
+        field_map=_frozen(field_map),
+        basis=None if problem.basis is None else _frozen(problem.basis),
+        residual_covariance=_frozen((Q + Q.T) / 2),
+        n_pairs=n_pairs,
+        initial_state=_frozen(problem.regressor[:n_states, 0].copy()),
+    )
+
+
+def _check_snapshots(X: object) -> np.ndarray:
+    X = check_array("X", X, ndim=2)
+    if X.shape[0] < 1 or X.shape[1] < 2:
+        raise InputError(
+            "The 'X' parameter must be a (n_nodes, n_samples) snapshot matrix with at least one "
+            f"row and two samples. Got shape {X.shape} instead."
+        )
+    return X
+
+
+def _check_inputs(inputs: object, n_samples: int) -> np.ndarray | None:
+    if inputs is None:
+        return None
+    u = check_array("inputs", inputs, ndim=(1, 2))
+    u = u[None, :] if u.ndim == 1 else u
+    if u.shape[1] not in (n_samples, n_samples - 1):
+        raise InputError(
+            f"The 'inputs' parameter must have one column per snapshot ({n_samples}) or per "
+            f"snapshot pair ({n_samples - 1}); u[:, k] drives x_k -> x_(k+1). Got shape "
+            f"{u.shape} instead."
+        )
+    return u
+
+
+def _check_common(
+    X: object, dt: object, delays: object, rank: object, inputs: object
+) -> tuple[np.ndarray, float, int, int | None, np.ndarray | None]:
+    X = _check_snapshots(X)
+    dt = check_real("dt", dt, low=0.0)
+    n_samples = X.shape[1]
+    delays = check_int("delays", delays, low=1, high=max(1, n_samples - 2))
+    if rank is not None:
+        rank = check_int("rank", rank, low=1, high=X.shape[0] * delays)
+    return X, dt, delays, rank, _check_inputs(inputs, n_samples)
+
+
+def _absolute_alpha(alpha: float, alpha_mode: str, problem: _Problem) -> tuple[float, _Problem]:
+    """Absolute alpha, computing the largest singular value of the state data when needed."""
+    if math.isnan(problem.s_max):
+        n = problem.n_states
+        s_max = _largest_singular_value(problem.regressor[:n])
+        problem = dataclasses.replace(problem, s_max=s_max)
+    if alpha_mode == "relative":
+        return alpha * problem.s_max**2, problem
+    return alpha, problem
+
+
+def fit_dmd(
+    X: np.ndarray,
+    dt: float,
+    alpha: float = 0.0,
+    delays: int = 1,
+    rank: int | None = None,
+    inputs: np.ndarray | None = None,
+    alpha_mode: str = "absolute",
+) -> DMDModel:
+    """Identify ``z_{k+1} = A z_k (+ B u_k)`` from snapshots by (Tikhonov-regularised) DMD.
+
+    With ``alpha = 0`` this is exact DMD, ``A = X' X^+`` (the paper's eq. 11, minimum-norm least
+    squares with the usual numerical-rank cut); with ``alpha > 0`` it is
+    ``A = X' X^T (X X^T + alpha I)^{-1}`` (eq. 14).  Both are computed through an SVD or a
+    Cholesky solve, never an explicit inverse.  Identically zero rows (pinned supports) are
+    handled: they give zero rows and columns of ``A``.
+
+    Parameters
+    ----------
+    X : array_like, shape (n_nodes, n_samples)
+        Snapshots, one column per sample (the paper's and python-control's layout).
+    dt : float
+        Sample time in seconds (> 0).
+    alpha : float, default 0.0
+        Tikhonov parameter (>= 0), interpreted according to ``alpha_mode``.
+    delays : int, default 1
+        Number of stacked snapshots ``d``; the state is ``[x_k; ...; x_{k-d+1}]``.  A line is
+        second order, so ``d >= 2`` is needed for an exact linear model of displacements.
+    rank : int, optional
+        Keep this many POD coordinates of the (delayed) data as the state; must not exceed the
+        numerical rank of the data.  ``None``: no truncation.
+    inputs : array_like, shape (n_inputs, n_samples) or (n_inputs, n_samples - 1), optional
+        Known inputs (DMD with control); ``inputs[:, k]`` drives ``x_k -> x_{k+1}``.  A 1-d
+        array is one input.
+    alpha_mode : {"absolute", "relative"}, default "absolute"
+        "absolute": ``alpha`` as in eq. 14 (not scale-invariant: data scaled by c needs
+        ``alpha c**2``).  "relative": ``alpha`` times the largest squared singular value of the
+        (delayed) state data, which transfers between spans and units.
+
+    Returns
+    -------
+    DMDModel
+        The identified model.
+
+    Raises
+    ------
+    InputError
+        Non-finite data, ``dt <= 0``, ``alpha < 0``, a bad ``delays``/``rank``, a rank above the
+        data rank, inputs of the wrong length, or (with ``alpha = 0`` and no rank) fewer snapshot
+        pairs than states.
+    IdentificationError
+        The data are all zero.
+
+    Warns
+    -----
+    IllConditionedWarning
+        ``alpha = 0`` and the fit inverts singular values below 1e-8 of the largest.
+
+    Examples
+    --------
+    Two damped oscillation modes sampled at 100 Hz; two delays make the model exact:
+
+    >>> import numpy as np, powerline_control as plc
+    >>> t = np.arange(400) * 0.01
+    >>> X = np.vstack([np.exp(-0.5 * t) * np.cos(2 * np.pi * 3 * t),
+    ...                np.exp(-0.2 * t) * np.sin(2 * np.pi * 7 * t)])
+    >>> dmd = plc.fit_dmd(X, dt=0.01, delays=2)
+    >>> np.round(np.sort(dmd.damped_frequencies)[::2], 6)
+    array([3., 7.])
+    >>> dmd.is_stable, dmd.A.shape
+    (True, (4, 4))
+    """
+    X, dt, delays, rank, u = _check_common(X, dt, delays, rank, inputs)
+    alpha = check_real("alpha", alpha, low=0.0, low_inclusive=True)
+    alpha_mode = check_choice("alpha_mode", alpha_mode, ("absolute", "relative"))
+    if not np.any(X):
+        raise IdentificationError(
+            "The 'X' parameter is all zeros: there are no dynamics to identify."
+        )
+    n_pairs = X.shape[1] - delays
+    n_states = X.shape[0] * delays
+    if alpha == 0 and rank is None and n_pairs < n_states + (0 if u is None else u.shape[0]):
+        raise InputError(
+            f"Plain DMD (alpha=0, rank=None) needs at least as many snapshot pairs as states "
+            f"(+ inputs): got {n_pairs} pairs for {n_states} states. Pass alpha > 0 "
+            "(e.g. alpha_mode='relative', alpha=1e-6), a rank, or more samples."
+        )
+    problem = _prepare(X, delays, rank, u)
+    alpha, problem = _absolute_alpha(alpha, alpha_mode, problem)
+    return _fit_problem(problem, alpha, dt)
+
+
+# ----------------------------------------------------------------------------------------------
+# Choosing alpha
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class AlphaCurve:
+    """The Tikhonov trade-off of :func:`select_alpha`: stability against held-out accuracy.
+
+    Attributes
+    ----------
+    alphas : ndarray, shape (n_alphas,)
+        The alphas tried, in ``alpha_mode`` units, ascending.
+    alpha_mode : str
+        "absolute" or "relative" (see :func:`fit_dmd`).
+    alphas_absolute, alphas_relative : ndarray, shape (n_alphas,)
+        The same alphas in both units (relative to the largest squared singular value of the
+        training state data).
+    spectral_radius : ndarray, shape (n_alphas,)
+        Spectral radius of the model fitted on the training part.
+    n_unstable : ndarray of int, shape (n_alphas,)
+        Eigenvalues outside the unit circle.
+    one_step_error : ndarray, shape (n_alphas,)
+        Held-out relative one-step error ``||x_{k+1} - x_hat_{k+1}||_F / ||x_{k+1}||_F``.
+    multi_step_error : ndarray, shape (n_alphas,)
+        Held-out relative free-run error over ``horizon`` steps from ``n_windows`` windows
+        (Frobenius norms pooled over windows); ``inf`` when the free run overflows.
+    persistence_error : float
+        One-step error of "next sample = this sample" on the same held-out data (a baseline).
+    margin : float
+        Stability margin: ``stable_alpha`` needs ``spectral_radius <= 1 - margin``.
+    horizon : int
+        Free-run length in samples.
+    stable_alpha : float or None
+        Smallest alpha with ``spectral_radius <= 1 - margin`` (``None`` if no alpha qualifies).
+    best_alpha : float
+        Alpha with the smallest held-out multi-step error.
+    best_stable_alpha : float or None
+        Alpha with the smallest multi-step error among those meeting the margin.
+    """
+
+    alphas: np.ndarray
+    alpha_mode: str
+    alphas_absolute: np.ndarray
+    alphas_relative: np.ndarray
+    spectral_radius: np.ndarray
+    n_unstable: np.ndarray
+    one_step_error: np.ndarray
+    multi_step_error: np.ndarray
+    persistence_error: float
+    margin: float
+    horizon: int
+    stable_alpha: float | None
+    best_alpha: float
+    best_stable_alpha: float | None
+
+
+def _held_out_errors(
+    model: DMDModel,
+    X: np.ndarray,
+    u: np.ndarray | None,
+    starts: np.ndarray,
+    horizon: int,
+) -> tuple[float, float]:
+    """One-step error over all held-out pairs and pooled free-run error from ``starts``."""
+    d = model.delays
+    Z = _hankel(X, d)
+    Z0, Z1 = Z[:, :-1], Z[:, 1:]
+    S0 = Z0 if model.basis is None else model.basis.T @ Z0
+    with np.errstate(over="ignore", invalid="ignore"):
+        next_states = model.A @ S0
+        if u is not None:
+            next_states += model.B @ u[:, d - 1 : d - 1 + Z0.shape[1]]
+        prediction = model.field_map @ next_states
+        truth = Z1[: model.n_nodes]
+        one_step = _relative_error(prediction, truth)
+        num = den = 0.0
+        for t0 in starts:
+            window = X[:, t0 - d + 1 : t0 + 1]
+            inputs = None if u is None else u[:, t0 : t0 + horizon]
+            predicted = model.predict(window, horizon, inputs)
+            true = X[:, t0 + 1 : t0 + 1 + horizon]
+            num += float(np.sum((predicted - true) ** 2))
+            den += float(np.sum(true**2))
+    multi = math.sqrt(num / den) if den > 0 and math.isfinite(num) else math.inf
+    return one_step, multi
+
+
+def _relative_error(prediction: np.ndarray, truth: np.ndarray) -> float:
+    den = float(np.linalg.norm(truth))
+    num = float(np.linalg.norm(prediction - truth))
+    if not math.isfinite(num) or den == 0:
+        return math.inf
+    return num / den
+
+
+def select_alpha(
+    X: np.ndarray,
+    dt: float,
+    alphas: Sequence[float] | np.ndarray | None = None,
+    *,
+    delays: int = 1,
+    rank: int | None = None,
+    inputs: np.ndarray | None = None,
+    alpha_mode: str = "relative",
+    margin: float = 0.0,
+    train_fraction: float = 0.7,
+    horizon: int = 100,
+    n_windows: int = 5,
+) -> AlphaCurve:
+    """Sweep the Tikhonov alpha and return the whole trade-off curve with two choices.
+
+    The first ``train_fraction`` of the samples trains a model per alpha (the SVD is computed
+    once); the rest is held out.  For each alpha the curve records the spectral radius, the
+    held-out one-step error and the held-out free-run error over ``horizon`` steps from
+    ``n_windows`` evenly spaced starting windows.  The choices:
+
+    * ``stable_alpha``: the smallest alpha with ``spectral_radius <= 1 - margin`` (paper
+      section 2.3: "a larger alpha pushes the eigenvalues to the origin");
+    * ``best_alpha``: the alpha with the smallest held-out multi-step error (paper: "if alpha is
+      too large A_reg may not capture the dynamics").
+
+    Parameters
+    ----------
+    X : array_like, shape (n_nodes, n_samples)
+        Snapshots.
+    dt : float
+        Sample time in seconds (> 0).
+    alphas : sequence of float, optional
+        Alphas to try (>= 0), in ``alpha_mode`` units.  Default: 25 values log-spaced from 1e-12
+        to 1 relative (converted when ``alpha_mode`` is "absolute").
+    delays, rank, inputs
+        As in :func:`fit_dmd` (inputs cover all samples, training and held-out).
+    alpha_mode : {"relative", "absolute"}, default "relative"
+        Units of ``alphas`` and of the returned choices.
+    margin : float, default 0.0
+        Required stability margin in [0, 1).
+    train_fraction : float, default 0.7
+        Fraction of samples used for training, in (0, 1).
+    horizon : int, default 100
+        Free-run length in samples (>= 1).
+    n_windows : int, default 5
+        Number of held-out free-run windows (>= 1).
+
+    Returns
+    -------
+    AlphaCurve
+        The curve and the choices.
+
+    Raises
+    ------
+    InputError
+        Bad arguments, or too few held-out samples for ``horizon`` (say how many are needed).
+
+    Examples
+    --------
+    >>> import numpy as np, powerline_control as plc
+    >>> t = np.arange(600) * 0.01
+    >>> X = np.vstack([np.sin(2 * np.pi * 2 * t), np.cos(2 * np.pi * 2 * t)])
+    >>> curve = plc.select_alpha(X, dt=0.01, alphas=[1e-9, 1e-3, 1e-1], horizon=50,
+    ...                          margin=1e-3)
+    >>> curve.best_alpha, curve.stable_alpha
+    (1e-09, 0.001)
+    """
+    X, dt, delays, rank, u = _check_common(X, dt, delays, rank, inputs)
+    alpha_mode = check_choice("alpha_mode", alpha_mode, ("absolute", "relative"))
+    margin = check_real("margin", margin, low=0.0, high=1.0, low_inclusive=True,
+                        high_inclusive=False)
+    train_fraction = check_real("train_fraction", train_fraction, low=0.0, high=1.0,
+                                high_inclusive=False)
+    horizon = check_int("horizon", horizon, low=1)
+    n_windows = check_int("n_windows", n_windows, low=1)
+    if u is not None and u.shape[1] == X.shape[1] - 1:
+        u = np.hstack([u, np.zeros((u.shape[0], 1))])  # the last column drives nothing
+    n_samples = X.shape[1]
+    n_train = int(round(train_fraction * n_samples))
+    n_held = n_samples - n_train
+    if n_train < delays + 2 or n_held < delays + horizon:
+        raise InputError(
+            f"select_alpha needs at least {delays + 2} training and {delays + horizon} held-out "
+            f"samples (delays + horizon); got {n_train} and {n_held} from {n_samples} samples "
+            f"with train_fraction={train_fraction}. Use more samples, a shorter horizon or "
+            "another train_fraction."
+        )
+    problem = _prepare(X[:, :n_train], delays, rank, None if u is None else u[:, :n_train])
+    _, problem = _absolute_alpha(0.0, "absolute", problem)
+    scale = problem.s_max**2
+    if alphas is None:
+        relative = np.logspace(-12, 0, 25)
+        given = relative if alpha_mode == "relative" else relative * scale
+    else:
+        given = check_array("alphas", alphas, ndim=1)
+        if given.size == 0 or np.any(given < 0):
+            raise InputError(
+                f"The 'alphas' parameter must be a non-empty list of values >= 0. Got {alphas!r}."
+            )
+        given = np.sort(given)
+    absolute = given * scale if alpha_mode == "relative" else given
+    relative = absolute / scale if scale > 0 else np.zeros_like(absolute)
+
+    held = X[:, n_train:]
+    u_held = None if u is None else u[:, n_train:]
+    last_start = held.shape[1] - 1 - horizon
+    starts = np.unique(np.linspace(delays - 1, last_start, n_windows).round().astype(int))
+    svd = _ridge_svd(problem.target, problem.regressor)
+    radius, unstable, one_step, multi = [], [], [], []
+    for alpha in absolute:
+        model = _fit_problem(problem, float(alpha), dt, warn=False, svd=svd)
+        radius.append(model.spectral_radius)
+        unstable.append(model.n_unstable)
+        errors = _held_out_errors(model, held, u_held, starts, horizon)
+        one_step.append(errors[0])
+        multi.append(errors[1])
+    radius_arr, multi_arr = np.array(radius), np.array(multi)
+    meets = radius_arr <= 1.0 - margin
+    stable_alpha = float(given[np.argmax(meets)]) if meets.any() else None
+    best_alpha = float(given[int(np.argmin(multi_arr))])
+    best_stable = None
+    if meets.any():
+        best_stable = float(given[meets][int(np.argmin(multi_arr[meets]))])
+    persistence = _relative_error(held[:, :-1], held[:, 1:])
+    return AlphaCurve(
+        alphas=_frozen(given),
+        alpha_mode=alpha_mode,
+        alphas_absolute=_frozen(absolute),
+        alphas_relative=_frozen(relative),
+        spectral_radius=_frozen(radius_arr),
+        n_unstable=_frozen(np.array(unstable, dtype=int)),
+        one_step_error=_frozen(np.array(one_step)),
+        multi_step_error=_frozen(multi_arr),
+        persistence_error=persistence,
+        margin=margin,
+        horizon=horizon,
+        stable_alpha=stable_alpha,
+        best_alpha=best_alpha,
+        best_stable_alpha=best_stable,
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# Online DMD
+# ----------------------------------------------------------------------------------------------
+
+
+class OnlineDMD:
+    """DMD updated one snapshot at a time: recursive least squares with exponential forgetting.
+
+    Started from a batch of snapshots (the same fit as :func:`fit_dmd` without rank truncation),
+    each :meth:`update` costs O(n^2) for n = ``n_nodes * delays + n_inputs`` (Zhang, Rowley,
+    Deem and Cattafesta, SIAM J. Appl. Dyn. Syst. 18(3), 2019).  It minimises
+    ``sum_i rho^(k-i) ||x_{i+1} - [A B] w_i||^2 + rho^k alpha ||[A B]||^2``, so with
+    ``forgetting = 1`` it equals batch DMD on all data seen; with ``rho < 1`` the memory is about
+    ``dt / (1 - rho)`` seconds, and the model follows a line whose tension or excitation changes.
+
+    Parameters
+    ----------
+    X : array_like, shape (n_nodes, n_samples)
+        Initial snapshots.  With ``alpha = 0`` they must have full rank (at least
+        ``n_nodes * delays + n_inputs`` pairs).
+    dt : float
+        Sample time in seconds (> 0).
+    delays : int, default 1
+        Number of stacked snapshots (as in :func:`fit_dmd`).
+    inputs : array_like, shape (n_inputs, n_samples) or (n_inputs, n_samples - 1), optional
+        Known inputs of the initial data.
+    forgetting : float, default 1.0
+        Per-sample forgetting factor ``rho`` in (0, 1].
+    alpha : float, default 0.0
+        Tikhonov parameter (absolute, or relative to the initial data with ``alpha_mode``).
+    alpha_mode : {"absolute", "relative"}, default "absolute"
+        As in :func:`fit_dmd`.
+
+    Attributes
+    ----------
+    n_updates : int
+        Samples added with :meth:`update` since the batch start.
+
+    Raises
+    ------
+    InputError
+        Bad arguments (as for :func:`fit_dmd`), or ``forgetting`` outside (0, 1].
+    IdentificationError
+        ``alpha = 0`` and the initial data do not have full rank.
+
+    Examples
+    --------
+    >>> import numpy as np, powerline_control as plc
+    >>> X = np.array([[0.9 ** k for k in range(30)]])
+    >>> online = plc.OnlineDMD(X[:, :10], dt=0.1)
+    >>> for k in range(10, 30):
+    ...     online.update(X[:, k])
+    >>> round(float(online.eigenvalues[0].real), 9)
+    0.9
+    """
+
+    def __init__(
+        self,
+        X: np.ndarray,
+        dt: float,
+        *,
+        delays: int = 1,
+        inputs: np.ndarray | None = None,
+        forgetting: float = 1.0,
+        alpha: float = 0.0,
+        alpha_mode: str = "absolute",
+    ) -> None:
+        X, dt, delays, _, u = _check_common(X, dt, delays, None, inputs)
+        alpha = check_real("alpha", alpha, low=0.0, low_inclusive=True)
+        alpha_mode = check_choice("alpha_mode", alpha_mode, ("absolute", "relative"))
+        self.forgetting = check_real("forgetting", forgetting, low=0.0, high=1.0)
+        problem = _prepare(X, delays, None, u)
+        alpha, problem = _absolute_alpha(alpha, alpha_mode, problem)
+        self.dt, self.delays, self.alpha = dt, delays, alpha
+        self._n_nodes, self._n_states, self._n_inputs = (
+            problem.n_nodes, problem.n_states, problem.n_inputs,
+        )
+        self._s_max = problem.s_max
+        gram = problem.regressor @ problem.regressor.T
+        gram[np.diag_indices_from(gram)] += alpha
+        lam, vec = sla.eigh(gram)
+        if lam[0] <= lam[-1] * gram.shape[0] * np.finfo(float).eps:
+            raise IdentificationError(
+                f"OnlineDMD needs initial data of full rank {gram.shape[0]} (states + inputs) "
+                f"when alpha = 0; got {problem.regressor.shape[1]} pairs of numerical rank below "
+                "that. Pass alpha > 0 or more (richer) initial snapshots."
+            )
+        # RLS needs the inverse information matrix itself; eigh keeps it symmetric and exact.
+        self._P = (vec / lam) @ vec.T
+        self._coef, _ = _ridge(problem.target, problem.regressor, alpha)
+        residual = problem.target - self._coef @ problem.regressor
+        self._residual_sum = residual @ residual.T
+        self._weight = float(problem.regressor.shape[1])
+        self._window = X[:, X.shape[1] - delays :].copy()
+        self._first_state = problem.regressor[: problem.n_states, 0].copy()
+        self.n_updates = 0
+
+    @property
+    def n_states(self) -> int:
+        """Size of the model state (``n_nodes * delays``)."""
+        return self._n_states
+
+    def update(self, x: np.ndarray, u: np.ndarray | float | None = None) -> None:
+        """Add one snapshot: the pair (last window, ``x``) updates the model.
+
+        Parameters
+        ----------
+        x : array_like, shape (n_nodes,)
+            The new snapshot ``x_{k+1}``.
+        u : array_like, shape (n_inputs,), optional
+            The input ``u_k`` that drove the previous snapshot to ``x``; required with inputs.
+
+        Raises
+        ------
+        InputError
+            Wrong shapes or non-finite values.
+        """
+        x = check_array("x", x, shape=(self._n_nodes,))
+        w = self._window[:, ::-1].T.reshape(-1)
+        if self._n_inputs:
+            if u is None:
+                raise InputError(
+                    f"The 'u' parameter is required: this model has {self._n_inputs} input(s)."
+                )
+            w = np.concatenate([w, check_array("u", np.atleast_1d(u), shape=(self._n_inputs,))])
+        elif u is not None:
+            raise InputError("The 'u' parameter must be None: this model has no inputs.")
+        Pw = self._P @ w
+        gain = 1.0 / (1.0 + w @ Pw)
+        error = x - self._coef @ w
+        self._coef += gain * np.outer(error, Pw)
+        rho = self.forgetting
+        P = (self._P - gain * np.outer(Pw, Pw)) / rho
+        self._P = (P + P.T) / 2
+        self._residual_sum = rho * self._residual_sum + np.outer(error, error)
+        self._weight = rho * self._weight + 1.0
+        self._window = np.column_stack([self._window[:, 1:], x])
+        self.n_updates += 1
+
+    def _problem_shell(self) -> _Problem:
+        n_reg = self._n_states + self._n_inputs
+        return _Problem(
+            np.zeros((self._coef.shape[0], 0)), np.zeros((n_reg, 0)), self._n_states,
+            self._n_inputs, self._n_nodes, self.delays, None, self._s_max, self.delays > 1,
+        )
+
+    @property
+    def A(self) -> np.ndarray:
+        """Current state-transition matrix (a copy)."""
+        return _assemble(self._problem_shell(), self._coef)[0]
+
+    @property
+    def B(self) -> np.ndarray | None:
+        """Current input matrix (a copy), ``None`` without inputs."""
+        return _assemble(self._problem_shell(), self._coef)[1]
+
+    @property
+    def eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of the current ``A``, by decreasing magnitude."""
+        values = sla.eigvals(self.A)
+        return values[np.lexsort((-values.imag, -np.abs(values)))]
+
+    def model(self) -> DMDModel:
+        """A frozen :class:`DMDModel` of the current state of the online fit.
+
+        Its ``residual_covariance`` is the forgetting-weighted mean of the a-priori one-step
+        residuals (prediction error before each update), in the first ``n_nodes`` block.
+
+        Returns
+        -------
+        DMDModel
+            The current model (``rank`` None, ``n_pairs`` = initial pairs + updates).
+        """
+        A, B = self.A, self.B
+        Q = np.zeros((self._n_states, self._n_states))
+        k = self._residual_sum.shape[0]
+        Q[:k, :k] = self._residual_sum / self._weight
+        s_max = self._s_max
+        return DMDModel(
+            A=_frozen(A),
+            B=None if B is None else _frozen(B),
+            dt=self.dt,
+            alpha=self.alpha,
+            alpha_relative=self.alpha / s_max**2 if s_max > 0 else 0.0,
+            delays=self.delays,
+            rank=None,
+            n_nodes=self._n_nodes,
+            field_map=_frozen(np.eye(self._n_nodes, self._n_states)),
+            basis=None,
+            residual_covariance=_frozen((Q + Q.T) / 2),
+            n_pairs=int(round(self._weight)) if self.forgetting == 1 else self.n_updates,
+            initial_state=_frozen(self._first_state),
+        )
