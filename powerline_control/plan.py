@@ -1,0 +1,1050 @@
+"""Motion planning of the mobile damping robot (MDR) along the span, with CasADi.
+
+The robot is a point mass on a line (a double integrator, or a triple integrator when a jerk
+limit is given) whose *centre* is at ``position``; its body occupies
+``[position - length/2, position + length/2]``.  It must stay inside the span and out of the
+obstacles (clamps, spacers, other dampers), which it can neither enter nor cross.  So the
+positions it can reach from where it is form one free interval, and planning is a box-bounded
+optimal control problem on that interval.
+
+Discretisation (exact, not Euler): the highest derivative is piecewise constant over ``n_intervals``
+equal intervals, so the lower derivatives are polynomials in time.  The limits are imposed on the
+Bernstein control points of those polynomials, and a polynomial lies in the convex hull of its
+Bernstein control points: the limits therefore hold *between* samples too, not only at them.
+
+* :func:`plan_motion` solves one plan: minimum time, or minimum energy (the integral of the squared
+  acceleration) in a given time.
+* :class:`MotionPlanner` re-plans on a receding horizon (MPC) toward a target that moves when the
+  wind changes, warm-started from its previous solution, within a per-step time budget, and brakes
+  to a safe stop (and says so) when a solve fails.
+
+The nonlinear programs are built once (CasADi ``Opti`` with IPOPT) and re-solved with new parameter
+values, which is what makes a solve take milliseconds rather than the ~100 ms of building one.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ._validation import check_array, check_choice, check_int, check_real
+from .errors import InputError, PlanningError
+
+__all__ = ["RobotLimits", "Trajectory", "plan_motion", "MotionPlanner", "MPCStep"]
+
+_IPOPT_QUIET = {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes"}
+# Positions closer than this (metres) are treated as equal when testing contact with obstacles.
+_GEOMETRY_TOL = 1e-9
+# Relative slack on limits when checking a *given* state (a measured velocity a hair above v_max
+# after round-off is not an error).
+_STATE_RTOL = 1e-6
+# Tolerance on a given state's position (m): IPOPT meets constraints to about 1e-8.
+_STATE_TOL = 1e-6
+# Stand-in for an infinite position bound (no span ends), m.
+_FAR = 1e7
+
+
+# ----------------------------------------------------------------------------------------------
+# Limits and results
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RobotLimits:
+    """Kinematic limits and size of the mobile damping robot.
+
+    Parameters
+    ----------
+    v_max : float
+        Largest speed along the line, m/s (> 0).
+    a_max : float
+        Largest acceleration magnitude, m/s^2 (> 0).
+    j_max : float or None
+        Largest jerk magnitude, m/s^3 (> 0), or None for no jerk limit (acceleration may jump).
+    length : float
+        Length of the robot's body along the line, m (>= 0).  The body is centred on the planned
+        position and must stay inside the span and out of the obstacles.
+
+    Raises
+    ------
+    InputError
+        If a limit is not a positive finite number or the length is negative.
+
+    Examples
+    --------
+    >>> limits = RobotLimits(v_max=0.5, a_max=1.0, length=0.3)
+    >>> limits.stopping_distance(0.5)
+    0.125
+    """
+
+    v_max: float
+    a_max: float
+    j_max: float | None = None
+    length: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "v_max", check_real("v_max", self.v_max, low=0.0))
+        object.__setattr__(self, "a_max", check_real("a_max", self.a_max, low=0.0))
+        if self.j_max is not None:
+            object.__setattr__(self, "j_max", check_real("j_max", self.j_max, low=0.0))
+        object.__setattr__(
+            self, "length", check_real("length", self.length, low=0.0, low_inclusive=True)
+        )
+
+    @property
+    def order(self) -> int:
+        """2 for a double integrator (acceleration is the input), 3 with a jerk limit."""
+        return 2 if self.j_max is None else 3
+
+    def stopping_distance(self, velocity: float) -> float:
+        """Distance needed to brake from ``velocity`` to rest at ``a_max`` (jerk limit ignored).
+
+        Parameters
+        ----------
+        velocity : float
+            Current velocity, m/s.
+
+        Returns
+        -------
+        float
+            ``velocity**2 / (2 a_max)``, metres.
+        """
+        velocity = check_real("velocity", velocity)
+        return velocity * velocity / (2.0 * self.a_max)
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A planned motion of the robot's centre.
+
+    The highest derivative is constant on each interval ``[t[k], t[k+1])``: the acceleration
+    for a double integrator, the jerk when a jerk limit is set.  :meth:`sample` evaluates the exact
+    polynomials between the samples.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n + 1,)
+        Sample times, s, from 0 to ``duration``.
+    position, velocity : ndarray, shape (n + 1,)
+        Robot centre position (m, from the left support) and velocity (m/s) at ``t``.
+    acceleration : ndarray, shape (n + 1,)
+        Acceleration, m/s^2.  Without a jerk limit, ``acceleration[k]`` holds on
+        ``[t[k], t[k+1])`` and the last entry is 0 (the robot ends the plan at its final velocity,
+        usually at rest).  With a jerk limit it is the continuous acceleration at ``t``.
+    jerk : ndarray, shape (n,), or None
+        Jerk on each interval, m/s^3, when the plan is jerk-limited; None otherwise.
+    duration : float
+        Total time, s.
+    energy : float
+        Integral of the squared acceleration over the plan, m^2/s^3 (the "energy" objective).
+    objective : str
+        ``"time"`` or ``"energy"`` (or ``"track"`` for a receding-horizon plan).
+    limits : RobotLimits
+        The limits the plan respects.
+    bounds : tuple of float
+        The free interval ``(low, high)`` of the robot's centre between the obstacles and span ends.
+    iterations : int
+        IPOPT iterations used (0 when no solve was needed).
+    solve_time : float
+        Wall-clock time of the solve, s.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray | None
+    duration: float
+    energy: float
+    objective: str
+    limits: RobotLimits
+    bounds: tuple[float, float]
+    iterations: int = 0
+    solve_time: float = 0.0
+
+    def sample(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Exact position, velocity and acceleration at any times in ``[0, duration]``.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times, s; values outside ``[0, duration]`` are clipped to it (the robot is at its
+            start state before and its end state after).
+
+        Returns
+        -------
+        position, velocity, acceleration : ndarray
+            Arrays of the shape of ``t``.
+
+        Examples
+        --------
+        >>> traj = plan_motion(0.0, 1.0, RobotLimits(v_max=1.0, a_max=1.0))
+        >>> float(np.round(traj.sample(traj.duration / 2)[0], 6))
+        0.5
+        """
+        times = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        if self.t.size == 1:
+            zeros = np.zeros_like(times)
+            return zeros + self.position[0], zeros + self.velocity[0], zeros
+        k = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, self.t.size - 2)
+        tau = times - self.t[k]
+        p, v, a = self.position[k], self.velocity[k], self.acceleration[k]
+        j = self.jerk[k] if self.jerk is not None else 0.0
+        position = p + v * tau + a * tau**2 / 2 + j * tau**3 / 6
+        velocity = v + a * tau + j * tau**2 / 2
+        acceleration = a + j * tau
+        return position, velocity, acceleration
+
+
+# ----------------------------------------------------------------------------------------------
+# Geometry: the free interval between obstacles
+# ----------------------------------------------------------------------------------------------
+
+
+def _check_obstacles(
+    obstacles: Sequence[tuple[float, float]], span_length: float | None
+) -> list[tuple[float, float]]:
+    checked = []
+    for i, item in enumerate(obstacles):
+        try:
+            left, right = item
+        except (TypeError, ValueError) as exc:
+            raise InputError(
+                f"The 'obstacles' parameter must be a sequence of (left, right) pairs in metres. "
+                f"Got {item!r} at index {i} instead."
+            ) from exc
+        left = check_real(f"obstacles[{i}][0]", left)
+        right = check_real(f"obstacles[{i}][1]", right)
+        if right < left:
+            raise InputError(
+                f"The 'obstacles' parameter must hold intervals with left <= right. "
+                f"Got ({left!r}, {right!r}) at index {i} instead."
+            )
+        if span_length is not None and (right < 0.0 or left > span_length):
+            raise InputError(
+                f"The 'obstacles' parameter must hold intervals that meet the span [0, "
+                f"{span_length:g}] m. Got ({left!r}, {right!r}) at index {i} instead."
+            )
+        checked.append((left, right))
+    return sorted(checked)
+
+
+def _free_interval(
+    start: float,
+    length: float,
+    span_length: float | None,
+    obstacles: list[tuple[float, float]],
+) -> tuple[float, float, str, str]:
+    """Free interval of the robot's centre containing ``start``, and what bounds each side.
+
+    The start must already be known to be free.  Returns ``(low, high, low_reason, high_reason)``.
+    """
+    half = length / 2
+    low, low_reason = (-math.inf, "none") if span_length is None else (half, "the left span end")
+    high, high_reason = (
+        (math.inf, "none") if span_length is None else (span_length - half, "the right span end")
+    )
+    for left, right in obstacles:
+        # The start is free, so the obstacle's centre tells on which side of the robot it lies.
+        if start >= (left + right) / 2:
+            if right + half > low:
+                low, low_reason = right + half, f"the obstacle ({left:g}, {right:g}) m"
+        elif left - half < high:
+            high, high_reason = left - half, f"the obstacle ({left:g}, {right:g}) m"
+    return low, high, low_reason, high_reason
+
+
+def _check_position(name: str, value: object, span_length: float | None) -> float:
+    if span_length is None:
+        return check_real(name, value)
+    return check_real(name, value, low=0.0, high=span_length, low_inclusive=True)
+
+
+def _check_start_free(
+    start: float,
+    length: float,
+    span_length: float | None,
+    obstacles: list[tuple[float, float]],
+    tol: float = _GEOMETRY_TOL,
+) -> None:
+    half = length / 2
+    if span_length is not None and (start < half - tol or start > span_length - half + tol):
+        raise InputError(
+            f"The 'start' parameter must leave the robot (length {length:g} m) inside the span "
+            f"[0, {span_length:g}] m, i.e. lie in [{half:g}, {span_length - half:g}]. "
+            f"Got {start!r} instead."
+        )
+    for left, right in obstacles:
+        if left - half + tol < start < right + half - tol:
+            raise InputError(
+                f"The 'start' parameter puts the robot (length {length:g} m) inside the obstacle "
+                f"({left:g}, {right:g}) m: its centre must be <= {left - half:g} or "
+                f">= {right + half:g}. Got {start!r} instead."
+            )
+
+
+def _check_target_reachable(
+    target: float,
+    start: float,
+    length: float,
+    obstacles: list[tuple[float, float]],
+    interval: tuple[float, float, str, str],
+) -> None:
+    half = length / 2
+    for left, right in obstacles:
+        if left - half + _GEOMETRY_TOL < target < right + half - _GEOMETRY_TOL:
+            raise PlanningError(
+                f"The target {target:g} m puts the robot (length {length:g} m) inside the "
+                f"obstacle ({left:g}, {right:g}) m; the nearest positions it can take are "
+                f"{left - half:g} m and {right + half:g} m."
+            )
+    low, high, low_reason, high_reason = interval
+    if target < low - _GEOMETRY_TOL:
+        raise PlanningError(
+            f"The target {target:g} m cannot be reached from {start:g} m: {low_reason} limits "
+            f"the robot's centre (length {length:g} m) to >= {low:g} m, and the robot cannot "
+            "cross obstacles."
+        )
+    if target > high + _GEOMETRY_TOL:
+        raise PlanningError(
+            f"The target {target:g} m cannot be reached from {start:g} m: {high_reason} limits "
+            f"the robot's centre (length {length:g} m) to <= {high:g} m, and the robot cannot "
+            "cross obstacles."
+        )
+
+
+def _rest_to_rest_time(distance: float, v_max: float, a_max: float) -> float:
+    """Minimum time of a double integrator from rest to rest (bang-coast-bang or bang-bang)."""
+    if distance >= v_max * v_max / a_max:
+        return distance / v_max + v_max / a_max
+    return 2.0 * math.sqrt(distance / a_max)
+
+
+# ----------------------------------------------------------------------------------------------
+# The nonlinear programs (built once per shape, solved many times)
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Program:
+    """A CasADi Opti problem with its variables and parameters, reused across solves."""
+
+    opti: ca.Opti
+    order: int
+    n: int
+    states: ca.MX
+    inputs: ca.MX
+    duration: ca.MX
+    params: dict[str, ca.MX]
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+
+def _add_dynamics_and_limits(
+    opti: ca.Opti, states: ca.MX, inputs: ca.MX, h: ca.MX, params: dict[str, ca.MX], order: int
+) -> None:
+    """Exact integration of a piecewise-constant highest derivative, limits on Bernstein points."""
+    p, v = states[0, :], states[1, :]
+    lo, hi, vmax, amax = params["low"], params["high"], params["v_max"], params["a_max"]
+    p0, v0 = p[:-1], v[:-1]
+    if order == 2:
+        a0 = inputs
+        opti.subject_to(p[1:] == p0 + v0 * h + a0 * h**2 / 2)
+        opti.subject_to(v[1:] == v0 + a0 * h)
+        opti.subject_to(opti.bounded(-amax, a0, amax))
+        opti.subject_to(opti.bounded(-vmax, v, vmax))  # v is linear on each interval
+        # p is quadratic on each interval; its inner Bernstein point is p + v h / 2.
+        opti.subject_to(opti.bounded(lo, p, hi))
+        opti.subject_to(opti.bounded(lo, p0 + v0 * h / 2, hi))
+    else:
+        a = states[2, :]
+        a0, j = a[:-1], inputs
+        opti.subject_to(p[1:] == p0 + v0 * h + a0 * h**2 / 2 + j * h**3 / 6)
+        opti.subject_to(v[1:] == v0 + a0 * h + j * h**2 / 2)
+        opti.subject_to(a[1:] == a0 + j * h)
+        opti.subject_to(opti.bounded(-params["j_max"], j, params["j_max"]))
+        opti.subject_to(opti.bounded(-amax, a, amax))  # a is linear on each interval
+        # v is quadratic: inner Bernstein point v + a h / 2.
+        opti.subject_to(opti.bounded(-vmax, v, vmax))
+        opti.subject_to(opti.bounded(-vmax, v0 + a0 * h / 2, vmax))
+        # p is cubic: inner Bernstein points p + v h/3 and p + 2 v h/3 + a h^2/6.
+        opti.subject_to(opti.bounded(lo, p, hi))
+        opti.subject_to(opti.bounded(lo, p0 + v0 * h / 3, hi))
+        opti.subject_to(opti.bounded(lo, p0 + 2 * v0 * h / 3 + a0 * h**2 / 6, hi))
+
+
+def _acceleration_energy(states: ca.MX, inputs: ca.MX, h: ca.MX, order: int) -> ca.MX:
+    """Exact integral of a^2 for piecewise-constant a (order 2) or piecewise-linear a (order 3)."""
+    if order == 2:
+        return ca.sumsqr(inputs) * h
+    a = states[2, :]
+    a0, a1 = a[:-1], a[1:]
+    return h / 3 * ca.sum2(a0 * a0 + a0 * a1 + a1 * a1)
+
+
+def _new_program(n: int, order: int) -> tuple[ca.Opti, ca.MX, ca.MX, dict[str, ca.MX]]:
+    opti = ca.Opti()
+    states = opti.variable(order, n + 1)
+    inputs = opti.variable(1, n)
+    names = ["low", "high", "v_max", "a_max"] + (["j_max"] if order == 3 else [])
+    params = {name: opti.parameter() for name in names}
+    params["start"] = opti.parameter(order)
+    return opti, states, inputs, params
+
+
+@functools.lru_cache(maxsize=16)
+def _plan_program(n: int, order: int, objective: str) -> _Program:
+    """Rest-to-rest (or to a given end velocity) plan: free duration ("time") or fixed ("energy")."""
+    opti, states, inputs, params = _new_program(n, order)
+    params["target"] = opti.parameter()
+    params["end_velocity"] = opti.parameter()
+    params["duration"] = opti.parameter()  # upper bound ("time") or exact value ("energy")
+    duration = opti.variable()
+    h = duration / n
+    _add_dynamics_and_limits(opti, states, inputs, h, params, order)
+    opti.subject_to(states[:, 0] == params["start"])
+    opti.subject_to(states[0, -1] == params["target"])
+    opti.subject_to(states[1, -1] == params["end_velocity"])
+    if order == 3:
+        opti.subject_to(states[2, -1] == 0)
+    if objective == "time":
+        opti.subject_to(opti.bounded(1e-6, duration, params["duration"]))
+        opti.minimize(duration)
+    else:
+        opti.subject_to(duration == params["duration"])
+        opti.minimize(_acceleration_energy(states, inputs, h, order))
+    opti.solver("ipopt", dict(_IPOPT_QUIET))
+    return _Program(opti, order, n, states, inputs, duration, params)
+
+
+def _track_program(n: int, order: int, time_budget: float, warm: bool) -> _Program:
+    """Receding-horizon tracking: fixed step, approach the target, end the horizon at rest."""
+    opti, states, inputs, params = _new_program(n, order)
+    params["target"] = opti.parameter()
+    params["dt"] = opti.parameter()
+    params["scale"] = opti.parameter()
+    params["rho"] = opti.parameter()
+    h = params["dt"]
+    _add_dynamics_and_limits(opti, states, inputs, h, params, order)
+    opti.subject_to(states[:, 0] == params["start"])
+    # Ending the horizon at rest is what makes braking always possible (recursive feasibility).
+    opti.subject_to(states[1, -1] == 0)
+    if order == 3:
+        opti.subject_to(states[2, -1] == 0)
+    error = (states[0, 1:] - params["target"]) / params["scale"]
+    effort = _acceleration_energy(states, inputs, h, order) / (params["a_max"] ** 2 * n * h)
+    opti.minimize(ca.sumsqr(error) / n + params["rho"] * effort)
+    options = dict(_IPOPT_QUIET)
+    options["ipopt.max_wall_time"] = time_budget
+    if warm:
+        # Start from the shifted previous solution and its multipliers, close to the boundary.
+        options.update(
+            {
+                "ipopt.warm_start_init_point": "yes",
+                "ipopt.warm_start_bound_push": 1e-6,
+                "ipopt.warm_start_mult_bound_push": 1e-6,
+                "ipopt.mu_init": 1e-4,
+            }
+        )
+    opti.solver("ipopt", options)
+    duration = ca.MX(n) * h
+    return _Program(opti, order, n, states, inputs, duration, params)
+
+
+def _set_limits(program: _Program, limits: RobotLimits, low: float, high: float) -> None:
+    opti, params = program.opti, program.params
+    # CasADi parameters must be finite: "no span" becomes a bound far beyond any real line.
+    opti.set_value(params["low"], max(low, -_FAR))
+    opti.set_value(params["high"], min(high, _FAR))
+    opti.set_value(params["v_max"], limits.v_max)
+    opti.set_value(params["a_max"], limits.a_max)
+    if program.order == 3:
+        opti.set_value(params["j_max"], limits.j_max)
+
+
+def _solve(program: _Program) -> tuple[ca.OptiSol | None, dict, float]:
+    started = time.perf_counter()
+    try:
+        solution = program.opti.solve_limited()
+    except RuntimeError:  # CasADi raises on evaluation errors (NaN in a function, ...)
+        solution = None
+    elapsed = time.perf_counter() - started
+    stats = program.opti.stats()
+    if solution is not None and not stats.get("success", False):
+        solution = None
+    return solution, stats, elapsed
+
+
+def _trajectory_from(
+    program: _Program,
+    solution: ca.OptiSol,
+    stats: dict,
+    elapsed: float,
+    objective: str,
+    limits: RobotLimits,
+    bounds: tuple[float, float],
+) -> Trajectory:
+    states = np.atleast_2d(solution.value(program.states))
+    inputs = np.atleast_1d(solution.value(program.inputs)).ravel()
+    duration = float(solution.value(program.duration))
+    n = program.n
+    h = duration / n
+    if program.order == 2:
+        acceleration = np.append(inputs, 0.0)
+        jerk = None
+        energy = float(np.sum(inputs**2) * h)
+    else:
+        acceleration = states[2].copy()
+        jerk = inputs
+        a0, a1 = acceleration[:-1], acceleration[1:]
+        energy = float(h / 3 * np.sum(a0 * a0 + a0 * a1 + a1 * a1))
+    return Trajectory(
+        t=np.linspace(0.0, duration, n + 1),
+        position=states[0].copy(),
+        velocity=states[1].copy(),
+        acceleration=acceleration,
+        jerk=jerk,
+        duration=duration,
+        energy=energy,
+        objective=objective,
+        limits=limits,
+        bounds=bounds,
+        iterations=int(stats.get("iter_count", 0)),
+        solve_time=elapsed,
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# One plan
+# ----------------------------------------------------------------------------------------------
+
+
+def plan_motion(
+    start: float,
+    target: float,
+    limits: RobotLimits,
+    *,
+    objective: str = "time",
+    duration: float | None = None,
+    span_length: float | None = None,
+    obstacles: Sequence[tuple[float, float]] = (),
+    start_velocity: float = 0.0,
+    end_velocity: float = 0.0,
+    n_intervals: int = 100,
+) -> Trajectory:
+    """Plan the robot's motion from ``start`` to ``target`` within its limits.
+
+    Parameters
+    ----------
+    start, target : float
+        Positions of the robot's centre, m from the left support.
+    limits : RobotLimits
+        Speed, acceleration, optional jerk limit and robot length.
+    objective : {"time", "energy"}
+        ``"time"``: the fastest motion (no longer than ``duration`` if given).  ``"energy"``: the
+        least integral of squared acceleration for a motion lasting exactly ``duration``.
+    duration : float or None
+        Time bound, s: required for ``"energy"``, optional upper bound for ``"time"``.
+    span_length : float or None
+        Span length, m; its ends are hard limits for the robot's body.  None: no span ends.
+    obstacles : sequence of (left, right)
+        Intervals, m, that no part of the robot may enter or cross (clamps, spacers, dampers).
+    start_velocity, end_velocity : float
+        Velocities at the start and the end, m/s (default: from rest to rest).  The acceleration
+        starts and ends at zero when a jerk limit is set.
+    n_intervals : int
+        Number of time intervals of the discretisation (>= 2).
+
+    Returns
+    -------
+    Trajectory
+        Samples and the exact piecewise-polynomial motion; the limits hold between samples.
+
+    Raises
+    ------
+    InputError
+        If an argument has no meaning: non-finite numbers, a start or target outside the span, a
+        start that puts the robot in an obstacle, ``duration`` missing for ``"energy"``, ...
+    PlanningError
+        If no motion satisfies the limits; the message names the limit: an obstacle or span end
+        between start and target, a target inside an obstacle, a ``duration`` shorter than
+        ``v_max`` and ``a_max`` allow, a start speed above ``v_max`` or one ``a_max`` cannot brake
+        before an obstacle; or if IPOPT fails (with its status).
+
+    Examples
+    --------
+    >>> limits = RobotLimits(v_max=0.5, a_max=1.0)
+    >>> traj = plan_motion(0.2, 1.8, limits, span_length=3.66)
+    >>> round(traj.duration, 2)  # 1.6 m / 0.5 m/s + 0.5 m/s / 1 m/s^2
+    3.7
+    >>> plan_motion(0.2, 1.8, limits, span_length=3.66, obstacles=[(1.0, 1.1)])
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.PlanningError: The target 1.8 m cannot be reached from 0.2 m: ...
+    """
+    if not isinstance(limits, RobotLimits):
+        raise InputError(
+            f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__} instead."
+        )
+    objective = check_choice("objective", objective, ("time", "energy"))
+    n = check_int("n_intervals", n_intervals, low=2)
+    if span_length is not None:
+        span_length = check_real("span_length", span_length, low=0.0)
+        if limits.length > span_length:
+            raise InputError(
+                f"The robot length {limits.length:g} m (limits.length) must not exceed the "
+                f"span_length {span_length:g} m."
+            )
+    start = _check_position("start", start, span_length)
+    target = _check_position("target", target, span_length)
+    start_velocity = check_real("start_velocity", start_velocity)
+    end_velocity = check_real("end_velocity", end_velocity)
+    if duration is None and objective == "energy":
+        raise InputError(
+            "The 'duration' parameter is required for objective='energy' (the least energy "
+            "motion takes as long as it is allowed to). Got None."
+        )
+    if duration is not None:
+        duration = check_real("duration", duration, low=0.0)
+    obstacles = _check_obstacles(obstacles, span_length)
+    _check_start_free(start, limits.length, span_length, obstacles)
+    interval = _free_interval(start, limits.length, span_length, obstacles)
+    _check_target_reachable(target, start, limits.length, obstacles, interval)
+    low, high = interval[0], interval[1]
+    _check_velocity_state(start_velocity, end_velocity, limits)
+    _check_braking(start, start_velocity, limits, interval)
+
+    distance = abs(target - start)
+    at_rest = start_velocity == 0.0 and end_velocity == 0.0
+    lower_bound = _rest_to_rest_time(distance, limits.v_max, limits.a_max) if at_rest else 0.0
+    if duration is not None and duration < lower_bound * (1 - 1e-9):
+        active = "a_max" if distance < limits.v_max**2 / limits.a_max else "v_max and a_max"
+        raise PlanningError(
+            f"The duration {duration:g} s is too short: moving {distance:g} m from rest to rest "
+            f"takes at least {lower_bound:.6g} s with {active} (v_max={limits.v_max:g} m/s, "
+            f"a_max={limits.a_max:g} m/s^2). Allow more time or raise the limits."
+        )
+    if objective == "time" and at_rest and distance <= _GEOMETRY_TOL:
+        return _stationary(start, limits, (low, high))
+
+    program = _plan_program(n, limits.order, objective)
+    speed_time = distance / limits.v_max + limits.v_max / limits.a_max
+    if limits.j_max is not None:
+        speed_time += limits.a_max / limits.j_max
+    guess_time = duration if objective == "energy" else speed_time + abs(start_velocity) / limits.a_max
+    bound = duration if duration is not None else 1e3 * (guess_time + 1.0)
+    start_state = [start, start_velocity] + ([0.0] if limits.order == 3 else [])
+    with program.lock:
+        opti, params = program.opti, program.params
+        _set_limits(program, limits, low, high)
+        opti.set_value(params["start"], start_state)
+        opti.set_value(params["target"], target)
+        opti.set_value(params["end_velocity"], end_velocity)
+        opti.set_value(params["duration"], bound)
+        _set_cold_guess(program, start, target, start_velocity, guess_time)
+        solution, stats, elapsed = _solve(program)
+        if solution is None:
+            raise PlanningError(
+                f"IPOPT found no {objective}-optimal motion from {start:g} m to {target:g} m "
+                f"(status {stats.get('return_status', 'unknown')!r}) with v_max="
+                f"{limits.v_max:g} m/s, a_max={limits.a_max:g} m/s^2, j_max={limits.j_max}, "
+                f"duration={duration}, free interval [{low:g}, {high:g}] m. A too-short "
+                "duration or a start velocity that cannot be braked in time are the usual causes."
+            )
+        return _trajectory_from(program, solution, stats, elapsed, objective, limits, (low, high))
+
+
+def _check_velocity_state(start_velocity: float, end_velocity: float, limits: RobotLimits) -> None:
+    for name, value in (("start_velocity", start_velocity), ("end_velocity", end_velocity)):
+        if abs(value) > limits.v_max * (1 + _STATE_RTOL):
+            raise PlanningError(
+                f"The {name} {value:g} m/s exceeds the speed limit v_max={limits.v_max:g} m/s."
+            )
+
+
+def _check_braking(
+    start: float, velocity: float, limits: RobotLimits, interval: tuple[float, float, str, str]
+) -> None:
+    low, high, low_reason, high_reason = interval
+    stop = start + math.copysign(limits.stopping_distance(velocity), velocity)
+    if stop > high + _GEOMETRY_TOL or stop < low - _GEOMETRY_TOL:
+        reason, edge = (high_reason, high) if velocity > 0 else (low_reason, low)
+        raise PlanningError(
+            f"Moving at {velocity:g} m/s from {start:g} m, the robot needs "
+            f"{limits.stopping_distance(velocity):g} m to stop at a_max={limits.a_max:g} m/s^2 "
+            f"but {reason} is at {edge:g} m (for its centre)."
+        )
+
+
+def _set_cold_guess(
+    program: _Program, start: float, target: float, start_velocity: float, guess_time: float
+) -> None:
+    n, opti = program.n, program.opti
+    guess = np.zeros((program.order, n + 1))
+    guess[0] = np.linspace(start, target, n + 1)
+    guess[1] = (target - start) / guess_time
+    guess[1, 0] = start_velocity
+    opti.set_initial(program.states, guess)
+    opti.set_initial(program.inputs, np.zeros((1, n)))
+    opti.set_initial(program.duration, guess_time)
+
+
+def _stationary(position: float, limits: RobotLimits, bounds: tuple[float, float]) -> Trajectory:
+    one = np.array([0.0])
+    return Trajectory(
+        t=one.copy(),
+        position=np.array([position]),
+        velocity=one.copy(),
+        acceleration=one.copy(),
+        jerk=None if limits.order == 2 else np.zeros(0),
+        duration=0.0,
+        energy=0.0,
+        objective="time",
+        limits=limits,
+        bounds=bounds,
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# Receding horizon
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MPCStep:
+    """The outcome of one receding-horizon step.
+
+    Attributes
+    ----------
+    acceleration : float
+        Acceleration to apply at the start of the next control period, m/s^2 (constant over the
+        period without a jerk limit).
+    jerk : float or None
+        Jerk to apply over the next period, m/s^3, with a jerk limit; None otherwise.
+    next_state : tuple of float
+        Predicted (position, velocity[, acceleration]) after one control period under the command,
+        integrated exactly.
+    status : str
+        ``"optimal"`` (a solve succeeded), ``"at_target"`` (at rest at the target: hold, no solve)
+        or ``"safe_stop"`` (the solve failed or ran out of time: braking to rest instead).
+    fallback : bool
+        True when the command is the safe-stop fallback rather than an optimal plan.
+    target : float
+        The target actually tracked: the requested one, moved to the nearest reachable position
+        when it lies in an obstacle or beyond one.
+    target_clamped : bool
+        True when ``target`` differs from the requested target.
+    plan : Trajectory or None
+        The horizon plan when a solve succeeded.
+    solve_time : float
+        Wall-clock time of the step, s.
+    within_budget : bool
+        Whether ``solve_time`` stayed within the planner's ``time_budget``.
+    iterations : int
+        IPOPT iterations (0 without a solve).
+    message : str
+        Human-readable account of the step (the solver status on a fallback).
+    """
+
+    acceleration: float
+    jerk: float | None
+    next_state: tuple[float, ...]
+    status: str
+    fallback: bool
+    target: float
+    target_clamped: bool
+    plan: Trajectory | None
+    solve_time: float
+    within_budget: bool
+    iterations: int
+    message: str
+
+
+class MotionPlanner:
+    """Receding-horizon (MPC) motion planner that follows a moving antinode.
+
+    Each :meth:`step` solves, from the robot's current state, a plan over ``horizon`` control
+    periods that approaches the target as fast as the limits allow (least squared distance to the
+    target, lightly penalised acceleration) and ends the horizon at rest inside the free interval;
+    the first period of that plan is the command.  Because every plan can stop, braking is always
+    possible: when a solve fails or exceeds the time budget, the step brakes to rest at ``a_max``
+    (the *safe stop*) and reports ``status="safe_stop"``.  Solves after the first are warm-started
+    from the previous plan shifted by one period, with its multipliers.
+
+    Parameters
+    ----------
+    limits : RobotLimits
+        Robot limits and length.
+    dt : float
+        Control period, s (> 0); also the step of the horizon plans.
+    horizon : int
+        Number of control periods in a plan (>= 2).  ``horizon * dt`` must exceed the braking time
+        ``v_max / a_max`` (plus ``a_max / j_max`` with a jerk limit).
+    span_length : float or None
+        Span length, m (hard limits for the robot's body), or None.
+    obstacles : sequence of (left, right)
+        Intervals, m, the robot may neither enter nor cross.
+    time_budget : float
+        Wall-clock time allowed per step, s (IPOPT is stopped after it).
+    effort_weight : float
+        Weight of the (normalised) squared acceleration against the (normalised) squared
+        distance to the target (>= 0); small values give nearly time-optimal motion.
+    tolerance : float
+        Position (m) and speed (m/s) within which the robot counts as at rest at the target.
+
+    Raises
+    ------
+    InputError
+        If an argument has no meaning or the horizon is too short to brake from ``v_max``.
+
+    Examples
+    --------
+    >>> planner = MotionPlanner(RobotLimits(v_max=0.5, a_max=1.0), dt=0.05, span_length=3.66)
+    >>> step = planner.step((0.5, 0.0), target=2.0)
+    >>> step.status, round(step.acceleration, 3)
+    ('optimal', 1.0)
+    """
+
+    def __init__(
+        self,
+        limits: RobotLimits,
+        *,
+        dt: float = 0.05,
+        horizon: int = 40,
+        span_length: float | None = None,
+        obstacles: Sequence[tuple[float, float]] = (),
+        time_budget: float = 0.03,
+        effort_weight: float = 1e-3,
+        tolerance: float = 1e-3,
+    ) -> None:
+        if not isinstance(limits, RobotLimits):
+            raise InputError(
+                f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__} "
+                "instead."
+            )
+        self.limits = limits
+        self.dt = check_real("dt", dt, low=0.0)
+        self.horizon = check_int("horizon", horizon, low=2)
+        braking_time = limits.v_max / limits.a_max
+        if limits.j_max is not None:
+            braking_time += limits.a_max / limits.j_max
+        if self.horizon * self.dt <= braking_time:
+            raise InputError(
+                f"The 'horizon' parameter must make horizon * dt exceed the braking time "
+                f"{braking_time:g} s (v_max / a_max{' + a_max / j_max' if limits.j_max else ''}) "
+                f"so that every plan can stop. Got horizon={self.horizon}, dt={self.dt:g} s."
+            )
+        if span_length is not None:
+            span_length = check_real("span_length", span_length, low=0.0)
+            if limits.length > span_length:
+                raise InputError(
+                    f"The robot length {limits.length:g} m (limits.length) must not exceed the "
+                    f"span_length {span_length:g} m."
+                )
+        self.span_length = span_length
+        self.obstacles = tuple(_check_obstacles(obstacles, span_length))
+        self.time_budget = check_real("time_budget", time_budget, low=0.0)
+        self.effort_weight = check_real(
+            "effort_weight", effort_weight, low=0.0, low_inclusive=True
+        )
+        self.tolerance = check_real("tolerance", tolerance, low=0.0)
+        self._cold = _track_program(self.horizon, limits.order, self.time_budget, warm=False)
+        self._warm = _track_program(self.horizon, limits.order, self.time_budget, warm=True)
+        self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.n_fallbacks = 0
+        self.n_steps = 0
+
+    def reset(self) -> None:
+        """Forget the previous solution: the next step is solved cold."""
+        self._previous = None
+
+    def step(self, state: Sequence[float], target: float) -> MPCStep:
+        """Re-plan from ``state`` toward ``target`` and return the command for the next period.
+
+        Parameters
+        ----------
+        state : sequence of float
+            ``(position, velocity)`` of the robot's centre, plus ``acceleration`` with a jerk
+            limit; m, m/s, m/s^2.
+        target : float
+            Where the robot should go (e.g. the nearest antinode), m.
+
+        Returns
+        -------
+        MPCStep
+            Command, predicted next state, status (``"optimal"``, ``"at_target"`` or
+            ``"safe_stop"``) and timing.
+
+        Raises
+        ------
+        InputError
+            If the state has the wrong length, is not finite, or puts the robot outside the span
+            or in an obstacle, or the target lies outside the span.
+        """
+        started = time.perf_counter()
+        order = self.limits.order
+        state_array = check_array("state", state, shape=(order,))
+        position, velocity = float(state_array[0]), float(state_array[1])
+        acceleration = float(state_array[2]) if order == 3 else 0.0
+        position = _check_position("state[0]", position, self.span_length)
+        target = _check_position("target", target, self.span_length)
+        obstacles = list(self.obstacles)
+        # A measured (or previously planned) state may sit a hair outside the free interval or
+        # above v_max after IPOPT's 1e-8 constraint tolerance: accept it within _STATE_TOL and
+        # hand the solver the nearest admissible state.
+        _check_start_free(position, self.limits.length, self.span_length, obstacles, _STATE_TOL)
+        low, high, _, _ = _free_interval(position, self.limits.length, self.span_length, obstacles)
+        state_array = state_array.copy()
+        state_array[0] = min(max(position, low), high)
+        if abs(velocity) <= self.limits.v_max * (1 + _STATE_RTOL):
+            state_array[1] = min(max(velocity, -self.limits.v_max), self.limits.v_max)
+        tracked = min(max(target, low), high)
+        tracked = _push_out_of_obstacles(tracked, position, self.limits.length, obstacles)
+        clamped = abs(tracked - target) > _GEOMETRY_TOL
+        self.n_steps += 1
+
+        if (
+            abs(position - tracked) <= self.tolerance
+            and abs(velocity) <= self.tolerance
+            and abs(acceleration) <= self.tolerance * self.limits.a_max
+        ):
+            self._previous = None
+            return self._hold(state_array, tracked, clamped, started)
+
+        program = self._warm if self._previous is not None else self._cold
+        with program.lock:
+            opti, params = program.opti, program.params
+            _set_limits(program, self.limits, low, high)
+            opti.set_value(params["start"], state_array)
+            opti.set_value(params["target"], tracked)
+            opti.set_value(params["dt"], self.dt)
+            scale = max(self.limits.v_max * self.dt * self.horizon, self.tolerance)
+            opti.set_value(params["scale"], scale)
+            opti.set_value(params["rho"], self.effort_weight)
+            self._set_guess(program, state_array, tracked)
+            solution, stats, _ = _solve(program)
+            if solution is not None:
+                plan = _trajectory_from(
+                    program, solution, stats, 0.0, "track", self.limits, (low, high)
+                )
+                inputs = plan.acceleration[:-1] if order == 2 else plan.jerk
+                lam_g = np.atleast_1d(solution.value(opti.lam_g))
+                self._previous = (_plan_states(plan, order), inputs, lam_g)
+        elapsed = time.perf_counter() - started
+        if solution is None:
+            self._previous = None
+            self.n_fallbacks += 1
+            return self._safe_stop(state_array, tracked, clamped, elapsed, stats)
+        first_acc = float(plan.acceleration[0])
+        first_jerk = float(plan.jerk[0]) if plan.jerk is not None else None
+        next_state = tuple(
+            float(value) for value in _plan_states(plan, order)[:, 1]
+        )
+        return MPCStep(
+            acceleration=first_acc,
+            jerk=first_jerk,
+            next_state=next_state,
+            status="optimal",
+            fallback=False,
+            target=tracked,
+            target_clamped=clamped,
+            plan=plan,
+            solve_time=elapsed,
+            within_budget=elapsed <= self.time_budget,
+            iterations=int(stats.get("iter_count", 0)),
+            message=f"IPOPT: {stats.get('return_status', '')}",
+        )
+
+    # -- helpers -------------------------------------------------------------------------------
+
+    def _set_guess(self, program: _Program, state: np.ndarray, target: float) -> None:
+        n, opti = program.n, program.opti
+        if self._previous is not None:
+            states, inputs, lam_g = self._previous
+            # Shift by one period; the previous plan ends at rest, so repeating its end is valid.
+            guess = np.hstack([states[:, 1:], states[:, -1:]])
+            guess[:, 0] = state
+            opti.set_initial(program.states, guess)
+            opti.set_initial(program.inputs, np.append(inputs[1:], 0.0).reshape(1, n))
+            opti.set_initial(opti.lam_g, lam_g)
+            return
+        guess = np.zeros((program.order, n + 1))
+        guess[0] = state[0]
+        guess[:, 0] = state
+        opti.set_initial(program.states, guess)
+        opti.set_initial(program.inputs, np.zeros((1, n)))
+
+    def _hold(
+        self, state: np.ndarray, target: float, clamped: bool, started: float
+    ) -> MPCStep:
+        elapsed = time.perf_counter() - started
+        return MPCStep(
+            acceleration=0.0,
+            jerk=0.0 if self.limits.order == 3 else None,
+            next_state=(float(state[0]), 0.0) + ((0.0,) if self.limits.order == 3 else ()),
+            status="at_target",
+            fallback=False,
+            target=target,
+            target_clamped=clamped,
+            plan=None,
+            solve_time=elapsed,
+            within_budget=elapsed <= self.time_budget,
+            iterations=0,
+            message="At rest at the target: holding.",
+        )
+
+    def _safe_stop(
+        self, state: np.ndarray, target: float, clamped: bool, elapsed: float, stats: dict
+    ) -> MPCStep:
+        position, velocity = float(state[0]), float(state[1])
+        dt, a_max = self.dt, self.limits.a_max
+        # Brake at a_max, but no harder than stopping exactly at the end of the period: the
+        # velocity must not reverse.
+        acc = -math.copysign(min(a_max, abs(velocity) / dt), velocity) if velocity else 0.0
+        next_state: tuple[float, ...] = (position + velocity * dt + acc * dt**2 / 2, velocity + acc * dt)
+        jerk = None
+        note = ""
+        if self.limits.order == 3:
+            jerk = 0.0
+            next_state = next_state + (acc,)
+            note = " The emergency stop ignores j_max (the acceleration steps to the braking value)."
+        return MPCStep(
+            acceleration=acc,
+            jerk=jerk,
+            next_state=next_state,
+            status="safe_stop",
+            fallback=True,
+            target=target,
+            target_clamped=clamped,
+            plan=None,
+            solve_time=elapsed,
+            within_budget=elapsed <= self.time_budget,
+            iterations=int(stats.get("iter_count", 0)),
+            message=(
+                f"Solve failed ({stats.get('return_status', 'unknown')}): braking to a safe stop "
+                f"at a_max={a_max:g} m/s^2.{note}"
+            ),
+        )
+
+
+def _plan_states(plan: Trajectory, order: int) -> np.ndarray:
+    """Stack a plan's state samples, shape (order, n + 1)."""
+    rows = [plan.position, plan.velocity] + ([plan.acceleration] if order == 3 else [])
+    return np.vstack(rows)
+
+
+def _push_out_of_obstacles(
+    target: float, position: float, length: float, obstacles: list[tuple[float, float]]
+) -> float:
+    """Move a target inside an (inflated) obstacle to the obstacle's side facing the robot."""
+    half = length / 2
+    for left, right in obstacles:
+        if left - half < target < right + half:
+            return left - half if position <= left - half + _GEOMETRY_TOL else right + half
+    return target
