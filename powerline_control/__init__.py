@@ -49,5 +49,7 @@ from .observability import (
 # --- sensor placement (sensors.py) ---
 
 # --- antinodes and motion planning (antinode.py, plan.py) ---
+from .antinode import Antinode, largest_antinode, locate_antinodes, nearest_antinode
+from .plan import MotionPlanner, MPCStep, RobotLimits, Trajectory, plan_motion
 
 __version__ = "0.1.0"
