@@ -85,7 +85,8 @@ def _as_force_list(force: object) -> list:
         return []
     forces = list(force) if isinstance(force, list | tuple) else [force]
     for item in forces:
-        if not (hasattr(item, "values") and (hasattr(item, "load_vector") or hasattr(item, "bind"))):
+        is_load = hasattr(item, "values") and hasattr(item, "load_vector")
+        if not (is_load or hasattr(item, "bind")):
             raise InputError("The 'force' parameter must be a load (HarmonicForce, AeolianForce, "
                              f"RandomForce), a list of them or None. Got {type(item).__name__}.")
     return forces
