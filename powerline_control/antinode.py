@@ -9,12 +9,14 @@ harmonic at each node (a least-squares sine fit at the frequency of the largest 
 spectrum), which rejects broadband noise and the other modes; ``"rms"`` (RMS times sqrt 2) and
 ``"peak"`` (largest absolute value) are simpler alternatives.
 
-Each local maximum of the envelope is refined below the node spacing by interpolation through the
-three samples around it: ``"cosine"`` (exact for a sinusoidal envelope, the shape of a loop of a
-taut string) or ``"parabolic"``.  The loop of an antinode extends between the neighbouring nodes of
-the vibration: zero crossings of the (phase-aligned) signed shape where there is one, else minima of
-the envelope.  The position uncertainty propagates the estimator's variances through the
-interpolation formula to first order, assuming independent errors (see :func:`locate_antinodes`).
+The loop of an antinode extends between the neighbouring nodes of the vibration: zero crossings
+of the (phase-aligned) signed shape where there is one, else minima of the envelope.  Each local
+maximum of the envelope is then refined below the node spacing: by default a least-squares fit of
+a sine with the loop's wavenumber over the middle of the loop (exact for a sinusoidal loop, the
+shape of a taut string's, and averaging the noise of every sample there), or by interpolation
+through the three samples around it (``"cosine"``, ``"parabolic"``).  The position uncertainty
+propagates the estimator's variances to first order, assuming independent errors (see
+:func:`locate_antinodes`).
 """
 
 from __future__ import annotations
@@ -170,6 +172,34 @@ def _propagate(
     return float(std[0]), float(std[1])
 
 
+def _zero_crossing(x: np.ndarray, signed: np.ndarray, c: int) -> float:
+    """Zero of the signed shape between samples c and c + 1.
+
+    With equally spaced neighbours, a sinusoid through four samples (its wavenumber from the
+    three-term identity y[m-1] + y[m+1] = 2 cos(k h) y[m], by least squares over the two inner
+    triples) gives the exact zero of a sine; otherwise, or when that identity does not fit,
+    linear interpolation.
+    """
+    y1, y2 = signed[c], signed[c + 1]
+    h = x[c + 1] - x[c]
+    linear = float(x[c] + h * y1 / (y1 - y2))
+    if x.size < 4:
+        return linear
+    first = min(max(c - 1, 0), x.size - 4)  # four samples around the crossing, inside the array
+    if not np.allclose(np.diff(x[first : first + 4]), h, rtol=1e-6):
+        return linear
+    w = signed[first : first + 4]
+    cos_kh = ((w[0] + w[2]) * w[1] + (w[1] + w[3]) * w[2]) / (2 * (w[1] ** 2 + w[2] ** 2))
+    if not 0.0 < cos_kh < 1.0:
+        return linear
+    kh = math.acos(cos_kh)
+    # y1 = -A sin(k s), y2 = A sin(k (h - s)) for the zero at x[c] + s:
+    ks = math.atan(-y1 * math.sin(kh) / (y2 - y1 * cos_kh))  # y1, y2 of opposite signs
+    if not 0.0 <= ks <= kh:
+        return linear
+    return float(x[c] + ks / kh * h)
+
+
 def _node_between(
     x: np.ndarray, envelope: np.ndarray, signed: np.ndarray | None, i: int, j: int
 ) -> float:
@@ -181,10 +211,7 @@ def _node_between(
         if crossings.size + exact.size == 1:
             if exact.size:
                 return float(x[i + exact[0]])
-            c = crossings[0]
-            # Linear interpolation of the zero crossing: exact to O(h^2) for a smooth shape.
-            t = s[c] / (s[c] - s[c + 1])
-            return float(x[i + c] + t * (x[i + c + 1] - x[i + c]))
+            return _zero_crossing(x, signed, i + int(crossings[0]))
     m = i + int(np.argmin(envelope[i : j + 1]))
     if 0 < m < x.size - 1 and i < m < j:
         y_left, y_mid, y_right = envelope[m - 1 : m + 2]
@@ -207,7 +234,7 @@ def locate_antinodes(
     *,
     envelope: str = "harmonic",
     variances: np.ndarray | None = None,
-    interpolation: str = "cosine",
+    interpolation: str = "sine",
     min_prominence: float = 0.1,
     dt: float | None = None,
 ) -> list[Antinode]:
@@ -229,9 +256,13 @@ def locate_antinodes(
         taken as ``2 * mean(variances) / n_t``, the variance of a sine amplitude fitted to ``n_t``
         samples with independent errors.  Estimation errors are correlated in time and between
         nodes, so the resulting standard deviations are optimistic lower bounds.
-    interpolation : {"cosine", "parabolic"}
-        Sub-sample refinement through the three samples around a maximum.  ``"cosine"`` is exact
-        for a sinusoidal loop and needs equal spacing there (else falls back to the parabola).
+    interpolation : {"sine", "cosine", "parabolic"}
+        Sub-sample refinement of each maximum.  ``"sine"`` (default): least-squares fit of a sine
+        with the loop's wavenumber over the middle 60 % of the loop (exact for a sinusoidal loop;
+        robust to noise, as it uses every sample there; falls back to ``"cosine"`` for loops of
+        fewer than 3 samples).  ``"cosine"``: through the three samples around the maximum, exact
+        for a sinusoid, needs equal spacing there (else falls back to the parabola).
+        ``"parabolic"``: the parabola through those three samples.
     min_prominence : float
         Smallest prominence of a maximum, as a fraction of the largest envelope value, for it to
         count as an antinode (in (0, 1]); it rejects ripples from noise.
@@ -259,7 +290,7 @@ def locate_antinodes(
     [(0.0, 1.5), (1.5, 3.0)]
     """
     envelope_kind = check_choice("envelope", envelope, ("harmonic", "rms", "peak"))
-    interpolation = check_choice("interpolation", interpolation, tuple(_INTERPOLATORS))
+    interpolation = check_choice("interpolation", interpolation, ("sine", *_INTERPOLATORS))
     min_prominence = check_real("min_prominence", min_prominence, low=0.0, high=1.0)
     is_complex = np.iscomplexobj(np.asarray(field))
     data = check_array("field", field, ndim=(1, 2), dtype=complex if is_complex else float)
@@ -298,23 +329,21 @@ def locate_antinodes(
     if peak_value == 0.0:
         return []
     peaks, _ = find_peaks(envelope_values, prominence=min_prominence * peak_value)
-    interpolate = _INTERPOLATORS[interpolation]
     antinodes = []
     bounds = [0] + [int(p) for p in peaks] + [n_nodes - 1]
     for n, peak in enumerate(peaks):
-        xs, ys = positions[peak - 1 : peak + 2], envelope_values[peak - 1 : peak + 2]
-        position, amplitude = interpolate(xs, ys)
-        position_std = amplitude_std = None
-        if node_variances is not None:
-            position_std, amplitude_std = _propagate(
-                interpolate, xs, ys, node_variances[peak - 1 : peak + 2]
-            )
+        loop_start = _node_between(positions, envelope_values, signed, bounds[n], peak)
+        loop_end = _node_between(positions, envelope_values, signed, peak, bounds[n + 2])
+        position, amplitude, position_std, amplitude_std = _refine_peak(
+            positions, envelope_values, node_variances, int(peak), loop_start, loop_end,
+            interpolation,
+        )
         antinodes.append(
             Antinode(
                 position=position,
                 amplitude=amplitude,
-                loop_start=_node_between(positions, envelope_values, signed, bounds[n], peak),
-                loop_end=_node_between(positions, envelope_values, signed, peak, bounds[n + 2]),
+                loop_start=loop_start,
+                loop_end=loop_end,
                 position_std=position_std,
                 amplitude_std=amplitude_std,
                 index=int(peak),
@@ -322,6 +351,68 @@ def locate_antinodes(
             )
         )
     return antinodes
+
+
+# Fraction of the loop length left out at each end by the sine fit: near the nodes the envelope
+# is small (poor signal to noise) and a real conductor's loop next to a support departs from a sine.
+_FIT_MARGIN = 0.2
+
+
+def _refine_peak(
+    x: np.ndarray,
+    envelope: np.ndarray,
+    variances: np.ndarray | None,
+    peak: int,
+    loop_start: float,
+    loop_end: float,
+    method: str,
+) -> tuple[float, float, float | None, float | None]:
+    """Sub-sample position and amplitude of a maximum, with standard deviations if variances."""
+    length = loop_end - loop_start
+    inside = np.nonzero(
+        (x >= loop_start + _FIT_MARGIN * length) & (x <= loop_end - _FIT_MARGIN * length)
+    )[0]
+    if method == "sine" and inside.size >= 3 and length > 0:
+        return _sine_fit(x[inside], envelope[inside], None if variances is None else
+                         variances[inside], np.pi / length, x[peak])
+    interpolate = _INTERPOLATORS["cosine" if method == "sine" else method]
+    xs, ys = x[peak - 1 : peak + 2], envelope[peak - 1 : peak + 2]
+    position, amplitude = interpolate(xs, ys)
+    if variances is None:
+        return position, amplitude, None, None
+    position_std, amplitude_std = _propagate(interpolate, xs, ys, variances[peak - 1 : peak + 2])
+    return position, amplitude, position_std, amplitude_std
+
+
+def _sine_fit(
+    xs: np.ndarray, ys: np.ndarray, variances: np.ndarray | None, k: float, centre: float
+) -> tuple[float, float, float | None, float | None]:
+    """Least-squares fit of a cos(k u) + b sin(k u), u = x - centre, over the middle of a loop.
+
+    The wavenumber comes from the loop length (pi / loop length).  The peak is at
+    centre + atan2(b, a) / k with amplitude hypot(a, b): exact for a sinusoidal loop, and with
+    noise it averages over all the samples of the loop's middle instead of three.  Standard
+    deviations: the sandwich covariance of the unweighted least squares, propagated to first
+    order.
+    """
+    u = k * (xs - centre)
+    design = np.column_stack([np.cos(u), np.sin(u)])
+    (a, b), *_ = np.linalg.lstsq(design, ys, rcond=None)
+    amplitude = math.hypot(a, b)
+    position = float(centre + math.atan2(b, a) / k)
+    if variances is None:
+        return position, amplitude, None, None
+    gram = design.T @ design
+    solve = np.linalg.solve(gram, design.T)  # (2, n): coefficients = solve @ ys
+    covariance = (solve * variances) @ solve.T
+    grad_position = np.array([-b, a]) / (k * amplitude**2)
+    grad_amplitude = np.array([a, b]) / amplitude
+    return (
+        position,
+        amplitude,
+        float(np.sqrt(grad_position @ covariance @ grad_position)),
+        float(np.sqrt(grad_amplitude @ covariance @ grad_amplitude)),
+    )
 
 
 def _window_envelope(
