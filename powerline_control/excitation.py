@@ -29,6 +29,20 @@ def strouhal_frequency(wind_speed: float, diameter: float,
                        strouhal: float = DEFAULT_STROUHAL) -> float:
     """Vortex-shedding frequency f = St V / d, Hz.
 
+    Parameters
+    ----------
+    wind_speed : float
+        m/s (> 0).
+    diameter : float
+        Conductor diameter, m (> 0).
+    strouhal : float
+        Strouhal number (default 0.185, PLP's 3.26 V/d in mph and inches).
+
+    Returns
+    -------
+    float
+        Shedding frequency, Hz.
+
     Examples
     --------
     >>> round(strouhal_frequency(1.0, 0.0105), 2)     # the paper's 10.5 mm conductor
@@ -183,6 +197,17 @@ class RandomForce:
     White Gaussian samples on a grid of spacing 1 / (2.5 bandwidth) are joined by a cubic spline,
     which keeps the spectrum essentially below ``bandwidth``; ``std`` is the standard deviation of
     the grid samples. The same seed gives the same force for any query times.
+
+    Parameters
+    ----------
+    std : float
+        Standard deviation of the force, N (> 0).
+    position : float
+        m from the left support.
+    bandwidth : float
+        Highest frequency of the force, Hz (default 200).
+    seed : int
+        Seed of the random sequence.
 
     Examples
     --------

@@ -89,8 +89,8 @@ class MDR:
 
         Examples
         --------
-        >>> MDR.tuned(1.0, 0.0, 0.01, frequency=10.0, damping_ratio=0.05).damping.round(4)
-        np.float64(0.0628)
+        >>> round(MDR.tuned(1.0, 0.0, 0.01, frequency=10.0, damping_ratio=0.05).damping, 4)
+        0.0628
         """
         omega = 2 * np.pi * check_real("frequency", frequency, low=0.0)
         ratio = check_real("damping_ratio", damping_ratio, low=0.0, low_inclusive=True)
@@ -106,6 +106,11 @@ class MDR:
 @dataclass(frozen=True)
 class ModalDamping:
     """The same viscous damping ratio in every mode (or one ratio per mode).
+
+    Parameters
+    ----------
+    ratio : float or sequence of float
+        Damping ratio zeta in [0, 1): one for all modes, or one per mode (lowest first).
 
     Examples
     --------
@@ -140,6 +145,13 @@ class ModalDamping:
 @dataclass(frozen=True)
 class RayleighDamping:
     """Rayleigh damping C = mass_coefficient M + stiffness_coefficient K.
+
+    Parameters
+    ----------
+    mass_coefficient : float
+        Coefficient of M, 1/s (>= 0).
+    stiffness_coefficient : float
+        Coefficient of K, s (>= 0).
 
     Examples
     --------
@@ -178,6 +190,13 @@ class ModalBasis:
     damping : ndarray, shape (r, r)
         Modal damping matrix shapes.T C shapes (diagonal unless the robot's damper makes the
         damping non-proportional).
+
+    Examples
+    --------
+    >>> from powerline_control import Span, LineModel
+    >>> basis = LineModel(Span.paper_lab(), n_elements=20).modes(2)
+    >>> basis.shapes.shape, basis.n_modes
+    ((40, 2), 2)
     """
 
     omega: np.ndarray
@@ -315,8 +334,8 @@ class LineModel:
         --------
         >>> from powerline_control import Span
         >>> model = LineModel(Span.paper_lab(), n_elements=4)
-        >>> float(model.shape_vector(model.node_positions[1]) @ np.arange(model.n_dofs))
-        0.0
+        >>> model.shape_vector(model.node_positions[1])[:3]   # free DOFs: theta_0, w_1, theta_1
+        array([0., 1., 0.])
         """
         x = self._check_position("position", position)
         h = self.element_length

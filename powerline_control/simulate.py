@@ -54,6 +54,13 @@ class Snapshots:
         Standard deviation of the added sensor noise, m.
     mode_frequencies : ndarray
         Undamped frequencies (Hz) of the modes kept in the simulation.
+
+    Examples
+    --------
+    >>> from powerline_control import Span, LineModel, HarmonicForce, simulate
+    >>> snap = simulate(LineModel(Span.paper_lab(), 20), HarmonicForce(1.0, 12.0, 0.5), 0.1, 1e-3)
+    >>> snap.t.shape, snap.displacement.shape, snap.force.shape
+    ((101,), (21, 101), (101,))
     """
 
     t: np.ndarray
