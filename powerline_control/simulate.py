@@ -157,7 +157,7 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     n_modes : int or None
         Modes kept; None keeps all of them on models up to
         :data:`~powerline_control.fem.DENSE_EIGEN_LIMIT` DOFs (exact), otherwise those below the
-        larger of the Nyquist frequency and 4x the highest load frequency.
+        smaller of the Nyquist frequency and 4x the highest harmonic load frequency.
 
     Returns
     -------
@@ -206,7 +206,10 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     nyquist = 0.5 / dt
     load_frequencies = [f.frequency for f in forces if f.frequency is not None]
     if n_modes is None:
-        n_modes = model.default_mode_count(max([nyquist, *[4 * f for f in load_frequencies]]))
+        # Large models: the modes the samples can show, but no more than the load can drive
+        # dynamically (above ~4x its frequency a mode only responds quasi-statically, ~1/omega^2).
+        cutoff = min(nyquist, 4 * max(load_frequencies)) if load_frequencies else nyquist
+        n_modes = model.default_mode_count(cutoff)
     else:
         n_modes = check_int("n_modes", n_modes, low=1, high=model.n_dofs)
     basis = model.modes(n_modes)
