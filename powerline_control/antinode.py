@@ -55,6 +55,13 @@ class Antinode:
         Index of the sample (node) nearest the antinode, the local maximum of the envelope.
     frequency : float or None
         Frequency of the dominant harmonic, Hz, for a window with ``dt`` given; else None.
+
+    Examples
+    --------
+    >>> x = np.linspace(0.0, 3.0, 31)
+    >>> first = locate_antinodes(np.sin(np.pi * x / 3.0), x)[0]
+    >>> round(first.position, 6), round(first.amplitude, 6), round(first.loop_length, 6)
+    (1.5, 1.0, 3.0)
     """
 
     position: float
@@ -301,7 +308,9 @@ def locate_antinodes(
         )
     positions = check_array("x", x, shape=(n_nodes,))
     if np.any(np.diff(positions) <= 0):
-        raise InputError("The 'x' parameter must be strictly increasing (positions along the span).")
+        raise InputError(
+            "The 'x' parameter must be strictly increasing (positions along the span)."
+        )
     if dt is not None:
         dt = check_real("dt", dt, low=0.0)
 

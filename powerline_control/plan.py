@@ -154,6 +154,12 @@ class Trajectory:
         IPOPT iterations used (0 when no solve was needed).
     solve_time : float
         Wall-clock time of the solve, s.
+
+    Examples
+    --------
+    >>> traj = plan_motion(0.0, 2.0, RobotLimits(v_max=0.5, a_max=1.0))
+    >>> round(traj.duration, 3), traj.t.shape, round(float(traj.velocity.max()), 3)
+    (4.5, (101,), 0.5)
     """
 
     t: np.ndarray
@@ -400,7 +406,7 @@ def _new_program(n: int, order: int) -> tuple[ca.Opti, ca.MX, ca.MX, dict[str, c
 
 @functools.lru_cache(maxsize=16)
 def _plan_program(n: int, order: int, objective: str) -> _Program:
-    """Rest-to-rest (or to a given end velocity) plan: free duration ("time") or fixed ("energy")."""
+    """Plan to a target and end velocity: free duration ("time") or fixed ("energy")."""
     opti, states, inputs, params = _new_program(n, order)
     params["target"] = opti.parameter()
     params["end_velocity"] = opti.parameter()
@@ -637,7 +643,10 @@ def plan_motion(
     speed_time = distance / limits.v_max + limits.v_max / limits.a_max
     if limits.j_max is not None:
         speed_time += limits.a_max / limits.j_max
-    guess_time = duration if objective == "energy" else speed_time + abs(start_velocity) / limits.a_max
+    if objective == "energy":
+        guess_time = duration
+    else:
+        guess_time = speed_time + abs(start_velocity) / limits.a_max
     bound = duration if duration is not None else 1e3 * (guess_time + 1.0)
     start_state = [start, start_velocity] + ([0.0] if limits.order == 3 else [])
     with program.lock:
@@ -750,6 +759,13 @@ class MPCStep:
         IPOPT iterations (0 without a solve).
     message : str
         Human-readable account of the step (the solver status on a fallback).
+
+    Examples
+    --------
+    >>> planner = MotionPlanner(RobotLimits(v_max=0.5, a_max=1.0), dt=0.05, time_budget=1.0)
+    >>> step = planner.step((0.0, 0.0), target=1.0)
+    >>> step.status, step.fallback, [round(v, 5) for v in step.next_state]
+    ('optimal', False, [0.00125, 0.05])
     """
 
     acceleration: float
@@ -1007,13 +1023,18 @@ class MotionPlanner:
         # Brake at a_max, but no harder than stopping exactly at the end of the period: the
         # velocity must not reverse.
         acc = -math.copysign(min(a_max, abs(velocity) / dt), velocity) if velocity else 0.0
-        next_state: tuple[float, ...] = (position + velocity * dt + acc * dt**2 / 2, velocity + acc * dt)
+        next_state: tuple[float, ...] = (
+            position + velocity * dt + acc * dt**2 / 2,
+            velocity + acc * dt,
+        )
         jerk = None
         note = ""
         if self.limits.order == 3:
             jerk = 0.0
             next_state = next_state + (acc,)
-            note = " The emergency stop ignores j_max (the acceleration steps to the braking value)."
+            note = (
+                " The emergency stop ignores j_max (the acceleration steps to the braking value)."
+            )
         return MPCStep(
             acceleration=acc,
             jerk=jerk,

@@ -185,7 +185,8 @@ def test_zero_distance_is_a_zero_duration_plan():
         ({"target": 2.0, "obstacles": [(1.0, 1.1)]}, PlanningError, "obstacle (1, 1.1)"),
         ({"target": 3.6, "limits": RobotLimits(0.5, 1.0, length=0.3)}, PlanningError,
          "right span end"),
-        ({"start": 0.1, "limits": RobotLimits(0.5, 1.0, length=0.3)}, InputError, "inside the span"),
+        ({"start": 0.1, "limits": RobotLimits(0.5, 1.0, length=0.3)}, InputError,
+         "inside the span"),
         ({"duration": 2.0}, PlanningError, "v_max and a_max"),
         ({"target": 0.55, "duration": 0.1}, PlanningError, "a_max"),
         ({"start_velocity": 0.6}, PlanningError, "v_max"),
@@ -254,7 +255,7 @@ def test_mpc_follows_jumping_target_within_limits_and_outside_obstacles():
 
     state, history = run_mpc(planner, (0.5, 0.0), targets, 320)
     tol = 1e-6  # IPOPT's constraint tolerance
-    for step, p, v, a, extreme in history:
+    for _, p, v, a, extreme in history:
         assert abs(v) <= limits.v_max + tol and abs(a) <= limits.a_max + tol
         for q in (p, extreme):
             assert 0.1 - tol <= q <= SPAN - 0.1 + tol  # body inside the span
