@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from powerline_control.errors import InputError, PlanningError
 from powerline_control.plan import MotionPlanner, RobotLimits, Trajectory, plan_motion
@@ -338,3 +340,44 @@ def test_mpc_bad_step(state, target, words):
     planner = MotionPlanner(LIMITS, span_length=SPAN, obstacles=[(1.0, 1.1)])
     with pytest.raises(InputError, match=words):
         planner.step(state, target)
+
+
+def test_turnaround_time_matches_closed_form():
+    # Moving at v0 = 0.3 m/s, return to the start: brake for v0/a (covering v0^2 / 2a), then go
+    # back that distance from rest to rest (bang-bang, as 0.045 m < v^2/a).  Same 1 % as above.
+    traj = plan_motion(1.0, 1.0, LIMITS, start_velocity=0.3)
+    brake = 0.3 / LIMITS.a_max
+    back = bang_coast_bang_time(0.3**2 / (2 * LIMITS.a_max), LIMITS.v_max, LIMITS.a_max)
+    assert traj.duration == pytest.approx(brake + back, rel=1e-2)
+
+
+def test_trajectory_arrays_are_read_only():
+    traj = plan_motion(0.2, 1.8, LIMITS)
+    with pytest.raises(ValueError):
+        traj.position[0] = 1.0
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    start=st.floats(0.15, 3.5),
+    target=st.floats(0.15, 3.5),
+    obstacle=st.floats(0.3, 3.2),
+)
+def test_random_requests_either_plan_within_bounds_or_name_the_obstacle(start, target, obstacle):
+    # Invariant: with a 0.2 m robot and a 0.1 m obstacle anywhere, every request either raises a
+    # clear error or yields a plan whose body stays in the free interval between samples too.
+    limits = RobotLimits(v_max=0.5, a_max=1.0, length=0.2)
+    obstacles = [(obstacle, obstacle + 0.1)]
+    try:
+        traj = plan_motion(start, target, limits, span_length=SPAN, obstacles=obstacles)
+    except InputError as exc:
+        assert "obstacle" in str(exc)  # the start is inside the (inflated) obstacle
+        assert obstacle - 0.1 <= start <= obstacle + 0.2
+        return
+    except PlanningError as exc:
+        assert "obstacle" in str(exc)  # the target is inside or behind it
+        return
+    low, high = traj.bounds
+    assert low <= min(start, target) and max(start, target) <= high
+    assert high <= obstacle - 0.1 + 1e-12 or low >= obstacle + 0.2 - 1e-12
+    check_limits_between_samples(traj, low, high)
