@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.interpolate
 
 from ._validation import check_array, check_real, check_rng
 from .fem import LineModel
@@ -194,9 +193,9 @@ class BoundAeolianForce:
 class RandomForce:
     """Seeded broadband random point force: Gaussian, band-limited to ``bandwidth`` Hz.
 
-    White Gaussian samples on a grid of spacing 1 / (2.5 bandwidth) are joined by a cubic spline,
-    which keeps the spectrum essentially below ``bandwidth``; ``std`` is the standard deviation of
-    the grid samples. The same seed gives the same force for any query times.
+    White Gaussian samples on a grid of spacing 1 / (2.5 bandwidth) are joined by Catmull-Rom
+    cubic interpolation, which keeps the spectrum essentially below ``bandwidth``; ``std`` is the
+    standard deviation of the grid samples. The same seed gives the same force for any query times.
 
     Parameters
     ----------
@@ -234,9 +233,16 @@ class RandomForce:
         if t.size == 0:
             return t.copy()
         spacing = 1.0 / (2.5 * self.bandwidth)
-        n_knots = int(np.ceil(max(float(t.max()), 0.0) / spacing)) + 4
-        samples = self.std * np.random.default_rng(self.seed).standard_normal(n_knots)
-        return scipy.interpolate.CubicSpline(spacing * np.arange(n_knots), samples)(t)
+        position = np.maximum(t, 0.0) / spacing + 1.0       # knot 0 is a guard before t = 0
+        n_knots = int(np.floor(position.max())) + 3
+        # A prefix of a Generator's normal stream does not depend on how many are drawn, and
+        # Catmull-Rom interpolation is local: the value at t never depends on the query range.
+        knots = self.std * np.random.default_rng(self.seed).standard_normal(n_knots)
+        k = np.floor(position).astype(int)
+        s = position - k
+        p0, p1, p2, p3 = knots[k - 1], knots[k], knots[k + 1], knots[k + 2]
+        return 0.5 * (2 * p1 + (p2 - p0) * s + (2 * p0 - 5 * p1 + 4 * p2 - p3) * s**2
+                      + (3 * p1 - p0 - 3 * p2 + p3) * s**3)
 
     def load_vector(self, model: LineModel) -> np.ndarray:
         """Consistent load vector of a unit force at ``position``."""

@@ -46,6 +46,8 @@ class Snapshots:
         Measured nodal displacements, m (noise included).
     true_displacement : ndarray, shape (n_nodes, n_t)
         Noise-free nodal displacements, m.
+    final_state : tuple of ndarray
+        (displacement, velocity) over the model's free DOFs at the last sample, to continue from.
     inputs : ndarray, shape (n_forces, n_t)
         Time factor of each applied load (N for point forces): the known input for DMDc.
     force_positions : tuple of float or None
@@ -68,6 +70,7 @@ class Snapshots:
     x: np.ndarray
     displacement: np.ndarray
     true_displacement: np.ndarray
+    final_state: tuple = field(repr=False)
     inputs: np.ndarray
     force_positions: tuple
     noise_std: float
@@ -129,6 +132,8 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
              initial_displacement: np.ndarray | Callable | None = None,
              initial_velocity: np.ndarray | Callable | None = None,
              initial_modes: dict[int, float] | None = None,
+             initial_state: tuple[np.ndarray, np.ndarray] | None = None,
+             start_time: float = 0.0,
              n_modes: int | None = None) -> Snapshots:
     """Simulate nodal displacement snapshots, (n_nodes, n_samples).
 
@@ -154,6 +159,10 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     initial_modes : dict or None
         ``{mode_index: amplitude}``: initial displacement as a sum of undamped mode shapes
         (0-based index, shapes scaled to unit peak nodal displacement); excites exactly those modes.
+    initial_state : (displacement, velocity) over the free DOFs, or None
+        Full FE state, e.g. ``final_state`` of an earlier run, to continue a simulation.
+    start_time : float
+        Time of the first sample, s; loads are evaluated at ``start_time + k dt``.
     n_modes : int or None
         Modes kept; None keeps all of them on models up to
         :data:`~powerline_control.fem.DENSE_EIGEN_LIMIT` DOFs (exact), otherwise those below the
@@ -188,6 +197,7 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
         raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
     duration = check_real("duration", duration, low=0.0)
     dt = check_real("dt", dt, low=0.0)
+    start_time = check_real("start_time", start_time)
     if dt > duration:
         raise InputError(f"The 'dt' parameter ({dt:g} s) must not exceed 'duration' "
                          f"({duration:g} s).")
@@ -216,7 +226,8 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     _warn_unresolved(load_frequencies, nyquist, basis.frequencies[-1])
 
     complex_modes = _complex_modes(basis)
-    q0 = _initial_modal_state(model, basis, initial_displacement, initial_velocity, initial_modes)
+    q0 = _initial_modal_state(model, basis, initial_displacement, initial_velocity, initial_modes,
+                              initial_state)
     # Work in output space as early as possible: a harmonic load's particular solution is one
     # rotating phasor per node, so it never needs the (modes x samples) matrix. Every homogeneous
     # part (initial state, and what cancels each particular solution at t = 0) is collected in
@@ -224,23 +235,29 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     gains = complex_modes.output_gains(model.displacement_map() @ basis.shapes)  # (n_nodes, kept)
     homogeneous = complex_modes.project(q0)
     clean = np.zeros((model.n_nodes, t.size))
+    final = np.zeros_like(homogeneous)          # complex modal state at the last sample
     inputs = []
     for f in forces:
         forcing = complex_modes.input_gain(basis.shapes.T @ f.load_vector(model))
+        values = f.values(start_time + t)
         if f.frequency is not None and _exact_harmonic_possible(complex_modes.eigenvalues, f.frequency):
-            plus, minus = _harmonic_phasors(complex_modes.eigenvalues, forcing, f)
+            plus, minus = _harmonic_phasors(complex_modes.eigenvalues, forcing, f, start_time)
             rotation = np.exp(2j * np.pi * f.frequency * t)
             clean += (np.outer(gains @ plus, rotation) + np.outer(gains @ minus, rotation.conj())).real
             homogeneous = homogeneous - (plus + minus)
+            final += plus * rotation[-1] + minus * rotation[-1].conj()
         else:
-            clean += (gains @ _foh_response(complex_modes.eigenvalues, forcing, f.values(t), dt)).real
-        inputs.append(f.values(t))
+            response = _foh_response(complex_modes.eigenvalues, forcing, values, dt)
+            clean += (gains @ response).real
+            final += response[:, -1]
+        inputs.append(values)
     clean += (gains @ (np.exp(np.outer(complex_modes.eigenvalues, t)) * homogeneous[:, None])).real
+    final += np.exp(complex_modes.eigenvalues * t[-1]) * homogeneous
     if noise_fraction is not None:
         noise_std = noise_fraction * float(np.sqrt(np.mean(clean**2)))
     noisy = clean + noise_std * rng.standard_normal(clean.shape) if noise_std > 0 else clean.copy()
-    return Snapshots(t=t, dt=dt, x=model.node_positions.copy(), displacement=noisy,
-                     true_displacement=clean,
+    return Snapshots(t=start_time + t, dt=dt, x=model.node_positions.copy(), displacement=noisy,
+                     true_displacement=clean, final_state=complex_modes.to_dofs(basis, final),
                      inputs=np.array(inputs) if inputs else np.zeros((0, t.size)),
                      force_positions=tuple(f.position for f in forces), noise_std=noise_std,
                      mode_frequencies=basis.frequencies)
@@ -282,6 +299,12 @@ class _ComplexModes:
     def input_gain(self, modal_load: np.ndarray) -> np.ndarray:
         return self.left[:, self.omega.size:] @ modal_load
 
+    def to_dofs(self, basis, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Free-DOF displacement and velocity from the kept complex modal state."""
+        r = self.omega.size
+        scaled = ((self.right * self.weight) @ z).real
+        return basis.shapes @ (scaled[:r] / self.omega), basis.shapes @ scaled[r:]
+
     def output_gains(self, nodal_shapes: np.ndarray) -> np.ndarray:
         """Map from kept complex modes to nodal displacement (real part taken by the caller)."""
         r = self.omega.size
@@ -320,10 +343,17 @@ def _complex_modes(basis) -> _ComplexModes:
     return _ComplexModes(values_all[keep], vectors[:, keep], inverse[keep], weight, omega)
 
 
-def _initial_modal_state(model, basis, displacement, velocity, modes) -> np.ndarray:
+def _initial_modal_state(model, basis, displacement, velocity, modes, state) -> np.ndarray:
     r = basis.n_modes
     q = np.zeros(2 * r)
     mass = model.mass_matrix
+    if state is not None:
+        if not isinstance(state, tuple | list) or len(state) != 2:
+            raise InputError("The 'initial_state' parameter must be a (displacement, velocity) "
+                             f"pair over the free DOFs. Got {type(state).__name__}.")
+        u0 = check_array("initial_state[0]", state[0], shape=(model.n_dofs,))
+        v0 = check_array("initial_state[1]", state[1], shape=(model.n_dofs,))
+        q[:r], q[r:] = basis.shapes.T @ (mass @ u0), basis.shapes.T @ (mass @ v0)
     if displacement is not None:
         q[:r] = basis.shapes.T @ (mass @ _initial_dofs(model, "initial_displacement", displacement))
     if velocity is not None:
@@ -343,14 +373,14 @@ def _exact_harmonic_possible(eigenvalues: np.ndarray, frequency: float) -> bool:
     return bool(np.min(np.abs(1j * omega - eigenvalues)) > 1e-9 * omega)
 
 
-def _harmonic_phasors(eigenvalues, forcing, force) -> tuple[np.ndarray, np.ndarray]:
+def _harmonic_phasors(eigenvalues, forcing, force, start_time) -> tuple[np.ndarray, np.ndarray]:
     """Particular solution of z' = lam z + g A sin(w t + phi) as plus e^{iwt} + minus e^{-iwt}.
 
     The response from rest is that minus exp(lam t) (plus + minus).
     """
     omega = 2 * np.pi * force.frequency
     amplitude = getattr(force, "amplitude", 1.0) * forcing
-    phase = getattr(force, "phase", 0.0)
+    phase = getattr(force, "phase", 0.0) + omega * start_time
     # sin(w t + phi) = (e^{i(w t + phi)} - e^{-i(w t + phi)}) / 2i
     plus = amplitude * np.exp(1j * phase) / (2j * (1j * omega - eigenvalues))
     minus = -amplitude * np.exp(-1j * phase) / (2j * (-1j * omega - eigenvalues))
