@@ -425,7 +425,9 @@ def _plan_program(n: int, order: int, objective: str) -> _Program:
     else:
         opti.subject_to(duration == params["duration"])
         opti.minimize(_acceleration_energy(states, inputs, h, order))
-    opti.solver("ipopt", dict(_IPOPT_QUIET))
+    # Adaptive barrier updates: measured 10-15 iterations on every distance where the monotone
+    # default needs up to 80 for short jerk-limited moves.
+    opti.solver("ipopt", {**_IPOPT_QUIET, "ipopt.mu_strategy": "adaptive"})
     return _Program(opti, order, n, states, inputs, duration, params)
 
 
@@ -446,8 +448,9 @@ def _track_program(n: int, order: int, time_budget: float, warm: bool) -> _Progr
     error = (states[0, 1:] - params["target"]) / params["scale"]
     effort = _acceleration_energy(states, inputs, h, order) / (params["a_max"] ** 2 * n * h)
     opti.minimize(ca.sumsqr(error) / n + params["rho"] * effort)
-    options = dict(_IPOPT_QUIET)
-    options["ipopt.max_wall_time"] = time_budget
+    # Adaptive barrier updates: measured 9 instead of 13 iterations cold, and 4 instead of 10
+    # warm, along the benchmark's closed loop.
+    options = {**_IPOPT_QUIET, "ipopt.max_wall_time": time_budget, "ipopt.mu_strategy": "adaptive"}
     if warm:
         # Start from the shifted previous solution and its multipliers, close to the boundary.
         options.update(
@@ -653,7 +656,14 @@ def plan_motion(
     if objective == "energy":
         guess_time = duration
     else:
-        guess_time = speed_time + abs(start_velocity) / limits.a_max
+        # Long enough for the quintic guess to respect the limits (its peaks: 1.875 d/T,
+        # 5.77 d/T^2 and 60 d/T^3), and for braking from the start velocity.
+        guess_time = max(
+            speed_time,
+            1.875 * distance / limits.v_max,
+            math.sqrt(5.774 * distance / limits.a_max),
+            0.0 if limits.j_max is None else (60 * distance / limits.j_max) ** (1 / 3),
+        ) + abs(start_velocity) / limits.a_max
     bound = duration if duration is not None else 1e3 * (guess_time + 1.0)
     start_state = [start, start_velocity] + ([0.0] if limits.order == 3 else [])
     with program.lock:
@@ -701,13 +711,22 @@ def _check_braking(
 def _set_cold_guess(
     program: _Program, start: float, target: float, start_velocity: float, guess_time: float
 ) -> None:
+    """Initial guess: the minimum-jerk quintic from start to target (smooth and consistent)."""
     n, opti = program.n, program.opti
+    s = np.linspace(0.0, 1.0, n + 1)
+    d, T = target - start, guess_time
     guess = np.zeros((program.order, n + 1))
-    guess[0] = np.linspace(start, target, n + 1)
-    guess[1] = (target - start) / guess_time
+    guess[0] = start + d * (10 * s**3 - 15 * s**4 + 6 * s**5)
+    guess[1] = d / T * (30 * s**2 - 60 * s**3 + 30 * s**4)
     guess[1, 0] = start_velocity
+    acceleration = d / T**2 * (60 * s - 180 * s**2 + 120 * s**3)
+    if program.order == 3:
+        guess[2] = acceleration
+        inputs = np.diff(acceleration) / (T / n)
+    else:
+        inputs = (acceleration[:-1] + acceleration[1:]) / 2
     opti.set_initial(program.states, guess)
-    opti.set_initial(program.inputs, np.zeros((1, n)))
+    opti.set_initial(program.inputs, inputs.reshape(1, n))
     opti.set_initial(program.duration, guess_time)
 
 
