@@ -36,6 +36,14 @@ from .identify import (
 from .io import load_model, save_model
 
 # --- observability and estimation (observability.py, estimate.py) ---
+from .estimate import (
+    Accuracy,
+    Consistency,
+    Estimate,
+    KalmanFilter,
+    estimation_accuracy,
+    filter_consistency,
+)
 from .observability import (
     ObservabilityReport,
     SensorSetComparison,

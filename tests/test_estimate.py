@@ -1,0 +1,384 @@
+"""Tests of estimate.py: KalmanFilter, Estimate, accuracy and consistency.
+
+The independent truth is a straightforward implementation of the textbook equations (below,
+written for clarity: explicit (I - K C) products, a dense solve, no structure exploited), the
+paper's eqs. 15-20 written literally, python-control's ``dlqe`` and filterpy's ``KalmanFilter``.
+"""
+
+from __future__ import annotations
+
+import control as ct
+import numpy as np
+import pytest
+
+import powerline_control as plc
+from powerline_control.errors import EstimationError, InputError
+from powerline_control.estimate import (
+    Estimate,
+    KalmanFilter,
+    estimation_accuracy,
+    filter_consistency,
+)
+
+# ------------------------------------------------------------------------------------- helpers
+
+
+def lightly_damped_system(n_pairs: int, p: int, seed: int, *, selection=True, n_inputs=0):
+    """A random discrete system of damped oscillators, mixed by a random orthogonal basis.
+
+    Poles ``r e^{+-i theta}`` with r in [0.95, 0.995]: like a sampled line, lightly damped.
+    """
+    rng = np.random.default_rng(seed)
+    n = 2 * n_pairs
+    blocks = []
+    for _ in range(n_pairs):
+        r, theta = rng.uniform(0.95, 0.995), rng.uniform(0.05, 2.5)
+        blocks.append(r * np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]]))
+    basis, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    a = basis @ np.block(
+        [[blocks[i] if i == j else np.zeros((2, 2)) for j in range(n_pairs)] for i in range(n_pairs)]
+    ) @ basis.T
+    if selection:
+        c = np.zeros((p, n))
+        c[np.arange(p), rng.choice(n, p, replace=False)] = 1.0
+    else:
+        c = rng.normal(size=(p, n))
+    if n_inputs == 0:  # python-control wants an input; an all-zero one means "none"
+        b, d = np.zeros((n, 1)), np.zeros((p, 1))
+    else:
+        b, d = rng.normal(size=(n, n_inputs)), 0.1 * rng.normal(size=(p, n_inputs))
+    return ct.ss(a, b, c, d, dt=1e-3)
+
+
+def simulate_truth(sys, q, r, n_t, seed, u=None):
+    """Sample x[k+1] = A x + B u + w, y = C x + D u + v with Gaussian noise."""
+    rng = np.random.default_rng(seed)
+    a, b, c, d = (np.asarray(m) for m in (sys.A, sys.B, sys.C, sys.D))
+    n, p = a.shape[0], c.shape[0]
+    lq = np.linalg.cholesky(q + 1e-300 * np.eye(n)) if np.any(q) else np.zeros((n, n))
+    lr = np.linalg.cholesky(r)
+    x = np.zeros((n, n_t))
+    y = np.zeros((p, n_t))
+    x[:, 0] = rng.normal(size=n)
+    u = np.zeros((b.shape[1], n_t)) if u is None else u
+    for k in range(n_t):
+        if k:
+            x[:, k] = a @ x[:, k - 1] + b @ u[:, k - 1] + lq @ rng.normal(size=n)
+        y[:, k] = c @ x[:, k] + d @ u[:, k] + lr @ rng.normal(size=p)
+    return x, y
+
+
+def textbook_filter(sys, q, r, y, u=None, x0=None, p0=None, epsilon=0.0):
+    """Textbook Kalman filter, written plainly: predict, then update with the Joseph form.
+
+    The prior (x0, P0) belongs to sample 0; missing entries (NaN) drop rows of C and R.
+    Returns (states, variances, innovations).
+    """
+    a, b, c, d = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
+    n = a.shape[0]
+    n_t = y.shape[1]
+    u = np.zeros((b.shape[1], n_t)) if u is None else u
+    x = np.zeros(n) if x0 is None else x0.copy()
+    p = np.eye(n) if p0 is None else p0.copy()
+    q = q + epsilon * np.eye(n)
+    r = r + epsilon * np.eye(c.shape[0])
+    states, variances, innov = np.zeros((n, n_t)), np.zeros((n, n_t)), np.full(y.shape, np.nan)
+    for k in range(n_t):
+        if k:
+            x = a @ x + b @ u[:, k - 1]
+            p = a @ p @ a.T + q
+        rows = ~np.isnan(y[:, k])
+        if rows.any():
+            h, rr = c[rows], r[np.ix_(rows, rows)]
+            s = h @ p @ h.T + rr
+            gain = np.linalg.solve(s, h @ p).T  # P H^T S^-1 (S and P symmetric)
+            e = y[rows, k] - h @ x - d[rows] @ u[:, k]
+            x = x + gain @ e
+            i_kh = np.eye(n) - gain @ h
+            p = i_kh @ p @ i_kh.T + gain @ rr @ gain.T
+            innov[rows, k] = e
+        states[:, k], variances[:, k] = x, np.diag(p)
+    return states, variances, innov
+
+
+def paper_filter(a, h, q, r, z, epsilon):
+    """The paper's eqs. 15-20 literally (eq. 15 without its '+ Q' typo), standard update."""
+    n = a.shape[0]
+    x, p = np.zeros(n), np.eye(n)
+    out = np.zeros((n, z.shape[1]))
+    for k in range(z.shape[1]):
+        if k:
+            x = a @ x  # eq. 15
+            p = a @ p @ a.T + q + epsilon * np.eye(n)  # eq. 16
+        innovation = z[:, k] - h @ x  # eq. 17
+        s = h @ p @ h.T + r + epsilon * np.eye(h.shape[0])  # eq. 18
+        gain = p @ h.T @ np.linalg.inv(s)  # eq. 19 (plain inverse: this is the reference)
+        x = x + gain @ innovation
+        p = (np.eye(n) - gain @ h) @ p  # eq. 20
+        out[:, k] = x
+    return out
+
+
+def rel(a, b):
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+# ------------------------------------------------------------------- agreement with references
+
+
+@pytest.mark.parametrize(
+    "selection, n_inputs, epsilon, gain_rtol",
+    [
+        (True, 0, 0.0, 0.0),  # textbook recursion throughout
+        (True, 0, 0.0, 1e-10),  # frozen gain + modal batch recursion (the fast path)
+        (False, 0, 0.0, 1e-10),  # general C: products instead of indexing
+        (True, 2, 0.0, 1e-10),  # known inputs with B and D
+        (False, 1, 0.3, 1e-10),  # epsilon on P and S
+    ],
+)
+def test_filter_equals_textbook(selection, n_inputs, epsilon, gain_rtol):
+    sys = lightly_damped_system(8, 4, seed=3, selection=selection, n_inputs=n_inputs)
+    n = sys.nstates
+    q, r = 0.01 * np.eye(n), 0.04 * np.eye(4)
+    u = np.random.default_rng(5).normal(size=(n_inputs, 1500)) if n_inputs else None
+    _, y = simulate_truth(sys, q, r, 1500, seed=4, u=u)
+    ref_states, ref_var, ref_innov = textbook_filter(sys, q, r, y, u, epsilon=epsilon)
+    est = KalmanFilter(sys, q, r, epsilon=epsilon, gain_rtol=gain_rtol).filter(y, u)
+    if gain_rtol:
+        assert est.converged_at is not None and est.converged_at < 1500 - 256  # batch path ran
+    # 1e-9: the issue's requirement; the differences are round-off (and, with a frozen gain, the
+    # <= 1e-10 relative gain change left at freezing), amplified by the closed loop's memory.
+    assert rel(est.states, ref_states) < 1e-9
+    assert rel(est.innovations, ref_innov) < 1e-9
+    assert rel(est.variances, ref_var) < 1e-9
+
+
+def test_paper_equations_with_epsilon():
+    """eps added to P (eq. 16) and S (eq. 18) = the Joseph filter with Q + eps I and R + eps I."""
+    sys = lightly_damped_system(5, 3, seed=11)
+    q, r = 1e-3 * np.eye(10), 1e-2 * np.eye(3)
+    _, y = simulate_truth(sys, q, r, 400, seed=12)
+    ref = paper_filter(np.asarray(sys.A), np.asarray(sys.C), q, r, y, epsilon=1.0)
+    est = KalmanFilter(sys, q, r, epsilon=1.0, gain_rtol=0).filter(y)
+    # The standard (eq. 20) and Joseph updates are algebraically equal at the optimal gain; the
+    # remaining difference is round-off: 1e-9.
+    assert rel(est.states, ref) < 1e-9
+
+
+def test_filterpy_agrees():
+    filterpy = pytest.importorskip("filterpy.kalman")
+    sys = lightly_damped_system(6, 3, seed=21)
+    n = sys.nstates
+    q, r = 0.01 * np.eye(n), 0.05 * np.eye(3)
+    _, y = simulate_truth(sys, q, r, 600, seed=22)
+    peer = filterpy.KalmanFilter(dim_x=n, dim_z=3)
+    peer.F, peer.H, peer.Q, peer.R = np.asarray(sys.A), np.asarray(sys.C), q, r
+    # filterpy predicts before each update; start it one prediction "early" so that its first
+    # prior is our (x0 = 0, P0 = I): with P = A^-1 (I - Q) A^-T the prediction gives exactly I.
+    a_inv = np.linalg.inv(peer.F)
+    peer.x, peer.P = np.zeros(n), a_inv @ (np.eye(n) - q) @ a_inv.T
+    states = []
+    for k in range(y.shape[1]):
+        peer.predict()
+        peer.update(y[:, k])
+        states.append(peer.x.copy())
+    est = KalmanFilter(sys, q, r).filter(y)
+    # filterpy uses the Joseph form too; differences are round-off (1e-9 as required).
+    assert rel(est.states, np.array(states).T) < 1e-9
+
+
+# ------------------------------------------------------------------------------ steady state
+
+
+def test_time_varying_gain_converges_to_dlqe():
+    sys = lightly_damped_system(10, 5, seed=7)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(5)
+    _, y = simulate_truth(sys, q, r, 3000, seed=8)
+    est = KalmanFilter(sys, q, r).filter(y)
+    dlqe_gain, dlqe_p, _ = ct.dlqe(sys.A, np.eye(n), sys.C, q, r)
+    # dlqe returns the predictor-form gain A P C^T S^-1; ours is the filter form P C^T S^-1.
+    assert est.converged_at is not None
+    assert rel(np.asarray(sys.A) @ est.gain, dlqe_gain) < 1e-8  # the issue's 1e-8
+    kf_ss = KalmanFilter(sys, q, r, steady_state=True)
+    assert rel(np.asarray(sys.A) @ kf_ss.steady_gain, dlqe_gain) < 1e-8
+    # dlqe's P is the predicted covariance; our steady covariance is the posterior one.
+    c = np.asarray(sys.C)
+    s = c @ dlqe_p @ c.T + r
+    posterior = dlqe_p - dlqe_p @ c.T @ np.linalg.solve(s, c @ dlqe_p)
+    assert rel(kf_ss.steady_covariance, posterior) < 1e-8
+    assert rel(est.covariance, posterior) < 1e-8
+
+
+def test_steady_state_mode_equals_textbook_started_at_the_riccati_solution():
+    """From the stationary predicted covariance, the textbook gain is constant from sample 0."""
+    sys = lightly_damped_system(8, 3, seed=31)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(3)
+    _, y = simulate_truth(sys, q, r, 2000, seed=32)
+    _, predicted, _ = ct.dlqe(sys.A, np.eye(n), sys.C, q, r)
+    ref, ref_var, _ = textbook_filter(sys, q, r, y, p0=predicted)
+    est = KalmanFilter(sys, q, r, steady_state=True).filter(y)
+    assert est.converged_at == 0
+    assert rel(est.states, ref) < 1e-9  # round-off only (the reference P stays at the DARE)
+    assert rel(est.variances, ref_var) < 1e-8  # DARE solved by two different solvers
+
+
+# ------------------------------------------------------------------------- missing data, step
+
+
+def test_missing_sensor_and_all_nan_sample():
+    sys = lightly_damped_system(6, 4, seed=41)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(4)
+    _, y = simulate_truth(sys, q, r, 300, seed=42)
+    y[1, 50] = np.nan
+    y[:, 120] = np.nan
+    est = KalmanFilter(sys, q, r).filter(y)
+    ref, ref_var, _ = textbook_filter(sys, q, r, y)
+    assert rel(est.states, ref) < 1e-9
+    assert rel(est.variances, ref_var) < 1e-9
+    # An all-NaN sample only predicts: x[k|k] = A x[k-1|k-1] exactly, NaN innovations and NIS.
+    np.testing.assert_allclose(est.states[:, 120], np.asarray(sys.A) @ est.states[:, 119],
+                               rtol=1e-14, atol=1e-14)
+    assert np.all(np.isnan(est.innovations[:, 120])) and np.isnan(est.nis[120])
+    assert est.n_used[120] == 0 and est.n_used[50] == 3 and est.n_used[51] == 4
+    assert np.all(est.variances[:, 120] >= est.variances[:, 119])  # no update: no shrinking
+
+
+@pytest.mark.parametrize("steady_state", [False, True])
+def test_random_dropouts_still_track(steady_state):
+    sys = lightly_damped_system(10, 6, seed=51)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-3 * np.eye(6)
+    x, y = simulate_truth(sys, q, r, 3000, seed=52)
+    drop = np.random.default_rng(53).random(y.shape) < 0.2
+    y_drop = np.where(drop, np.nan, y)
+    kf = KalmanFilter(sys, q, r, steady_state=steady_state)
+    full = estimation_accuracy(kf.filter(y), x, discard=100).relative_rms_error
+    dropped = estimation_accuracy(kf.filter(y_drop), x, discard=100).relative_rms_error
+    # Measured: ~0.20 full, ~0.22 with 20 % dropouts (the limit is the process noise). Tracking
+    # means the error grows only mildly, and stays far below the signal (1.0).
+    assert dropped < 1.3 * full
+    assert dropped < 0.5
+
+
+def test_step_equals_filter():
+    sys = lightly_damped_system(5, 3, seed=61, n_inputs=1)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(3)
+    u = np.random.default_rng(62).normal(size=(1, 700))
+    _, y = simulate_truth(sys, q, r, 700, seed=63, u=u)
+    y[0, 10] = np.nan
+    kf = KalmanFilter(sys, q, r)
+    est = kf.filter(y, u)
+    stepped = np.array([kf.step(y[:, k], u[:, k]) for k in range(700)]).T
+    # The batch path (after convergence) and the per-sample path differ only by round-off.
+    assert rel(stepped, est.states) < 1e-10
+    kf.reset()
+    np.testing.assert_array_equal(kf.state, np.zeros(n))
+    np.testing.assert_array_equal(kf.covariance, np.eye(n))
+
+
+def test_field_map_and_field_variances():
+    sys = lightly_damped_system(4, 2, seed=71)
+    n = sys.nstates
+    field_map = np.random.default_rng(72).normal(size=(5, n))
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(2)
+    _, y = simulate_truth(sys, q, r, 500, seed=73)
+    est = KalmanFilter(sys, q, r, steady_state=True, field_map=field_map).filter(y)
+    np.testing.assert_allclose(est.field, field_map @ est.states, rtol=1e-12)
+    brute = np.diag(field_map @ est.covariance @ field_map.T)
+    np.testing.assert_allclose(est.field_variances[:, -1], brute, rtol=1e-10)
+
+
+def test_results_are_frozen():
+    sys = lightly_damped_system(2, 1, seed=81)
+    est = KalmanFilter(sys, 1e-3, 1e-2).filter(np.zeros((1, 10)))
+    assert isinstance(est, Estimate)
+    with pytest.raises(AttributeError):
+        est.states = None  # type: ignore[misc]
+    np.testing.assert_allclose(est.t, np.arange(10) * 1e-3)
+
+
+# ------------------------------------------------------------------------------- consistency
+
+
+def test_consistency_honest_and_dishonest_filters():
+    sys = lightly_damped_system(6, 3, seed=91)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(3)
+    x, y = simulate_truth(sys, q, r, 4000, seed=92)
+    honest = filter_consistency(KalmanFilter(sys, q, r).filter(y), x, discard=100)
+    # Mean NIS of 3900 samples of chi2(3): std 0.039, so 5 % (0.15) is ~4 sigma. (The 95 % flags
+    # themselves fail 1 run in 20 by design; measured over 12 seeds: 2.89-3.03.)
+    assert honest.mean_nis == pytest.approx(3.0, rel=0.05)
+    # NEES errors are correlated in time (fewer effective samples): 12 seeds gave 11.5-12.3 for
+    # n = 12, so 10 %.
+    assert honest.nees_dof == n
+    assert honest.mean_nees == pytest.approx(n, rel=0.1)
+    # Normalised errors per state near 1 (1500+ samples of a correlated error: +-30 %).
+    np.testing.assert_allclose(honest.normalised_error, 1.0, atol=0.3)
+    # A filter told the sensors are 100x better than they are is overconfident: NIS >> p.
+    dishonest = filter_consistency(KalmanFilter(sys, q, r / 100).filter(y), x, discard=100)
+    assert not dishonest.nis_consistent and dishonest.mean_nis > 5 * 3  # measured 26
+    assert not dishonest.nees_consistent
+
+
+def test_accuracy_closed_form():
+    truth = np.array([[1.0, -1.0, 1.0, -1.0], [3.0, -3.0, 3.0, -3.0]])
+    estimate = truth + np.array([[0.0], [0.5]])
+    acc = estimation_accuracy(estimate, truth, measured=[0])
+    # rms(truth) = sqrt((1 + 9) / 2) = sqrt(5); error only in row 1: rms 0.5 there.
+    assert acc.rms_truth == pytest.approx(np.sqrt(5))
+    assert acc.relative_rms_error == pytest.approx(np.sqrt(0.125) / np.sqrt(5))
+    assert acc.relative_rms_error_unmeasured == pytest.approx(0.5 / np.sqrt(5))
+    assert acc.relative_rms_error_unmeasured_own == pytest.approx(0.5 / 3)
+    np.testing.assert_allclose(acc.per_signal_rms_error, [0.0, 0.5])
+
+
+# -------------------------------------------------------------------------------- bad input
+
+
+def _good():
+    return lightly_damped_system(2, 2, seed=1)
+
+
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda: KalmanFilter(ct.ss(-np.eye(2), np.zeros((2, 1)), np.eye(2), 0), 1.0, 1.0),
+         "discrete-time"),
+        (lambda: KalmanFilter(np.eye(2), 1.0, 1.0), "control.StateSpace"),
+        (lambda: KalmanFilter(ct.ss([[np.nan]], [[0.0]], [[1.0]], 0, dt=1.0), 1.0, 1.0), "NaN"),
+        (lambda: KalmanFilter(_good(), np.array([[1.0, 2, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0],
+                                                 [0, 0, 0, 1]]), 1.0), "symmetric"),
+        (lambda: KalmanFilter(_good(), -np.eye(4), 1.0), "positive semidefinite"),
+        (lambda: KalmanFilter(_good(), 1.0, np.eye(3)), "wrong shape"),
+        (lambda: KalmanFilter(_good(), 1.0, -1.0), "non-negative"),
+        (lambda: KalmanFilter(_good(), 1.0, 1.0, epsilon=-1.0), "epsilon"),
+        (lambda: KalmanFilter(_good(), 1.0, 1.0, x0=np.zeros(3)), "x0"),
+        (lambda: KalmanFilter(_good(), 1.0, 1.0).filter(np.zeros((3, 10))), "measurements"),
+        (lambda: KalmanFilter(_good(), 1.0, 1.0).filter(np.zeros(10)), "measurements"),
+        (lambda: KalmanFilter(_good(), 1.0, 1.0).filter(np.full((2, 5), np.inf)), "infinite"),
+        (lambda: KalmanFilter(_good(), 1.0, 1.0).step(np.zeros(3)), "y_k"),
+        (lambda: KalmanFilter(_good(), 1.0, 1.0, steady_state="yes"), "steady_state"),
+    ],
+)
+def test_bad_input_is_rejected_clearly(make, match):
+    with pytest.raises(InputError, match=match):
+        make()
+
+
+def test_singular_innovation_covariance_is_reported():
+    sys = ct.ss(np.eye(2) * 0.5, np.zeros((2, 1)), np.eye(2), 0, dt=1.0)
+    kf = KalmanFilter(sys, Q=0.0, R=0.0, P0=np.zeros((2, 2)))
+    with pytest.raises(EstimationError, match="singular"):
+        kf.filter(np.ones((2, 3)))
+    # The paper's epsilon is exactly the cure.
+    assert np.all(np.isfinite(KalmanFilter(sys, 0.0, 0.0, epsilon=1e-6,
+                                           P0=np.zeros((2, 2))).filter(np.ones((2, 3))).states))
+
+
+def test_public_names_exported():
+    assert plc.KalmanFilter is KalmanFilter and plc.Estimate is Estimate
