@@ -1,0 +1,249 @@
+"""Tests of observability.py: rank, Gramian, Riccati covariance, reports.
+
+Independent truths: closed forms (string mode shapes vanish at their nodes; scalar Riccati
+equations), brute-force sums, SciPy's Lyapunov solver, python-control's ``dlqe`` and the plain
+Riccati recursion iterated to convergence.
+"""
+
+from __future__ import annotations
+
+import control as ct
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+import powerline_control as plc
+from powerline_control.errors import EstimationError, InputError
+from powerline_control.observability import (
+    analyze_observability,
+    compare_sensor_sets,
+    observability_gramian,
+    observability_rank,
+    steady_state_covariance,
+)
+
+
+def string_modal_system(n_modes: int, n_nodes: int, *, dt=1e-3, zeta=0.01, f1=6.5):
+    """Exact ZOH-discretised modal model of a taut string; outputs: displacement at every node.
+
+    Mode n has shape sin(n pi x / L) and frequency n f1; states [q_n, qdot_n] per mode.
+    """
+    x = np.linspace(0.0, 1.0, n_nodes)
+    blocks, c = [], np.zeros((n_nodes, 2 * n_modes))
+    for k in range(n_modes):
+        omega = 2 * np.pi * f1 * (k + 1)
+        cont = np.array([[0.0, 1.0], [-(omega**2), -2 * zeta * omega]])
+        blocks.append(sla.expm(cont * dt))
+        c[:, 2 * k] = np.sin((k + 1) * np.pi * x)
+    a = sla.block_diag(*blocks)
+    return ct.ss(a, np.zeros((2 * n_modes, 1)), c, 0, dt=dt)
+
+
+# ------------------------------------------------------------------------------------ rank
+
+
+@pytest.mark.parametrize(
+    "node, expected_rank",
+    [
+        (6, 2 * 3),  # x = 1/2: modes 2, 4, 6 have a node there
+        (4, 2 * 4),  # x = 1/3: modes 3 and 6 vanish
+        (3, 2 * 5),  # x = 1/4: mode 4 vanishes
+        (1, 2 * 6),  # x = 1/12: no mode up to 6 vanishes
+        (0, 0),  # the support: every mode shape vanishes
+    ],
+)
+def test_rank_loss_at_mode_nodes(node, expected_rank):
+    # dt = 0.01 s (Nyquist 50 Hz > 39 Hz) keeps the powers of A in obsv well separated, so the
+    # numerical rank equals the structural one.
+    sys = string_modal_system(6, 13, dt=0.01)
+    assert observability_rank(sys, [node]) == expected_rank
+
+
+def test_rank_full_with_two_generic_sensors():
+    sys = string_modal_system(6, 11, dt=0.01)
+    assert observability_rank(sys, [2, 3]) == 12
+    assert observability_rank(sys, [5]) < 12  # midspan alone misses the even modes
+
+
+def test_rank_tolerance_argument():
+    # Two modes 1e-9 apart seen through one sensor: observable in theory (sigma_min ~ 4e-10,
+    # far above round-off), not in practice (a tolerance of 1e-6 says so).
+    sys = ct.ss(np.diag([0.5, 0.5 + 1e-9]), np.zeros((2, 1)), np.ones((1, 2)), 0, dt=1.0)
+    assert observability_rank(sys) == 2
+    assert observability_rank(sys, tol=1e-6) == 1
+    with pytest.raises(InputError, match="tol"):
+        observability_rank(sys, tol=-1.0)
+
+
+# --------------------------------------------------------------------------------- Gramian
+
+
+def brute_gramian(a, c, horizon):
+    total, power = np.zeros_like(a), np.eye(a.shape[0])
+    for _ in range(horizon):
+        total += power.T @ c.T @ c @ power
+        power = a @ power
+    return total
+
+
+@pytest.mark.parametrize("horizon", [1, 2, 3, 7, 64, 100])
+def test_gramian_equals_brute_force_sum(horizon):
+    sys = string_modal_system(3, 7)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)[[1, 4]]
+    brute = brute_gramian(a, c, horizon)
+    # Doubling reorders the sums: agreement to round-off, 1e-12 relative.
+    np.testing.assert_allclose(
+        observability_gramian(sys, horizon, [1, 4]), brute, rtol=0, atol=1e-12 * np.abs(brute).max()
+    )
+
+
+def test_gramian_of_a_rotation_is_finite_and_exact():
+    """Marginally stable (|lambda| = 1): the infinite Gramian diverges, the finite one grows ~N."""
+    theta = 0.3
+    a = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    sys = ct.ss(a, np.zeros((2, 1)), [[1.0, 0.0]], 0, dt=1.0)
+    gram = observability_gramian(sys, 1000)
+    np.testing.assert_allclose(gram, brute_gramian(a, np.array([[1.0, 0.0]]), 1000), atol=1e-9)
+    # Sum of cos^2 and sin^2 over 1000 angles: trace = 1000 exactly.
+    assert np.trace(gram) == pytest.approx(1000.0, rel=1e-12)
+
+
+def test_gramian_converges_to_lyapunov_solution_for_stable_models():
+    sys = string_modal_system(2, 5, zeta=0.2)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)[[1]]
+    infinite = sla.solve_discrete_lyapunov(a.T, c.T @ c)
+    # zeta 0.2 at 6.5 Hz and 1 kHz: |lambda|^(2*2^15) ~ 1e-70, so the tail is negligible; the
+    # Lyapunov solver and the sum agree to round-off (1e-9 relative for this conditioning).
+    np.testing.assert_allclose(observability_gramian(sys, 2**15, [1]), infinite,
+                               rtol=1e-9, atol=1e-9 * np.abs(infinite).max())
+
+
+# ------------------------------------------------------------------------------- Riccati
+
+
+def test_scalar_riccati_closed_form():
+    """AR(1) x' = a x + w, y = x + v: P = a^2 P R / (P + R) + q, a quadratic in P."""
+    a, q, r = 0.9, 0.5, 2.0
+    sys = ct.ss([[a]], [[0.0]], [[1.0]], 0, dt=1.0)
+    # P^2 + P (r - a^2 r - q) - q r = 0 (predicted form).
+    b = r - a**2 * r - q
+    predicted = (-b + np.sqrt(b**2 + 4 * q * r)) / 2
+    assert steady_state_covariance(sys, q, r, form="predicted")[0, 0] == pytest.approx(
+        predicted, rel=1e-12
+    )
+    posterior = predicted * r / (predicted + r)
+    assert steady_state_covariance(sys, q, r)[0, 0] == pytest.approx(posterior, rel=1e-12)
+
+
+def test_riccati_matches_dlqe_and_the_iterated_recursion():
+    sys = string_modal_system(4, 9, zeta=0.02)
+    sensors = [2, 7]
+    n = sys.nstates
+    q = 1e-4 * np.eye(n)
+    r = np.full(9, 1e-3)  # one variance per candidate output
+    posterior = steady_state_covariance(sys, q, r, sensors)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)[sensors]
+    _, predicted, _ = ct.dlqe(a, np.eye(n), c, q, 1e-3 * np.eye(2))
+    np.testing.assert_allclose(
+        steady_state_covariance(sys, q, r, sensors, form="predicted"), predicted, rtol=1e-8,
+        atol=1e-10 * np.abs(predicted).max(),
+    )
+    # Brute force: iterate the filter's covariance recursion until it stops changing.
+    p = np.eye(n)
+    for _ in range(20000):
+        p_pred = a @ p @ a.T + q
+        s = c @ p_pred @ c.T + 1e-3 * np.eye(2)
+        p = p_pred - p_pred @ c.T @ np.linalg.solve(s, c @ p_pred)
+    np.testing.assert_allclose(posterior, p, rtol=1e-7, atol=1e-9 * np.abs(p).max())
+
+
+def test_adding_a_sensor_never_hurts():
+    sys = string_modal_system(4, 9, zeta=0.02)
+    q = 1e-4 * np.eye(sys.nstates)
+    few = steady_state_covariance(sys, q, 1e-3, [2])
+    more = steady_state_covariance(sys, q, 1e-3, [2, 6])
+    # More information: P_more <= P_few in the PSD order (eigenvalues of the difference >= 0 up
+    # to round-off of the DARE solutions, 1e-9 of the scale).
+    assert np.linalg.eigvalsh(few - more).min() > -1e-9 * np.abs(few).max()
+    assert np.trace(more) < np.trace(few)
+
+
+def test_unobservable_unstable_mode_is_reported():
+    sys = ct.ss(np.diag([1.1, 0.5]), np.zeros((2, 1)), [[0.0, 1.0]], 0, dt=1.0)
+    with pytest.raises(EstimationError, match="detectable"):
+        steady_state_covariance(sys, np.eye(2), 1.0)
+
+
+def test_singular_r_is_reported():
+    sys = string_modal_system(2, 5)
+    with pytest.raises(EstimationError, match="R"):
+        steady_state_covariance(sys, np.eye(4), 0.0, [1])
+
+
+# -------------------------------------------------------------------------------- reports
+
+
+def test_report_node_std_with_field_map():
+    sys = string_modal_system(3, 11)
+    n = sys.nstates
+    field_map = np.asarray(sys.C)  # modal state -> displacement at all 11 nodes
+    q = 1e-4 * np.eye(n)
+    report = analyze_observability(sys, [3, 8], Q=q, R=1e-3, field_map=field_map)
+    p = steady_state_covariance(sys, q, 1e-3, [3, 8])
+    np.testing.assert_allclose(report.node_std, np.sqrt(np.diag(field_map @ p @ field_map.T)),
+                               rtol=1e-12)
+    # Pinned supports: sin(n pi) is round-off (1e-16), so the std is 1e-15 of the largest.
+    assert report.node_std[[0, -1]].max() < 1e-15 * report.node_std.max()
+    assert report.observable and report.horizon == 2 * n
+    assert report.max_std == pytest.approx(report.node_std.max())
+
+
+def test_report_unseen_state_has_its_stationary_std():
+    sys = ct.ss(np.diag([0.5, 0.9]), np.zeros((2, 1)), np.eye(2), 0, dt=1.0)
+    report = analyze_observability(sys, [1], Q=np.eye(2), R=1.0)
+    assert not report.observable and report.rank == 1
+    assert report.node_std[0] == pytest.approx(1 / np.sqrt(1 - 0.25), rel=1e-10)
+    assert report.gramian_condition_number == np.inf
+
+
+def test_comparison_table():
+    sys = string_modal_system(4, 21, zeta=0.02)
+    q = 1e-4 * np.eye(sys.nstates)
+    table = compare_sensor_sets(
+        sys,
+        {"first 3": [1, 2, 3], "spread 3": [3, 8, 13]},
+        Q=q,
+        R=1e-4,
+        field_map=np.asarray(sys.C),
+    )
+    first, spread = table.reports
+    # Sensors clustered at a support see the span worse than spread ones.
+    assert spread.mean_std < first.mean_std
+    text = table.to_markdown(unit_scale=1e3, unit="mm")
+    assert text.count("\n") == 3 and "spread 3" in text and "[mm]" in text
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda s: observability_rank(s, [25]), "sensors"),
+        (lambda s: observability_rank(s, [1, 1]), "repeat"),
+        (lambda s: observability_rank(s, []), "at least one"),
+        (lambda s: observability_rank(s, [1.0]), "integer"),
+        (lambda s: observability_gramian(s, 0), "horizon"),
+        (lambda s: steady_state_covariance(s, np.eye(3), 1.0), "wrong shape"),
+        (lambda s: steady_state_covariance(s, np.eye(4), 1.0, form="x"), "form"),
+        (lambda s: analyze_observability(s, Q=np.eye(4)), "together"),
+        (lambda s: analyze_observability(s, field_map=np.ones((3, 5))), "field_map"),
+        (lambda s: observability_rank(ct.ss(-np.eye(2), np.zeros((2, 1)), np.eye(2), 0)),
+         "discrete-time"),
+    ],
+)
+def test_bad_input(call, match):
+    with pytest.raises(InputError, match=match):
+        call(string_modal_system(2, 11))
+
+
+def test_public_names_exported():
+    assert plc.steady_state_covariance is steady_state_covariance
+    assert plc.compare_sensor_sets is compare_sensor_sets
