@@ -277,9 +277,12 @@ def test_mpc_reaches_target_at_minimum_time_pace():
     _, history = run_mpc(planner, (0.5, 0.0), lambda k: 2.5, 120)
     positions = np.array([h[1] for h in history])
     arrival = np.argmax(np.abs(positions - 2.5) < 0.01) * planner.dt
-    # Tracking cost rather than minimum time: arriving within 10 % of the bang-coast-bang time
-    # (4.5 s) shows the command saturates the limits instead of creeping.
-    assert arrival <= 1.1 * bang_coast_bang_time(2.0, 0.5, 1.0)
+    # Tracking cost rather than minimum time: arriving (to 1 cm) within 5 % of the
+    # bang-coast-bang time (4.5 s; measured 4.35 s, as 1 cm is reached before rest) shows the
+    # command saturates the limits instead of creeping; the overshoot stays below 5 mm
+    # (measured 3.6 mm; a squared-distance cost overshot 10 mm).
+    assert arrival <= 1.05 * bang_coast_bang_time(2.0, 0.5, 1.0)
+    assert positions.max() - 2.5 < 0.005
 
 
 def test_mpc_falls_back_to_safe_stop_and_reports_it():
