@@ -196,3 +196,37 @@ def test_antinode_is_frozen():
     assert a.loop_length == 2.0
     with pytest.raises(AttributeError):
         a.position = 2.0
+
+
+def test_kalman_estimate_of_the_paper_span_near_resonance():
+    # The Must-show: the paper's span (Table 1, 100 elements, pinned, 1 % modal damping)
+    # forced at 24 Hz near mode 3 (24.53 Hz) plus a weak broadband force (so that identification
+    # sees more than one frequency), 5 % measurement noise.  A DMD model (delays 2: a line is second
+    # order; rank 10; relative Tikhonov 1e-3) is identified from the first 2 s of noisy snapshots;
+    # a Kalman filter on it measures only 13 evenly spaced interior nodes and estimates the whole
+    # field; the antinodes found on the last second of that estimate (data the model never saw)
+    # must lie within 2 % of the loop length of those of the true (noise-free) simulated field.
+    # Measured: 0.06-0.12 % of the loop.
+    span = plc.Span.paper_lab()
+    model = plc.LineModel(span, n_elements=100, bc="pinned", damping=plc.ModalDamping(0.01))
+    forces = [
+        plc.HarmonicForce(amplitude=1.0, frequency=24.0, position=0.5),
+        plc.RandomForce(std=0.2, position=1.3, bandwidth=100.0, seed=1),
+    ]
+    snap = plc.simulate(model, forces, duration=4.0, dt=1e-3, noise_fraction=0.05, seed=0)
+    dmd = plc.fit_dmd(snap.displacement[:, :2000], dt=snap.dt, alpha=1e-3, alpha_mode="relative",
+                      delays=2, rank=10)
+    measured = np.linspace(4, 96, 13).round().astype(int)
+    noise_variance = float(np.var(snap.displacement - snap.true_displacement))
+    kf = plc.KalmanFilter(dmd.to_statespace(measured=measured), Q=dmd.residual_covariance,
+                          R=noise_variance, field_map=dmd.field_map)
+    est = kf.filter(snap.displacement[measured])
+    window = slice(-1000, None)
+    truth = locate_antinodes(snap.true_displacement[:, window], snap.x, dt=snap.dt)
+    found = locate_antinodes(est.field[:, window], snap.x, dt=snap.dt,
+                             variances=est.field_variances[:, window])
+    assert len(found) == len(truth) == 3
+    for a, b in zip(truth, found, strict=True):
+        assert abs(a.position - b.position) < 0.02 * a.loop_length
+        assert b.position_std > 0 and np.isfinite(b.position_std)
+    assert found[0].frequency == pytest.approx(24.0, abs=0.1)  # 1 s window: 1 Hz bins, refined
