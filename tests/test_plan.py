@@ -384,3 +384,20 @@ def test_random_requests_either_plan_within_bounds_or_name_the_obstacle(start, t
     assert low <= min(start, target) and max(start, target) <= high
     assert high <= obstacle - 0.1 + 1e-12 or low >= obstacle + 0.2 - 1e-12
     check_limits_between_samples(traj, low, high)
+
+
+@pytest.mark.parametrize(
+    "position, target, tracked",
+    [(1.0, 2.65, 2.5), (3.3, 2.65, 2.8), (1.0, 3.5, 2.5), (3.3, 0.2, 2.8), (1.0, 0.05, 0.1)],
+)
+def test_mpc_replaces_unreachable_targets_by_nearest_reachable(position, target, tracked):
+    # Robot 0.2 m long, obstacle (2.6, 2.7): its centre may not pass 2.5 from the left or 2.8 from
+    # the right, nor 0.1 m from the span end.
+    planner = MotionPlanner(RobotLimits(0.5, 1.0, length=0.2), span_length=SPAN,
+                            obstacles=[(2.6, 2.7)], time_budget=5.0)
+    step = planner.step((position, 0.0), target)
+    assert step.target == pytest.approx(tracked) and step.target_clamped
+    # the horizon plan heads for the tracked target and ends at rest no further than it
+    end = step.plan.position[-1]
+    assert min(position, tracked) - 1e-6 <= end <= max(position, tracked) + 1e-6
+    assert abs(end - position) > 0.1 and abs(step.plan.velocity[-1]) < 1e-7
