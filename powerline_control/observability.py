@@ -377,24 +377,25 @@ def _doubling_dare(
     gk = c.T @ sla.cho_solve(sla.cho_factor(r), c)
     hk = q.copy()
     eye = np.eye(n)
-    for _ in range(max_iter):
-        w = eye + gk @ hk
-        try:
-            w_a = np.linalg.solve(w, ak)  # W^-1 A
-            w_g = np.linalg.solve(w, gk)  # W^-1 G
-        except np.linalg.LinAlgError:
-            return None
-        a_next = ak @ w_a
-        g_next = gk + ak @ w_g @ ak.T
-        h_next = hk + ak.T @ hk @ w_a
-        h_next = (h_next + h_next.T) / 2
-        g_next = (g_next + g_next.T) / 2
-        change = np.max(np.abs(h_next - hk))
-        ak, gk, hk = a_next, g_next, h_next
-        if not np.all(np.isfinite(hk)):
-            return None
-        if change <= 1e-14 * max(np.max(np.abs(hk)), np.finfo(float).tiny):
-            break
+    with np.errstate(over="ignore", invalid="ignore"):  # divergence is checked below
+        for _ in range(max_iter):
+            w = eye + gk @ hk
+            try:
+                w_a = np.linalg.solve(w, ak)  # W^-1 A
+                w_g = np.linalg.solve(w, gk)  # W^-1 G
+            except np.linalg.LinAlgError:
+                return None
+            a_next = ak @ w_a
+            g_next = gk + ak @ w_g @ ak.T
+            h_next = hk + ak.T @ hk @ w_a
+            h_next = (h_next + h_next.T) / 2
+            g_next = (g_next + g_next.T) / 2
+            change = np.max(np.abs(h_next - hk))
+            ak, gk, hk = a_next, g_next, h_next
+            if not np.all(np.isfinite(hk)):
+                return None
+            if change <= 1e-14 * max(np.max(np.abs(hk)), np.finfo(float).tiny):
+                break
     pct = hk @ c.T
     s = c @ pct + r
     residual = a @ (hk - pct @ np.linalg.solve(s, pct.T)) @ a.T + q - hk
