@@ -382,3 +382,82 @@ def test_singular_innovation_covariance_is_reported():
 
 def test_public_names_exported():
     assert plc.KalmanFilter is KalmanFilter and plc.Estimate is Estimate
+
+
+# ------------------------------------------------------- the paper's experiment (Must show)
+# 100-element paper span, 1 % sensor noise, harmonic force of 1 N at 0.5 m. The model is identified
+# on one simulation (10 s, noise seed 0); the truth is an independent simulation (5 s from
+# t0 = 3.3 s, from rest, noise seed 1), never the identified model. Errors skip a 0.5 s transient.
+
+PAPER_SCENARIOS = {"near_resonance": 24.5, "between_resonances": 19.0}  # mode 3: 24.53 Hz
+
+
+@pytest.fixture(scope="module")
+def paper_records():
+    model = plc.LineModel(plc.Span.paper_lab(), n_elements=100)
+    records = {}
+    for name, frequency in PAPER_SCENARIOS.items():
+        force = plc.HarmonicForce(amplitude=1.0, frequency=frequency, position=0.5)
+        train = plc.simulate(model, force, duration=10.0, dt=1e-3, noise_fraction=0.01, seed=0)
+        test = plc.simulate(model, force, duration=5.0, dt=1e-3, noise_fraction=0.01, seed=1,
+                            start_time=3.3)
+        records[name] = (train, test)
+    return records
+
+
+def _score(train, test, sensors, **fit):
+    dmd = plc.fit_dmd(train.displacement, dt=train.dt, **fit)
+    noise_std = 0.01 * np.sqrt(np.mean(train.true_displacement**2))
+    kf = KalmanFilter(dmd.to_statespace(measured=sensors), Q=dmd.residual_covariance,
+                      R=noise_std**2, field_map=dmd.field_map)
+    est = kf.filter(test.displacement[sensors])
+    return estimation_accuracy(est, test.true_displacement, measured=sensors, discard=500)
+
+
+@pytest.mark.parametrize(
+    "scenario, low, high",
+    [
+        # Measured 1.30 %: the issue asks for < 5 % near resonance.
+        ("near_resonance", 0.0, 0.05),
+        # Measured 49 %: the first 13 nodes sit within 0.45 m of a support and the d = 1 model
+        # cannot carry the rest of the span off resonance. Asserted so that a change is noticed.
+        ("between_resonances", 0.30, 0.70),
+    ],
+)
+def test_paper_recipe_first_13_nodes(paper_records, scenario, low, high):
+    train, test = paper_records[scenario]
+    acc = _score(train, test, list(range(13)), alpha=0.1)  # paper: d = 1, alpha = 0.1 absolute
+    print(f"paper recipe, {scenario}: unmeasured {acc.relative_rms_error_unmeasured:.2%}")
+    assert low <= acc.relative_rms_error_unmeasured < high
+
+
+@pytest.mark.parametrize("scenario", list(PAPER_SCENARIOS))
+def test_better_recipe_five_spread_sensors(paper_records, scenario):
+    """Delays 8, POD rank 20, held-out-best alpha, 5 spread sensors: < 1 % in both scenarios."""
+    train, test = paper_records[scenario]
+    curve = plc.select_alpha(train.displacement, train.dt, delays=8, rank=20)
+    acc = _score(train, test, [12, 31, 50, 69, 88], alpha=curve.best_alpha,
+                 alpha_mode="relative", delays=8, rank=20)
+    print(f"better recipe, {scenario}: unmeasured {acc.relative_rms_error_unmeasured:.2%}")
+    # Measured 0.67 % (near) and 0.74 % (between); the issue's target is < 1 %.
+    assert acc.relative_rms_error_unmeasured < 0.01
+
+
+def test_better_recipe_with_20_percent_dropouts(paper_records):
+    train, test = paper_records["between_resonances"]
+    sensors = [12, 31, 50, 69, 88]
+    curve = plc.select_alpha(train.displacement, train.dt, delays=8, rank=20)
+    dmd = plc.fit_dmd(train.displacement, dt=train.dt, alpha=curve.best_alpha,
+                      alpha_mode="relative", delays=8, rank=20)
+    noise_std = 0.01 * np.sqrt(np.mean(train.true_displacement**2))
+    y = test.displacement[sensors].copy()
+    y[np.random.default_rng(7).random(y.shape) < 0.2] = np.nan
+    for steady in (False, True):
+        kf = KalmanFilter(dmd.to_statespace(measured=sensors), Q=dmd.residual_covariance,
+                          R=noise_std**2, field_map=dmd.field_map, steady_state=steady)
+        acc = estimation_accuracy(kf.filter(y), test.true_displacement, measured=sensors,
+                                  discard=500)
+        print(f"20 % dropouts, steady_state={steady}: {acc.relative_rms_error_unmeasured:.2%}")
+        # Measured 0.81 % (time-varying) and 0.81 % (steady-state prior, gain per available subset)
+        # against 0.74 % without dropouts: still tracking, well under 2 %.
+        assert acc.relative_rms_error_unmeasured < 0.02
