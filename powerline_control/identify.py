@@ -169,20 +169,20 @@ class DMDModel:
     # --- spectrum -----------------------------------------------------------------------------
 
     @cached_property
-    def _eig(self) -> tuple[np.ndarray, np.ndarray]:
-        values, vectors = sla.eig(self.A)
-        order = np.lexsort((-values.imag, -np.abs(values)))
-        return _frozen(values[order]), _frozen(vectors[:, order])
-
-    @property
     def eigenvalues(self) -> np.ndarray:
         """Discrete-time eigenvalues of ``A``, by decreasing magnitude (complex, (n_states,))."""
-        return self._eig[0]
+        values = sla.eigvals(self.A)  # no eigenvectors: several times cheaper than eig
+        return _frozen(values[_spectral_order(values)])
 
-    @property
+    @cached_property
     def modes(self) -> np.ndarray:
-        """Eigenvectors of ``A`` in state coordinates, columns matching :attr:`eigenvalues`."""
-        return self._eig[1]
+        """Eigenvectors of ``A`` in state coordinates (unit norm), ordered as :attr:`eigenvalues`.
+
+        Computed by a separate ``eig`` call; their eigenvalues equal :attr:`eigenvalues` up to
+        round-off.
+        """
+        values, vectors = sla.eig(self.A)
+        return _frozen(vectors[:, _spectral_order(values)])
 
     @property
     def mode_shapes(self) -> np.ndarray:
@@ -446,6 +446,11 @@ class DMDModel:
         )
 
 
+def _spectral_order(values: np.ndarray) -> np.ndarray:
+    """Decreasing magnitude; a conjugate pair with positive imaginary part first."""
+    return np.lexsort((-values.imag, -np.round(np.abs(values), 12)))
+
+
 def _check_nodes(name: str, nodes: object, n_nodes: int) -> list[int]:
     if nodes is None:
         return list(range(n_nodes))
@@ -475,17 +480,23 @@ def _hankel(X: np.ndarray, delays: int) -> np.ndarray:
     return np.vstack([X[:, delays - 1 - i : n_samples - i] for i in range(delays)])
 
 
-def _largest_singular_value(M: np.ndarray) -> float:
+def _largest_singular_value(M: np.ndarray, gram: np.ndarray | None = None) -> float:
+    """Largest singular value, from the smaller Gram matrix (``gram`` if already computed).
+
+    The top eigenvalue of a Gram matrix is accurate to relative round-off, and it costs far less
+    than an SVD: a partial symmetric eigensolver for small Gram matrices, Lanczos for large ones.
+    """
     if M.size == 0:
         return 0.0
-    if min(M.shape) <= 400:
-        return float(sla.svdvals(M)[0])
-    # Lanczos on the smaller Gram matrix: a few matrix-vector products instead of an SVD.
-    from scipy.sparse.linalg import eigsh
+    if gram is None:
+        gram = M @ M.T if M.shape[0] <= M.shape[1] else M.T @ M
+    k = gram.shape[0]
+    if k <= 500:
+        top = sla.eigvalsh(gram, subset_by_index=[k - 1, k - 1])[0]
+    else:
+        from scipy.sparse.linalg import eigsh
 
-    gram = M @ M.T if M.shape[0] <= M.shape[1] else M.T @ M
-    start = np.ones(gram.shape[0])
-    top = eigsh(gram, k=1, which="LA", v0=start, tol=0, return_eigenvectors=False)[0]
+        top = eigsh(gram, k=1, which="LA", v0=np.ones(k), tol=0, return_eigenvectors=False)[0]
     return math.sqrt(max(float(top), 0.0))
 
 
@@ -568,6 +579,7 @@ def _ridge(
     regressor: np.ndarray,
     alpha: float,
     svd: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    gram: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float | None]:
     """``coef = target R^T (R R^T + alpha I)^{-1}`` (alpha = 0: minimum-norm least squares).
 
@@ -577,7 +589,7 @@ def _ridge(
     """
     n_reg, n_pairs = regressor.shape
     if svd is None and alpha > 0 and n_reg <= n_pairs:
-        gram = regressor @ regressor.T
+        gram = regressor @ regressor.T if gram is None else gram.copy()
         if alpha >= _GRAM_ALPHA_FRACTION * np.trace(gram):
             gram[np.diag_indices_from(gram)] += alpha
             factor = sla.cho_factor(gram, lower=True, check_finite=False)
@@ -627,8 +639,9 @@ def _fit_problem(
     *,
     warn: bool = True,
     svd: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    gram: np.ndarray | None = None,
 ) -> DMDModel:
-    coef, kept_ratio = _ridge(problem.target, problem.regressor, alpha, svd)
+    coef, kept_ratio = _ridge(problem.target, problem.regressor, alpha, svd, gram)
     if (
         warn
         and alpha == 0
@@ -707,11 +720,18 @@ def _check_common(
     return X, dt, delays, rank, _check_inputs(inputs, n_samples)
 
 
-def _absolute_alpha(alpha: float, alpha_mode: str, problem: _Problem) -> tuple[float, _Problem]:
-    """Absolute alpha, computing the largest singular value of the state data when needed."""
+def _absolute_alpha(
+    alpha: float, alpha_mode: str, problem: _Problem, gram: np.ndarray | None = None
+) -> tuple[float, _Problem]:
+    """Absolute alpha, computing the largest singular value of the state data when needed.
+
+    ``gram`` is ``regressor @ regressor.T`` when already computed (its leading block is the
+    Gram matrix of the state data).
+    """
     if math.isnan(problem.s_max):
         n = problem.n_states
-        s_max = _largest_singular_value(problem.regressor[:n])
+        block = None if gram is None else gram[:n, :n]
+        s_max = _largest_singular_value(problem.regressor[:n], block)
         problem = dataclasses.replace(problem, s_max=s_max)
     if alpha_mode == "relative":
         return alpha * problem.s_max**2, problem
@@ -806,8 +826,11 @@ def fit_dmd(
             "(e.g. alpha_mode='relative', alpha=1e-6), a rank, or more samples."
         )
     problem = _prepare(X, delays, rank, u)
-    alpha, problem = _absolute_alpha(alpha, alpha_mode, problem)
-    return _fit_problem(problem, alpha, dt)
+    n_reg, n_pairs = problem.regressor.shape
+    # The Gram matrix serves both the relative-alpha scale and the Cholesky route: compute once.
+    gram = problem.regressor @ problem.regressor.T if alpha > 0 and n_reg <= n_pairs else None
+    alpha, problem = _absolute_alpha(alpha, alpha_mode, problem, gram)
+    return _fit_problem(problem, alpha, dt, gram=gram)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -995,6 +1018,9 @@ def select_alpha(
             "another train_fraction."
         )
     problem = _prepare(X[:, :n_train], delays, rank, None if u is None else u[:, :n_train])
+    svd = _ridge_svd(problem.target, problem.regressor)
+    if u is None and math.isnan(problem.s_max):
+        problem = dataclasses.replace(problem, s_max=float(svd[1][0]))
     _, problem = _absolute_alpha(0.0, "absolute", problem)
     scale = problem.s_max**2
     if alphas is None:
@@ -1014,7 +1040,6 @@ def select_alpha(
     u_held = None if u is None else u[:, n_train:]
     last_start = held.shape[1] - 1 - horizon
     starts = np.unique(np.linspace(delays - 1, last_start, n_windows).round().astype(int))
-    svd = _ridge_svd(problem.target, problem.regressor)
     radius, unstable, one_step, multi = [], [], [], []
     for alpha in absolute:
         model = _fit_problem(problem, float(alpha), dt, warn=False, svd=svd)

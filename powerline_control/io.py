@@ -161,7 +161,8 @@ def load_model(path: str | os.PathLike[str]) -> DMDModel:
     See :func:`save_model`.
     """
     try:
-        with np.load(path, allow_pickle=False) as archive:
+        # Open the file ourselves so that it is closed even when numpy fails half-way.
+        with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as archive:
             arrays = {name: archive[name] for name in archive.files}
     except FileNotFoundError:
         raise
