@@ -16,6 +16,7 @@ non-harmonic loads, the linear interpolation of the load between samples.
 from __future__ import annotations
 
 import warnings
+import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -225,7 +226,7 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     basis = model.modes(n_modes)
     _warn_unresolved(load_frequencies, nyquist, basis.frequencies[-1])
 
-    complex_modes = _complex_modes(basis)
+    complex_modes = _complex_modes_of(model, basis)
     q0 = _initial_modal_state(model, basis, initial_displacement, initial_velocity, initial_modes,
                               initial_state)
     # Work in output space as early as possible: a harmonic load's particular solution is one
@@ -310,6 +311,19 @@ class _ComplexModes:
         r = self.omega.size
         gains = (nodal_shapes / self.omega) @ self.right[:r]      # undo the omega scaling
         return gains * self.weight
+
+
+# Complex modes per model and mode count: the general eigen-solve of a non-proportionally damped
+# model (the robot's damper) is the dearest step of a short simulation, and continuing runs
+# (closed loop) reuse it.
+_COMPLEX_MODES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _complex_modes_of(model: LineModel, basis) -> _ComplexModes:
+    per_model = _COMPLEX_MODES.setdefault(model, {})
+    if basis.n_modes not in per_model:
+        per_model[basis.n_modes] = _complex_modes(basis)
+    return per_model[basis.n_modes]
 
 
 def _complex_modes(basis) -> _ComplexModes:
