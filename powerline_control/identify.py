@@ -86,6 +86,14 @@ class StabilityReport:
         ``n_unstable == 0``.
     message : str
         One paragraph in words, with the fix when unstable.
+
+    Examples
+    --------
+    >>> import numpy as np, powerline_control as plc
+    >>> X = np.array([[1.1 ** k for k in range(10)]])
+    >>> report = plc.fit_dmd(X, dt=0.1).stability_report(warn=False)
+    >>> report.n_unstable, round(report.spectral_radius, 6)
+    (1, 1.1)
     """
 
     spectral_radius: float
@@ -138,6 +146,22 @@ class DMDModel:
         Number of snapshot pairs used for the fit.
     initial_state : ndarray, shape (n_states,)
         The first training state, used for the mode amplitudes.
+
+    Examples
+    --------
+    One damped 5 Hz mode seen at two nodes, sampled at 100 Hz:
+
+    >>> import numpy as np, powerline_control as plc
+    >>> t = np.arange(300) * 0.01
+    >>> X = np.outer([1.0, 0.5], np.exp(-0.3 * t) * np.cos(2 * np.pi * 5 * t))
+    >>> dmd = plc.fit_dmd(X, dt=0.01, delays=2, rank=2)
+    >>> dmd.A.shape, dmd.field_map.shape
+    ((2, 2), (2, 2))
+    >>> np.round(dmd.damped_frequencies, 6)
+    array([5., 5.])
+    >>> sys = dmd.to_statespace(measured=[1])
+    >>> sys.nstates, sys.noutputs, sys.dt
+    (2, 1, 0.01)
     """
 
     A: np.ndarray
@@ -400,8 +424,10 @@ class DMDModel:
             ``C`` is :attr:`field_map`.  Output ``i`` is named ``node{measured[i]}``.
         inputs : sequence of str, optional
             Names of the known inputs (default ``u0, u1, ...``).  A model without inputs gets a
-            ``B`` with zero columns; for process noise use ``G = I`` with ``Q =``
-            :attr:`residual_covariance` (e.g. ``control.dlqe(A, I, C, Q, R)``).
+            ``B`` with zero columns (with a single measured node, one all-zero input named
+            "unused": python-control 0.10.2 cannot build a 1-output, 0-input system).  For
+            process noise use ``G = I`` with ``Q =`` :attr:`residual_covariance`
+            (e.g. ``control.dlqe(A, I, C, Q, R)``).
 
         Returns
         -------
@@ -427,6 +453,8 @@ class DMDModel:
         B = np.zeros((self.n_states, 0)) if self.B is None else self.B
         if inputs is None:
             input_names = [f"u{i}" for i in range(self.n_inputs)]
+        elif self.B is None and len(list(inputs)) == 0:
+            input_names = []
         else:
             input_names = [str(name) for name in inputs]
             if len(input_names) != self.n_inputs:
@@ -434,11 +462,15 @@ class DMDModel:
                     f"The 'inputs' parameter must name {self.n_inputs} input(s). "
                     f"Got {len(input_names)} name(s) instead."
                 )
+        if B.shape[1] == 0 and len(nodes) == 1:
+            # python-control 0.10.2 cannot build a (1 output, 0 input) system (its D check sees
+            # (0, 0) for (1, 0)): give it one all-zero input instead.
+            B, input_names = np.zeros((self.n_states, 1)), ["unused"]
         return ct.ss(
             self.A,
             B,
             C,
-            np.zeros((len(nodes), self.n_inputs)),
+            np.zeros((len(nodes), B.shape[1])),
             self.dt,
             states=self.state_names,
             inputs=input_names,
@@ -872,6 +904,15 @@ class AlphaCurve:
         Alpha with the smallest held-out multi-step error.
     best_stable_alpha : float or None
         Alpha with the smallest multi-step error among those meeting the margin.
+
+    Examples
+    --------
+    >>> import numpy as np, powerline_control as plc
+    >>> t = np.arange(400) * 0.01
+    >>> X = np.vstack([np.sin(2 * np.pi * 2 * t), np.cos(2 * np.pi * 2 * t)])
+    >>> curve = plc.select_alpha(X, dt=0.01, alphas=[1e-6, 1.0], horizon=20)
+    >>> bool(curve.spectral_radius[1] < curve.spectral_radius[0])
+    True
     """
 
     alphas: np.ndarray

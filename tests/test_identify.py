@@ -311,6 +311,8 @@ def test_residual_covariance_and_statespace_agree_with_direct_computation():
     np.testing.assert_array_equal(sys.C, model.field_map[[1, 3]])
     full = model.to_statespace()
     np.testing.assert_array_equal(full.C, model.field_map)
+    single = model.to_statespace(measured=[2])  # python-control 0.10.2 workaround: zero input
+    assert single.noutputs == 1 and not np.any(single.B) and single.input_labels == ["unused"]
     # ready for python-control: observability and a steady-state Kalman gain
     assert np.linalg.matrix_rank(ct.obsv(sys.A, sys.C)) == 4
     L, P, _ = ct.dlqe(sys.A, np.eye(4), sys.C, model.residual_covariance, 1e-4 * np.eye(2))
