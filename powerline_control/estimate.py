@@ -63,6 +63,8 @@ _MIN_BATCH = 256
 # well conditioned; its round-off grows with cond(V), and beyond this it could differ from the
 # loop by more than 1e-9 relative.
 _MAX_MODAL_CONDITION = 1e6
+# Consecutive full samples with a gain change below gain_rtol before the gain is frozen.
+_CONFIRM_SAMPLES = 10
 
 
 @dataclass(frozen=True)
@@ -146,6 +148,7 @@ class _Recursion:
         self.converged = False
         self.converged_at: int | None = None
         self.batch = None
+        self.settled = 0  # consecutive full samples whose gain changed by <= gain_rtol
         if kf.steady_state:
             gain, posterior, predicted = kf._steady_solution()
             self.freeze(gain, posterior, predicted)
@@ -202,7 +205,7 @@ class _Recursion:
             self.x, self.P = x_pred, (p_pred + p_pred.T) / 2
             self.last_full_gain = None if not kf.steady_state else self.last_full_gain
             if not kf.steady_state:
-                self.converged = False
+                self.converged, self.settled = False, 0
             return innovation, float("nan"), 0
         # --- measurement update with the available sensors, Joseph form
         index = np.flatnonzero(mask)
@@ -240,7 +243,7 @@ class _Recursion:
         if kf.steady_state:
             return innovation, nis, index.size
         if not full:
-            self.converged = False
+            self.converged, self.settled = False, 0
             self.last_full_gain = None
             return innovation, nis, index.size
         previous = self.last_full_gain
@@ -249,6 +252,12 @@ class _Recursion:
             and kf.gain_rtol > 0
             and np.max(np.abs(gain - previous)) <= kf.gain_rtol * np.max(np.abs(gain))
         ):
+            self.settled += 1
+        else:
+            self.settled = 0
+        # Freeze only after the gain has stayed put for a few samples: the extra covariance
+        # steps shrink what is left of the geometric convergence at almost no cost.
+        if self.settled >= _CONFIRM_SAMPLES:
             self.freeze(gain, self.P, kf._A @ self.P @ kf._A.T + kf._q_eff)
             if self.converged_at is None:
                 self.converged_at = self.k
@@ -369,6 +378,7 @@ class KalmanFilter:
         self._field_map = _check_field_map(field_map, n)
         self._sel = _selection_indices(self._C)
         self._steady: tuple | None = None
+        self._steady_batch: dict | bool | None = None
         if steady_state:
             self._steady_solution()  # fail early (EstimationError) if no steady state exists
         self._running = _Recursion(self)
@@ -570,7 +580,13 @@ class KalmanFilter:
     def _batch_ready(self, run: _Recursion) -> bool:
         """Prepare the modal form of the converged closed loop; False if too ill-conditioned."""
         if run.batch is None:
-            run.batch = self._build_batch(run.gain_ss)
+            if self.steady_state:
+                # The steady gain never changes: decompose the closed loop once per filter.
+                if self._steady_batch is None:
+                    self._steady_batch = self._build_batch(run.gain_ss)
+                run.batch = self._steady_batch
+            else:
+                run.batch = self._build_batch(run.gain_ss)
         return run.batch is not False
 
     def _build_batch(self, gain: np.ndarray):
