@@ -606,26 +606,40 @@ def _sign_fixed(U: np.ndarray) -> np.ndarray:
     return U * np.where(signs == 0, 1.0, signs)
 
 
+def _ridge_gram(
+    target: np.ndarray, regressor: np.ndarray, alpha: float, gram: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Cholesky route of :func:`_ridge`: ``(coef, gram, cross)`` or None when not accurate.
+
+    Solving ``(G + alpha I) coef^T = R Y^T`` loses about ``eps (1 + s_max^2 / alpha)``; it is
+    taken only when that is below ~1e-10 (and when ``R R^T`` is the smaller Gram matrix).
+    ``gram`` (``R R^T``, unmodified) is returned for the residual covariance.
+    """
+    n_reg, n_pairs = regressor.shape
+    if alpha <= 0 or n_reg > n_pairs:
+        return None
+    gram = regressor @ regressor.T if gram is None else gram
+    if alpha < _GRAM_ALPHA_FRACTION * np.trace(gram):
+        return None
+    shifted = gram.copy()
+    shifted[np.diag_indices_from(shifted)] += alpha
+    cross = regressor @ target.T
+    factor = sla.cho_factor(shifted, lower=True, check_finite=False)
+    return sla.cho_solve(factor, cross, check_finite=False).T, gram, cross.T
+
+
 def _ridge(
     target: np.ndarray,
     regressor: np.ndarray,
     alpha: float,
     svd: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-    gram: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float | None]:
-    """``coef = target R^T (R R^T + alpha I)^{-1}`` (alpha = 0: minimum-norm least squares).
+    """``coef = target R^T (R R^T + alpha I)^{-1}`` through an SVD (alpha = 0: pseudo-inverse).
 
     ``svd`` is a precomputed ``(target @ V, s, U)`` of the regressor ``R = U diag(s) V^T``
     (for alpha curves).  Returns the coefficients and, for alpha = 0, the smallest kept
     singular value as a fraction of the largest.
     """
-    n_reg, n_pairs = regressor.shape
-    if svd is None and alpha > 0 and n_reg <= n_pairs:
-        gram = regressor @ regressor.T if gram is None else gram.copy()
-        if alpha >= _GRAM_ALPHA_FRACTION * np.trace(gram):
-            gram[np.diag_indices_from(gram)] += alpha
-            factor = sla.cho_factor(gram, lower=True, check_finite=False)
-            return sla.cho_solve(factor, regressor @ target.T, check_finite=False).T, None
     target_V, s, U = _ridge_svd(target, regressor) if svd is None else svd
     if alpha > 0:
         keep = s > 0
@@ -638,6 +652,27 @@ def _ridge(
         ratio = float(s[keep][-1] / s[0]) if keep.any() else None
     coef = (target_V[:, keep] * gain) @ U[:, keep].T
     return coef, ratio
+
+
+def _residual_covariance_from_gram(
+    target: np.ndarray, regressor: np.ndarray, coef: np.ndarray, gram: np.ndarray,
+    cross: np.ndarray,
+) -> np.ndarray | None:
+    """``E E^T`` for ``E = Y - coef R`` from Gram matrices, or None when cancellation bites.
+
+    The target is always the regressor's state rows shifted by one sample, so
+    ``Y Y^T = G[:k, :k] - r_0 r_0^T + y_N y_N^T``: no pass over the data is needed, and the
+    cost is O(n^3) instead of O(n^2 N).  The difference of large terms is accurate to about
+    eps ||Y||^2, so the result is used only when the residual is at least 1e-8 of the data.
+    """
+    k = target.shape[0]
+    first, last = regressor[:k, 0], target[:, -1]
+    target_gram = gram[:k, :k] - np.outer(first, first) + np.outer(last, last)
+    fitted_cross = coef @ cross.T
+    result = target_gram - fitted_cross - fitted_cross.T + (coef @ gram) @ coef.T
+    if np.trace(result) < 1e-8 * np.trace(target_gram):
+        return None
+    return result
 
 
 def _ridge_svd(
@@ -673,7 +708,17 @@ def _fit_problem(
     svd: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     gram: np.ndarray | None = None,
 ) -> DMDModel:
-    coef, kept_ratio = _ridge(problem.target, problem.regressor, alpha, svd, gram)
+    gram_route = None if svd is not None else _ridge_gram(
+        problem.target, problem.regressor, alpha, gram
+    )
+    kept_ratio, scatter = None, None
+    if gram_route is not None:
+        coef, gram, cross = gram_route
+        scatter = _residual_covariance_from_gram(
+            problem.target, problem.regressor, coef, gram, cross
+        )
+    else:
+        coef, kept_ratio = _ridge(problem.target, problem.regressor, alpha, svd)
     if (
         warn
         and alpha == 0
@@ -688,11 +733,13 @@ def _fit_problem(
             stacklevel=3,
         )
     A, B = _assemble(problem, coef)
-    residual = problem.target - coef @ problem.regressor
+    if scatter is None:
+        residual = problem.target - coef @ problem.regressor
+        scatter = residual @ residual.T
     n_pairs = problem.regressor.shape[1]
     Q = np.zeros((problem.n_states, problem.n_states))
-    k = residual.shape[0]
-    Q[:k, :k] = residual @ residual.T / n_pairs
+    k = scatter.shape[0]
+    Q[:k, :k] = scatter / n_pairs
     n_states, n_nodes = problem.n_states, problem.n_nodes
     if problem.basis is None:
         field_map = np.eye(n_nodes, n_states)

@@ -298,13 +298,18 @@ def test_dmdc_on_fe_span_with_first_order_hold_inputs():
     assert error < 1e-6  # exact up to round-off (measured ~1e-10)
 
 
-def test_residual_covariance_and_statespace_agree_with_direct_computation():
+@pytest.mark.parametrize("noise", [0.05, 1e-9, 0.0])
+def test_residual_covariance_and_statespace_agree_with_direct_computation(noise):
+    # noise 0.05: Q from Gram matrices; 1e-9 and 0: cancellation would bite, direct residuals.
     rng = np.random.default_rng(2)
     A = random_stable_system(4, rng)
-    X = simulate_discrete(A, rng.standard_normal(4), 300, rng=rng, noise=0.05)
+    X = simulate_discrete(A, rng.standard_normal(4), 300, rng=rng, noise=noise)
     model = plc.fit_dmd(X, 0.02, alpha=0.5)
     residual = X[:, 1:] - model.A @ X[:, :-1]
-    np.testing.assert_allclose(model.residual_covariance, residual @ residual.T / 299, atol=1e-14)
+    direct = residual @ residual.T / 299
+    # Gram route: accurate to eps ||X||^2 / ||E||^2 ~ 1e-13 relative here.
+    np.testing.assert_allclose(model.residual_covariance, direct, rtol=1e-9,
+                               atol=1e-12 * np.abs(direct).max())
     sys = model.to_statespace(measured=[1, 3])
     assert sys.dt == 0.02 and sys.nstates == 4 and sys.ninputs == 0
     assert sys.output_labels == ["node1", "node3"]
