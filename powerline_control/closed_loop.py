@@ -245,7 +245,10 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
     position = np.full(n_t, robot.position)
     velocity = np.zeros(n_t)
     target = np.full(n_t, np.nan)
-    planner = MotionPlanner(limits, dt=control_period, span_length=span.length,
+    # The planner's horizon must outlast a full stop from top speed; twice that leaves room.
+    braking = limits.v_max / limits.a_max
+    horizon = max(40, int(np.ceil(2 * braking / control_period)))
+    planner = MotionPlanner(limits, dt=control_period, horizon=horizon, span_length=span.length,
                             obstacles=obstacles, time_budget=planner_time_budget)
     statuses = []
     state, x_r, v_r = calib.final_state, robot.position, 0.0
@@ -264,10 +267,14 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
             kf.step(noisy[list(sensors), j])
             estimated[:, k + 1 + j] = field_map @ kf.state
         recent = estimated[:, max(end + 1 - window, 0): end + 1]
+        # Stick to the antinode being followed (the one nearest the previous goal): once the
+        # robot damps its loop the field is small and noisy, and jumping between loops wastes
+        # the approach.
+        previous = x_r if np.isnan(target[k]) else target[k]
         try:
-            goal = nearest_antinode(locate_antinodes(recent, baseline.x, dt=dt), x_r).position
+            goal = nearest_antinode(locate_antinodes(recent, baseline.x, dt=dt), previous).position
         except PowerlineControlError:
-            goal = x_r                      # no clear antinode in this window: hold position
+            goal = previous                 # no clear antinode in this window: keep the goal
         step = planner.step((x_r, v_r), goal)
         statuses.append(step.status)
         # The actuator saturates: the solver meets the limits only to its tolerance (~1e-8).

@@ -45,10 +45,15 @@ def test_missing_file_is_a_clear_error(tmp_path):
 
 def test_cli_runs_a_small_scenario_and_writes_results(tmp_path, capsys):
     path = tmp_path / "small.toml"
-    path.write_text("[model]\nn_elements = 20\n[simulation]\nduration = 1.0\n")
+    path.write_text("[model]\nn_elements = 20\n[simulation]\nduration = 3.0\n"
+                    "[robot]\nclosed_loop = 3.0\n")
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
     printed = capsys.readouterr().out
-    assert "first natural frequencies" in printed
+    for stage in ("first natural frequencies", "Identification", "Estimation", "Antinode",
+                  "Closed loop"):
+        assert stage in printed
+    for name in ("report.html", "summary.json", "dmd_model.npz", "closed_loop.png"):
+        assert (tmp_path / "out" / name).stat().st_size > 0
     # The saved scenario is the one that ran, and it reads back unchanged.
     assert load_scenario(tmp_path / "out" / "scenario.toml") == load_scenario(path)
 
