@@ -1,0 +1,1041 @@
+"""Optimal sensor placement with a convex relaxation and an optimality certificate.
+
+:func:`select_sensors` chooses ``k`` of the outputs of a discrete ``control.StateSpace`` (the
+candidates: every node of an identified model, or positions of an FE model) for one of four
+criteria, each relaxed to a convex problem in weights ``0 <= z <= 1, sum z = k`` and solved with
+cvxpy:
+
+========================  =========================================================  ==========
+criterion                 exact (integer) criterion                                   sense
+========================  =========================================================  ==========
+``"kalman"``              trace of the steady-state posterior covariance (DARE)       minimise
+``"gramian"``             log det of the (finite-horizon) observability Gramian       maximise
+``"min-eig"``             smallest eigenvalue of that Gramian                         maximise
+``"reconstruction"``      log det ``Psi_S^T Psi_S`` for a POD basis (Joshi & Boyd)    maximise
+========================  =========================================================  ==========
+
+The relaxed optimum bounds every integer layout (the certificate); the weights are rounded and
+then improved by a swap search judged on the *exact* criterion. For ``"kalman"`` the swaps are
+ranked by a one-step surrogate and only the most promising are solved exactly, with a batched
+doubling Riccati solver (see :mod:`powerline_control._sensor_criteria`), because a DARE per swap
+is what makes a naive search take minutes at ``n = 101``.
+
+Work happens in units of the measurement noise (covariances divided by a reference variance): on
+a line the covariances are ~1e-8 m^2 and, unscaled, the conic solvers return infinite bounds.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import numbers
+import time
+import types
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import control as ct
+import cvxpy as cp
+import numpy as np
+import scipy.linalg as sla
+
+from ._sensor_criteria import (
+    KalmanCriterion,
+    LogDetCriterion,
+    MinEigCriterion,
+    Polytope,
+    linear_extreme,
+)
+from ._validation import check_array, check_choice, check_int, check_psd, check_real, check_rng
+from .errors import InputError, SensorSelectionError
+
+__all__ = ["select_sensors", "SensorSelection", "Baseline", "sensor_count_study",
+           "SensorCountStudy"]
+
+CRITERIA = ("kalman", "gramian", "min-eig", "reconstruction")
+_SOLVER_OK = ("optimal", "optimal_inaccurate")
+
+
+# ----------------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class Baseline:
+    """One comparison layout.
+
+    Attributes
+    ----------
+    name : str
+        ``"first-k"``, ``"evenly-spaced"``, ``"greedy"``, ``"qr-pivoting"``, ``"random-mean"``,
+        ``"random-best"`` or ``"brute-force"``.
+    nodes : tuple of int or None
+        Candidate indices (None for the random mean).
+    objective : float
+        Exact criterion of the layout (``inf`` / ``-inf`` if the layout cannot estimate the state).
+    """
+
+    name: str
+    nodes: tuple[int, ...] | None
+    objective: float
+
+
+@dataclass(frozen=True)
+class SensorSelection:
+    """Result of :func:`select_sensors`.
+
+    Attributes
+    ----------
+    nodes : tuple of int
+        Chosen candidate indices (outputs of ``sys``), ascending.
+    positions : tuple of float or None
+        Their positions in metres, when known.
+    objective : float
+        Exact criterion of ``nodes`` in physical units: for ``"kalman"`` the trace of the
+        steady-state posterior covariance of the weighted states (m^2 for displacements), for
+        ``"gramian"`` / ``"reconstruction"`` a log determinant, for ``"min-eig"`` an eigenvalue.
+    bound : float
+        Certificate: no layout satisfying the constraints does better than this (a lower bound
+        for a minimised criterion, an upper bound for a maximised one).
+    gap : float
+        Relative distance to the bound, >= 0, an upper bound on the distance to the best layout:
+        ``(objective - bound) / objective`` for ``"kalman"``; ``(bound - objective) / bound`` for
+        ``"min-eig"``; ``1 - exp(-(bound - objective) / d)`` for the log determinants (the gap in
+        the geometric-mean eigenvalue ``det^(1/d)``, ``d`` the matrix size).
+    weights : numpy.ndarray
+        Relaxed weights ``z`` (read-only), one per candidate.
+    criterion : str
+        The criterion optimised.
+    sense : str
+        ``"minimize"`` or ``"maximize"``.
+    k : int
+        Number of sensors.
+    baselines : Mapping[str, Baseline]
+        Comparison layouts (they ignore the practical constraints: they are the obvious layouts
+        a report compares against). ``"brute-force"`` (present when ``C(m, k)`` is small enough)
+        does honour the constraints and is the true optimum.
+    relaxation_value : float
+        Optimal value of the relaxation as reported by the solver (physical units).
+    solver : str
+        cvxpy solver used.
+    solver_status : str
+        Its status.
+    certificate : str
+        ``"convexity"``: the bound comes from the convexity inequality at the solver's weights
+        with an exact linear program, valid whatever the solver's accuracy; ``"solver"``: the
+        solver's optimal value (valid up to its tolerance).
+    n_exact_evaluations : int
+        Exact criterion evaluations used (Riccati solves for ``"kalman"``).
+    runtime : float
+        Wall-clock seconds.
+    """
+
+    nodes: tuple[int, ...]
+    positions: tuple[float, ...] | None
+    objective: float
+    bound: float
+    gap: float
+    weights: np.ndarray
+    criterion: str
+    sense: str
+    k: int
+    baselines: Mapping[str, Baseline]
+    relaxation_value: float
+    solver: str
+    solver_status: str
+    certificate: str
+    n_exact_evaluations: int
+    runtime: float
+
+    def summary(self) -> str:
+        """A short markdown report: the layout, its certificate and the baselines.
+
+        Returns
+        -------
+        str
+            Markdown text.
+        """
+        better = "lower" if self.sense == "minimize" else "higher"
+        lines = [
+            f"criterion {self.criterion!r} ({better} is better), k = {self.k}",
+            f"nodes {list(self.nodes)}: objective {self.objective:.6g}, bound {self.bound:.6g}, "
+            f"within {100 * self.gap:.3g} % of the best possible layout",
+            "",
+            "| layout | objective |",
+            "|---|---|",
+        ]
+        lines += [f"| {b.name} | {b.objective:.6g} |" for b in self.baselines.values()]
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class SensorCountStudy:
+    """Result of :func:`sensor_count_study`: the criterion and the RMS error against ``k``.
+
+    Attributes
+    ----------
+    k : tuple of int
+        Sensor counts studied.
+    objective : numpy.ndarray
+        Exact steady-state posterior trace of the optimised layout for each ``k``.
+    rms_error : numpy.ndarray
+        ``sqrt(objective / q)``: the predicted RMS estimation error per weighted state.
+    simulated_rms_error : numpy.ndarray
+        The RMS error of a steady-state Kalman filter on a seeded simulation of the model.
+    layouts : tuple of tuple of int
+        The optimised layout for each ``k``.
+    target_error : float or None
+        The RMS error asked for.
+    smallest_k : int or None
+        Smallest ``k`` whose predicted RMS error is at most ``target_error`` (None if none).
+    """
+
+    k: tuple[int, ...]
+    objective: np.ndarray
+    rms_error: np.ndarray
+    simulated_rms_error: np.ndarray
+    layouts: tuple[tuple[int, ...], ...]
+    target_error: float | None
+    smallest_k: int | None
+
+
+# -------------------------------------------------------------------------------- validation
+def _check_system(sys: object) -> ct.StateSpace:
+    if not isinstance(sys, ct.StateSpace):
+        raise InputError(
+            "The 'sys' parameter must be a discrete control.StateSpace whose outputs are the "
+            f"candidate sensors. Got {type(sys).__name__} instead."
+        )
+    if not sys.isdtime(strict=True):
+        raise InputError(
+            "The 'sys' parameter must be a discrete-time system (dt > 0); sensor selection uses "
+            "the discrete Kalman filter. Discretise it first, e.g. model.to_statespace(dt=1e-3)."
+        )
+    return sys
+
+
+def _check_noise(R: object, m: int) -> np.ndarray:
+    if isinstance(R, numbers.Real) and not isinstance(R, bool):
+        return np.full(m, check_real("R", R, low=0.0))
+    r = check_array("R", R, ndim=1)
+    if r.shape != (m,):
+        raise InputError(
+            f"The 'R' parameter must be one variance or one per candidate, shape ({m},). "
+            f"Got shape {r.shape} instead."
+        )
+    if np.any(r <= 0):
+        raise InputError(f"The 'R' parameter must be positive. Got minimum {r.min():.3g}.")
+    return r
+
+
+def _check_positions(positions: object, m: int) -> np.ndarray | None:
+    if positions is None:
+        return None
+    x = check_array("positions", positions, ndim=1)
+    if x.shape != (m,):
+        raise InputError(
+            f"The 'positions' parameter must give one position (m) per candidate output, shape "
+            f"({m},). Got shape {x.shape} instead."
+        )
+    return x
+
+
+def _check_indices(name: str, value: object, m: int) -> np.ndarray:
+    if value is None:
+        return np.zeros(0, dtype=int)
+    items = list(value) if isinstance(value, Sequence | np.ndarray) else None
+    if items is None or any(
+        isinstance(i, bool) or not isinstance(i, numbers.Integral) for i in items
+    ):
+        raise InputError(
+            f"The {name!r} parameter must be a sequence of candidate indices (int). "
+            f"Got {value!r} instead."
+        )
+    idx = np.array(items, dtype=int)
+    if idx.size and (idx.min() < 0 or idx.max() >= m):
+        raise InputError(
+            f"The {name!r} parameter must hold indices in 0..{m - 1}. Got {idx.tolist()}."
+        )
+    if len(set(idx.tolist())) != idx.size:
+        raise InputError(f"The {name!r} parameter has repeated indices: {idx.tolist()}.")
+    return idx
+
+
+def _check_zones(forbidden: object) -> list[tuple[float, float]]:
+    if forbidden is None:
+        return []
+    try:
+        zones = [(float(lo), float(hi)) for lo, hi in forbidden]  # type: ignore[union-attr]
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            "The 'forbidden' parameter must be a sequence of (start, end) intervals in metres, "
+            f"e.g. [(0.0, 0.2), (3.4, 3.66)]. Got {forbidden!r} instead."
+        ) from exc
+    for lo, hi in zones:
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+            raise InputError(
+                f"The 'forbidden' parameter has an interval ({lo}, {hi}); each must be finite "
+                "with start <= end."
+            )
+    return zones
+
+
+# ---------------------------------------------------------------------------- feasibility
+@dataclass(frozen=True)
+class _Feasibility:
+    """Integer feasibility of layouts: allowed candidates, spacing conflicts, budget."""
+
+    allowed: np.ndarray  # (m,) bool
+    required: np.ndarray
+    conflict: np.ndarray | None  # (m, m) bool or None
+    cost: np.ndarray | None
+    budget: float | None
+
+    def compatible(self, layout: Sequence[int], j: int) -> bool:
+        if not self.allowed[j] or j in layout:
+            return False
+        if self.conflict is not None and np.any(self.conflict[j, list(layout)]):
+            return False
+        return True
+
+    def within_budget(self, layout: Sequence[int]) -> bool:
+        if self.cost is None or self.budget is None:
+            return True
+        return float(self.cost[list(layout)].sum()) <= self.budget * (1 + 1e-12)
+
+    def is_feasible(self, layout: Sequence[int]) -> bool:
+        layout = list(layout)
+        if len(set(layout)) != len(layout) or not np.all(self.allowed[layout]):
+            return False
+        if not set(self.required.tolist()) <= set(layout):
+            return False
+        if self.conflict is not None and np.any(self.conflict[np.ix_(layout, layout)]):
+            return False
+        return self.within_budget(layout)
+
+    def swaps(self, layout: list[int]) -> np.ndarray:
+        """Feasible moves ``(p, j)``: replace ``layout[p]`` by candidate ``j``."""
+        moves = []
+        req = set(self.required.tolist())
+        for p, i in enumerate(layout):
+            if i in req:
+                continue
+            rest = layout[:p] + layout[p + 1:]
+            for j in np.flatnonzero(self.allowed):
+                if j in layout:
+                    continue
+                if self.conflict is not None and np.any(self.conflict[j, rest]):
+                    continue
+                if not self.within_budget(rest + [int(j)]):
+                    continue
+                moves.append((p, int(j)))
+        return np.array(moves, dtype=int).reshape(-1, 2)
+
+    def additions(self, layout: list[int]) -> np.ndarray:
+        return np.array([j for j in range(len(self.allowed))
+                         if self.compatible(layout, j) and self.within_budget(layout + [j])],
+                        dtype=int)
+
+
+def _build_constraints(
+    m: int, k: int, x: np.ndarray | None, zones: list[tuple[float, float]],
+    min_spacing: float, required: np.ndarray, cost: np.ndarray | None, budget: float | None,
+) -> tuple[_Feasibility, Polytope]:
+    """Check that the constraints admit a layout and return them in integer and relaxed form."""
+    needs_positions = [name for name, used in (("forbidden", bool(zones)),
+                                               ("min_spacing", min_spacing > 0)) if used]
+    if needs_positions and x is None:
+        raise InputError(
+            f"The {needs_positions[0]!r} constraint is in metres, so the candidate positions are "
+            "needed: pass positions= (e.g. model.node_positions for every node)."
+        )
+    allowed = np.ones(m, dtype=bool)
+    for lo, hi in zones:
+        allowed &= ~((x >= lo) & (x <= hi))
+    if k > m:
+        raise SensorSelectionError(f"k={k} exceeds the number of candidate outputs ({m}).")
+    blocked = required[~allowed[required]]
+    if blocked.size:
+        raise SensorSelectionError(
+            f"Required candidates {blocked.tolist()} (at {x[blocked].tolist()} m) lie inside the "
+            f"forbidden zones {zones}: remove them from 'required' or shrink the zones."
+        )
+    if required.size > k:
+        raise SensorSelectionError(
+            f"{required.size} required candidates do not fit in k={k} sensors; raise k."
+        )
+    n_allowed = int(allowed.sum())
+    if k > n_allowed:
+        raise SensorSelectionError(
+            f"k={k} exceeds the {n_allowed} candidates left after the forbidden zones {zones} "
+            f"removed {m - n_allowed} of {m}; lower k or shrink the zones."
+        )
+    conflict = None
+    cliques: list[np.ndarray] = []
+    if min_spacing > 0:
+        conflict = np.abs(x[:, None] - x[None, :]) < min_spacing
+        np.fill_diagonal(conflict, False)
+        bad = [(int(a), int(b)) for a, b in itertools.combinations(required, 2) if conflict[a, b]]
+        if bad:
+            raise SensorSelectionError(
+                f"Required candidates {bad[0]} are closer than min_spacing={min_spacing} m."
+            )
+        # Largest layout: required ones plus an interval-scheduling greedy on the compatible rest
+        # (leftmost first is optimal for points on a line).
+        free = allowed.copy()
+        free[required] = False
+        if required.size:
+            free &= ~np.any(conflict[:, required], axis=1)
+        chosen_x: list[float] = []
+        for j in np.flatnonzero(free)[np.argsort(x[free], kind="stable")]:
+            if not chosen_x or x[j] - chosen_x[-1] >= min_spacing:
+                chosen_x.append(float(x[j]))
+        most = required.size + len(chosen_x)
+        if most < k:
+            raise SensorSelectionError(
+                f"min_spacing={min_spacing} m leaves room for at most {most} sensors among the "
+                f"{n_allowed} allowed candidates (k={k} requested); lower min_spacing or k."
+            )
+        order = np.argsort(x, kind="stable")
+        xs = x[order]
+        seen: set[tuple[int, ...]] = set()
+        for a in range(m):
+            end = np.searchsorted(xs, xs[a] + min_spacing, side="left")
+            window = tuple(order[a:end][allowed[order[a:end]]].tolist())
+            if len(window) > 1 and window not in seen:
+                seen.add(window)
+                cliques.append(np.array(window))
+    if cost is not None and budget is not None:
+        free = np.flatnonzero(allowed & ~np.isin(np.arange(m), required))
+        cheapest = float(cost[required].sum() + np.sort(cost[free])[: k - required.size].sum())
+        if cheapest > budget:
+            raise SensorSelectionError(
+                f"budget={budget} is below {cheapest:.6g}, the cost of the cheapest {k} allowed "
+                "sensors (required ones included); raise the budget or lower k."
+            )
+    feas = _Feasibility(allowed, required, conflict, cost, budget)
+    poly = Polytope(m, k, required, np.flatnonzero(~allowed), tuple(cliques), cost, budget)
+    return feas, poly
+
+
+# ----------------------------------------------------------------------------- the search
+def _best_of(crit, candidates: list[list[int]]) -> tuple[int, np.ndarray]:
+    values = crit.exact(np.array(candidates, dtype=int))
+    return int(np.argmin(values)), values
+
+
+def _improves(new: float, old: float) -> bool:
+    return new < old - 1e-10 * max(abs(old), 1e-300)
+
+
+# Exact evaluations of a whole neighbourhood are allowed while (moves x n^3) stays below this:
+# every swap of a 21-state model (a true swap-local optimum), a surrogate-ranked shortlist at 101.
+_EXHAUSTIVE_WORK = 2e7
+
+
+def _exhaustive(crit, n_moves: int) -> bool:
+    size = getattr(crit, "n_states", 0)
+    return not hasattr(crit, "rank_swaps") or n_moves * size**3 <= _EXHAUSTIVE_WORK
+
+
+def _swap_search(crit, feas: _Feasibility, layout: list[int], cost: float,
+                 chunk: int = 8, max_chunks: int = 2,
+                 max_rounds: int = 500) -> tuple[list[int], float]:
+    """Best-improvement swaps on the exact criterion until no swap improves it.
+
+    Small neighbourhoods are evaluated exactly in full (a true swap-local optimum); large ones
+    are ordered by the criterion's surrogate and only the ``chunk * max_chunks`` most promising
+    are judged exactly, a chunk at a time.
+    """
+    layout = list(layout)
+    for _ in range(max_rounds):
+        moves = feas.swaps(layout)
+        if len(moves) == 0:
+            break
+        ranked = not _exhaustive(crit, len(moves))
+        if ranked:
+            scores = crit.rank_swaps(np.array(layout))[moves[:, 0], moves[:, 1]]
+            moves = moves[np.argsort(scores, kind="stable")][: chunk * max_chunks]
+            size = chunk
+        else:
+            size = len(moves)
+        improved = False
+        for start in range(0, len(moves), size):
+            part = moves[start:start + size]
+            cands = np.tile(np.array(layout), (len(part), 1))
+            cands[np.arange(len(part)), part[:, 0]] = part[:, 1]
+            values = crit.exact(cands)
+            best = int(np.argmin(values))
+            if _improves(values[best], cost):
+                layout, cost, improved = cands[best].tolist(), float(values[best]), True
+                break
+        if not improved:
+            break
+    return layout, cost
+
+
+def _greedy(crit, feas: _Feasibility, k: int, chunk: int = 4) -> list[int] | None:
+    """Add the sensor that most improves the exact criterion (surrogate-ranked when large)."""
+    layout = feas.required.tolist()
+    while len(layout) < k:
+        adds = feas.additions(layout)
+        if len(adds) == 0:
+            return None
+        scores = crit.rank_additions(np.array(layout, dtype=int)) if hasattr(
+            crit, "rank_additions") else None
+        if scores is not None and not _exhaustive(crit, len(adds)):
+            adds = adds[np.argsort(scores[adds], kind="stable")][:chunk]
+        values = crit.exact(np.array([layout + [int(j)] for j in adds]))
+        if np.all(~np.isfinite(values)) and scores is not None:
+            best = int(adds[np.argmin(scores[adds])])  # not yet detectable: follow the surrogate
+        else:
+            best = int(adds[np.argmin(values)])
+        layout.append(best)
+    return layout
+
+
+def _round(weights: np.ndarray, feas: _Feasibility, k: int) -> list[int] | None:
+    """Largest weights first, skipping candidates that would break a constraint."""
+    layout = feas.required.tolist()
+    for j in np.argsort(-weights, kind="stable"):
+        if len(layout) == k:
+            break
+        if feas.compatible(layout, int(j)) and feas.within_budget(layout + [int(j)]):
+            layout.append(int(j))
+    return layout if len(layout) == k else None
+
+
+def _brute_force(crit, feas: _Feasibility, k: int, limit: int) -> tuple[list[int], float] | None:
+    req = feas.required.tolist()
+    free = [int(j) for j in np.flatnonzero(feas.allowed) if j not in req]
+    if math.comb(len(free), k - len(req)) > limit:
+        return None
+    combos = [req + list(c) for c in itertools.combinations(free, k - len(req))]
+    combos = [c for c in combos if feas.is_feasible(c)]
+    if not combos:
+        return None
+    values = crit.exact(np.array(combos, dtype=int))
+    best = int(np.argmin(values))
+    return combos[best], float(values[best])
+
+
+# ----------------------------------------------------------------------------- criteria
+def _stationary_covariance(a: np.ndarray, q: np.ndarray, horizon: int) -> np.ndarray:
+    if np.max(np.abs(np.linalg.eigvals(a))) < 1 - 1e-9:
+        x = sla.solve_discrete_lyapunov(a, q)
+    else:  # marginal or unstable: the covariance after `horizon` steps
+        x = np.zeros_like(q)
+        for _ in range(horizon):
+            x = a @ x @ a.T + q
+    return (x + x.T) / 2
+
+
+def _gramian_terms(a: np.ndarray, g: np.ndarray, horizon: int) -> np.ndarray:
+    """Per-candidate finite-horizon observability Gramians ``sum_t (A^T)^t g_i g_i^T A^t``."""
+    m, n = g.shape
+    mats = np.zeros((m, n, n))
+    rows = g.copy()
+    for _ in range(horizon):
+        mats += rows[:, :, None] * rows[:, None, :]
+        rows = rows @ a
+    return mats
+
+
+def _default_horizon(a: np.ndarray) -> int:
+    return 2 * a.shape[0]
+
+
+# ------------------------------------------------------------------------------- public API
+def select_sensors(
+    sys: ct.StateSpace,
+    k: int,
+    criterion: str = "kalman",
+    *,
+    Q: object = None,
+    R: object = 1.0,
+    positions: object = None,
+    forbidden: object = None,
+    min_spacing: float = 0.0,
+    required: Sequence[int] | None = None,
+    cost: object = None,
+    budget: float | None = None,
+    error_weight: object = "states",
+    basis: object = None,
+    horizon: int | None = None,
+    relaxation_rank: int = 20,
+    solver: str = "CLARABEL",
+    n_random: int = 20,
+    brute_force_limit: int = 100_000,
+    seed: int | np.random.Generator | None = 0,
+) -> SensorSelection:
+    """Choose ``k`` sensors among the outputs of ``sys``, with a certificate of optimality.
+
+    Solves the convex relaxation of the criterion in cvxpy, turns its bound into a certificate
+    (valid whatever the solver's accuracy, through the convexity inequality and an exact LP),
+    rounds the weights to a layout that honours every constraint, and improves it (and the greedy
+    layout) by swaps judged on the exact criterion.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Discrete model ``x[t+1] = A x[t] + w``, ``y = C x + v``; its ``m`` outputs are the
+        candidate sensors (e.g. ``dmd.to_statespace()`` for every node, or
+        ``model.to_statespace(dt=..., n_modes=...)``).
+    k : int
+        Number of sensors, ``1 <= k <= m``.
+    criterion : {"kalman", "gramian", "min-eig", "reconstruction"}
+        What to optimise (see the module docstring).
+    Q : array_like, optional
+        Process-noise covariance ``(n, n)``. Required for ``"kalman"``; for ``"reconstruction"``
+        without ``basis`` it defines the POD basis (stationary output covariance).
+    R : float or array_like
+        Measurement-noise variance, one for all candidates or one per candidate (m^2).
+    positions : array_like, optional
+        Position (m) of each candidate; needed for ``forbidden`` and ``min_spacing`` and used by
+        the evenly-spaced baseline.
+    forbidden : sequence of (float, float), optional
+        Intervals in metres where no sensor may go (near clamps, spacers), ends included.
+    min_spacing : float
+        Minimum distance (m) between any two sensors.
+    required : sequence of int, optional
+        Candidates that must be in the layout.
+    cost : array_like, optional
+        Cost of each candidate; with ``budget``, the layout's total cost is at most ``budget``.
+    budget : float, optional
+        Maximum total cost.
+    error_weight : {"states", "outputs"} or array_like
+        ``H`` in the Kalman criterion ``tr(H P H^T)``: the states (default, the issue's
+        criterion), every candidate output (the displacement field, for FE models whose states
+        are modal), or a given ``(q, n)`` matrix.
+    basis : array_like, optional
+        ``(m, r)`` basis for ``"reconstruction"`` and QR pivoting (default: the ``k`` leading POD
+        modes of the stationary output covariance under ``Q``).
+    horizon : int, optional
+        Steps of the finite-horizon Gramian (default ``2 n``).
+    relaxation_rank : int
+        Largest size of the Kalman relaxation's SDP: the prior is cut to its leading
+        eigen-directions, which keeps the bound valid (see :class:`KalmanCriterion`).
+    solver : str
+        cvxpy solver, e.g. ``"CLARABEL"`` (default) or ``"SCS"``; both install with cvxpy.
+    n_random : int
+        Random layouts in the baseline (mean and best).
+    brute_force_limit : int
+        Enumerate every feasible layout when ``C(m, k)`` is at most this (0 disables).
+    seed : int, numpy.random.Generator or None
+        Seed of the random baseline.
+
+    Returns
+    -------
+    SensorSelection
+        The layout, its exact objective, the bound, the gap, the weights and the baselines.
+
+    Raises
+    ------
+    InputError
+        Invalid arguments (the message names the parameter).
+    SensorSelectionError
+        Infeasible constraints (named), a solver failure, or a model that no layout can estimate.
+
+    Examples
+    --------
+    >>> import numpy as np, control as ct
+    >>> import powerline_control as plc
+    >>> a = np.diag([0.9, 0.5, -0.3])
+    >>> c = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]])
+    >>> sys = ct.ss(a, np.zeros((3, 0)), c, np.zeros((4, 0)), 1.0)
+    >>> sel = plc.select_sensors(sys, k=2, Q=np.eye(3), R=0.1)
+    >>> sel.nodes, sel.gap >= 0, sel.bound <= sel.objective
+    ((0, 3), True, True)
+    """
+    started = time.perf_counter()
+    sys = _check_system(sys)
+    a = np.asarray(sys.A, dtype=float)
+    c = np.asarray(sys.C, dtype=float)
+    n, m = a.shape[0], c.shape[0]
+    k = check_int("k", k, low=1, high=m)
+    criterion = check_choice("criterion", criterion, CRITERIA)
+    r = _check_noise(R, m)
+    x = _check_positions(positions, m)
+    zones = _check_zones(forbidden)
+    min_spacing = check_real("min_spacing", min_spacing, low=0.0, low_inclusive=True)
+    req = _check_indices("required", required, m)
+    costs = None if cost is None else check_array("cost", cost, shape=(m,))
+    if budget is not None:
+        budget = check_real("budget", budget, low=0.0, low_inclusive=True)
+        if costs is None:
+            raise InputError("The 'budget' parameter needs 'cost' (one cost per candidate).")
+    relaxation_rank = check_int("relaxation_rank", relaxation_rank, low=1)
+    n_random = check_int("n_random", n_random, low=0)
+    brute_force_limit = check_int("brute_force_limit", brute_force_limit, low=0)
+    horizon = _default_horizon(a) if horizon is None else check_int("horizon", horizon, low=1)
+    if not isinstance(solver, str) or solver.upper() not in cp.installed_solvers():
+        raise InputError(
+            f"The 'solver' parameter must be an installed cvxpy solver, one of "
+            f"{cp.installed_solvers()}. Got {solver!r} instead."
+        )
+    solver = solver.upper()
+    rng = check_rng(seed)
+
+    # Units of the measurement noise: covariances / r0, rows scaled by sqrt(r0 / R_i).
+    r0 = float(np.exp(np.mean(np.log(r))))
+    g = c * np.sqrt(r0 / r)[:, None]
+    q = None
+    if Q is not None:
+        q = check_psd("Q", Q, n) / r0
+    feas, poly = _build_constraints(m, k, x, zones, min_spacing, req, costs, budget)
+
+    psi = _basis(basis, a, c, q, r, r0, k, horizon, needed=criterion == "reconstruction")
+    crit, to_physical, gap_of = _make_criterion(
+        criterion, a, q, g, c, psi, error_weight, horizon, relaxation_rank, r0)
+
+    # Relaxation.
+    z = cp.Variable(m)
+    problem = cp.Problem(cp.Minimize(crit.relaxation(z)), poly.cvxpy_constraints(z))
+    try:
+        with warnings.catch_warnings():
+            # cvxpy warns "Solution may be inaccurate"; the status says so and the certificate
+            # below does not rely on the solver's accuracy.
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=solver)
+    except cp.error.SolverError as exc:
+        raise SensorSelectionError(
+            f"The cvxpy solver {solver} failed on the {criterion!r} relaxation ({exc}). Try "
+            "another solver, e.g. solver='SCS' or solver='CLARABEL'."
+        ) from exc
+    if problem.status not in _SOLVER_OK or z.value is None:
+        raise SensorSelectionError(
+            f"The cvxpy solver {solver} returned status {problem.status!r} on the {criterion!r} "
+            "relaxation; try another solver (e.g. 'SCS' or 'CLARABEL')."
+        )
+    weights = np.clip(np.asarray(z.value, dtype=float), 0.0, 1.0)
+    bound_cost, certificate = _certificate(crit, weights, poly, float(problem.value))
+
+    # Integer layouts: rounding and greedy, each improved by exact swaps; the better wins.
+    starts = []
+    rounded = _round(weights, feas, k)
+    if rounded is not None:
+        starts.append(rounded)
+    greedy = _greedy(crit, feas, k)
+    if greedy is not None:
+        starts.append(greedy)
+    if not starts:
+        raise SensorSelectionError(
+            "No layout honouring the constraints could be built from the relaxed weights; "
+            "loosen min_spacing or budget."
+        )
+    best_layout, best_cost = None, np.inf
+    for start in starts:
+        start_cost = float(crit.exact(np.array([start]))[0])
+        layout, value = _swap_search(crit, feas, start, start_cost)
+        if best_layout is None or value < best_cost:
+            best_layout, best_cost = layout, value
+    brute = _brute_force(crit, feas, k, brute_force_limit) if brute_force_limit else None
+    if brute is not None and brute[1] < best_cost:
+        best_layout, best_cost = brute
+    if not np.isfinite(best_cost):
+        raise SensorSelectionError(
+            f"No layout of k={k} sensors can estimate the state (the exact {criterion!r} "
+            "criterion is infinite): some mode on or outside the unit circle is invisible to "
+            "them. Raise k or add candidates."
+        )
+    bound_cost = min(bound_cost, best_cost)  # guard against round-off above the optimum
+
+    baselines = _baselines(crit, feas, k, greedy, psi, x, rng, n_random, brute, to_physical)
+    objective = to_physical(best_cost)
+    bound = to_physical(bound_cost)
+    nodes = tuple(sorted(int(i) for i in best_layout))
+    weights.setflags(write=False)
+    return SensorSelection(
+        nodes=nodes,
+        positions=None if x is None else tuple(float(x[i]) for i in nodes),
+        objective=objective,
+        bound=bound,
+        gap=gap_of(objective, bound),
+        weights=weights,
+        criterion=criterion,
+        sense=crit.sense,
+        k=k,
+        baselines=types.MappingProxyType(baselines),
+        relaxation_value=to_physical(float(problem.value)),
+        solver=solver,
+        solver_status=str(problem.status),
+        certificate=certificate,
+        n_exact_evaluations=crit.n_exact,
+        runtime=time.perf_counter() - started,
+    )
+
+
+def _basis(basis, a, c, q, r, r0, k, horizon, needed) -> np.ndarray | None:
+    m = c.shape[0]
+    if basis is not None:
+        psi = check_array("basis", basis, ndim=2)
+        if psi.shape[0] != m:
+            raise InputError(
+                f"The 'basis' parameter must have one row per candidate: expected ({m}, r) but "
+                f"found {psi.shape}."
+            )
+    elif q is not None:
+        cov = c @ _stationary_covariance(a, q, horizon) @ c.T
+        lam, vec = np.linalg.eigh((cov + cov.T) / 2)
+        psi = vec[:, ::-1][:, : min(k, m)]
+    elif needed:
+        raise InputError(
+            "The 'reconstruction' criterion needs a basis: pass basis= (m, r) or Q= (the POD "
+            "basis is then taken from the stationary output covariance)."
+        )
+    else:
+        return None
+    if needed and psi.shape[1] > k:
+        raise InputError(
+            f"The 'basis' parameter has {psi.shape[1]} columns, more than k={k}: log det "
+            "Psi_S^T Psi_S is then singular for every layout. Use at most k basis vectors."
+        )
+    return psi * np.sqrt(r0 / r)[:, None]
+
+
+def _make_criterion(criterion, a, q, g, c, psi, error_weight, horizon, relaxation_rank, r0):
+    """The criterion object, its cost-to-physical map and its gap formula."""
+    n = a.shape[0]
+    if criterion == "kalman":
+        if q is None:
+            raise InputError(
+                "The 'kalman' criterion needs the process-noise covariance Q (n, n), e.g. "
+                "dmd.residual_covariance for an identified model."
+            )
+        weight = _error_weight(error_weight, c, n)
+        try:
+            crit = KalmanCriterion(a, q, g, weight, relaxation_rank)
+        except FloatingPointError as exc:
+            raise SensorSelectionError(
+                "Even all candidates together cannot estimate the state (the Riccati iteration "
+                "diverges): a mode on or outside the unit circle is unobservable from every "
+                "output. Check the model (e.g. stabilise the identified A) or add candidates."
+            ) from exc
+        def gap_of(obj: float, bound: float) -> float:
+            return max(0.0, (obj - bound) / obj) if obj > 0 else 0.0
+
+        return crit, (lambda cost: cost * r0), gap_of
+    mats = psi[:, :, None] * psi[:, None, :] if criterion == "reconstruction" else \
+        _gramian_terms(a, g, horizon)
+    d = mats.shape[1]
+    scale = float(np.trace(mats.sum(axis=0))) / (d * len(mats)) or 1.0
+    mats = mats / scale
+    # Gramians were built from rows in noise units (c_i sqrt(r0 / R_i)); physical ones carry 1/r0.
+    unit = 1.0 if criterion == "reconstruction" else 1.0 / r0
+    if criterion == "min-eig":
+        crit = MinEigCriterion(mats)
+
+        def gap_of(obj: float, bound: float) -> float:
+            return max(0.0, (bound - obj) / bound) if bound > 0 else 0.0
+
+        return crit, (lambda cost: -cost * scale * unit), gap_of
+    crit = LogDetCriterion(mats)
+
+    def gap_of(obj: float, bound: float) -> float:
+        return max(0.0, 1.0 - math.exp(-(bound - obj) / d))
+
+    return crit, (lambda cost: -cost + d * math.log(scale * unit)), gap_of
+
+
+def _error_weight(error_weight: object, c: np.ndarray, n: int) -> np.ndarray:
+    if isinstance(error_weight, str):
+        choice = check_choice("error_weight", error_weight, ("states", "outputs"))
+        h = np.eye(n) if choice == "states" else c
+    else:
+        h = check_array("error_weight", error_weight, ndim=2)
+        if h.shape[1] != n:
+            raise InputError(
+                f"The 'error_weight' parameter must be a (q, {n}) matrix. Got {h.shape}."
+            )
+    return h.T @ h
+
+
+def _certificate(crit, weights: np.ndarray, poly: Polytope, solver_value: float
+                 ) -> tuple[float, str]:
+    """Lower bound on the cost of every feasible layout, from convexity at ``weights``.
+
+    For a convex cost ``f``, ``f(z) >= f(w) + grad f(w) . (z - w)`` for every ``z``; its minimum
+    over the relaxed polytope (an exact LP) bounds the relaxation, and hence every integer
+    layout, from below, however inaccurate the solver's ``w``.
+    """
+    bounds = []
+    for reduced in (True, False) if isinstance(crit, KalmanCriterion) else (False,):
+        try:
+            value, grad = crit.linearisation(weights, reduced)
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+        if np.all(np.isfinite(grad)) and np.isfinite(value):
+            bounds.append(value + linear_extreme(grad, poly) - float(grad @ weights))
+    if bounds and np.isfinite(max(bounds)):
+        return max(bounds), "convexity"
+    return solver_value, "solver"
+
+
+def _baselines(crit, feas: _Feasibility, k: int, greedy: list[int] | None,
+               psi: np.ndarray | None, x: np.ndarray | None, rng: np.random.Generator,
+               n_random: int, brute: tuple[list[int], float] | None, to_physical
+               ) -> dict[str, Baseline]:
+    """The obvious layouts a report compares against, judged on the exact criterion."""
+    m = len(feas.allowed)
+    layouts: dict[str, list[int]] = {"first-k": list(range(k))}
+    if x is not None:
+        targets = np.linspace(x.min(), x.max(), k + 2)[1:-1]
+        even: list[int] = []
+        for t in targets:
+            for j in np.argsort(np.abs(x - t), kind="stable"):
+                if int(j) not in even:
+                    even.append(int(j))
+                    break
+        layouts["evenly-spaced"] = even
+    else:
+        layouts["evenly-spaced"] = np.unique(np.round(np.linspace(0, m - 1, k + 2)[1:-1])
+                                             ).astype(int).tolist()
+    if greedy is not None:
+        layouts["greedy"] = greedy
+    if psi is not None:
+        # QR column pivoting on Psi^T (the method of PySensors' SSPOR): rows maximising |det|.
+        _, _, piv = sla.qr(psi.T, pivoting=True, mode="economic")
+        qr_layout = piv[: min(k, len(piv))].tolist()
+        for j in range(m):  # k larger than the basis: fill in candidate order
+            if len(qr_layout) == k:
+                break
+            if j not in qr_layout:
+                qr_layout.append(j)
+        layouts["qr-pivoting"] = qr_layout
+    out: dict[str, Baseline] = {}
+    named = [v for v in layouts.values() if len(set(v)) == k]
+    values = crit.exact(np.array(named, dtype=int))
+    for (name, layout), value in zip(
+        [(nm, v) for nm, v in layouts.items() if len(set(v)) == k], values, strict=True):
+        out[name] = Baseline(name, tuple(sorted(int(i) for i in layout)), to_physical(value))
+    if n_random:
+        rand = np.array([rng.choice(m, size=k, replace=False) for _ in range(n_random)])
+        values = crit.exact(rand)
+        physical = np.array([to_physical(v) for v in values])
+        finite = physical[np.isfinite(physical)]
+        mean = float(finite.mean()) if finite.size == len(physical) else to_physical(np.inf)
+        out["random-mean"] = Baseline("random-mean", None, mean)
+        best = int(np.argmin(values))
+        out["random-best"] = Baseline("random-best", tuple(sorted(rand[best].tolist())),
+                                      to_physical(values[best]))
+    if brute is not None:
+        out["brute-force"] = Baseline("brute-force", tuple(sorted(brute[0])),
+                                      to_physical(brute[1]))
+    return out
+
+
+def _error_rows(error_weight: object, c: np.ndarray, n: int) -> np.ndarray:
+    if isinstance(error_weight, str):
+        return np.eye(n) if error_weight == "states" else c
+    return np.asarray(error_weight, dtype=float)
+
+
+def _simulated_rms(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, h: np.ndarray,
+                   layout: Sequence[int], n_steps: int, rng: np.random.Generator) -> float:
+    """RMS of ``H (x - x_hat)`` for a steady-state Kalman filter on a simulated trajectory."""
+    cs, rs = c[list(layout)], r[list(layout)]
+    prior = sla.solve_discrete_are(a.T, cs.T, q, np.diag(rs))
+    gain = np.linalg.solve(cs @ prior @ cs.T + np.diag(rs), cs @ prior).T
+    lam, vec = np.linalg.eigh((q + q.T) / 2)
+    q_half = vec * np.sqrt(np.clip(lam, 0, None))
+    lam, vec = np.linalg.eigh((prior + prior.T) / 2)
+    x = vec @ (np.sqrt(np.clip(lam, 0, None)) * rng.standard_normal(len(a)))
+    x_pred = np.zeros(len(a))  # the error starts with the steady-state prior covariance
+    total = 0.0
+    for _ in range(n_steps):
+        y = cs @ x + np.sqrt(rs) * rng.standard_normal(len(rs))
+        x_post = x_pred + gain @ (y - cs @ x_pred)
+        err = h @ (x - x_post)
+        total += float(err @ err)
+        x_pred = a @ x_post
+        x = a @ x + q_half @ rng.standard_normal(len(a))
+    return math.sqrt(total / (n_steps * h.shape[0]))
+
+
+def sensor_count_study(
+    sys: ct.StateSpace,
+    k_values: Sequence[int],
+    *,
+    Q: object,
+    R: object = 1.0,
+    target_error: float | None = None,
+    n_steps: int = 2000,
+    seed: int | np.random.Generator | None = 0,
+    **options: object,
+) -> SensorCountStudy:
+    """How many sensors: the optimised Kalman criterion and the simulated RMS error against k.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        Discrete model whose outputs are the candidates (as in :func:`select_sensors`).
+    k_values : sequence of int
+        Sensor counts to study, ascending.
+    Q : array_like
+        Process-noise covariance ``(n, n)``.
+    R : float or array_like
+        Measurement-noise variance, one or one per candidate.
+    target_error : float, optional
+        RMS estimation error (per weighted state) to reach; sets ``smallest_k``.
+    n_steps : int
+        Length of the simulation that checks each predicted RMS error.
+    seed : int, numpy.random.Generator or None
+        Seed of the simulation.
+    **options
+        Passed to :func:`select_sensors` (constraints, ``error_weight``, ``solver``, ...).
+
+    Returns
+    -------
+    SensorCountStudy
+        Per ``k``: the exact criterion, the predicted and simulated RMS errors, the layout, and
+        the smallest ``k`` reaching ``target_error``.
+
+    Raises
+    ------
+    InputError
+        Invalid arguments.
+    SensorSelectionError
+        As :func:`select_sensors`.
+
+    Examples
+    --------
+    >>> import numpy as np, control as ct
+    >>> import powerline_control as plc
+    >>> sys = ct.ss(np.diag([0.9, 0.5]), np.zeros((2, 0)), np.eye(2), np.zeros((2, 0)), 1.0)
+    >>> study = plc.sensor_count_study(sys, [1, 2], Q=np.eye(2), R=0.1, n_steps=200)
+    >>> study.k, bool(study.rms_error[1] < study.rms_error[0])
+    ((1, 2), True)
+    """
+    sys = _check_system(sys)
+    ks = [check_int("k_values", k, low=1) for k in k_values]
+    if not ks or sorted(set(ks)) != ks:
+        raise InputError(
+            f"The 'k_values' parameter must be a non-empty ascending sequence of distinct "
+            f"integers. Got {list(k_values)!r} instead."
+        )
+    if target_error is not None:
+        target_error = check_real("target_error", target_error, low=0.0)
+    n_steps = check_int("n_steps", n_steps, low=1)
+    rng = check_rng(seed)
+    a = np.asarray(sys.A, dtype=float)
+    c = np.asarray(sys.C, dtype=float)
+    q = check_psd("Q", Q, a.shape[0])
+    r = _check_noise(R, c.shape[0])
+    h = _error_rows(options.get("error_weight", "states"), c, a.shape[0])
+    options = {"n_random": 0, "brute_force_limit": 0, **options}
+    objective, rms, simulated, layouts = [], [], [], []
+    for k in ks:
+        sel = select_sensors(sys, k, "kalman", Q=Q, R=R, **options)  # type: ignore[arg-type]
+        objective.append(sel.objective)
+        rms.append(math.sqrt(sel.objective / h.shape[0]))
+        simulated.append(_simulated_rms(a, c, q, r, h, sel.nodes, n_steps, rng))
+        layouts.append(sel.nodes)
+    reached = [k for k, e in zip(ks, rms, strict=True) if target_error is not None
+               and e <= target_error]
+    return SensorCountStudy(
+        k=tuple(ks),
+        objective=np.array(objective),
+        rms_error=np.array(rms),
+        simulated_rms_error=np.array(simulated),
+        layouts=tuple(layouts),
+        target_error=target_error,
+        smallest_k=reached[0] if reached else None,
+    )

@@ -1,0 +1,328 @@
+"""Tests of sensors.py: exact criterion against SciPy, certificate against brute force.
+
+Truth sources: SciPy's DARE (QZ) and observability.steady_state_covariance for the Riccati solver;
+closed forms for decoupled scalar states; brute force over every layout for the optimum; NumPy
+for the log-det / eigenvalue criteria.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import control as ct
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+import powerline_control as plc
+from powerline_control._sensor_criteria import (
+    KalmanCriterion,
+    _information,
+    steady_state_batch,
+)
+from powerline_control.errors import InputError, SensorSelectionError
+from powerline_control.observability import steady_state_covariance
+
+SPAN = plc.Span.paper_lab()
+
+
+def random_system(seed: int, n: int = 6, m: int = 10, radius: float = 0.95):
+    rng = np.random.default_rng(seed)
+    a = rng.standard_normal((n, n))
+    a *= radius / np.max(np.abs(np.linalg.eigvals(a)))
+    c = rng.standard_normal((m, n))
+    l = rng.standard_normal((n, n))
+    q = l @ l.T / n + 0.01 * np.eye(n)
+    return ct.ss(a, np.zeros((n, 0)), c, np.zeros((m, 0)), 1.0), q
+
+
+def line_problem(seed: int, bc: str = "pinned", n_modes: int = 5):
+    """A 20-element paper span, modal-truncated, forced at a seeded position with seeded noise."""
+    rng = np.random.default_rng(seed)
+    damping = plc.ModalDamping(float(rng.uniform(0.005, 0.05)))
+    model = plc.LineModel(SPAN, n_elements=20, bc=bc, damping=damping)
+    x_force = float(rng.uniform(0.2, 3.4))
+    sys = model.to_statespace(dt=2e-3, force_positions=[x_force], n_modes=n_modes)
+    b = np.asarray(sys.B)
+    force_std = float(rng.uniform(0.1, 2.0))
+    q = force_std**2 * b @ b.T + 1e-3 * force_std**2 * np.diag(np.diag(b @ b.T).mean() *
+                                                                 np.ones(sys.nstates))
+    noise_std = float(10 ** rng.uniform(-6, -4))
+    return model, sys, q, noise_std**2
+
+
+def exact_trace(sys, q, r, layout) -> float:
+    """Independent exact criterion: SciPy's DARE through observability.py."""
+    return float(np.trace(steady_state_covariance(sys, q, r, list(layout))))
+
+
+# --------------------------------------------------------------------------- Riccati solver
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("n", [3, 12])
+def test_doubling_matches_scipy_dare(seed, n):
+    sys, q = random_system(seed, n=n, m=n + 2, radius=0.999)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)
+    layouts = np.array([[0, 1], [2, 3], [1, n + 1]])
+    prior, post, ok = steady_state_batch(a, q, _information(c, layouts))
+    assert ok.all()
+    for b, layout in enumerate(layouts):
+        cs = c[layout]
+        want = sla.solve_discrete_are(a.T, cs.T, q, np.eye(len(layout)))
+        # Both are backward-stable solvers of a well-conditioned DARE: agreement to ~1e-9.
+        np.testing.assert_allclose(prior[b], want, rtol=1e-8, atol=1e-10 * np.abs(want).max())
+        np.testing.assert_allclose(post[b], steady_state_covariance(sys, q, 1.0, layout),
+                                   rtol=1e-8, atol=1e-10 * np.abs(want).max())
+
+
+def test_doubling_flags_an_invisible_marginal_mode():
+    # A random walk that nobody measures: the covariance grows without bound.
+    a = np.diag([1.0, 0.5])
+    c = np.array([[0.0, 1.0], [1.0, 0.0]])
+    _, _, ok = steady_state_batch(a, np.eye(2), _information(c, np.array([[0], [1]])))
+    assert ok.tolist() == [False, True]
+
+
+def test_prior_lower_bound_holds_for_every_layout():
+    """P_S >= A P_all A^T + Q (the proof in KalmanCriterion's docstring), checked on all pairs."""
+    sys, q = random_system(3, n=5, m=8)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)
+    crit = KalmanCriterion(a, q, c, np.eye(5), relaxation_rank=5)
+    layouts = np.array(list(itertools.combinations(range(8), 2)))
+    prior, _, ok = steady_state_batch(a, q, _information(c, layouts))
+    assert ok.all()
+    gaps = np.linalg.eigvalsh(prior - crit.prior_bound).min(axis=1)
+    # Round-off of the two Riccati solutions (~1e-12 of their size) is the only slack allowed.
+    assert gaps.min() >= -1e-10 * np.abs(prior).max()
+    # ...and a smaller prior would be wrong: the bound is attained in some direction only when
+    # sensors are added, so with 2 of 8 sensors the difference is positive somewhere.
+    assert (np.linalg.eigvalsh(prior - crit.prior_bound).max(axis=1) > 1e-6).all()
+
+
+# --------------------------------------------------------------------------- closed form
+def test_decoupled_states_pick_the_largest_reductions():
+    """Diagonal A, identity C: each state is a scalar filter with a closed-form variance."""
+    a_diag = np.array([0.99, 0.9, 0.5, 0.0, 0.95])
+    q_diag = np.array([1.0, 2.0, 5.0, 3.0, 0.2])
+    r = 0.5
+    sys = ct.ss(np.diag(a_diag), np.zeros((5, 0)), np.eye(5), np.zeros((5, 0)), 1.0)
+
+    def scalar_posterior(a, q):
+        # Scalar DARE p = a^2 p r / (p + r) + q, positive root; posterior p r / (p + r).
+        b = r - a * a * r - q
+        p = (-b + math.sqrt(b * b + 4 * q * r)) / 2
+        return p * r / (p + r)
+
+    unmeasured = q_diag / (1 - a_diag**2)
+    reduction = unmeasured - np.array([scalar_posterior(a, q) for a, q in zip(a_diag, q_diag,
+                                                                             strict=True)])
+    best = tuple(sorted(np.argsort(-reduction)[:2].tolist()))
+    sel = plc.select_sensors(sys, k=2, Q=np.diag(q_diag), R=r)
+    assert sel.nodes == best
+    want = unmeasured.sum() - reduction[list(best)].sum()
+    assert sel.objective == pytest.approx(want, rel=1e-9)  # closed form vs doubling: round-off
+
+
+# ---------------------------------------------------------------------- must show: 20 cases
+INSTANCES = [(seed, "pinned" if seed % 3 else "clamped", 2 + seed % 4) for seed in range(20)]
+
+
+def test_twenty_instances_match_brute_force_and_certificate_is_sound():
+    matches = 0
+    for seed, bc, k in INSTANCES:
+        model, sys, q, r = line_problem(seed, bc)
+        sel = plc.select_sensors(sys, k=k, Q=q, R=r, positions=model.node_positions,
+                                 brute_force_limit=0, n_random=0)
+        # Brute force over all C(21, k) layouts with the batched exact criterion (itself checked
+        # against SciPy above, and here at the optimum).
+        layouts = np.array(list(itertools.combinations(range(sys.noutputs), k)))
+        crit = KalmanCriterion(np.asarray(sys.A), q / r, np.asarray(sys.C), np.eye(sys.nstates),
+                               relaxation_rank=sys.nstates)
+        values = crit.exact(layouts) * r
+        optimum = float(values.min())
+        best = tuple(layouts[int(np.argmin(values))].tolist())
+        assert exact_trace(sys, q, r, best) == pytest.approx(optimum, rel=1e-6)
+        assert exact_trace(sys, q, r, sel.nodes) == pytest.approx(sel.objective, rel=1e-6)
+        # The certificate: the bound never exceeds the true optimum (so gap >= true gap).
+        assert sel.bound <= optimum * (1 + 1e-9), (seed, sel.bound, optimum)
+        true_gap = (sel.objective - optimum) / sel.objective
+        assert sel.gap >= true_gap - 1e-12
+        matches += sel.objective <= optimum * (1 + 1e-9)
+    assert matches >= 19
+
+
+# ------------------------------------------------------------------------- other criteria
+@pytest.mark.parametrize("criterion", ["gramian", "min-eig", "reconstruction"])
+def test_other_criteria_against_numpy_and_brute_force(criterion):
+    model, sys, q, r = line_problem(7, "pinned", n_modes=3)
+    k = 3
+    sel = plc.select_sensors(sys, k=k, criterion=criterion, Q=q, R=r,
+                             positions=model.node_positions, brute_force_limit=0, n_random=0)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)
+    if criterion == "reconstruction":
+        cov = c @ sla.solve_discrete_lyapunov(a, q) @ c.T
+        psi = np.linalg.eigh(cov)[1][:, ::-1][:, :k]
+
+        def value(layout):
+            sign, logdet = np.linalg.slogdet(psi[list(layout)].T @ psi[list(layout)])
+            return logdet if sign > 0 else -np.inf
+    else:
+        horizon = 2 * sys.nstates
+        obs = [c / np.sqrt(r)]
+        for _ in range(horizon - 1):
+            obs.append(obs[-1] @ a)
+        rows = np.stack(obs)  # (t, m, n)
+
+        def value(layout):
+            w = np.einsum("tia,tib->ab", rows[:, list(layout)], rows[:, list(layout)])
+            if criterion == "gramian":
+                return np.linalg.slogdet(w)[1]
+            return np.linalg.eigvalsh(w)[0]
+    values = {lay: value(lay) for lay in itertools.combinations(range(sys.noutputs), k)}
+    optimum = max(values.values())
+    # Same quantity by two routes (relative scaling, slogdet vs eigh): agreement to round-off.
+    assert sel.objective == pytest.approx(value(sel.nodes), rel=1e-7, abs=1e-7)
+    assert sel.objective == pytest.approx(optimum, rel=1e-7, abs=1e-7)
+    assert sel.bound >= optimum - 1e-9 * abs(optimum)
+
+
+# --------------------------------------------------------------------------- constraints
+def constrained_brute_force(sys, q, r, k, ok):
+    crit = KalmanCriterion(np.asarray(sys.A), q / r, np.asarray(sys.C), np.eye(sys.nstates),
+                           relaxation_rank=sys.nstates)
+    layouts = np.array([c for c in itertools.combinations(range(sys.noutputs), k) if ok(c)])
+    values = crit.exact(layouts) * r
+    return float(values.min())
+
+
+def test_constraints_are_honoured_exactly_and_optimum_found():
+    model, sys, q, r = line_problem(11)
+    x = model.node_positions
+    zones = [(0.0, 0.4), (1.7, 2.0)]
+    spacing = 0.5
+    cost = 1.0 + (np.arange(21) % 3)
+    budget = 8.0
+    required = [12]
+    sel = plc.select_sensors(sys, k=4, Q=q, R=r, positions=x, forbidden=zones,
+                             min_spacing=spacing, required=required, cost=cost, budget=budget,
+                             brute_force_limit=0, n_random=0)
+
+    def ok(layout):
+        pos = x[list(layout)]
+        return (all(not (lo <= p <= hi) for p in pos for lo, hi in zones)
+                and all(abs(p1 - p2) >= spacing for p1, p2 in itertools.combinations(pos, 2))
+                and set(required) <= set(layout) and cost[list(layout)].sum() <= budget)
+
+    assert ok(sel.nodes)
+    optimum = constrained_brute_force(sys, q, r, 4, ok)
+    assert sel.bound <= optimum * (1 + 1e-9)
+    assert sel.objective == pytest.approx(optimum, rel=1e-9)
+
+
+def test_per_candidate_noise_steers_away_from_noisy_sensors():
+    model, sys, q, r = line_problem(5)
+    base = plc.select_sensors(sys, k=3, Q=q, R=r, n_random=0)
+    noisy = np.full(21, r)
+    noisy[list(base.nodes)] = 1e4 * r  # the chosen ones become useless
+    sel = plc.select_sensors(sys, k=3, Q=q, R=noisy, n_random=0)
+    assert not set(sel.nodes) & set(base.nodes)
+    assert exact_trace(sys, q, noisy, sel.nodes) == pytest.approx(sel.objective, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        (dict(k=5, forbidden=[(0.0, 3.3)]), "exceeds the 2 candidates left"),
+        (dict(k=5, min_spacing=1.0), "min_spacing=1.0 m leaves room for at most 4"),
+        (dict(k=2, required=[0], forbidden=[(0.0, 0.1)]), "lie inside the forbidden zones"),
+        (dict(k=2, required=[3, 4], min_spacing=0.5), "closer than min_spacing"),
+        (dict(k=3, required=[1, 2, 3, 4]), "do not fit in k=3"),
+        (dict(k=3, cost=np.ones(21), budget=2.5), "budget=2.5 is below 3"),
+    ],
+)
+def test_infeasible_constraints_name_the_conflict(kwargs, message):
+    model, sys, q, r = line_problem(0)
+    with pytest.raises(SensorSelectionError, match=message):
+        plc.select_sensors(sys, Q=q, R=r, positions=model.node_positions, **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        (dict(k=0), "'k' parameter must be >= 1"),
+        (dict(k=2.0), "'k' parameter must be an integer"),
+        (dict(k=2, criterion="a-opt"), "'criterion' parameter must be one of"),
+        (dict(k=2, min_spacing=0.3, positions=None), "pass positions="),
+        (dict(k=2, R=np.ones(3)), "one variance or one per candidate"),
+        (dict(k=2, solver="GUROBI"), "installed cvxpy solver"),
+        (dict(k=2, Q=None), "needs the process-noise covariance Q"),
+        (dict(k=2, forbidden=[(1.0,)]), "sequence of \\(start, end\\) intervals"),
+        (dict(k=2, budget=3.0), "needs 'cost'"),
+    ],
+)
+def test_bad_input_names_the_parameter(kwargs, message):
+    model, sys, q, r = line_problem(0)
+    args = dict(Q=q, R=r, positions=model.node_positions) | kwargs
+    with pytest.raises(InputError, match=message):
+        plc.select_sensors(sys, **args)
+
+
+def test_continuous_system_is_rejected():
+    model = plc.LineModel(SPAN, n_elements=4)
+    with pytest.raises(InputError, match="discrete-time"):
+        plc.select_sensors(model.to_statespace(), k=1, Q=np.eye(1))
+
+
+# ---------------------------------------------------------------------------------- solvers
+@pytest.mark.parametrize("solver", ["CLARABEL", "SCS"])
+def test_solvers_shipped_with_cvxpy_give_a_sound_certificate(solver):
+    model, sys, q, r = line_problem(2)
+    sel = plc.select_sensors(sys, k=3, Q=q, R=r, solver=solver, n_random=0)
+    assert sel.solver == solver and sel.certificate == "convexity"
+    optimum = sel.baselines["brute-force"].objective
+    assert sel.bound <= optimum * (1 + 1e-9) and sel.objective == pytest.approx(optimum)
+
+
+def test_solver_that_cannot_handle_the_cone_is_reported():
+    model, sys, q, r = line_problem(2)
+    # OSQP solves QPs only; the Kalman relaxation needs a semidefinite cone.
+    with pytest.raises(SensorSelectionError, match="OSQP"):
+        plc.select_sensors(sys, k=3, Q=q, R=r, solver="OSQP")
+
+
+def test_undetectable_model_is_reported():
+    a = np.diag([1.0, 0.5])  # a random walk no candidate sees
+    sys = ct.ss(a, np.zeros((2, 0)), np.array([[0.0, 1.0], [0.0, 2.0]]), np.zeros((2, 0)), 1.0)
+    with pytest.raises(SensorSelectionError, match="cannot estimate the state"):
+        plc.select_sensors(sys, k=1, Q=np.eye(2))
+
+
+# --------------------------------------------------------------------------- result object
+def test_result_is_frozen_and_baselines_are_complete():
+    model, sys, q, r = line_problem(4)
+    sel = plc.select_sensors(sys, k=3, Q=q, R=r, positions=model.node_positions, n_random=5)
+    with pytest.raises(AttributeError):
+        sel.nodes = (0,)  # type: ignore[misc]
+    assert not sel.weights.flags.writeable
+    assert sel.weights.sum() == pytest.approx(3, abs=1e-5)  # sum z = k up to solver tolerance
+    assert set(sel.baselines) == {"first-k", "evenly-spaced", "greedy", "qr-pivoting",
+                                  "random-mean", "random-best", "brute-force"}
+    assert sel.baselines["first-k"].nodes == (0, 1, 2)
+    for name, base in sel.baselines.items():
+        assert base.objective >= sel.objective * (1 - 1e-9) or name == "brute-force"
+    assert sel.positions == tuple(model.node_positions[list(sel.nodes)])
+    assert "within" in sel.summary()
+
+
+# --------------------------------------------------------------------------- how many sensors
+def test_sensor_count_study_simulation_agrees_with_riccati():
+    model, sys, q, r = line_problem(9)
+    study = plc.sensor_count_study(sys, [1, 2, 3], Q=q, R=r, n_steps=3000, seed=1,
+                                   error_weight="outputs")
+    assert np.all(np.diff(study.rms_error) < 0)
+    # 3000 correlated steps of a lightly damped line: the sample RMS scatters by ~10 %.
+    np.testing.assert_allclose(study.simulated_rms_error, study.rms_error, rtol=0.2)
+    target = float(study.rms_error[1]) * 1.0001
+    again = plc.sensor_count_study(sys, [1, 2, 3], Q=q, R=r, n_steps=10, seed=1,
+                                   error_weight="outputs", target_error=target)
+    assert again.smallest_k == 2
