@@ -55,6 +55,7 @@ from .observability import (
 )
 
 # --- sensor placement (sensors.py) ---
+from .sensors import Baseline, SensorCountStudy, SensorSelection, select_sensors, sensor_count_study
 
 # --- antinodes and motion planning (antinode.py, plan.py) ---
 from .antinode import Antinode, largest_antinode, locate_antinodes, nearest_antinode
