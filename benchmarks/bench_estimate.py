@@ -126,11 +126,11 @@ def main() -> None:
         reps = repeats if delays == 1 else slow_repeats
         rows = []
         if FilterpyKF is not None:
-            t_fp, ref = timed(lambda: filterpy_loop(a, c, q, r, y), reps)
+            t_fp, ref = timed(lambda a=a, c=c, q=q, r=r: filterpy_loop(a, c, q, r, y), reps)
             rows.append(("filterpy KalmanFilter", t_fp, ref))
         else:
             t_fp, ref = None, None
-        t_np, out_np = timed(lambda: textbook_loop(a, c, q, r, y), reps)
+        t_np, out_np = timed(lambda a=a, c=c, q=q, r=r: textbook_loop(a, c, q, r, y), reps)
         rows.append(("plain numpy loop (textbook)", t_np, out_np))
         ref = out_np if ref is None else ref
 
@@ -143,7 +143,7 @@ def main() -> None:
         rows.append(("ours, time-varying, gain_rtol=0 (structure only)", t, est0.states))
         kfs = plc.KalmanFilter(sys, Q=q, R=r, steady_state=True)
         gain = kfs.steady_gain
-        t_loop, out_loop = timed(lambda: steady_loop(a, c, gain, y), repeats)
+        t_loop, out_loop = timed(lambda a=a, c=c, g=gain: steady_loop(a, c, g, y), repeats)
         t, ests = timed(lambda kfs=kfs: kfs.filter(y), repeats)
         # The steady-state filter is a different filter (constant gain from sample 0): compare it
         # with the plain steady-state loop rather than with filterpy.

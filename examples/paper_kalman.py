@@ -106,8 +106,9 @@ def main() -> None:
                 dmd, kf, est, acc, elapsed = run_filter(
                     train, test, SPREAD_5, alpha=curve.best_alpha, alpha_mode="relative",
                     delays=8, rank=20)
-                rows.append((f"100 el., 5 spread, better (d=8, rank 20, alpha={curve.best_alpha:.1e}"
-                             " rel.)", label, acc))
+                alpha = f"{curve.best_alpha:.1e}"
+                name = f"100 el., 5 spread, better (d=8, rank 20, alpha={alpha} rel.)"
+                rows.append((name, label, acc))
                 best[frequency] = (dmd, test, est, acc, elapsed)
 
     print("| experiment | scenario | RMS error, all nodes | RMS error, unmeasured nodes |")

@@ -290,8 +290,8 @@ def steady_state_covariance(
         Process-noise covariance ``(n, n)``, symmetric positive semidefinite.
     R : float or array_like
         Measurement-noise covariance of the candidates: one variance for all, one variance per
-        output ``(n_outputs,)``, or a full ``(n_outputs, n_outputs)`` matrix. The rows and columns of
-        ``sensors`` are used; they must be positive definite.
+        output ``(n_outputs,)``, or a full ``(n_outputs, n_outputs)`` matrix. The rows and
+        columns of ``sensors`` are used; they must be positive definite.
     sensors : sequence of int, optional
         Output indices that are measured (default: all outputs).
     form : {"filter", "predicted"}

@@ -10,6 +10,7 @@ from __future__ import annotations
 import control as ct
 import numpy as np
 import pytest
+import scipy.linalg as sla
 
 import powerline_control as plc
 from powerline_control.errors import EstimationError, InputError
@@ -33,11 +34,10 @@ def lightly_damped_system(n_pairs: int, p: int, seed: int, *, selection=True, n_
     blocks = []
     for _ in range(n_pairs):
         r, theta = rng.uniform(0.95, 0.995), rng.uniform(0.05, 2.5)
-        blocks.append(r * np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]]))
+        cos, sin = np.cos(theta), np.sin(theta)
+        blocks.append(r * np.array([[cos, -sin], [sin, cos]]))
     basis, _ = np.linalg.qr(rng.normal(size=(n, n)))
-    a = basis @ np.block(
-        [[blocks[i] if i == j else np.zeros((2, 2)) for j in range(n_pairs)] for i in range(n_pairs)]
-    ) @ basis.T
+    a = basis @ sla.block_diag(*blocks) @ basis.T
     if selection:
         c = np.zeros((p, n))
         c[np.arange(p), rng.choice(n, p, replace=False)] = 1.0
