@@ -526,6 +526,20 @@ class KalmanFilter:
         # With a constant gain and no dropout the covariance never changes: store it once.
         variance_constant = self.steady_state and nan_positions.size == 0
         variances = None if variance_constant else np.empty((n, n_t))
+        field_map = self._field_map
+        field_variances = None
+        if field_map is not None and not variance_constant:
+            field_variances = np.empty((field_map.shape[0], n_t))
+        # The field variance diag(M P M^T) needs the full P: compute it whenever P changes and
+        # reuse it while P is the frozen one (the same object).
+        last_p, last_field_var = None, None
+
+        def field_variance_of(cov: np.ndarray) -> np.ndarray:
+            nonlocal last_p, last_field_var
+            if cov is not last_p:
+                last_p, last_field_var = cov, _field_variances(cov, field_map)
+            return last_field_var
+
         run = _Recursion(self)
         k = 0
         while k < n_t:
@@ -536,6 +550,8 @@ class KalmanFilter:
                     self._run_batch(run, y_all, u_all, k, end, states, innovations, nis)
                     if variances is not None:
                         variances[:, k:end] = np.diag(run.P)[:, None]
+                    if field_variances is not None:
+                        field_variances[:, k:end] = field_variance_of(run.P)[:, None]
                     n_used[k:end] = p
                     k = end
                     continue
@@ -544,21 +560,18 @@ class KalmanFilter:
             states[:, k] = run.x
             if variances is not None:
                 variances[:, k] = np.diag(run.P)
+            if field_variances is not None:
+                field_variances[:, k] = field_variance_of(run.P)
             k += 1
         if variance_constant:
             variances = np.broadcast_to(np.diag(run.P)[:, None], (n, n_t))
-        field = field_variances = None
-        if self._field_map is not None:
-            field = self._field_map @ states
+        field = None
+        if field_map is not None:
+            field = field_map @ states
             if variance_constant:
                 field_variances = np.broadcast_to(
-                    _field_variances(run.P, self._field_map)[:, None], (field.shape[0], n_t)
+                    _field_variances(run.P, field_map)[:, None], (field.shape[0], n_t)
                 )
-            else:
-                # Only the diagonal of P is stored per sample; the field variance needs the full
-                # covariance, so it is exact where P is constant (after convergence) and is
-                # reconstructed from the diagonal otherwise (exact for a selection map).
-                field_variances = self._field_variances_from_diagonal(variances)
         gain = run.last_full_gain if run.last_full_gain is not None else np.full((n, p), np.nan)
         return Estimate(
             states=states,
@@ -573,9 +586,6 @@ class KalmanFilter:
             field=field,
             field_variances=field_variances,
         )
-
-    def _field_variances_from_diagonal(self, variances: np.ndarray) -> np.ndarray:
-        return (self._field_map**2) @ variances
 
     # ------------------------------------------------------------------ batch recursion
 

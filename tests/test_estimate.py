@@ -492,3 +492,25 @@ def test_blocked_scan_equals_the_plain_recursion(length):
     # Different summation order only: 1e-12 relative.
     np.testing.assert_allclose(_diagonal_recursion(powers, toeplitz, drive, z0), expected,
                                rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def test_field_variances_time_varying_match_the_full_covariance():
+    """Before convergence P changes every sample: diag(M P_k M^T) against the textbook P_k."""
+    sys = lightly_damped_system(3, 2, seed=101)
+    n = sys.nstates
+    field_map = np.random.default_rng(102).normal(size=(4, n))
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(2)
+    _, y = simulate_truth(sys, q, r, 40, seed=103)
+    y[0, 20] = np.nan
+    est = KalmanFilter(sys, q, r, field_map=field_map).filter(y)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)
+    p, expected = np.eye(n), []
+    for k in range(40):
+        if k:
+            p = a @ p @ a.T + q
+        rows = ~np.isnan(y[:, k])
+        h, rr = c[rows], r[np.ix_(rows, rows)]
+        gain = np.linalg.solve(h @ p @ h.T + rr, h @ p).T
+        p = (np.eye(n) - gain @ h) @ p @ (np.eye(n) - gain @ h).T + gain @ rr @ gain.T
+        expected.append(np.diag(field_map @ p @ field_map.T))
+    np.testing.assert_allclose(est.field_variances, np.array(expected).T, rtol=1e-9)
