@@ -102,6 +102,14 @@ class Estimate:
         Full field ``field_map @ states``, ``(n_nodes, n_t)``, when the filter has a field map.
     field_variances : numpy.ndarray or None
         Posterior variance of each field value, ``(n_nodes, n_t)``, when the filter has a field map.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.ss([[0.9]], [[0.0]], [[1.0]], 0, dt=0.01)
+    >>> est = KalmanFilter(sys, Q=1.0, R=1.0, field_map=[[1.0], [2.0]]).filter(np.ones((1, 3)))
+    >>> est.states.shape, est.field.shape, est.t.round(2).tolist()
+    ((1, 3), (2, 3), [0.0, 0.01, 0.02])
     """
 
     states: np.ndarray
@@ -742,6 +750,12 @@ class Accuracy:
         RMS error of each signal ``(n_signals,)`` in the signals' units.
     n_samples : int
         Number of samples used (after ``discard``).
+
+    Examples
+    --------
+    >>> acc = estimation_accuracy(np.array([[1.1, -0.9]]), np.array([[1.0, -1.0]]))
+    >>> round(acc.relative_rms_error, 3), acc.n_samples
+    (0.1, 2)
     """
 
     relative_rms_error: float
@@ -860,6 +874,16 @@ class Consistency:
         ``mean_nees`` inside ``nees_bounds``.
     normalised_error : numpy.ndarray or None
         Per-signal mean of ``error^2 / variance`` ``(n_signals,)`` (1 for an honest variance).
+
+    Examples
+    --------
+    See :func:`filter_consistency`, which builds it:
+
+    >>> import control as ct
+    >>> sys = ct.ss([[0.5]], [[0.0]], [[1.0]], 0, dt=1.0)
+    >>> est = KalmanFilter(sys, Q=1.0, R=1.0).filter(np.array([[1.0, -1.0, 0.5]]))
+    >>> filter_consistency(est).nis_dof
+    1.0
     """
 
     mean_nis: float
@@ -940,7 +964,7 @@ def filter_consistency(
     nis_bounds = _chi2_band(total, int(valid.sum()))
     result = {
         "mean_nis": mean_nis,
-        "nis_dof": total / valid.sum(),
+        "nis_dof": float(total / valid.sum()),
         "nis_bounds": nis_bounds,
         "nis_consistent": bool(nis_bounds[0] <= mean_nis <= nis_bounds[1]),
     }

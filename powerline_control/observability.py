@@ -467,6 +467,13 @@ class ObservabilityReport:
         Largest entry of ``node_std`` (the worst-estimated point).
     covariance : numpy.ndarray or None
         Steady-state posterior state covariance ``(n, n)``; ``None`` without ``Q`` and ``R``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.ss(np.diag([0.5, 0.9]), np.zeros((2, 1)), np.eye(2), 0, dt=0.01)
+    >>> analyze_observability(sys).observable
+    True
     """
 
     sensors: np.ndarray
@@ -583,6 +590,13 @@ class SensorSetComparison:
         One label per sensor set.
     reports : tuple of ObservabilityReport
         The analysis of each set, in the same order.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> sys = ct.ss(np.diag([0.5, 0.9]), np.zeros((2, 1)), np.eye(2), 0, dt=0.01)
+    >>> print(compare_sensor_sets(sys, {"s0": [0]}).to_markdown().splitlines()[2][:18])
+    | s0 | 1 | 1 / 2 |
     """
 
     names: tuple[str, ...]
