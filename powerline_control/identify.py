@@ -51,8 +51,9 @@ _ILL_CONDITIONED_RATIO = 1e-8
 #: The Gram/Cholesky route loses about eps * (1 + s_max**2 / alpha) relative accuracy; it is used
 #: only when that is below ~1e-10, i.e. alpha >= 1e-6 * trace(G) >= 1e-6 * s_max**2.
 _GRAM_ALPHA_FRACTION = 1e-6
-#: The Gram/eigh route for a rank-r POD basis needs s_r**2 well above eps * s_max**2.
-_GRAM_RANK_RATIO = 1e-8
+#: The Gram-eigh + Rayleigh-Ritz route for a rank-r POD basis is used when s_r >= this * s_max
+#: (subspace-iteration steps recover the accuracy the Gram matrix loses above that).
+_GRAM_RANK_RATIO = 1e-6
 #: |lambda| above 1 + this counts as outside the unit circle (round-off of a marginal mode).
 _UNIT_CIRCLE_TOL = 1e-9
 
@@ -581,15 +582,24 @@ def _numerical_rank(s: np.ndarray, shape: tuple[int, int]) -> int:
 
 
 def _pod_basis(Z0: np.ndarray, rank: int) -> tuple[np.ndarray, float]:
-    """Leading ``rank`` left singular vectors of ``Z0`` and its largest singular value."""
+    """Leading ``rank`` left singular vectors of ``Z0`` and its largest singular value.
+
+    For ``rank`` well below the number of rows, a partial eigensolver of the Gram matrix gives an
+    approximate subspace; two subspace-iteration steps on the data itself and a Rayleigh-Ritz SVD
+    of the small projection ``Q^T Z0`` then give singular values and vectors without the
+    squared condition number of the Gram matrix.  Otherwise (or when the spectrum falls below
+    what that can resolve) a full thin SVD.
+    """
     n_rows, n_cols = Z0.shape
     if n_rows <= n_cols and n_rows > 4 * rank:
-        # Gram + partial symmetric eigensolver: cheaper than a full SVD when rank << n_rows.
         gram = Z0 @ Z0.T
-        lam, vec = sla.eigh(gram, subset_by_index=[n_rows - rank, n_rows - 1])
-        lam, vec = lam[::-1], vec[:, ::-1]
-        if lam[0] > 0 and lam[-1] >= _GRAM_RANK_RATIO * lam[0]:
-            return _sign_fixed(vec), math.sqrt(lam[0])
+        _, approx = sla.eigh(gram, subset_by_index=[n_rows - rank, n_rows - 1])
+        Q = approx
+        for _ in range(2):  # each step shrinks the error by (s_{r+1} / s_r)^2
+            Q, _ = np.linalg.qr(Z0 @ (Z0.T @ Q))
+        U_small, s, _ = sla.svd(Q.T @ Z0, full_matrices=False, lapack_driver="gesdd")
+        if s[0] > 0 and s[-1] >= _GRAM_RANK_RATIO * s[0]:
+            return _sign_fixed(Q @ U_small), float(s[0])
     U, s, _ = sla.svd(Z0, full_matrices=False, lapack_driver="gesdd")
     data_rank = _numerical_rank(s, Z0.shape)
     if rank > data_rank:
@@ -668,8 +678,9 @@ def _residual_covariance_from_gram(
     k = target.shape[0]
     first, last = regressor[:k, 0], target[:, -1]
     target_gram = gram[:k, :k] - np.outer(first, first) + np.outer(last, last)
-    fitted_cross = coef @ cross.T
-    result = target_gram - fitted_cross - fitted_cross.T + (coef @ gram) @ coef.T
+    # coef G coef^T - C coef^T - coef C^T = sym((coef G - 2 C) coef^T): two products, not three
+    half = (coef @ gram - 2.0 * cross) @ coef.T
+    result = target_gram + (half + half.T) / 2
     if np.trace(result) < 1e-8 * np.trace(target_gram):
         return None
     return result

@@ -12,6 +12,8 @@ import warnings
 import control as ct
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import powerline_control as plc
 from powerline_control.errors import (
@@ -197,6 +199,31 @@ def test_tikhonov_equals_naive_eq14(alpha):
     model = plc.fit_dmd(X, dt=1.0, alpha=alpha)
     # cond(X0 X0^T + alpha I) < 10: both evaluations agree to ~1e-14; 1e-10 is the issue's bound.
     np.testing.assert_allclose(model.A, naive, rtol=0, atol=1e-10 * np.abs(naive).max())
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n_nodes=st.integers(1, 6),
+    delays=st.integers(1, 3),
+    log_alpha=st.floats(-9, 3),
+    scale=st.sampled_from([1e-6, 1.0, 1e4]),
+)
+def test_tikhonov_fit_satisfies_the_normal_equations(seed, n_nodes, delays, log_alpha, scale):
+    """Optimality certificate of eq. (13): the gradient A (Z Z^T + alpha I) - X' Z^T vanishes."""
+    rng = np.random.default_rng(seed)
+    X = scale * rng.standard_normal((n_nodes, 60))
+    model = plc.fit_dmd(X, 1.0, alpha=10.0**log_alpha, alpha_mode="relative", delays=delays)
+    Z = np.vstack([X[:, delays - 1 - i : X.shape[1] - i] for i in range(delays)])
+    Z0, Z1 = Z[:, :-1], Z[:, 1:]
+    top = model.A[:n_nodes]
+    gradient = top @ (Z0 @ Z0.T + model.alpha * np.eye(Z0.shape[0])) - Z1[:n_nodes] @ Z0.T
+    # Either route solves a system of condition <= 1 + 1/alpha_rel; relative to ||X' Z^T|| the
+    # gradient is at round-off times that condition (<= 1e9 * eps ~ 2e-7 at the grid's edge).
+    reference = np.abs(Z1[:n_nodes] @ Z0.T).max()
+    assert np.abs(gradient).max() <= 1e-12 * (1 + 10.0 ** -log_alpha) * reference
+    assert np.all(np.isfinite(model.residual_covariance))
+    assert model.alpha_relative == pytest.approx(10.0**log_alpha, rel=1e-9)
 
 
 def test_tikhonov_svd_route_equals_naive_for_small_alpha():
