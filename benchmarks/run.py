@@ -17,10 +17,11 @@ shared, loaded 2-core machine: compare ratios, not absolute numbers, across runs
 import os
 import sys
 
+# Single-threaded BLAS, set before numpy is imported by anything below (_common does the same;
+# repeated here so that no import re-ordering can move numpy first).
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_name] = "1"
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-import _common  # noqa: E402  (pins BLAS before numpy loads)
-from _common import alternate, peak_memory, timed  # noqa: E402
 
 import argparse  # noqa: E402
 import itertools  # noqa: E402
@@ -30,19 +31,21 @@ import platform  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
 
+import _common  # noqa: E402  (pins BLAS before numpy loads)
 import control as ct  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
 import scipy.linalg  # noqa: E402
-from scipy.optimize import linear_sum_assignment  # noqa: E402
-
-import powerline_control as plc  # noqa: E402
-from powerline_control.observability import steady_state_covariance  # noqa: E402
+from _common import alternate, peak_memory, timed  # noqa: E402
 
 # Workloads of the per-module benchmarks, reused as they are (their owners keep them).
 from bench_estimate import filterpy_loop, textbook_loop  # noqa: E402
 from bench_identify import standing_waves  # noqa: E402
 from bench_plan import naive_opti_min_time  # noqa: E402
+from scipy.optimize import linear_sum_assignment  # noqa: E402
+
+import powerline_control as plc  # noqa: E402
+from powerline_control.observability import steady_state_covariance  # noqa: E402
 
 try:
     import pydmd

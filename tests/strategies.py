@@ -1,0 +1,149 @@
+"""Hypothesis strategies for the reliability suite, kept in one place.
+
+Every strategy draws *valid* inputs only (the bad-input table in ``test_reliability.py`` covers
+invalid ones), in ranges that keep one example cheap (small meshes, short records).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from hypothesis import strategies as st
+
+import powerline_control as plc
+from powerline_control import config
+
+
+def reals(low: float, high: float) -> st.SearchStrategy[float]:
+    """Finite floats in [low, high], drawn on a log scale when the range spans decades."""
+    if low > 0 and high / low > 100:
+        return st.floats(np.log10(low), np.log10(high)).map(lambda e: float(10.0**e))
+    return st.floats(low, high, allow_nan=False, allow_infinity=False)
+
+
+seeds = st.integers(0, 2**32 - 1)
+
+conductors = st.builds(
+    plc.Conductor,
+    mass_per_length=reals(0.05, 5.0),   # kg/m: from thin earth wires to large ACSR
+    diameter=reals(0.004, 0.06),        # m
+    ei=reals(0.5, 5000.0),              # N m^2
+)
+
+
+@st.composite
+def spans(draw) -> plc.Span:
+    return plc.Span(length=draw(reals(1.0, 500.0)), tension=draw(reals(10.0, 1e5)),
+                    conductor=draw(conductors))
+
+
+boundary_conditions = st.sampled_from(
+    ["pinned", "clamped", ("pinned", "clamped"), ("clamped", "pinned")]
+)
+dampings = st.one_of(
+    st.none(),
+    st.builds(plc.ModalDamping, reals(1e-4, 0.2)),
+    st.builds(plc.RayleighDamping, reals(0.0, 1.0), reals(0.0, 1e-3)),
+)
+
+
+@st.composite
+def line_models(draw, max_elements: int = 12) -> plc.LineModel:
+    """Small FE models with any supports, damping and (optionally) a robot anywhere on the span."""
+    span = draw(spans())
+    mdr = None
+    if draw(st.booleans()):
+        position = draw(st.floats(0.0, 1.0)) * span.length
+        suspended = draw(st.sampled_from([0.0, 0.05, 1.0]))
+        mdr = plc.MDR(position=position, body_mass=draw(reals(0.0, 2.0)),
+                      suspended_mass=suspended,
+                      stiffness=draw(reals(1.0, 1e5)) if suspended > 0 else 0.0,
+                      damping=draw(reals(0.0, 10.0)) if suspended > 0 else 0.0)
+    return plc.LineModel(span, n_elements=draw(st.integers(1, max_elements)),
+                         bc=draw(boundary_conditions), damping=draw(dampings), mdr=mdr)
+
+
+@st.composite
+def dmd_models(draw) -> plc.DMDModel:
+    """DMD models of every saved variant: delays, rank, inputs (B), alpha modes."""
+    rng = np.random.default_rng(draw(seeds))
+    n_nodes = draw(st.integers(1, 5))
+    n_samples = draw(st.integers(12, 40))
+    X = rng.standard_normal((n_nodes, n_samples))
+    delays = draw(st.integers(1, 3))
+    rank = draw(st.one_of(st.none(), st.integers(1, n_nodes * delays)))
+    inputs = rng.standard_normal((draw(st.integers(1, 2)), n_samples)) if draw(st.booleans()) \
+        else None
+    alpha_mode = draw(st.sampled_from(["absolute", "relative"]))
+    alpha = draw(st.sampled_from([0.0, 1e-6, 0.1, 1.0])) if alpha_mode == "absolute" \
+        else draw(st.sampled_from([1e-6, 1e-3, 0.5]))
+    return plc.fit_dmd(X, dt=draw(reals(1e-4, 1.0)), alpha=alpha, delays=delays, rank=rank,
+                       inputs=inputs, alpha_mode=alpha_mode)
+
+
+# ------------------------------------------------------------------------- scenarios
+_toml_floats = reals(1e-3, 1e3)  # any finite float round-trips through repr()
+
+
+@st.composite
+def scenarios(draw, numeric_alpha: bool = False) -> config.Scenario:
+    """Valid scenarios: presets, supports and kinds from their allowed sets, positive numbers.
+
+    ``numeric_alpha`` also draws a number for ``identification.alpha`` (the documented
+    ``float | str`` field); off by default, see the xfail test in ``test_reliability.py``.
+    """
+    span = config.SpanConfig(preset=draw(st.sampled_from(["paper_lab", "conductor"])),
+                             conductor=draw(st.sampled_from(sorted(plc.conductors))),
+                             length=draw(reals(10.0, 1000.0)),
+                             rts_fraction=draw(reals(0.05, 0.4)))
+    model = config.ModelConfig(n_elements=draw(st.integers(1, 5000)),
+                               bc=draw(st.sampled_from(["pinned", "clamped"])),
+                               damping_ratio=draw(st.floats(0.0, 0.9)))
+    forcing = config.ForcingConfig(kind=draw(st.sampled_from(["harmonic", "aeolian", "random"])),
+                                   amplitude=draw(_toml_floats), frequency=draw(_toml_floats),
+                                   position=draw(_toml_floats), wind_speed=draw(_toml_floats),
+                                   bandwidth=draw(_toml_floats), seed=draw(st.integers(0, 2**31)))
+    simulation = config.SimulationConfig(duration=draw(_toml_floats), dt=draw(reals(1e-5, 1e-1)),
+                                         noise_fraction=draw(st.floats(0.0, 1.0)),
+                                         seed=draw(st.integers(0, 2**31)))
+    alpha = draw(st.one_of(st.just("auto"), reals(1e-8, 10.0))) if numeric_alpha else "auto"
+    identification = config.IdentificationConfig(
+        delays=draw(st.integers(1, 4)), alpha=alpha,
+        rank=draw(st.one_of(st.none(), st.integers(1, 500))))
+    estimation = config.EstimationConfig(
+        sensors=draw(st.one_of(st.none(), st.lists(st.integers(0, 200), max_size=6)
+                               .map(tuple))),
+        n_sensors=draw(st.integers(1, 20)))
+    robot = config.RobotConfig(**{f.name: draw(_toml_floats)
+                                  for f in dataclasses.fields(config.RobotConfig)})
+    return config.Scenario(span=span, model=model, forcing=forcing, simulation=simulation,
+                           identification=identification, estimation=estimation, robot=robot)
+
+
+# ------------------------------------------------------------------------- sensor constraints
+@st.composite
+def sensor_constraints(draw, positions: np.ndarray, k: int) -> dict:
+    """A random mix of forbidden zones, spacing, required nodes and a cost budget.
+
+    Drawn without regard to feasibility: infeasible sets must be reported, not mis-solved.
+    """
+    length = float(positions[-1])
+    m = positions.size
+    options: dict = {}
+    if draw(st.booleans()):
+        zones = []
+        for _ in range(draw(st.integers(1, 2))):
+            a, b = sorted(draw(st.floats(0.0, 1.0)) * length for _ in range(2))
+            zones.append((a, b))
+        options["forbidden"] = zones
+    if draw(st.booleans()):
+        options["min_spacing"] = draw(st.floats(0.0, 0.4)) * length
+    if draw(st.booleans()):
+        options["required"] = sorted(set(draw(st.lists(st.integers(0, m - 1), min_size=1,
+                                                       max_size=max(1, k - 1)))))
+    if draw(st.booleans()):
+        cost = np.array(draw(st.lists(st.integers(1, 3), min_size=m, max_size=m)), float)
+        options["cost"] = cost
+        options["budget"] = float(draw(st.integers(k, 3 * k)))
+    return options
