@@ -146,6 +146,26 @@ def _calibrated_filter(snap, sensors: Sequence[int], delays: int,
     return kf, dmd.field_map
 
 
+def _next_goal(window: np.ndarray, x: np.ndarray, dt: float, robot: float,
+               previous: float) -> float:
+    """The antinode to steer to: first the one nearest the robot, then only small corrections.
+
+    Once the robot damps its loop, that loop's motion is small, the model (identified with the
+    robot parked) fits it less well, and the estimated pattern wanders; jumping to another loop
+    would throw the approach away. So after the first choice the goal accepts only an antinode
+    within a quarter loop of it (a gate), and otherwise stays.
+    """
+    try:
+        antinodes = locate_antinodes(window, x, dt=dt)
+    except PowerlineControlError:
+        antinodes = []
+    if np.isnan(previous):
+        return nearest_antinode(antinodes, robot).position if antinodes else robot
+    gated = [a for a in antinodes if abs(a.position - previous) < 0.25 * a.loop_length]
+    return min(gated, key=lambda a: abs(a.position - previous)).position if gated \
+        else float(previous)
+
+
 def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits | None = None, *,
                     sensors: Sequence[int], n_elements: int = 100, bc: object = "pinned",
                     duration: float = 10.0, calibration: float = 2.0, dt: float = 1e-3,
@@ -267,14 +287,7 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
             kf.step(noisy[list(sensors), j])
             estimated[:, k + 1 + j] = field_map @ kf.state
         recent = estimated[:, max(end + 1 - window, 0): end + 1]
-        # Stick to the antinode being followed (the one nearest the previous goal): once the
-        # robot damps its loop the field is small and noisy, and jumping between loops wastes
-        # the approach.
-        previous = x_r if np.isnan(target[k]) else target[k]
-        try:
-            goal = nearest_antinode(locate_antinodes(recent, baseline.x, dt=dt), previous).position
-        except PowerlineControlError:
-            goal = previous                 # no clear antinode in this window: keep the goal
+        goal = _next_goal(recent, baseline.x, dt, x_r, target[k])
         step = planner.step((x_r, v_r), goal)
         statuses.append(step.status)
         # The actuator saturates: the solver meets the limits only to its tolerance (~1e-8).

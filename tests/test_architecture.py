@@ -33,9 +33,10 @@ def _internal_imports(path: pathlib.Path) -> set[str]:
 
 
 def _rank(module: str) -> int | None:
+    # A private helper module (``_sensor_criteria``) ranks with the module it serves.
     base = module.lstrip("_")
     for i, name in enumerate(ORDER):
-        if base == name or base.startswith(name + "_"):
+        if base == name or base.startswith(name.rstrip("s") + "_") or base.startswith(name + "_"):
             return i
     return None
 
