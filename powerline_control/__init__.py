@@ -61,4 +61,8 @@ from .sensors import Baseline, SensorCountStudy, SensorSelection, select_sensors
 from .antinode import Antinode, largest_antinode, locate_antinodes, nearest_antinode
 from .plan import MotionPlanner, MPCStep, RobotLimits, Trajectory, plan_motion
 
+# --- the whole chain (closed_loop.py) ---
+from .closed_loop import ClosedLoopResult, run_closed_loop
+from .studies import StudyResult, parameter_grid, run_study
+
 __version__ = "0.1.0"
