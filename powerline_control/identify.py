@@ -509,6 +509,8 @@ def _check_nodes(name: str, nodes: object, n_nodes: int) -> list[int]:
 
 def _hankel(X: np.ndarray, delays: int) -> np.ndarray:
     """Columns ``[x_k; x_{k-1}; ...; x_{k-d+1}]`` for ``k = d-1 .. N-1``."""
+    if delays == 1:
+        return X  # no copy: callers only read it
     n_samples = X.shape[1]
     return np.vstack([X[:, delays - 1 - i : n_samples - i] for i in range(delays)])
 
