@@ -1268,6 +1268,7 @@ class OnlineDMD:
         residual = problem.target - self._coef @ problem.regressor
         self._residual_sum = residual @ residual.T
         self._weight = float(problem.regressor.shape[1])
+        self._initial_pairs = problem.regressor.shape[1]
         self._window = X[:, X.shape[1] - delays :].copy()
         self._first_state = problem.regressor[: problem.n_states, 0].copy()
         self.n_updates = 0
@@ -1346,7 +1347,8 @@ class OnlineDMD:
         Returns
         -------
         DMDModel
-            The current model (``rank`` None, ``n_pairs`` = initial pairs + updates).
+            The current model (``rank`` None, ``n_pairs`` = initial pairs + updates, although
+            with forgetting the old pairs weigh less).
         """
         A, B = self.A, self.B
         Q = np.zeros((self._n_states, self._n_states))
@@ -1365,6 +1367,6 @@ class OnlineDMD:
             field_map=_frozen(np.eye(self._n_nodes, self._n_states)),
             basis=None,
             residual_covariance=_frozen((Q + Q.T) / 2),
-            n_pairs=int(round(self._weight)) if self.forgetting == 1 else self.n_updates,
+            n_pairs=self._initial_pairs + self.n_updates,
             initial_state=_frozen(self._first_state),
         )
