@@ -419,7 +419,7 @@ def _field_variances(covariance: np.ndarray, field_map: np.ndarray | None) -> np
     """Diagonal of ``M P M^T`` without forming the full product (``diag(P)`` without a map)."""
     if field_map is None:
         return np.clip(np.diag(covariance).copy(), 0.0, None)
-    return np.clip(np.einsum("ij,jk,ik->i", field_map, covariance, field_map), 0.0, None)
+    return np.clip(np.sum((field_map @ covariance) * field_map, axis=1), 0.0, None)
 
 
 def _check_field_map(field_map: object, n: int) -> np.ndarray | None:
