@@ -514,3 +514,39 @@ def test_field_variances_time_varying_match_the_full_covariance():
         p = (np.eye(n) - gain @ h) @ p @ (np.eye(n) - gain @ h).T + gain @ rr @ gain.T
         expected.append(np.diag(field_map @ p @ field_map.T))
     np.testing.assert_allclose(est.field_variances, np.array(expected).T, rtol=1e-9)
+
+
+@pytest.mark.parametrize("steady_state", [False, True])
+def test_sparse_dropouts_between_batch_stretches(steady_state):
+    """After convergence, NaN samples split the record into batch stretches: still textbook."""
+    sys = lightly_damped_system(6, 3, seed=111)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(3)
+    _, y = simulate_truth(sys, q, r, 3000, seed=112)
+    y[1, 700] = np.nan  # partial sample after convergence
+    y[:, 1400] = np.nan  # prediction-only sample
+    y[[0, 2], 2200] = np.nan
+    kf = KalmanFilter(sys, q, r, steady_state=steady_state)
+    est = kf.filter(y)
+    if steady_state:
+        # Reference: the textbook filter whose covariance is reset to the stationary predicted
+        # one before every sample, i.e. a constant prior and the gain of the available sensors.
+        _, predicted, _ = ct.dlqe(sys.A, np.eye(n), sys.C, q, r)
+        a, c = np.asarray(sys.A), np.asarray(sys.C)
+        x, ref = np.zeros(n), np.zeros((n, 3000))
+        for k in range(3000):
+            if k:
+                x = a @ x
+            rows = ~np.isnan(y[:, k])
+            if rows.any():
+                h = c[rows]
+                gain = np.linalg.solve(h @ predicted @ h.T + r[np.ix_(rows, rows)],
+                                       h @ predicted).T
+                x = x + gain @ (y[rows, k] - h @ x)
+            ref[:, k] = x
+    else:
+        ref, _, _ = textbook_filter(sys, q, r, y)
+    assert est.converged_at is not None and est.converged_at < 700
+    # Round-off and the <= 1e-10 gain change left at freezing: 1e-9 as elsewhere.
+    assert rel(est.states, ref) < 1e-9
+    assert np.isnan(est.nis[1400]) and est.n_used[700] == 2 and est.n_used[2200] == 1

@@ -11,6 +11,8 @@ import control as ct
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import powerline_control as plc
 from powerline_control.errors import EstimationError, InputError
@@ -262,3 +264,23 @@ def test_doubling_fallback_matches_scipy(radius):
     # Two different algorithms on a well-conditioned problem: 1e-10 relative.
     np.testing.assert_allclose(_doubling_dare(a, c, q, r), reference, rtol=0,
                                atol=1e-10 * np.abs(reference).max())
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    n=st.integers(2, 6),
+    seed=st.integers(0, 2**31 - 1),
+    radius=st.floats(0.1, 0.999),
+)
+def test_property_more_sensors_never_hurt(n, seed, radius):
+    """Invariant: for any stable model, adding an output cannot increase the Riccati covariance."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(n, n))
+    a *= radius / max(np.abs(np.linalg.eigvals(a)).max(), 1e-12)
+    sys = ct.ss(a, np.zeros((n, 1)), rng.normal(size=(3, n)), 0, dt=1.0)
+    q = np.diag(rng.uniform(0.1, 1.0, n))
+    few = steady_state_covariance(sys, q, 0.5, [0])
+    more = steady_state_covariance(sys, q, 0.5, [0, 2])
+    assert np.allclose(few, few.T) and np.linalg.eigvalsh(few).min() > -1e-9 * np.abs(few).max()
+    # PSD order up to the round-off of two DARE solutions (1e-8 of the scale).
+    assert np.linalg.eigvalsh(few - more).min() > -1e-8 * np.abs(few).max()
