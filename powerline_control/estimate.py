@@ -67,6 +67,10 @@ _CONFIRM_SAMPLES = 10
 # Block length of the vectorised diagonal recursion: in-block work grows with it, the Python
 # loop over blocks shrinks with it; 16 was fastest for n = 101 on the reference machine.
 _SCAN_BLOCK = 16
+# Covariance eigenvalues below this fraction of the largest count as zero in the NEES: a
+# rank-truncated model claims near-certainty in directions it does not model, and the true error
+# there would dominate the statistic.
+_NEES_RANK_RTOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -994,7 +998,7 @@ def filter_consistency(
         start = max(discard, estimate.converged_at)
         if start < n_t:
             eigenvalues, vectors = np.linalg.eigh((covariance + covariance.T) / 2)
-            keep = eigenvalues > eigenvalues.max() * 1e-12
+            keep = eigenvalues > eigenvalues.max() * _NEES_RANK_RTOL
             whitened = (vectors[:, keep].T @ (values[:, start:] - true[:, start:])) / np.sqrt(
                 eigenvalues[keep]
             )[:, None]
