@@ -17,6 +17,7 @@ Each criterion offers
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import cvxpy as cp
@@ -144,8 +145,12 @@ class Polytope:
         return not self.cliques and (self.cost is None or self.budget is None)
 
 
-def linear_extreme(c: np.ndarray, poly: Polytope) -> float:
-    """``min c . z`` over the polytope (exact: a sort when simple, HiGHS otherwise)."""
+def linear_extreme(c: np.ndarray, poly: Polytope) -> tuple[float, np.ndarray | None]:
+    """``min c . z`` over the polytope and a minimiser (a sort when simple, HiGHS otherwise).
+
+    Returns ``(-inf, None)`` when the LP fails: the certificate then says nothing rather than
+    something false.
+    """
     lower = np.zeros(poly.m)
     upper = np.ones(poly.m)
     lower[poly.fixed_one] = 1.0
@@ -153,8 +158,10 @@ def linear_extreme(c: np.ndarray, poly: Polytope) -> float:
     if poly.simple:
         free = np.flatnonzero(upper > lower)
         rest = poly.k - int(lower.sum())
-        order = free[np.argsort(c[free], kind="stable")]
-        return float(c[lower == 1].sum() + c[order[:rest]].sum())
+        chosen = free[np.argsort(c[free], kind="stable")][:rest]
+        vertex = lower.copy()
+        vertex[chosen] = 1.0
+        return float(c @ vertex), vertex
     a_ub, b_ub = [], []
     for clique in poly.cliques:
         row = np.zeros(poly.m)
@@ -169,10 +176,56 @@ def linear_extreme(c: np.ndarray, poly: Polytope) -> float:
         b_eq=[poly.k], bounds=np.column_stack([lower, upper]), method="highs",
     )
     if res.status != 0:
-        return -np.inf  # the certificate then says nothing rather than something false
+        return -np.inf, None
     # HiGHS' optimality tolerance (1e-7 on reduced costs) could put the value slightly above the
     # true minimum; step down by that much so the bound stays a bound.
-    return float(res.fun) - 1e-7 * (np.abs(c).sum() + 1.0)
+    return float(res.fun) - 1e-7 * (np.abs(c).sum() + 1.0), np.clip(res.x, 0.0, 1.0)
+
+
+def frank_wolfe_bound(crit, z0: np.ndarray, poly: Polytope, iterations: int = 40,
+                      reduced: bool = False) -> tuple[float, np.ndarray]:
+    """Best convexity lower bound along Frank-Wolfe iterations from ``z0`` (numpy only).
+
+    Every iterate ``z_t`` gives a valid bound ``f(z_t) + min_z grad f(z_t) . (z - z_t)``; the
+    iterations only make it tighter. Used to lift the solver's weights (from a reduced problem)
+    to the full relaxation.
+    """
+    z = np.clip(z0, 0.0, 1.0)
+    best = -np.inf
+    for _ in range(iterations):
+        try:
+            value, grad = crit.linearisation(z, reduced)
+        except (np.linalg.LinAlgError, ValueError):
+            break
+        low, vertex = linear_extreme(grad, poly)
+        if vertex is None or not np.isfinite(value):
+            break
+        best = max(best, value + low - float(grad @ z))
+        direction = vertex - z
+        slope = float(grad @ direction)
+        if slope >= -1e-12 * max(abs(value), 1e-300):
+            break
+        # Golden-section line search on the step (the relaxation is convex along the segment).
+        lo, hi = 0.0, 1.0
+        ratio = (math.sqrt(5) - 1) / 2
+        for _ in range(12):
+            a = hi - ratio * (hi - lo)
+            b = lo + ratio * (hi - lo)
+            fa = _value_or_inf(crit, z + a * direction, reduced)
+            fb = _value_or_inf(crit, z + b * direction, reduced)
+            if fa <= fb:
+                hi = b
+            else:
+                lo = a
+        z = z + 0.5 * (lo + hi) * direction
+    return best, z
+
+
+def _value_or_inf(crit, z: np.ndarray, reduced: bool) -> float:
+    try:
+        return crit.linearisation(z, reduced, value_only=True)[0]
+    except (np.linalg.LinAlgError, ValueError):
+        return np.inf
 
 
 # ------------------------------------------------------------------------------------ Kalman
@@ -191,9 +244,10 @@ class KalmanCriterion:
     fixed prior ``Pbar = A P_all A^T + Q``,
     ``J(S) = tr H (P_S^-1 + G_S)^-1 H^T >= tr H (Pbar^-1 + G_S)^-1 H^T``, and the right side,
     with ``G_S`` replaced by ``sum z_i g_i g_i^T``, is convex in ``z``: its minimum over the relaxed
-    weights bounds every integer layout from below. Keeping only the ``r`` largest eigen-directions
-    ``U_r`` of ``Pbar`` lowers the prior (``Pbar >= U_r L_r U_r^T``) and hence the bound, which keeps
-    it valid while shrinking the SDP from ``n`` to ``r``.
+    weights bounds every integer layout from below. Keeping only the ``r`` largest
+    eigen-directions ``U_r`` of ``Pbar`` lowers the prior (``Pbar >= U_r L_r U_r^T``) and hence
+    the bound, which keeps it valid while shrinking the SDP from ``n`` to ``r``; Frank-Wolfe steps
+    on the full relaxation (numpy) then recover most of what the cut lost.
     """
 
     a: np.ndarray
@@ -262,8 +316,8 @@ class KalmanCriterion:
         """Surrogate cost after adding each candidate (one measurement update, prior fixed)."""
         post = self._posterior_for(layout)
         pg = post @ self.g.T  # (n, m)
-        gain = np.einsum("im,ij,jm->m", pg, self.weight, pg) / (1 + np.einsum("im,mi->m", pg,
-                                                                             self.g))
+        gain = np.einsum("im,ij,jm->m", pg, self.weight, pg, optimize=True) / (
+            1 + np.einsum("im,mi->m", pg, self.g))
         return np.trace(self.weight @ post) - gain
 
     def rank_swaps(self, layout: np.ndarray) -> np.ndarray:
@@ -275,7 +329,7 @@ class KalmanCriterion:
             denom = 1 - self.g[i] @ gi
             removed = post + np.outer(gi, gi) / max(denom, 1e-12)
             pg = removed @ self.g.T
-            gain = np.einsum("im,ij,jm->m", pg, self.weight, pg) / (
+            gain = np.einsum("im,ij,jm->m", pg, self.weight, pg, optimize=True) / (
                 1 + np.einsum("im,mi->m", pg, self.g))
             out[p] = np.trace(self.weight @ removed) - gain
         return out
@@ -289,25 +343,29 @@ class KalmanCriterion:
         mat = np.diag(inv_lam) + (info + info.T) / 2
         return cp.matrix_frac(f.T, mat)
 
-    def linearisation(self, z: np.ndarray, reduced: bool) -> tuple[float, np.ndarray]:
-        """Value and gradient of the relaxed cost at ``z`` (full or reduced prior)."""
-        if reduced:
-            inv_lam, gr, f = self._reduced
-            mat = np.diag(inv_lam) + gr.T @ (z[:, None] * gr)
-            weight = f.T @ f
-            rows = gr
-        else:
+    def _full_form(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not hasattr(self, "_full_cache"):
             lam, u = np.linalg.eigh(self.prior_bound)
             keep = lam > 1e-12 * max(lam.max(), 1e-300)
             u = u[:, keep]
-            mat = np.diag(1 / lam[keep]) + (self.g @ u).T @ (z[:, None] * (self.g @ u))
-            weight = u.T @ self.weight @ u
-            rows = self.g @ u
-        mat = (mat + mat.T) / 2
-        factor = sla.cho_factor(mat)
-        minv_rows = sla.cho_solve(factor, rows.T)  # (r, m)
+            self._full_cache = (1 / lam[keep], self.g @ u, u.T @ self.weight @ u)
+        return self._full_cache
+
+    def linearisation(self, z: np.ndarray, reduced: bool, value_only: bool = False
+                      ) -> tuple[float, np.ndarray | None]:
+        """Value and gradient of the relaxed cost at ``z`` (full or reduced prior)."""
+        if reduced:
+            inv_lam, rows, f = self._reduced
+            weight = f.T @ f
+        else:
+            inv_lam, rows, weight = self._full_form()
+        mat = np.diag(inv_lam) + rows.T @ (z[:, None] * rows)
+        factor = sla.cho_factor((mat + mat.T) / 2)
         value = float(np.trace(sla.cho_solve(factor, weight)))
-        grad = -np.einsum("im,ij,jm->m", minv_rows, weight, minv_rows)
+        if value_only:
+            return value, None
+        minv_rows = sla.cho_solve(factor, rows.T)  # (r, m)
+        grad = -np.einsum("im,ij,jm->m", minv_rows, weight, minv_rows, optimize=True)
         return value, grad
 
 
@@ -343,10 +401,13 @@ class LogDetCriterion:
         w = cp.reshape(flat @ z, (d, d), order="C")
         return -cp.log_det((w + w.T) / 2)
 
-    def linearisation(self, z: np.ndarray, reduced: bool = False) -> tuple[float, np.ndarray]:
+    def linearisation(self, z: np.ndarray, reduced: bool = False, value_only: bool = False
+                      ) -> tuple[float, np.ndarray | None]:
         w = np.einsum("i,iab->ab", z, self.mats)
         factor = sla.cho_factor((w + w.T) / 2)
         logdet = 2 * float(np.log(np.diag(factor[0])).sum())
+        if value_only:
+            return -logdet, None
         winv = sla.cho_solve(factor, np.eye(len(w)))
         grad = np.einsum("ab,iba->i", winv, self.mats)
         return -logdet, -grad
@@ -376,7 +437,8 @@ class MinEigCriterion:
         w = cp.reshape(flat @ z, (d, d), order="C")
         return -cp.lambda_min((w + w.T) / 2)
 
-    def linearisation(self, z: np.ndarray, reduced: bool = False) -> tuple[float, np.ndarray]:
+    def linearisation(self, z: np.ndarray, reduced: bool = False, value_only: bool = False
+                      ) -> tuple[float, np.ndarray]:
         """A linear upper bound ``lambda_min(W(z)) <= tr(Y W(z))`` for a trace-one PSD ``Y``.
 
         ``Y`` spans the eigenvectors of ``W(z)`` whose eigenvalues lie within 1 % of the
