@@ -492,8 +492,10 @@ class KalmanFilter:
         u = check_array("u_k", u_k, shape=(self.n_inputs,))
         return u if self._m else np.zeros(0)
 
-    def filter(self, measurements: object, inputs: object = None) -> Estimate:
-        """Filter a whole record from the prior ``(x0, P0)`` (the real-time state is untouched).
+    def filter(
+        self, measurements: object, inputs: object = None, *, update_state: bool = False
+    ) -> Estimate:
+        """Filter a whole record from the prior ``(x0, P0)``.
 
         Parameters
         ----------
@@ -501,6 +503,10 @@ class KalmanFilter:
             ``(p, n_t)`` measurements, one row per output of the model; NaN = missing.
         inputs : array_like, optional
             ``(m, n_t)`` known inputs (e.g. the shaker force of a DMDc model); default zeros.
+        update_state : bool
+            If True, the real-time recursion of :meth:`step` continues from the end of this
+            record (warm start: filter a calibration record, then step sample by sample). By
+            default the real-time state is left untouched.
 
         Returns
         -------
@@ -514,6 +520,10 @@ class KalmanFilter:
         EstimationError
             If the innovation covariance becomes singular.
         """
+        if not isinstance(update_state, bool):
+            raise InputError(
+                f"The 'update_state' parameter must be True or False. Got {update_state!r}."
+            )
         y_all = check_array("measurements", measurements, ndim=2, allow_nan=True)
         if y_all.shape[0] != self._p:
             raise InputError(
@@ -577,6 +587,8 @@ class KalmanFilter:
             k += 1
         if variance_constant:
             variances = np.broadcast_to(np.diag(run.P)[:, None], (n, n_t))
+        if update_state:
+            self._running = run
         field = None
         if field_map is not None:
             field = field_map @ states

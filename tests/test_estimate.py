@@ -550,3 +550,21 @@ def test_sparse_dropouts_between_batch_stretches(steady_state):
     # Round-off and the <= 1e-10 gain change left at freezing: 1e-9 as elsewhere.
     assert rel(est.states, ref) < 1e-9
     assert np.isnan(est.nis[1400]) and est.n_used[700] == 2 and est.n_used[2200] == 1
+
+
+@pytest.mark.parametrize("steady_state", [False, True])
+def test_filter_then_step_continues_the_record(steady_state):
+    """update_state=True: filter a first part, step through the rest = filter the whole record."""
+    sys = lightly_damped_system(5, 3, seed=121, n_inputs=1)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(3)
+    u = np.random.default_rng(122).normal(size=(1, 1200))
+    _, y = simulate_truth(sys, q, r, 1200, seed=123, u=u)
+    whole = KalmanFilter(sys, q, r, steady_state=steady_state).filter(y, u)
+    kf = KalmanFilter(sys, q, r, steady_state=steady_state)
+    kf.filter(y[:, :1000], u[:, :1000], update_state=True)  # ends in a batch stretch
+    rest = np.array([kf.step(y[:, k], u[:, k]) for k in range(1000, 1200)]).T
+    assert rel(rest, whole.states[:, 1000:]) < 1e-10  # batch vs loop: round-off only
+    fresh = KalmanFilter(sys, q, r, steady_state=steady_state)
+    fresh.filter(y[:, :1000], u[:, :1000])  # default: the real-time state is untouched
+    np.testing.assert_array_equal(fresh.state, np.zeros(n))
