@@ -78,8 +78,19 @@ def dmd_models(draw) -> plc.DMDModel:
     alpha_mode = draw(st.sampled_from(["absolute", "relative"]))
     alpha = draw(st.sampled_from([0.0, 1e-6, 0.1, 1.0])) if alpha_mode == "absolute" \
         else draw(st.sampled_from([1e-6, 1e-3, 0.5]))
-    return plc.fit_dmd(X, dt=draw(reals(1e-4, 1.0)), alpha=alpha, delays=delays, rank=rank,
-                       inputs=inputs, alpha_mode=alpha_mode)
+    dt = draw(reals(1e-4, 1.0))
+    if draw(st.booleans()) and rank is None:
+        # The other producer of DMDModel: the recursive-least-squares OnlineDMD.
+        n_start = n_samples // 2
+        online = plc.OnlineDMD(X[:, :n_start], dt, delays=delays,
+                               inputs=None if inputs is None else inputs[:, :n_start],
+                               forgetting=draw(st.sampled_from([1.0, 0.99])),
+                               alpha=1e-3 if alpha_mode == "absolute" else 0.0)
+        for k in range(n_start, n_samples):
+            online.update(X[:, k], None if inputs is None else inputs[:, k])
+        return online.model()
+    return plc.fit_dmd(X, dt=dt, alpha=alpha, delays=delays, rank=rank, inputs=inputs,
+                       alpha_mode=alpha_mode)
 
 
 # ------------------------------------------------------------------------- scenarios
