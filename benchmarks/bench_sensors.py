@@ -1,0 +1,140 @@
+"""Benchmark of sensor selection: speed targets of issue 5 and PySensors side by side.
+
+Run: ``/work/venv/bin/python benchmarks/bench_sensors.py``  (about a minute).
+
+Cases
+-----
+1. Paper 101-state case (100-element span, DMD, alpha = 0.1, 1 % noise, harmonic force at
+   14.4 Hz): ``select_sensors(k=13, criterion="kalman")`` in total (relaxation, certificate,
+   rounding, greedy, swap search, baselines); target < 5 s.
+2. The exact criterion per layout: batched doubling (ours) against SciPy's
+   ``solve_discrete_are`` (QZ), n = 101.
+3. n = 1,001 candidates (1000-element span, 10-mode reduced model, error of the whole
+   displacement field): ``select_sensors(k=13)``; target < 60 s.
+4. Reconstruction (log det Psi_S^T Psi_S, k = r = 13) on the same basis as PySensors' QR
+   (SSPOR): objective reached and time, n = 101 and n = 1,001.
+"""
+
+import os
+
+os.environ["OPENBLAS_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = os.environ[
+    "MKL_NUM_THREADS"
+] = "1"
+
+import statistics  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy.linalg as sla  # noqa: E402
+
+import powerline_control as plc  # noqa: E402
+from powerline_control._sensor_criteria import _information, steady_state_batch  # noqa: E402
+
+REPEATS = 3
+
+
+def timed(fn, repeats=REPEATS):
+    times, out = [], None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), out
+
+
+def paper_model():
+    span = plc.Span.paper_lab()
+    model = plc.LineModel(span, n_elements=100, bc="pinned")
+    force = plc.HarmonicForce(amplitude=1.0, frequency=14.4, position=0.5)
+    snap = plc.simulate(model, force, duration=2.0, dt=1e-3, noise_fraction=0.01, seed=0)
+    noise_var = float(np.var(snap.displacement - snap.true_displacement))
+    dmd = plc.fit_dmd(snap.displacement, dt=snap.dt, alpha=0.1, delays=1)
+    return model, snap, dmd, noise_var
+
+
+def main() -> None:
+    print("BLAS threads: OPENBLAS_NUM_THREADS=OMP_NUM_THREADS=MKL_NUM_THREADS=1 (set before "
+          f"numpy); median of {REPEATS} runs\n")
+    model, snap, dmd, noise_var = paper_model()
+    sys, q = dmd.to_statespace(), dmd.residual_covariance
+
+    # 1. the 101-state case, k = 13
+    t_total, sel = timed(lambda: plc.select_sensors(sys, k=13, Q=q, R=noise_var,
+                                                   positions=model.node_positions))
+    print("## 1. Paper 101-state DMD model, k = 13, criterion 'kalman' (target < 5 s)\n")
+    print(f"select_sensors total: {t_total:.2f} s; exact evaluations: "
+          f"{sel.n_exact_evaluations}; gap {100 * sel.gap:.1f} % (bound {sel.bound:.3e})\n")
+    print("| layout | trace P (m^2) | ratio to optimised |")
+    print("|---|---|---|")
+    print(f"| optimised {list(sel.nodes)} | {sel.objective:.3e} | 1.00 |")
+    for base in sel.baselines.values():
+        print(f"| {base.name} | {base.objective:.3e} | {base.objective / sel.objective:.2f} |")
+
+    # 2. exact criterion per layout
+    rng = np.random.default_rng(0)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)
+    layouts = np.array([rng.choice(101, 13, replace=False) for _ in range(32)])
+    qs, g = q / noise_var, c
+    t_ours, _ = timed(lambda: steady_state_batch(a, qs, _information(g, layouts)))
+
+    def scipy_all():
+        for layout in layouts[:8]:
+            sla.solve_discrete_are(a.T, g[layout].T, qs, np.eye(13))
+
+    t_scipy, _ = timed(scipy_all)
+    per_ours, per_scipy = t_ours / len(layouts), t_scipy / 8
+    print("\n## 2. Exact criterion (steady-state DARE) per layout, n = 101, k = 13\n")
+    print("| method | ms per layout | ratio |")
+    print("|---|---|---|")
+    print(f"| scipy.linalg.solve_discrete_are | {1e3 * per_scipy:.1f} | 1.00 |")
+    print(f"| batched doubling (ours) | {1e3 * per_ours:.1f} | "
+          f"{per_scipy / per_ours:.1f}x faster |")
+
+    # 3. n = 1001 candidates with a reduced-order model
+    big = plc.LineModel(plc.Span.paper_lab(), n_elements=1000, bc="pinned",
+                        damping=plc.ModalDamping(0.01))
+    big_sys = big.to_statespace(dt=1e-3, force_positions=[0.5], n_modes=10)
+    b = np.asarray(big_sys.B)
+    big_q = b @ b.T + 1e-6 * np.trace(b @ b.T) * np.eye(big_sys.nstates)
+    t_big, big_sel = timed(lambda: plc.select_sensors(
+        big_sys, k=13, Q=big_q, R=1e-10, positions=big.node_positions,
+        error_weight="outputs"), repeats=1)
+    print("\n## 3. n = 1,001 candidates, 20-state modal model, k = 13 (target < 60 s)\n")
+    print(f"select_sensors total: {t_big:.1f} s; gap {100 * big_sel.gap:.1f} %; objective "
+          f"{big_sel.objective:.3e} vs first-13 {big_sel.baselines['first-k'].objective:.3e}, "
+          f"evenly {big_sel.baselines['evenly-spaced'].objective:.3e}, "
+          f"QR {big_sel.baselines['qr-pivoting'].objective:.3e}")
+
+    # 4. reconstruction vs PySensors on the same basis
+    print("\n## 4. Reconstruction log det(Psi_S^T Psi_S), k = r = 13, same basis as PySensors\n")
+    try:
+        import pysensors as ps
+    except ImportError:
+        ps = None
+        print("PySensors not installed (pip install python-sensors): peer column skipped\n")
+    print("| n | method | log det | bound | time (ms) | time / PySensors |")
+    print("|---|---|---|---|---|---|")
+    u, _, _ = np.linalg.svd(snap.displacement - snap.displacement.mean(axis=1, keepdims=True),
+                            full_matrices=False)
+    bases = {101: (sys, u[:, :13]), 1001: (big_sys, big.mode_shapes(13))}
+    for n, (model_sys, psi) in bases.items():
+        t_rec, rec = timed(lambda s=model_sys, p=psi: plc.select_sensors(
+            s, k=13, criterion="reconstruction", basis=p, n_random=0, brute_force_limit=0))
+        rows = [("select_sensors (relaxation + swaps)", rec.objective, f"{rec.bound:.2f}",
+                 t_rec)]
+        if ps is not None:
+            def pysensors_qr(p=psi):
+                model = ps.SSPOR(basis=ps.basis.Identity(n_basis_modes=13), n_sensors=13)
+                model.fit(p.T)
+                return model.get_selected_sensors()
+
+            t_ps, chosen = timed(pysensors_qr)
+            logdet = np.linalg.slogdet(psi[chosen].T @ psi[chosen])[1]
+            rows.append(("PySensors SSPOR (QR)", logdet, "-", t_ps))
+        for name, value, bound, t in rows:
+            ratio = f"{t / rows[-1][3]:.0f}" if len(rows) > 1 else "-"
+            print(f"| {n} | {name} | {value:.2f} | {bound} | {1e3 * t:.1f} | {ratio} |")
+
+
+if __name__ == "__main__":
+    main()
