@@ -89,6 +89,11 @@ class Baseline:
         Candidate indices (None for the random mean).
     objective : float
         Exact criterion of the layout (``inf`` / ``-inf`` if the layout cannot estimate the state).
+
+    Examples
+    --------
+    >>> Baseline("first-k", (0, 1, 2), 1.5e-6).nodes
+    (0, 1, 2)
     """
 
     name: str
@@ -144,6 +149,15 @@ class SensorSelection:
         Exact criterion evaluations used (Riccati solves for ``"kalman"``).
     runtime : float
         Wall-clock seconds.
+
+    Examples
+    --------
+    >>> import numpy as np, control as ct
+    >>> import powerline_control as plc
+    >>> sys = ct.ss(np.diag([0.9, 0.5]), np.zeros((2, 0)), np.eye(2), np.zeros((2, 0)), 1.0)
+    >>> sel = plc.select_sensors(sys, k=1, Q=np.eye(2), R=0.1)
+    >>> sel.nodes, sel.criterion, sel.sense, sorted(sel.baselines)[:2]
+    ((0,), 'kalman', 'minimize', ['brute-force', 'evenly-spaced'])
     """
 
     nodes: tuple[int, ...]
@@ -204,6 +218,16 @@ class SensorCountStudy:
         The RMS error asked for.
     smallest_k : int or None
         Smallest ``k`` whose predicted RMS error is at most ``target_error`` (None if none).
+
+    Examples
+    --------
+    >>> import numpy as np, control as ct
+    >>> import powerline_control as plc
+    >>> sys = ct.ss(np.diag([0.9, 0.5]), np.zeros((2, 0)), np.eye(2), np.zeros((2, 0)), 1.0)
+    >>> study = plc.sensor_count_study(sys, [1, 2], Q=np.eye(2), R=0.1, target_error=1.0,
+    ...                                n_steps=50)
+    >>> study.smallest_k, study.layouts
+    (1, ((0,), (0, 1)))
     """
 
     k: tuple[int, ...]
