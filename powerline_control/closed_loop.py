@@ -254,7 +254,7 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
     noise_std = calib.noise_std
     kf, field_map = _calibrated_filter(calib, sensors, delays, noise_std**2)
     # Warm the filter on the calibration record so the loop starts from a converged estimate.
-    warm = kf.filter(calib.displacement[list(sensors)])
+    warm = kf.filter(calib.displacement[list(sensors)], update_state=True)
 
     n_t = baseline.t.size
     n_cal = calib.t.size
