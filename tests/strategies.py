@@ -69,9 +69,10 @@ def dmd_models(draw) -> plc.DMDModel:
     """DMD models of every saved variant: delays, rank, inputs (B), alpha modes."""
     rng = np.random.default_rng(draw(seeds))
     n_nodes = draw(st.integers(1, 5))
-    n_samples = draw(st.integers(12, 40))
-    X = rng.standard_normal((n_nodes, n_samples))
     delays = draw(st.integers(1, 3))
+    # Enough snapshot pairs for plain DMD of every state and input (fit_dmd rejects fewer).
+    n_samples = draw(st.integers(2 * n_nodes * delays + 10, 2 * n_nodes * delays + 40))
+    X = rng.standard_normal((n_nodes, n_samples))
     rank = draw(st.one_of(st.none(), st.integers(1, n_nodes * delays)))
     inputs = rng.standard_normal((draw(st.integers(1, 2)), n_samples)) if draw(st.booleans()) \
         else None

@@ -26,15 +26,18 @@ import zipfile
 import control as ct
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from strategies import dmd_models, line_models, scenarios, sensor_constraints
 
 import powerline_control as plc
 from powerline_control import config
 from powerline_control.errors import FileFormatError, InputError
+from powerline_control.observability import steady_state_covariance
 
-FAST = settings(max_examples=15, deadline=None,
+# Derandomized: the same examples every run (tests are seeded, CI must not flake); the strategies
+# were also run once with 200-300 examples each, all green apart from the bugs marked xfail below.
+FAST = settings(max_examples=15, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 LAB = plc.Span.paper_lab()
 
@@ -177,6 +180,9 @@ def test_scenario_with_numeric_alpha_loads_and_round_trips():
 @FAST
 @given(model=line_models())
 def test_fe_matrices_symmetric_positive_definite(model):
+    # One clamped-clamped element has no free DOF at all (reported: LineModel accepts it, see
+    # the bad-input row "LineModel 1 el clamped-clamped"); nothing to check there.
+    assume(model.n_dofs > 0)
     k = model.stiffness_matrix.toarray()
     m = model.mass_matrix.toarray()
     c = model.damper_matrix.toarray()
@@ -261,7 +267,8 @@ def layout_ok(layout, x, options, k) -> bool:
     return True
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=12, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data(), k=st.integers(1, 3))
 def test_sensor_selection_honours_random_constraints(data, k):
     problem = sensor_system()
@@ -280,6 +287,13 @@ def test_sensor_selection_honours_random_constraints(data, k):
         return
     assert feasible, f"a layout was returned for an infeasible set {options}"
     assert layout_ok(sel.nodes, x, options, k), (sel.nodes, options)
+    # And the certificate holds under the constraints: bound <= constrained optimum <= objective
+    # (brute force with SciPy's DARE; 1e-9 relative covers the two Riccati solvers' round-off).
+    optimum = min(float(np.trace(steady_state_covariance(problem["sys"], problem["q"],
+                                                         problem["r"], list(lay))))
+                  for lay in feasible)
+    assert sel.bound <= optimum * (1 + 1e-9)
+    assert sel.objective >= optimum * (1 - 1e-9)
 
 
 # ====================================================================== bad input, one table
@@ -333,6 +347,10 @@ BAD_INPUT = [
     ("LineModel.span=str", lambda s: plc.LineModel("lab"), I, "span"),
     ("LineModel.n_elements=0", lambda s: plc.LineModel(LAB, 0), I, "n_elements"),
     ("LineModel.n_elements=2.5", lambda s: plc.LineModel(LAB, 2.5), I, "n_elements"),
+    ("LineModel 1 el clamped-clamped", lambda s: plc.LineModel(LAB, 1, bc="clamped"), I,
+     "n_elements", "fem.LineModel accepts one clamped-clamped element, a model with 0 free DOFs; "
+     "natural_frequencies(1) then says \"'n_modes' must be <= 0\" and to_statespace / simulate "
+     "\"'n_modes' must be >= 1. Got 0\""),
     ("LineModel.bc=free", lambda s: plc.LineModel(LAB, 10, bc="free"), I, "bc"),
     ("LineModel.damping=0.1", lambda s: plc.LineModel(LAB, 10, damping=0.1), I, "damping"),
     ("LineModel.mdr beyond span", lambda s: plc.LineModel(LAB, 10, mdr=plc.MDR(9.0)), I,
@@ -634,8 +652,31 @@ def test_corrupted_file_gives_file_format_error(tmp_path, corrupt):
     path = tmp_path / "model.npz"
     plc.save_model(path, small_model())
     path.write_bytes(corrupt(path.read_bytes()))
+    with pytest.raises(FileFormatError) as info:
+        plc.load_model(path)
+    assert str(path) in str(info.value)  # a clear error says which file
+
+
+@pytest.mark.xfail(strict=True, reason="BUG: io.load_model on a plain .npy file (np.load returns "
+                   "an ndarray, not an NpzFile) raises a raw TypeError \"'numpy.ndarray' object "
+                   "does not support the context manager protocol\"")
+def test_plain_npy_file_gives_file_format_error(tmp_path):
+    path = tmp_path / "model.npz"
+    np.save(tmp_path / "array.npy", np.ones(3))
+    path.write_bytes((tmp_path / "array.npy").read_bytes())
     with pytest.raises(FileFormatError):
         plc.load_model(path)
+
+
+@pytest.mark.xfail(strict=True, reason="BUG: for a file that is neither zip nor .npy, numpy's "
+                   "message is passed on: 'If you trust the file you can load it unsafely using "
+                   "the allow_pickle= keyword', advice load_model cannot take and must not give")
+def test_foreign_file_message_does_not_advise_unpickling(tmp_path):
+    path = tmp_path / "model.npz"
+    path.write_bytes(b"#!/bin/sh\necho hello\n" + bytes(100))
+    with pytest.raises(FileFormatError) as info:
+        plc.load_model(path)
+    assert "allow_pickle" not in str(info.value) and "unsafe" not in str(info.value)
 
 
 def _drop(name):
