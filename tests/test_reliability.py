@@ -760,3 +760,63 @@ def test_a_zip_with_a_python_file_is_not_executed(tmp_path):
         archive.writestr("__main__.py", "raise SystemExit('executed!')\n")
     with pytest.raises(FileFormatError):
         plc.load_model(path)
+
+
+# ---------------------------------------------------------------- a static guard over the package
+_UNSAFE_MODULES = {"pickle", "cPickle", "dill", "shelve", "marshal", "joblib", "cloudpickle",
+                   "runpy"}
+_UNSAFE_CALLS = {"eval", "exec", "compile", "__import__", "import_module"}
+
+
+def unsafe_loading(source: str) -> list[str]:
+    """Calls and imports that could execute or unpickle data: a plain AST scan of ``source``."""
+    import ast
+
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            names = [a.name for a in node.names] + ([node.module] if getattr(node, "module", None)
+                                                    else [])
+            found += [f"import {n}" for n in names if n.split(".")[0] in _UNSAFE_MODULES]
+        elif isinstance(node, ast.Call):
+            func = node.func
+            name = func.id if isinstance(func, ast.Name) else getattr(func, "attr", "")
+            if name in _UNSAFE_CALLS:
+                found.append(f"{name}() at line {node.lineno}")
+            if name == "load" and isinstance(func, ast.Attribute) and \
+                    getattr(func.value, "id", "") in ("np", "numpy"):
+                safe = any(k.arg == "allow_pickle" and isinstance(k.value, ast.Constant)
+                           and k.value.value is False for k in node.keywords)
+                if not safe:
+                    found.append(f"np.load without allow_pickle=False at line {node.lineno}")
+    return found
+
+
+def test_static_scan_detects_unsafe_loading():
+    # The scanner itself must be able to fail.
+    bad = ("import pickle\nimport numpy as np\nnp.load('f')\neval('1')\n"
+           "np.load('g', allow_pickle=True)\n")
+    assert len(unsafe_loading(bad)) == 4
+    assert unsafe_loading("import numpy as np\nnp.load('f', allow_pickle=False)\n") == []
+
+
+def test_package_never_unpickles_or_executes_file_content():
+    import pathlib
+
+    package = pathlib.Path(plc.__file__).parent
+    problems = {path.name: unsafe_loading(path.read_text()) for path in package.glob("*.py")}
+    assert not {k: v for k, v in problems.items() if v}, problems
+
+
+def test_scenario_file_with_code_is_rejected_not_run(tmp_path):
+    path = tmp_path / "scenario.toml"
+    path.write_text("__import__('os').system('touch pwned')\n")
+    with pytest.raises(InputError, match="TOML"):
+        config.load_scenario(path)
+    assert not (tmp_path / "pwned").exists() and not pathlib_exists("pwned")
+
+
+def pathlib_exists(name: str) -> bool:
+    import pathlib
+
+    return pathlib.Path(name).exists()
