@@ -189,6 +189,15 @@ def bench_kalman(n_t, repeats):
         diff = float(np.abs(x_ours - x_peer).max() / np.abs(x_peer).max())
         row(f"Kalman filter n={n}, p={p}, {n_t} samples", t_ours, peer_name, t_peer,
             f"states rel {diff:.1e}")
+
+        def ours_textbook():
+            return plc.KalmanFilter(sys, Q=q, R=r, gain_rtol=0.0).filter(y).states
+
+        t_ours, t_peer, x_ours, x_peer = alternate(ours_textbook,
+                                                   lambda: filterpy_loop(a, c, q, r, y), repeats)
+        diff = float(np.abs(x_ours - x_peer).max() / np.abs(x_peer).max())
+        row(f"Kalman filter n={n}, p={p}, {n_t} samples, gain_rtol=0 (Riccati every step)",
+            t_ours, peer_name, t_peer, f"states rel {diff:.1e}")
     else:
         skip(f"Kalman filter n={n}, p={p}, {n_t} samples", "filterpy not installed")
     t_ours, t_peer, x_ours, x_peer = alternate(ours, lambda: textbook_loop(a, c, q, r, y),
