@@ -653,8 +653,11 @@ def select_sensors(
     horizon : int, optional
         Steps of the finite-horizon Gramian (default ``2 n``).
     relaxation_rank : int
-        Largest size of the Kalman relaxation's SDP: the prior is cut to its leading
-        eigen-directions, which keeps the bound valid (see :class:`KalmanCriterion`).
+        Largest matrix size the cvxpy relaxation sees. "kalman": the prior is cut to its leading
+        eigen-directions, which keeps the bound valid (see ``KalmanCriterion``); "min-eig": the
+        directions where the Gramian is smallest (valid by interlacing); "gramian" /
+        "reconstruction": the leading directions supply starting weights only. In every case
+        the reported bound is then tightened on the full relaxation in numpy.
     solver : str
         cvxpy solver, e.g. ``"CLARABEL"`` (default) or ``"SCS"``; both install with cvxpy.
     n_random : int
@@ -870,13 +873,13 @@ def _make_criterion(criterion, a, q, g, c, psi, error_weight, horizon, relaxatio
     # Gramians were built from rows in noise units (c_i sqrt(r0 / R_i)); physical ones carry 1/r0.
     unit = 1.0 if criterion == "reconstruction" else 1.0 / r0
     if criterion == "min-eig":
-        crit = MinEigCriterion(mats)
+        crit = MinEigCriterion(mats, relaxation_rank)
 
         def gap_of(obj: float, bound: float) -> float:
             return max(0.0, (bound - obj) / bound) if bound > 0 else 0.0
 
         return crit, (lambda cost: -cost * scale * unit), gap_of
-    crit = LogDetCriterion(mats)
+    crit = LogDetCriterion(mats, relaxation_rank)
 
     def gap_of(obj: float, bound: float) -> float:
         return max(0.0, 1.0 - math.exp(-(bound - obj) / d))
@@ -908,9 +911,10 @@ def _certificate(crit, weights: np.ndarray, poly: Polytope, solver_value: float
     """
     bounds = []
     if isinstance(crit, MinEigCriterion):
-        value, grad = crit.linearisation(weights)
-        low, _ = linear_extreme(grad, poly)
-        bounds.append(value + low - float(grad @ weights))
+        for reduced in (False, True):  # both bound lambda_min (the reduced one by interlacing)
+            value, grad = crit.linearisation(weights, reduced)
+            low, _ = linear_extreme(grad, poly)
+            bounds.append(value + low - float(grad @ weights))
     else:
         for reduced in (True, False) if isinstance(crit, KalmanCriterion) else (False,):
             iterations = 1 if reduced else 40
