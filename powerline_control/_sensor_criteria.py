@@ -335,13 +335,25 @@ class KalmanCriterion:
         return out
 
     # relaxation ---------------------------------------------------------------------------
+    relaxation_scale: float = 1.0
+
     def relaxation(self, z: cp.Variable):
+        """``tr F (L^-1 + sum z_i g_i g_i^T)^-1 F^T``, rescaled for the conic solver.
+
+        The matrix is multiplied by ``c`` so that its largest entries are O(1) and the objective
+        divided so that it is 1 at ``z = 0`` (prior variances of 1e3..1e7 in noise units made
+        Clarabel fail). The value times ``relaxation_scale`` is the relaxed trace. (Whitening by
+        the prior is better conditioned still, but doubled Clarabel's time at n = 101.)
+        """
         inv_lam, gr, f = self._reduced
         r = len(inv_lam)
-        outer = np.einsum("ia,ib->abi", gr, gr).reshape(r * r, -1)
+        c = 1.0 / max(float(inv_lam.max()), float(np.max(np.sum(gr * gr, axis=1))), 1e-300)
+        at_zero = max(float(np.sum(f * f / inv_lam)) / c, 1e-300)
+        self.relaxation_scale = c * at_zero
+        outer = np.einsum("ia,ib->abi", gr, gr).reshape(r * r, -1) * c
         info = cp.reshape(outer @ z, (r, r), order="C")
-        mat = np.diag(inv_lam) + (info + info.T) / 2
-        return cp.matrix_frac(f.T, mat)
+        mat = np.diag(c * inv_lam) + (info + info.T) / 2
+        return cp.matrix_frac(f.T / np.sqrt(at_zero), mat)
 
     def _full_form(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if not hasattr(self, "_full_cache"):
@@ -407,6 +419,7 @@ class LogDetCriterion:
     relaxation_rank: int = 20
     n_exact: int = 0
     sense: str = "maximize"
+    relaxation_scale: float = 1.0
 
     def __post_init__(self) -> None:
         self._reduced_mats = _project(self.mats, _subspace(self.mats, self.relaxation_rank,
@@ -452,6 +465,7 @@ class MinEigCriterion:
     relaxation_rank: int = 20
     n_exact: int = 0
     sense: str = "maximize"
+    relaxation_scale: float = 1.0
 
     def __post_init__(self) -> None:
         self._reduced_mats = _project(self.mats, _subspace(self.mats, self.relaxation_rank,

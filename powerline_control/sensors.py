@@ -758,7 +758,8 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
             "relaxation; try another solver (e.g. 'SCS' or 'CLARABEL')."
         )
     weights = np.clip(np.asarray(z.value, dtype=float), 0.0, 1.0)
-    bound_cost, certificate = _certificate(crit, weights, poly, float(problem.value))
+    relaxed_cost = float(problem.value) * crit.relaxation_scale
+    bound_cost, certificate = _certificate(crit, weights, poly, relaxed_cost)
 
     # Integer layouts: rounding and greedy, each improved by exact swaps; the better wins.
     starts = []
@@ -806,7 +807,7 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
         sense=crit.sense,
         k=k,
         baselines=types.MappingProxyType(baselines),
-        relaxation_value=to_physical(float(problem.value)),
+        relaxation_value=to_physical(relaxed_cost),
         solver=solver,
         solver_status=str(problem.status),
         certificate=certificate,
