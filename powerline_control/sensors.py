@@ -769,6 +769,10 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
     greedy = _greedy(crit, feas, k)
     if greedy is not None:
         starts.append(greedy)
+    if not starts and brute_force_limit:  # rounding and greedy can stall where a layout exists
+        found = _brute_force(crit, feas, k, brute_force_limit)
+        if found is not None:
+            starts.append(found[0])
     if not starts:
         raise SensorSelectionError(
             "No layout honouring the constraints could be built from the relaxed weights; "

@@ -379,3 +379,37 @@ def test_scs_handles_the_log_det_relaxations(criterion):
     sel = plc.select_sensors(sys, k=3, criterion=criterion, Q=q, R=r, solver="SCS", n_random=0)
     optimum = sel.baselines["brute-force"].objective
     assert sel.solver == "SCS" and sel.bound >= optimum - 1e-9 * abs(optimum)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_random_constraints_feasible_iff_brute_force_finds_a_layout(seed):
+    """Seeded zones / spacing / required: an error exactly when no layout exists, else the
+    constrained optimum (brute force over every layout)."""
+    rng = np.random.default_rng(100 + seed)
+    model, sys, q, r = line_problem(seed, n_modes=3)
+    x = model.node_positions
+    start = rng.uniform(0, 3.0, size=2)
+    zones = [(float(s0), float(s0 + rng.uniform(0.1, 0.8))) for s0 in start]
+    spacing = float(rng.uniform(0.2, 1.2))
+    k = int(rng.integers(2, 5))
+    required = [int(rng.integers(0, 21))] if seed % 2 else []
+
+    def ok(layout):
+        pos = x[list(layout)]
+        return (all(not (lo <= p <= hi) for p in pos for lo, hi in zones)
+                and all(abs(a - b) >= spacing for a, b in itertools.combinations(pos, 2))
+                and set(required) <= set(layout))
+
+    exists = any(ok(c) for c in itertools.combinations(range(21), k))
+    if not exists:
+        with pytest.raises(SensorSelectionError):
+            plc.select_sensors(sys, k=k, Q=q, R=r, positions=x, forbidden=zones,
+                               min_spacing=spacing, required=required)
+        return
+    sel = plc.select_sensors(sys, k=k, Q=q, R=r, positions=x, forbidden=zones,
+                             min_spacing=spacing, required=required, brute_force_limit=0,
+                             n_random=0)
+    assert ok(sel.nodes)
+    optimum = constrained_brute_force(sys, q, r, k, ok)
+    assert sel.bound <= optimum * (1 + 1e-9)
+    assert sel.objective == pytest.approx(optimum, rel=1e-9)
