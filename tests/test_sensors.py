@@ -334,10 +334,10 @@ PAPER_SCENARIOS = [
     pytest.param(10.0, 1.3, id="between-x1.3"),
     pytest.param(14.4, 0.5, id="near-mode2-x0.5"),
     pytest.param(20.0, 0.5, id="between-x0.5"),
-    pytest.param(6.5, 1.3, id="near-mode1-x1.3"),
-    pytest.param(10.0, 0.5, id="between-x0.5-10Hz"),
-    pytest.param(14.4, 1.3, id="near-mode2-x1.3"),
-    pytest.param(20.0, 1.3, id="between-x1.3-20Hz"),
+    pytest.param(6.5, 1.3, id="near-mode1-x1.3", marks=pytest.mark.slow),
+    pytest.param(10.0, 0.5, id="between-x0.5-10Hz", marks=pytest.mark.slow),
+    pytest.param(14.4, 1.3, id="near-mode2-x1.3", marks=pytest.mark.slow),
+    pytest.param(20.0, 1.3, id="between-x1.3-20Hz", marks=pytest.mark.slow),
 ]
 
 
