@@ -228,7 +228,15 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
     --------
     See :class:`ClosedLoopResult`.
     """
+    if not isinstance(span, Span):
+        raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
+    if not isinstance(robot, MDR):
+        raise InputError(f"The 'robot' parameter must be an MDR (its position is the start). "
+                         f"Got {type(robot).__name__}.")
     limits = limits or RobotLimits(v_max=0.5, a_max=1.0)
+    if not isinstance(limits, RobotLimits):
+        raise InputError(f"The 'limits' parameter must be RobotLimits or None. "
+                         f"Got {type(limits).__name__}.")
     duration = check_real("duration", duration, low=0.0)
     calibration = check_real("calibration", calibration, low=0.0, high=duration,
                              high_inclusive=False)

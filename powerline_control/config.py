@@ -176,8 +176,10 @@ def _section(cls, name: str, table: object):
             if not isinstance(value, list):
                 raise InputError(f"{label} must be a list of node indices. Got {value!r}.")
             value = tuple(check_int(label, v, low=0) for v in value)
-        elif key == "alpha" and isinstance(value, str):
-            check_choice(label, value, ("auto",))
+        elif key == "alpha":
+            # "auto" or a number (the paper's absolute alpha, eq. 14).
+            value = check_choice(label, value, ("auto",)) if isinstance(value, str) \
+                else check_real(label, value, low=0.0, low_inclusive=True)
         elif isinstance(default, bool) or isinstance(default, str):
             if not isinstance(value, type(default)):
                 raise InputError(f"{label} must be a {type(default).__name__}. Got {value!r}.")

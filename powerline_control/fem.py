@@ -297,6 +297,9 @@ class LineModel:
         self.node_positions = np.linspace(0.0, span.length, self.n_elements + 1)
         self._n_line_dofs = 2 * (self.n_elements + 1)
         self._free = self._free_dofs()
+        if self._free.size == 0:
+            raise InputError(f"The 'n_elements' parameter must be >= 2 for supports {self.bc}: "
+                             f"{self.n_elements} element(s) leave no free degree of freedom.")
         self.mass_matrix, self.stiffness_matrix, self.damper_matrix = self._assemble()
 
     # ------------------------------------------------------------------ sizes and DOF maps

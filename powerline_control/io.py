@@ -55,9 +55,36 @@ def _expect_shape(name: str, array: np.ndarray, shape: tuple[int, ...]) -> np.nd
     return array
 
 
+def _scalar(fields: dict[str, Any], name: str, kind: type, *, low: float | None = None,
+            optional: bool = False) -> Any:
+    """A metadata scalar of the right type (bool is no number) and range, or FileFormatError."""
+    value = fields[name]
+    if value is None and optional:
+        return None
+    ok = isinstance(value, kind) and not isinstance(value, bool)
+    if kind is float:
+        ok = isinstance(value, int | float) and not isinstance(value, bool) and np.isfinite(value)
+    if not ok or (low is not None and value < low):
+        bound = "" if low is None else f" >= {low:g}"
+        raise FileFormatError(f"DMDModel metadata field {name!r} must be a {kind.__name__}{bound}; "
+                              f"the file holds {value!r}. The file is corrupted.")
+    return kind(value)
+
+
 def _dmd_from_arrays(arrays: dict[str, np.ndarray], metadata: dict[str, Any]) -> DMDModel:
+    if not isinstance(metadata, dict):
+        raise FileFormatError(f"DMDModel metadata 'fields' must be a table; the file holds "
+                              f"{type(metadata).__name__}.")
     try:
-        scalars = {name: metadata[name] for name in _DMD_SCALARS}
+        dt = _scalar(metadata, "dt", float)
+        if dt <= 0:
+            raise FileFormatError(f"DMDModel metadata field 'dt' must be > 0; the file holds {dt}.")
+        alpha = _scalar(metadata, "alpha", float, low=0.0)
+        alpha_relative = _scalar(metadata, "alpha_relative", float, low=0.0)
+        delays = _scalar(metadata, "delays", int, low=1)
+        rank = _scalar(metadata, "rank", int, low=1, optional=True)
+        n_nodes = _scalar(metadata, "n_nodes", int, low=1)
+        n_pairs = _scalar(metadata, "n_pairs", int, low=1)
         has_B, has_basis = bool(metadata["has_B"]), bool(metadata["has_basis"])
     except KeyError as exc:
         raise FileFormatError(f"DMDModel metadata lacks the field {exc.args[0]!r}.") from exc
@@ -70,29 +97,35 @@ def _dmd_from_arrays(arrays: dict[str, np.ndarray], metadata: dict[str, Any]) ->
     if A.ndim != 2 or A.shape[0] != A.shape[1]:
         raise FileFormatError(f"Array 'A' must be square; the file holds shape {A.shape}.")
     n = A.shape[0]
-    n_nodes = int(scalars["n_nodes"])
+    # The state size follows from the scalars: the POD rank, or the stacked window.
+    expected_states = rank if rank is not None else n_nodes * delays
+    if n != expected_states or (rank is None) == has_basis:
+        raise FileFormatError(
+            f"Array 'A' is {n} x {n}, but the metadata (n_nodes={n_nodes}, delays={delays}, "
+            f"rank={rank}, basis={'yes' if has_basis else 'no'}) implies {expected_states} states: "
+            "the file is corrupted.")
     B = None
     if has_B:
         B = arrays["B"]
         _expect_shape("B", B, (n, B.shape[1] if B.ndim == 2 else -1))
     basis = None
     if has_basis:
-        basis = _expect_shape("basis", arrays["basis"], (n_nodes * int(scalars["delays"]), n))
+        basis = _expect_shape("basis", arrays["basis"], (n_nodes * delays, n))
     return DMDModel(
         A=_readonly(_expect_shape("A", A, (n, n))),
         B=None if B is None else _readonly(B),
-        dt=float(scalars["dt"]),
-        alpha=float(scalars["alpha"]),
-        alpha_relative=float(scalars["alpha_relative"]),
-        delays=int(scalars["delays"]),
-        rank=None if scalars["rank"] is None else int(scalars["rank"]),
+        dt=dt,
+        alpha=alpha,
+        alpha_relative=alpha_relative,
+        delays=delays,
+        rank=rank,
         n_nodes=n_nodes,
         field_map=_readonly(_expect_shape("field_map", arrays["field_map"], (n_nodes, n))),
         basis=None if basis is None else _readonly(basis),
         residual_covariance=_readonly(
             _expect_shape("residual_covariance", arrays["residual_covariance"], (n, n))
         ),
-        n_pairs=int(scalars["n_pairs"]),
+        n_pairs=n_pairs,
         initial_state=_readonly(_expect_shape("initial_state", arrays["initial_state"], (n,))),
     )
 
@@ -160,15 +193,23 @@ def load_model(path: str | os.PathLike[str]) -> DMDModel:
     --------
     See :func:`save_model`.
     """
+    name = os.fspath(path)
+    # Only zip archives are candidates: anything else (a .npy array, a pickle, text) is refused
+    # before numpy sees it, so numpy's advice to load "unsafely" with allow_pickle never reaches
+    # the user; and np.load runs with allow_pickle=False, so no object array is ever unpickled.
+    with open(path, "rb") as handle:
+        is_zip = zipfile.is_zipfile(handle)
+    if not is_zip:
+        raise FileFormatError(f"{name!r} is not a powerline_control .npz file (not a zip archive).")
     try:
         # Open the file ourselves so that it is closed even when numpy fails half-way.
         with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as archive:
-            arrays = {name: archive[name] for name in archive.files}
-    except FileNotFoundError:
-        raise
+            arrays = {key: archive[key] for key in archive.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        reason = "an entry needs pickle, which is refused" if "allow_pickle" in str(exc) \
+            else str(exc)
         raise FileFormatError(
-            f"Cannot read {os.fspath(path)!r} as a powerline_control .npz file: {exc}"
+            f"Cannot read {name!r} as a powerline_control .npz file: {reason}"
         ) from exc
     if _METADATA_KEY not in arrays:
         raise FileFormatError(

@@ -12,7 +12,7 @@ from importlib import resources
 
 import numpy as np
 
-from ._validation import check_real
+from ._validation import check_int, check_real
 from .errors import InputError
 
 __all__ = ["Conductor", "Span", "conductors", "PAPER_LAB_MASS_PER_LENGTH"]
@@ -214,6 +214,7 @@ class Span:
         >>> Span.paper_lab().pinned_frequencies(2).round(3)
         array([ 6.534, 14.388])
         """
+        n_modes = check_int("n_modes", n_modes, low=1)
         k = np.arange(1, n_modes + 1) * np.pi / self.length
         cond = self.conductor
         omega = np.sqrt((cond.ei * k**4 + self.tension * k**2) / cond.mass_per_length)

@@ -202,7 +202,7 @@ class Trajectory:
         >>> float(np.round(traj.sample(traj.duration / 2)[0], 6))
         0.5
         """
-        times = np.clip(np.asarray(t, dtype=float), 0.0, self.duration)
+        times = np.clip(check_array("t", t, ndim=(0, 1)), 0.0, self.duration)
         if self.t.size == 1:
             zeros = np.zeros_like(times)
             return zeros + self.position[0], zeros + self.velocity[0], zeros

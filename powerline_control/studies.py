@@ -134,6 +134,11 @@ def run_study(func: Callable[..., Mapping], grid: Sequence[Mapping],
     >>> study.column("sum")
     array([11, 12])
     """
+    if not callable(func):
+        raise InputError(f"The 'func' parameter must be callable. Got {type(func).__name__}.")
+    if executor is not None and not callable(getattr(executor, "submit", None)):
+        raise InputError("The 'executor' parameter must be a concurrent.futures.Executor (with "
+                         f"submit) or None. Got {type(executor).__name__}.")
     grid = [dict(point) for point in grid]
     if not grid:
         raise InputError("The 'grid' parameter is empty: a study needs at least one point.")
