@@ -34,17 +34,33 @@ def modal_rows(sizes, repeats):
     rows = []
     span = plc.Span.at_rts_fraction(300.0, "drake", 0.20)
     for n_el in sizes:
-        ours_t, freqs = timed(lambda n=n_el: plc.LineModel(span, n).natural_frequencies(50), repeats)
+        ours_t, freqs = timed(
+            lambda n=n_el: plc.LineModel(span, n).natural_frequencies(50), repeats
+        )
         model = plc.LineModel(span, n_el)
         if model.n_dofs <= 2000:
             k, m = model.stiffness_matrix.toarray(), model.mass_matrix.toarray()
             peer_t, peer = timed(lambda k=k, m=m: scipy.linalg.eigh(k, m, eigvals_only=True), 1)
             diff = float(np.max(np.abs(freqs - np.sqrt(peer[:50]) / (2 * np.pi)) / freqs))
-            rows.append((f"assembly + 50 modes, {n_el} el", ours_t, "scipy dense eigh (all)",
-                         peer_t, f"{diff:.1e}"))
+            rows.append(
+                (
+                    f"assembly + 50 modes, {n_el} el",
+                    ours_t,
+                    "scipy dense eigh (all)",
+                    peer_t,
+                    f"{diff:.1e}",
+                )
+            )
         else:
-            rows.append((f"assembly + 50 modes, {n_el} el", ours_t, "scipy dense eigh",
-                         float("nan"), "skipped: dense 10^4 x 10^4 takes minutes"))
+            rows.append(
+                (
+                    f"assembly + 50 modes, {n_el} el",
+                    ours_t,
+                    "scipy dense eigh",
+                    float("nan"),
+                    "skipped: dense 10^4 x 10^4 takes minutes",
+                )
+            )
     return rows
 
 
@@ -56,14 +72,28 @@ def simulation_rows(repeats):
     sys = plc.LineModel(lab, 100).to_statespace(force_positions=[0.5])
     peer_t, peer = timed(lambda: ct.forced_response(sys, snap.t, snap.force), 1)
     diff = float(np.abs(peer.outputs - snap.displacement).max() / np.abs(snap.displacement).max())
-    rows.append(("paper span 100 el, 10 s at 1 kHz", ours_t, "control.forced_response", peer_t,
-                 f"{diff:.1e} (FOH vs exact sine)"))
+    rows.append(
+        (
+            "paper span 100 el, 10 s at 1 kHz",
+            ours_t,
+            "control.forced_response",
+            peer_t,
+            f"{diff:.1e} (FOH vs exact sine)",
+        )
+    )
     drake = plc.Span.at_rts_fraction(300.0, "drake", 0.20)
     model = plc.LineModel(drake, 1000, damping=plc.ModalDamping(0.005))
     aeolian = plc.AeolianForce(wind_speed=3.0)
     drake_t, snap = timed(lambda: plc.simulate(model, aeolian, 5.0, 1e-3), 1)
-    rows.append((f"Drake 300 m, 1000 el, aeolian 3 m/s, 5 s ({snap.n_modes} modes)", drake_t,
-                 "-", float("nan"), "no peer (sparse modal model)"))
+    rows.append(
+        (
+            f"Drake 300 m, 1000 el, aeolian 3 m/s, 5 s ({snap.n_modes} modes)",
+            drake_t,
+            "-",
+            float("nan"),
+            "no peer (sparse modal model)",
+        )
+    )
     return rows
 
 

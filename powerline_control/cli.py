@@ -63,14 +63,23 @@ def _stage_model(scenario: Scenario, report: _Report):
     model = scenario.model.build(span)
     frequencies = model.natural_frequencies(min(5, model.n_dofs))
     cond = span.conductor
-    report.section("Span and model", [
-        ("length, tension", f"{span.length:g} m, {span.tension:g} N"),
-        ("conductor", f"{cond.name}: m = {cond.mass_per_length:.4g} kg/m, EI = {cond.ei:g} N m^2, "
-                      f"d = {1e3 * cond.diameter:g} mm"),
-        ("model", f"{model.n_elements} elements, {model.n_nodes} nodes, {model.n_dofs} DOFs, "
-                  f"supports {model.bc[0]}/{model.bc[1]}"),
-        ("first natural frequencies", ", ".join(f"{f:.3f}" for f in frequencies) + " Hz"),
-    ])
+    report.section(
+        "Span and model",
+        [
+            ("length, tension", f"{span.length:g} m, {span.tension:g} N"),
+            (
+                "conductor",
+                f"{cond.name}: m = {cond.mass_per_length:.4g} kg/m, EI = {cond.ei:g} N m^2, "
+                f"d = {1e3 * cond.diameter:g} mm",
+            ),
+            (
+                "model",
+                f"{model.n_elements} elements, {model.n_nodes} nodes, {model.n_dofs} DOFs, "
+                f"supports {model.bc[0]}/{model.bc[1]}",
+            ),
+            ("first natural frequencies", ", ".join(f"{f:.3f}" for f in frequencies) + " Hz"),
+        ],
+    )
     report.numbers.update(n_nodes=model.n_nodes, frequencies_hz=frequencies.tolist())
     return span, model
 
@@ -79,18 +88,31 @@ def _stage_data(scenario: Scenario, model, report: _Report):
     sim = scenario.simulation
     force = scenario.forcing.build()
     start = time.perf_counter()
-    snap = simulate(model, force, duration=sim.duration, dt=sim.dt,
-                    noise_fraction=sim.noise_fraction, seed=sim.seed)
+    snap = simulate(
+        model,
+        force,
+        duration=sim.duration,
+        dt=sim.dt,
+        noise_fraction=sim.noise_fraction,
+        seed=sim.seed,
+    )
     elapsed = time.perf_counter() - start
-    envelope = np.abs(snap.true_displacement[:, -snap.t.size // 4:]).max(axis=1)
-    report.section("Simulated data", [
-        ("load", repr(force)),
-        ("samples", f"{snap.t.size} at dt = {snap.dt:g} s ({snap.n_modes} modes kept, "
-                    f"{elapsed:.2f} s)"),
-        ("RMS / peak displacement", f"{_mm(np.sqrt(np.mean(snap.true_displacement**2)))} / "
-                                    f"{_mm(envelope.max())}"),
-        ("sensor noise std", _mm(snap.noise_std)),
-    ])
+    envelope = np.abs(snap.true_displacement[:, -snap.t.size // 4 :]).max(axis=1)
+    report.section(
+        "Simulated data",
+        [
+            ("load", repr(force)),
+            (
+                "samples",
+                f"{snap.t.size} at dt = {snap.dt:g} s ({snap.n_modes} modes kept, {elapsed:.2f} s)",
+            ),
+            (
+                "RMS / peak displacement",
+                f"{_mm(np.sqrt(np.mean(snap.true_displacement**2)))} / {_mm(envelope.max())}",
+            ),
+            ("sensor noise std", _mm(snap.noise_std)),
+        ],
+    )
     return force, snap, envelope
 
 
@@ -100,10 +122,15 @@ def _stage_identify(scenario: Scenario, snap, report: _Report):
     train = snap.displacement[:, :n_train]
     if cfg.alpha == "auto":
         curve = select_alpha(train, snap.dt, delays=cfg.delays, rank=cfg.rank)
-        alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None \
-            else curve.best_alpha
-        dmd = fit_dmd(train, snap.dt, alpha=alpha, delays=cfg.delays, rank=cfg.rank,
-                      alpha_mode=curve.alpha_mode)
+        alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None else curve.best_alpha
+        dmd = fit_dmd(
+            train,
+            snap.dt,
+            alpha=alpha,
+            delays=cfg.delays,
+            rank=cfg.rank,
+            alpha_mode=curve.alpha_mode,
+        )
         chosen = f"{alpha:.3g} ({curve.alpha_mode}; = {dmd.alpha:.3g} absolute), by held-out error"
     else:
         dmd = fit_dmd(train, snap.dt, alpha=float(cfg.alpha), delays=cfg.delays, rank=cfg.rank)
@@ -114,13 +141,19 @@ def _stage_identify(scenario: Scenario, snap, report: _Report):
         warnings.simplefilter("always")
         plain = fit_dmd(train, snap.dt, alpha=0.0, delays=1)
     plain_note = " (ill-conditioned: it inverts round-off)" if caught else ""
-    report.section("Identification (DMD)", [
-        ("this run", f"delays = {cfg.delays}, rank = {cfg.rank or 'full'}, alpha = {chosen}"),
-        ("spectral radius / unstable eigenvalues", f"{dmd.spectral_radius:.6f} / "
-                                                   f"{dmd.stability_report(warn=False).n_unstable}"),
-        ("paper recipe (delays 1, alpha 0.1)", f"spectral radius {paper.spectral_radius:.6f}"),
-        ("plain DMD (alpha 0)", f"spectral radius {plain.spectral_radius:.6f}{plain_note}"),
-    ], figures=["eigenvalues.png"])
+    report.section(
+        "Identification (DMD)",
+        [
+            ("this run", f"delays = {cfg.delays}, rank = {cfg.rank or 'full'}, alpha = {chosen}"),
+            (
+                "spectral radius / unstable eigenvalues",
+                f"{dmd.spectral_radius:.6f} / {dmd.stability_report(warn=False).n_unstable}",
+            ),
+            ("paper recipe (delays 1, alpha 0.1)", f"spectral radius {paper.spectral_radius:.6f}"),
+            ("plain DMD (alpha 0)", f"spectral radius {plain.spectral_radius:.6f}{plain_note}"),
+        ],
+        figures=["eigenvalues.png"],
+    )
     report.numbers.update(alpha=dmd.alpha, spectral_radius=dmd.spectral_radius)
     return dmd, n_train, {"this run": dmd.eigenvalues, "paper recipe": paper.eigenvalues}
 
@@ -134,42 +167,70 @@ def _stage_estimate(scenario: Scenario, dmd, snap, n_train: int, report: _Report
     if scenario.estimation.sensors is not None:
         sensors = list(scenario.estimation.sensors)
         if max(sensors) >= snap.x.size:
-            raise InputError(f"estimation.sensors names node {max(sensors)}, but the model has "
-                             f"{snap.x.size} nodes (0..{snap.x.size - 1}).")
+            raise InputError(
+                f"estimation.sensors names node {max(sensors)}, but the model has "
+                f"{snap.x.size} nodes (0..{snap.x.size - 1})."
+            )
         how = "from the scenario"
     else:
         # The supports never move: a sensor there would measure only noise.
         half_element = 0.5 * (snap.x[1] - snap.x[0])
         supports = [(0.0, half_element), (snap.x[-1] - half_element, snap.x[-1])]
-        selection = select_sensors(candidates, k=scenario.estimation.n_sensors, criterion="kalman",
-                                   Q=dmd.residual_covariance, R=noise_var, positions=snap.x,
-                                   forbidden=supports)
+        selection = select_sensors(
+            candidates,
+            k=scenario.estimation.n_sensors,
+            criterion="kalman",
+            Q=dmd.residual_covariance,
+            R=noise_var,
+            positions=snap.x,
+            forbidden=supports,
+        )
         sensors = list(selection.nodes)
-        how = (f"optimised (Kalman criterion; certified gap to the relaxation bound "
-               f"{100 * selection.gap:.2g} %)")
+        how = (
+            f"optimised (Kalman criterion; certified gap to the relaxation bound "
+            f"{100 * selection.gap:.2g} %)"
+        )
     held_out = slice(n_train, None)
     results = {}
     layouts = {"chosen": sensors, "paper (first 13 nodes)": list(range(min(13, snap.x.size)))}
     for name, nodes in layouts.items():
-        kf = KalmanFilter(dmd.to_statespace(measured=nodes), Q=dmd.residual_covariance,
-                          R=noise_var, steady_state=True, field_map=dmd.field_map)
+        kf = KalmanFilter(
+            dmd.to_statespace(measured=nodes),
+            Q=dmd.residual_covariance,
+            R=noise_var,
+            steady_state=True,
+            field_map=dmd.field_map,
+        )
         estimate = kf.filter(snap.displacement[nodes, held_out])
-        accuracy = estimation_accuracy(estimate.field, snap.true_displacement[:, held_out],
-                                       measured=nodes, discard=200)
+        accuracy = estimation_accuracy(
+            estimate.field, snap.true_displacement[:, held_out], measured=nodes, discard=200
+        )
         results[name] = (estimate, accuracy)
     chosen_accuracy = results["chosen"][1]
     paper_accuracy = results["paper (first 13 nodes)"][1]
-    report.section("Estimation (Kalman filter on held-out data)", [
-        ("sensors", f"nodes {sensors} at x = "
-                    f"{', '.join(f'{snap.x[i]:.2f}' for i in sensors)} m, {how}"),
-        ("RMS error, unmeasured nodes (chosen)",
-         f"{100 * chosen_accuracy.relative_rms_error_unmeasured:.3g} % of RMS displacement"),
-        ("RMS error, unmeasured nodes (paper's 13)",
-         f"{100 * paper_accuracy.relative_rms_error_unmeasured:.3g} % of RMS displacement"),
-    ], figures=["estimate.png"])
-    report.numbers.update(sensors=sensors,
-                          error_unmeasured=chosen_accuracy.relative_rms_error_unmeasured,
-                          error_unmeasured_paper_layout=paper_accuracy.relative_rms_error_unmeasured)
+    report.section(
+        "Estimation (Kalman filter on held-out data)",
+        [
+            (
+                "sensors",
+                f"nodes {sensors} at x = {', '.join(f'{snap.x[i]:.2f}' for i in sensors)} m, {how}",
+            ),
+            (
+                "RMS error, unmeasured nodes (chosen)",
+                f"{100 * chosen_accuracy.relative_rms_error_unmeasured:.3g} % of RMS displacement",
+            ),
+            (
+                "RMS error, unmeasured nodes (paper's 13)",
+                f"{100 * paper_accuracy.relative_rms_error_unmeasured:.3g} % of RMS displacement",
+            ),
+        ],
+        figures=["estimate.png"],
+    )
+    report.numbers.update(
+        sensors=sensors,
+        error_unmeasured=chosen_accuracy.relative_rms_error_unmeasured,
+        error_unmeasured_paper_layout=paper_accuracy.relative_rms_error_unmeasured,
+    )
     return sensors, results["chosen"][0]
 
 
@@ -182,17 +243,28 @@ def _stage_antinode_and_plan(scenario: Scenario, span, snap, estimate, n_train, 
     truth = nearest_antinode(true, target.position)
     limits = RobotLimits(v_max=robot.v_max, a_max=robot.a_max)
     plan = plan_motion(robot.start, target.position, limits, span_length=span.length)
-    report.section("Antinode and motion plan", [
-        ("antinodes (estimate)", ", ".join(f"{a.position:.3f}" for a in estimated) + " m"),
-        ("nearest to the robot", f"{target.position:.3f} m (true field: {truth.position:.3f} m, "
-                                 f"{100 * abs(target.position - truth.position) / truth.loop_length:.2g}"
-                                 " % of the loop)"),
-        ("minimum-time move", f"{robot.start:g} m -> {target.position:.3f} m in "
-                              f"{plan.duration:.3f} s (v_max {robot.v_max:g} m/s, "
-                              f"a_max {robot.a_max:g} m/s^2)"),
-    ], figures=["envelope.png"])
-    report.numbers.update(antinode=target.position, true_antinode=truth.position,
-                          move_duration=plan.duration)
+    report.section(
+        "Antinode and motion plan",
+        [
+            ("antinodes (estimate)", ", ".join(f"{a.position:.3f}" for a in estimated) + " m"),
+            (
+                "nearest to the robot",
+                f"{target.position:.3f} m (true field: {truth.position:.3f} m, "
+                f"{100 * abs(target.position - truth.position) / truth.loop_length:.2g}"
+                " % of the loop)",
+            ),
+            (
+                "minimum-time move",
+                f"{robot.start:g} m -> {target.position:.3f} m in "
+                f"{plan.duration:.3f} s (v_max {robot.v_max:g} m/s, "
+                f"a_max {robot.a_max:g} m/s^2)",
+            ),
+        ],
+        figures=["envelope.png"],
+    )
+    report.numbers.update(
+        antinode=target.position, true_antinode=truth.position, move_duration=plan.duration
+    )
     return estimated
 
 
@@ -203,55 +275,105 @@ def _stage_closed_loop(scenario: Scenario, span, model, force, report: _Report, 
     load_frequency = getattr(force, "frequency", None) or model.natural_frequencies(1)[0]
     frequencies = model.natural_frequencies(min(20, model.n_dofs))
     tuned = float(frequencies[np.argmin(np.abs(frequencies - load_frequency))])
-    robot = MDR.tuned(robot_cfg.start, robot_cfg.body_mass, robot_cfg.suspended_mass, tuned,
-                      robot_cfg.damping_ratio)
+    robot = MDR.tuned(
+        robot_cfg.start,
+        robot_cfg.body_mass,
+        robot_cfg.suspended_mass,
+        tuned,
+        robot_cfg.damping_ratio,
+    )
     calibration = min(2.0, robot_cfg.closed_loop / 3)
-    result = run_closed_loop(span, force, robot, RobotLimits(robot_cfg.v_max, robot_cfg.a_max),
-                             sensors=sensors, n_elements=model.n_elements, bc=model.bc,
-                             duration=robot_cfg.closed_loop, calibration=calibration,
-                             dt=scenario.simulation.dt,
-                             noise_fraction=scenario.simulation.noise_fraction,
-                             seed=scenario.simulation.seed)
-    report.section("Closed loop (robot driven to the estimated antinode)", [
-        ("robot", f"body {robot.body_mass:g} kg + absorber {robot.suspended_mass:g} kg tuned to "
-                  f"{tuned:.2f} Hz, starts at {robot.position:g} m"),
-        ("final position", f"{result.robot_position[-1]:.3f} m"),
-        ("RMS displacement, last quarter", f"{_mm(result.rms_closed_loop)} moving vs "
-                                           f"{_mm(result.rms_baseline)} parked"),
-        ("vibration reduction", f"{result.vibration_reduction:.2f}x"),
-        ("planner steps", f"{len(result.statuses)} ({result.statuses.count('safe_stop')} safe stops)"),
-        ("real-time factor", f"{result.real_time_factor:.2f}"),
-    ], figures=["closed_loop.png"])
-    report.numbers.update(vibration_reduction=result.vibration_reduction,
-                          final_robot_position=float(result.robot_position[-1]))
+    result = run_closed_loop(
+        span,
+        force,
+        robot,
+        RobotLimits(robot_cfg.v_max, robot_cfg.a_max),
+        sensors=sensors,
+        n_elements=model.n_elements,
+        bc=model.bc,
+        duration=robot_cfg.closed_loop,
+        calibration=calibration,
+        dt=scenario.simulation.dt,
+        noise_fraction=scenario.simulation.noise_fraction,
+        seed=scenario.simulation.seed,
+    )
+    report.section(
+        "Closed loop (robot driven to the estimated antinode)",
+        [
+            (
+                "robot",
+                f"body {robot.body_mass:g} kg + absorber {robot.suspended_mass:g} kg tuned to "
+                f"{tuned:.2f} Hz, starts at {robot.position:g} m",
+            ),
+            ("final position", f"{result.robot_position[-1]:.3f} m"),
+            (
+                "RMS displacement, last quarter",
+                f"{_mm(result.rms_closed_loop)} moving vs {_mm(result.rms_baseline)} parked",
+            ),
+            ("vibration reduction", f"{result.vibration_reduction:.2f}x"),
+            (
+                "planner steps",
+                f"{len(result.statuses)} ({result.statuses.count('safe_stop')} safe stops)",
+            ),
+            ("real-time factor", f"{result.real_time_factor:.2f}"),
+        ],
+        figures=["closed_loop.png"],
+    )
+    report.numbers.update(
+        vibration_reduction=result.vibration_reduction,
+        final_robot_position=float(result.robot_position[-1]),
+    )
     return result
 
 
-def _write_outputs(out: Path, scenario, report: _Report, snap, estimate, sensors, n_train,
-                   eigenvalues, antinodes, envelope, dmd, closed) -> None:
+def _write_outputs(
+    out: Path,
+    scenario,
+    report: _Report,
+    snap,
+    estimate,
+    sensors,
+    n_train,
+    eigenvalues,
+    antinodes,
+    envelope,
+    dmd,
+    closed,
+) -> None:
     from . import plotting
     from .report import write_report
 
     out.mkdir(parents=True, exist_ok=True)
     (out / "scenario.toml").write_text(scenario_to_toml(scenario))
     save_model(out / "dmd_model.npz", dmd)
-    unmeasured = [i for i in np.linspace(0, snap.x.size - 1, 5).astype(int)[1:-1]
-                  if i not in sensors] or [snap.x.size // 2]
+    unmeasured = [
+        i for i in np.linspace(0, snap.x.size - 1, 5).astype(int)[1:-1] if i not in sensors
+    ] or [snap.x.size // 2]
     figures = {
         "eigenvalues.png": plotting.plot_eigenvalues(eigenvalues),
-        "estimate.png": plotting.plot_estimate(snap.t[n_train:], snap.true_displacement[:, n_train:],
-                                               estimate.field, unmeasured, snap.x),
-        "envelope.png": plotting.plot_envelope(snap.x, {"true amplitude": envelope}, {
-            "estimated antinodes": [a.position for a in antinodes],
-            "sensors": [snap.x[i] for i in sensors]}),
+        "estimate.png": plotting.plot_estimate(
+            snap.t[n_train:],
+            snap.true_displacement[:, n_train:],
+            estimate.field,
+            unmeasured,
+            snap.x,
+        ),
+        "envelope.png": plotting.plot_envelope(
+            snap.x,
+            {"true amplitude": envelope},
+            {
+                "estimated antinodes": [a.position for a in antinodes],
+                "sensors": [snap.x[i] for i in sensors],
+            },
+        ),
     }
     if closed is not None:
         figures["closed_loop.png"] = plotting.plot_closed_loop(closed)
     for name, figure in figures.items():
         figure.savefig(out / name, dpi=110)
-    sections = [s for s in report.sections
-                if all(f in figures for f in s["figures"])] + \
-        [{**s, "figures": []} for s in report.sections if any(f not in figures for f in s["figures"])]
+    sections = [s for s in report.sections if all(f in figures for f in s["figures"])] + [
+        {**s, "figures": []} for s in report.sections if any(f not in figures for f in s["figures"])
+    ]
     write_report(out / "report.html", "powerline_control run", sections, __version__)
     (out / "summary.json").write_text(json.dumps(report.numbers, indent=2, default=float))
 
@@ -294,8 +416,20 @@ def run_scenario(scenario: Scenario, out: Path | None = None, echo=print) -> dic
     antinodes = _stage_antinode_and_plan(scenario, span, snap, estimate, n_train, report)
     closed = _stage_closed_loop(scenario, span, model, force, report, sensors)
     if out is not None:
-        _write_outputs(out, scenario, report, snap, estimate, sensors, n_train, eigenvalues,
-                       antinodes, envelope, dmd, closed)
+        _write_outputs(
+            out,
+            scenario,
+            report,
+            snap,
+            estimate,
+            sensors,
+            n_train,
+            eigenvalues,
+            antinodes,
+            envelope,
+            dmd,
+            closed,
+        )
         echo(f"Results written to {out}/ (report.html, summary.json, figures, dmd_model.npz)")
     return report.numbers
 
@@ -304,8 +438,12 @@ def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="powerline-control", description=__doc__.split("\n")[0])
     commands = parser.add_subparsers(dest="command", required=True)
     run = commands.add_parser("run", help="run the main job on a scenario")
-    run.add_argument("scenario", nargs="?", type=Path,
-                     help="TOML scenario file (default: the built-in paper lab scenario)")
+    run.add_argument(
+        "scenario",
+        nargs="?",
+        type=Path,
+        help="TOML scenario file (default: the built-in paper lab scenario)",
+    )
     run.add_argument("--out", type=Path, default=None, help="folder for results and figures")
     commands.add_parser("scenario", help="print the default scenario as TOML")
     return parser

@@ -112,7 +112,7 @@ class ClosedLoopResult:
 
     @property
     def real_time_factor(self) -> float:
-        """Simulated time of the loop divided by its wall-clock time (> 1: faster than real time)."""
+        """Simulated loop time over its wall-clock time (> 1: faster than real time)."""
         return (self.t[-1] - self.calibration_time) / self.wall_time
 
 
@@ -134,20 +134,25 @@ class _ModelCache:
         return self._models[key]
 
 
-def _calibrated_filter(snap, sensors: Sequence[int], delays: int,
-                       noise_var: float) -> tuple[KalmanFilter, np.ndarray]:
-    """Steady-state Kalman filter on a DMD model of the calibration window (alpha chosen by data)."""
+def _calibrated_filter(
+    snap, sensors: Sequence[int], delays: int, noise_var: float
+) -> tuple[KalmanFilter, np.ndarray]:
+    """Steady-state Kalman filter on a DMD model of the calibration window (alpha from data)."""
     curve = select_alpha(snap.displacement, snap.dt, delays=delays)
     alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None else curve.best_alpha
-    dmd = fit_dmd(snap.displacement, snap.dt, alpha=alpha, delays=delays, alpha_mode=curve.alpha_mode)
+    dmd = fit_dmd(
+        snap.displacement, snap.dt, alpha=alpha, delays=delays, alpha_mode=curve.alpha_mode
+    )
     sys = dmd.to_statespace(measured=list(sensors))
-    kf = KalmanFilter(sys, Q=dmd.residual_covariance, R=noise_var, steady_state=True,
-                      field_map=dmd.field_map)
+    kf = KalmanFilter(
+        sys, Q=dmd.residual_covariance, R=noise_var, steady_state=True, field_map=dmd.field_map
+    )
     return kf, dmd.field_map
 
 
-def _next_goal(window: np.ndarray, x: np.ndarray, dt: float, robot: float,
-               previous: float) -> float:
+def _next_goal(
+    window: np.ndarray, x: np.ndarray, dt: float, robot: float, previous: float
+) -> float:
     """The antinode to steer to: first the one nearest the robot, then only small corrections.
 
     Once the robot damps its loop, that loop's motion is small, the model (identified with the
@@ -162,17 +167,31 @@ def _next_goal(window: np.ndarray, x: np.ndarray, dt: float, robot: float,
     if np.isnan(previous):
         return nearest_antinode(antinodes, robot).position if antinodes else robot
     gated = [a for a in antinodes if abs(a.position - previous) < 0.25 * a.loop_length]
-    return min(gated, key=lambda a: abs(a.position - previous)).position if gated \
-        else float(previous)
+    return (
+        min(gated, key=lambda a: abs(a.position - previous)).position if gated else float(previous)
+    )
 
 
-def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits | None = None, *,
-                    sensors: Sequence[int], n_elements: int = 100, bc: object = "pinned",
-                    duration: float = 10.0, calibration: float = 2.0, dt: float = 1e-3,
-                    control_period: float = 0.05, noise_fraction: float = 0.01, delays: int = 2,
-                    antinode_window: float = 0.25, obstacles: Sequence[tuple[float, float]] = (),
-                    planner_time_budget: float = 1.0,
-                    seed: int | np.random.Generator | None = 0) -> ClosedLoopResult:
+def run_closed_loop(
+    span: Span,
+    force: object,
+    robot: MDR,
+    limits: RobotLimits | None = None,
+    *,
+    sensors: Sequence[int],
+    n_elements: int = 100,
+    bc: object = "pinned",
+    duration: float = 10.0,
+    calibration: float = 2.0,
+    dt: float = 1e-3,
+    control_period: float = 0.05,
+    noise_fraction: float = 0.01,
+    delays: int = 2,
+    antinode_window: float = 0.25,
+    obstacles: Sequence[tuple[float, float]] = (),
+    planner_time_budget: float = 1.0,
+    seed: int | np.random.Generator | None = 0,
+) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
 
     Parameters
@@ -231,21 +250,27 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
     if not isinstance(span, Span):
         raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
     if not isinstance(robot, MDR):
-        raise InputError(f"The 'robot' parameter must be an MDR (its position is the start). "
-                         f"Got {type(robot).__name__}.")
+        raise InputError(
+            f"The 'robot' parameter must be an MDR (its position is the start). "
+            f"Got {type(robot).__name__}."
+        )
     limits = limits or RobotLimits(v_max=0.5, a_max=1.0)
     if not isinstance(limits, RobotLimits):
-        raise InputError(f"The 'limits' parameter must be RobotLimits or None. "
-                         f"Got {type(limits).__name__}.")
+        raise InputError(
+            f"The 'limits' parameter must be RobotLimits or None. Got {type(limits).__name__}."
+        )
     duration = check_real("duration", duration, low=0.0)
-    calibration = check_real("calibration", calibration, low=0.0, high=duration,
-                             high_inclusive=False)
+    calibration = check_real(
+        "calibration", calibration, low=0.0, high=duration, high_inclusive=False
+    )
     dt = check_real("dt", dt, low=0.0)
     control_period = check_real("control_period", control_period, low=0.0)
     steps_per_period = int(round(control_period / dt))
     if steps_per_period < 1 or abs(steps_per_period * dt - control_period) > 1e-9:
-        raise InputError(f"The 'control_period' parameter ({control_period:g} s) must be a "
-                         f"positive multiple of dt ({dt:g} s).")
+        raise InputError(
+            f"The 'control_period' parameter ({control_period:g} s) must be a "
+            f"positive multiple of dt ({dt:g} s)."
+        )
     n_elements = check_int("n_elements", n_elements, low=1)
     sensors = tuple(check_int("sensors", s, low=0, high=n_elements) for s in sensors)
     if not sensors:
@@ -257,8 +282,9 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
 
     parked = models.at(robot.position)
     baseline = simulate(parked, force, duration=duration, dt=dt)
-    calib = simulate(parked, force, duration=calibration, dt=dt, noise_fraction=noise_fraction,
-                     seed=rng)
+    calib = simulate(
+        parked, force, duration=calibration, dt=dt, noise_fraction=noise_fraction, seed=rng
+    )
     noise_std = calib.noise_std
     kf, field_map = _calibrated_filter(calib, sensors, delays, noise_std**2)
     # Warm the filter on the calibration record so the loop starts from a converged estimate.
@@ -276,8 +302,14 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
     # The planner's horizon must outlast a full stop from top speed; twice that leaves room.
     braking = limits.v_max / limits.a_max
     horizon = max(40, int(np.ceil(2 * braking / control_period)))
-    planner = MotionPlanner(limits, dt=control_period, horizon=horizon, span_length=span.length,
-                            obstacles=obstacles, time_budget=planner_time_budget)
+    planner = MotionPlanner(
+        limits,
+        dt=control_period,
+        horizon=horizon,
+        span_length=span.length,
+        obstacles=obstacles,
+        time_budget=planner_time_budget,
+    )
     statuses = []
     state, x_r, v_r = calib.final_state, robot.position, 0.0
     window = max(int(round(antinode_window / dt)), 2 * steps_per_period)
@@ -285,16 +317,23 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
     k = n_cal - 1
     while k < n_t - 1:
         end = min(k + steps_per_period, n_t - 1)
-        segment = simulate(models.at(x_r), force, duration=(end - k) * dt, dt=dt,
-                           start_time=baseline.t[k], initial_state=state)
+        segment = simulate(
+            models.at(x_r),
+            force,
+            duration=(end - k) * dt,
+            dt=dt,
+            start_time=baseline.t[k],
+            initial_state=state,
+        )
         state = segment.final_state
         noisy = segment.true_displacement[:, 1:] + noise_std * rng.standard_normal(
-            (displacement.shape[0], end - k))
-        displacement[:, k + 1: end + 1] = segment.true_displacement[:, 1:]
+            (displacement.shape[0], end - k)
+        )
+        displacement[:, k + 1 : end + 1] = segment.true_displacement[:, 1:]
         for j in range(end - k):
             kf.step(noisy[list(sensors), j])
             estimated[:, k + 1 + j] = field_map @ kf.state
-        recent = estimated[:, max(end + 1 - window, 0): end + 1]
+        recent = estimated[:, max(end + 1 - window, 0) : end + 1]
         goal = _next_goal(recent, baseline.x, dt, x_r, target[k])
         step = planner.step((x_r, v_r), goal)
         statuses.append(step.status)
@@ -304,16 +343,23 @@ def run_closed_loop(span: Span, force: object, robot: MDR, limits: RobotLimits |
         accel = float(np.clip(accel, (-limits.v_max - v_r) / period, (limits.v_max - v_r) / period))
         # Integrate the commanded constant acceleration over the period, sample by sample.
         tau = dt * np.arange(1, end - k + 1)
-        position[k + 1: end + 1] = x_r + v_r * tau + 0.5 * accel * tau**2
-        velocity[k + 1: end + 1] = v_r + accel * tau
-        target[k + 1: end + 1] = goal
+        position[k + 1 : end + 1] = x_r + v_r * tau + 0.5 * accel * tau**2
+        velocity[k + 1 : end + 1] = v_r + accel * tau
+        target[k + 1 : end + 1] = goal
         x_r, v_r = float(position[end]), float(velocity[end])
         k = end
     wall = time.perf_counter() - start
-    return ClosedLoopResult(t=baseline.t, x=baseline.x, displacement=displacement,
-                            baseline_displacement=baseline.true_displacement,
-                            estimated_field=estimated, robot_position=position,
-                            robot_velocity=velocity, target=target, sensors=sensors,
-                            calibration_time=float(calib.t[-1]), statuses=tuple(statuses),
-                            wall_time=wall)
-
+    return ClosedLoopResult(
+        t=baseline.t,
+        x=baseline.x,
+        displacement=displacement,
+        baseline_displacement=baseline.true_displacement,
+        estimated_field=estimated,
+        robot_position=position,
+        robot_velocity=velocity,
+        target=target,
+        sensors=sensors,
+        calibration_time=float(calib.t[-1]),
+        statuses=tuple(statuses),
+        wall_time=wall,
+    )

@@ -71,11 +71,13 @@ class MDR:
     damping: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", check_real("position", self.position, low=0.0,
-                                                        low_inclusive=True))
+        object.__setattr__(
+            self, "position", check_real("position", self.position, low=0.0, low_inclusive=True)
+        )
         for name in ("body_mass", "suspended_mass", "stiffness", "damping"):
-            object.__setattr__(self, name, check_real(name, getattr(self, name), low=0.0,
-                                                      low_inclusive=True))
+            object.__setattr__(
+                self, name, check_real(name, getattr(self, name), low=0.0, low_inclusive=True)
+            )
         if self.suspended_mass > 0 and self.stiffness == 0:
             raise InputError(
                 "The 'stiffness' parameter of MDR must be > 0 when suspended_mass > 0 "
@@ -83,8 +85,14 @@ class MDR:
             )
 
     @classmethod
-    def tuned(cls, position: float, body_mass: float, suspended_mass: float, frequency: float,
-              damping_ratio: float = 0.0) -> MDR:
+    def tuned(
+        cls,
+        position: float,
+        body_mass: float,
+        suspended_mass: float,
+        frequency: float,
+        damping_ratio: float = 0.0,
+    ) -> MDR:
         """An MDR whose suspended mass is tuned to ``frequency`` (Hz) with a damping ratio.
 
         Examples
@@ -122,13 +130,16 @@ class ModalDamping:
 
     def __post_init__(self) -> None:
         if np.ndim(self.ratio) == 0:
-            check_real("ratio", self.ratio, low=0.0, low_inclusive=True, high=1.0,
-                       high_inclusive=False)
+            check_real(
+                "ratio", self.ratio, low=0.0, low_inclusive=True, high=1.0, high_inclusive=False
+            )
         else:
             ratios = check_array("ratio", self.ratio, ndim=1)
             if np.any(ratios < 0) or np.any(ratios >= 1):
-                raise InputError("Every entry of 'ratio' must lie in [0, 1). Got "
-                                 f"min {ratios.min():g}, max {ratios.max():g}.")
+                raise InputError(
+                    "Every entry of 'ratio' must lie in [0, 1). Got "
+                    f"min {ratios.min():g}, max {ratios.max():g}."
+                )
             object.__setattr__(self, "ratio", tuple(float(r) for r in ratios))
 
     def ratios(self, n_modes: int) -> np.ndarray:
@@ -137,8 +148,10 @@ class ModalDamping:
             return np.full(n_modes, float(self.ratio))
         ratios = np.asarray(self.ratio, dtype=float)
         if ratios.size < n_modes:
-            raise InputError(f"ModalDamping has {ratios.size} ratios but {n_modes} modes are "
-                             "used; give one ratio per mode or a single ratio.")
+            raise InputError(
+                f"ModalDamping has {ratios.size} ratios but {n_modes} modes are "
+                "used; give one ratio per mode or a single ratio."
+            )
         return ratios[:n_modes]
 
 
@@ -165,8 +178,7 @@ class RayleighDamping:
 
     def __post_init__(self) -> None:
         check_real("mass_coefficient", self.mass_coefficient, low=0.0, low_inclusive=True)
-        check_real("stiffness_coefficient", self.stiffness_coefficient, low=0.0,
-                   low_inclusive=True)
+        check_real("stiffness_coefficient", self.stiffness_coefficient, low=0.0, low_inclusive=True)
 
     @classmethod
     def from_ratios(cls, frequencies: tuple[float, float], ratio: float) -> RayleighDamping:
@@ -216,18 +228,56 @@ class ModalBasis:
 
 def _hermite(xi: np.ndarray, h: float) -> np.ndarray:
     """Hermite cubic shape functions N1..N4 at local coordinates xi in [0, 1], shape (..., 4)."""
-    return np.stack([1 - 3 * xi**2 + 2 * xi**3, h * (xi - 2 * xi**2 + xi**3),
-                     3 * xi**2 - 2 * xi**3, h * (-(xi**2) + xi**3)], axis=-1)
+    return np.stack(
+        [
+            1 - 3 * xi**2 + 2 * xi**3,
+            h * (xi - 2 * xi**2 + xi**3),
+            3 * xi**2 - 2 * xi**3,
+            h * (-(xi**2) + xi**3),
+        ],
+        axis=-1,
+    )
 
 
 def _element_matrices(h: float, ei: float, tension: float, mass: float):
-    """Bending, tension (geometric) and consistent mass matrices of one element, DOFs [w1 t1 w2 t2]."""
-    k_bend = ei / h**3 * np.array([[12, 6 * h, -12, 6 * h], [6 * h, 4 * h**2, -6 * h, 2 * h**2],
-                                   [-12, -6 * h, 12, -6 * h], [6 * h, 2 * h**2, -6 * h, 4 * h**2]])
-    k_tens = tension / (30 * h) * np.array([[36, 3 * h, -36, 3 * h], [3 * h, 4 * h**2, -3 * h, -h**2],
-                                            [-36, -3 * h, 36, -3 * h], [3 * h, -h**2, -3 * h, 4 * h**2]])
-    m_cons = mass * h / 420 * np.array([[156, 22 * h, 54, -13 * h], [22 * h, 4 * h**2, 13 * h, -3 * h**2],
-                                        [54, 13 * h, 156, -22 * h], [-13 * h, -3 * h**2, -22 * h, 4 * h**2]])
+    """Stiffness (bending + tension) and consistent mass of one element, DOFs [w1 t1 w2 t2]."""
+    k_bend = (
+        ei
+        / h**3
+        * np.array(
+            [
+                [12, 6 * h, -12, 6 * h],
+                [6 * h, 4 * h**2, -6 * h, 2 * h**2],
+                [-12, -6 * h, 12, -6 * h],
+                [6 * h, 2 * h**2, -6 * h, 4 * h**2],
+            ]
+        )
+    )
+    k_tens = (
+        tension
+        / (30 * h)
+        * np.array(
+            [
+                [36, 3 * h, -36, 3 * h],
+                [3 * h, 4 * h**2, -3 * h, -(h**2)],
+                [-36, -3 * h, 36, -3 * h],
+                [3 * h, -(h**2), -3 * h, 4 * h**2],
+            ]
+        )
+    )
+    m_cons = (
+        mass
+        * h
+        / 420
+        * np.array(
+            [
+                [156, 22 * h, 54, -13 * h],
+                [22 * h, 4 * h**2, 13 * h, -3 * h**2],
+                [54, 13 * h, 156, -22 * h],
+                [-13 * h, -3 * h**2, -22 * h, 4 * h**2],
+            ]
+        )
+    )
     return k_bend + k_tens, m_cons
 
 
@@ -236,10 +286,14 @@ def _parse_bc(bc: object) -> tuple[str, str]:
         check_choice("bc", bc, _BOUNDARY_CONDITIONS)
         return bc, bc
     if isinstance(bc, tuple | list) and len(bc) == 2:
-        return (check_choice("bc[0] (left support)", bc[0], _BOUNDARY_CONDITIONS),
-                check_choice("bc[1] (right support)", bc[1], _BOUNDARY_CONDITIONS))
-    raise InputError("The 'bc' parameter must be 'pinned', 'clamped' or a (left, right) pair of "
-                     f"them. Got {bc!r} instead.")
+        return (
+            check_choice("bc[0] (left support)", bc[0], _BOUNDARY_CONDITIONS),
+            check_choice("bc[1] (right support)", bc[1], _BOUNDARY_CONDITIONS),
+        )
+    raise InputError(
+        "The 'bc' parameter must be 'pinned', 'clamped' or a (left, right) pair of "
+        f"them. Got {bc!r} instead."
+    )
 
 
 class LineModel:
@@ -277,16 +331,24 @@ class LineModel:
     array([ 6.53, 14.39, 24.53])
     """
 
-    def __init__(self, span: Span, n_elements: int = 100, bc: object = "pinned",
-                 damping: ModalDamping | RayleighDamping | None = None, mdr: MDR | None = None):
+    def __init__(
+        self,
+        span: Span,
+        n_elements: int = 100,
+        bc: object = "pinned",
+        damping: ModalDamping | RayleighDamping | None = None,
+        mdr: MDR | None = None,
+    ):
         if not isinstance(span, Span):
             raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
         self.span = span
         self.n_elements = check_int("n_elements", n_elements, low=1)
         self.bc = _parse_bc(bc)
         if damping is not None and not isinstance(damping, ModalDamping | RayleighDamping):
-            raise InputError("The 'damping' parameter must be None, ModalDamping or "
-                             f"RayleighDamping. Got {type(damping).__name__}.")
+            raise InputError(
+                "The 'damping' parameter must be None, ModalDamping or "
+                f"RayleighDamping. Got {type(damping).__name__}."
+            )
         self.damping = damping
         if mdr is not None:
             if not isinstance(mdr, MDR):
@@ -298,8 +360,10 @@ class LineModel:
         self._n_line_dofs = 2 * (self.n_elements + 1)
         self._free = self._free_dofs()
         if self._free.size == 0:
-            raise InputError(f"The 'n_elements' parameter must be >= 2 for supports {self.bc}: "
-                             f"{self.n_elements} element(s) leave no free degree of freedom.")
+            raise InputError(
+                f"The 'n_elements' parameter must be >= 2 for supports {self.bc}: "
+                f"{self.n_elements} element(s) leave no free degree of freedom."
+            )
         self.mass_matrix, self.stiffness_matrix, self.damper_matrix = self._assemble()
 
     # ------------------------------------------------------------------ sizes and DOF maps
@@ -344,10 +408,12 @@ class LineModel:
         h = self.element_length
         element = min(int(x // h), self.n_elements - 1)
         row = np.zeros(self._n_total)
-        row[2 * element: 2 * element + 4] = _hermite(np.array((x - element * h) / h), h)
+        row[2 * element : 2 * element + 4] = _hermite(np.array((x - element * h) / h), h)
         return row[self._free]
 
-    def displacement_map(self, positions: Sequence[float] | np.ndarray | None = None) -> sp.csr_array:
+    def displacement_map(
+        self, positions: Sequence[float] | np.ndarray | None = None
+    ) -> sp.csr_array:
         """Sparse map from free DOFs to displacement at ``positions`` (default: every node).
 
         Rows of constrained support nodes are zero. Shape (n_positions, n_dofs).
@@ -366,10 +432,15 @@ class LineModel:
                 if 2 * j in col_of_global:
                     rows.append(j)
                     cols.append(col_of_global[2 * j])
-            return sp.csr_array((np.ones(len(rows)), (rows, cols)), shape=(self.n_nodes, self.n_dofs))
+            return sp.csr_array(
+                (np.ones(len(rows)), (rows, cols)), shape=(self.n_nodes, self.n_dofs)
+            )
         positions = check_array("positions", positions, ndim=1)
-        return sp.csr_array(np.vstack([self.shape_vector(x) for x in positions])
-                            if positions.size else np.zeros((0, self.n_dofs)))
+        return sp.csr_array(
+            np.vstack([self.shape_vector(x) for x in positions])
+            if positions.size
+            else np.zeros((0, self.n_dofs))
+        )
 
     def point_load(self, position: float) -> np.ndarray:
         """Consistent load vector of a unit point force at ``position``, shape (n_dofs,)."""
@@ -390,7 +461,7 @@ class LineModel:
         xi = (gauss_x + 1) / 2
         h = self.element_length
         starts = self.node_positions[:-1]
-        x = starts[:, None] + h * xi[None, :]                            # (n_el, 4)
+        x = starts[:, None] + h * xi[None, :]  # (n_el, 4)
         q = np.asarray(load_per_length(x), dtype=float)
         element_loads = np.einsum("eg,gk,g->ek", q, _hermite(xi, h), gauss_w * h / 2)
         full = np.zeros(self._n_total)
@@ -401,32 +472,40 @@ class LineModel:
     # ------------------------------------------------------------------ assembly
     def _assemble(self) -> tuple[sp.csr_array, sp.csr_array, sp.csr_array]:
         cond = self.span.conductor
-        k_e, m_e = _element_matrices(self.element_length, cond.ei, self.span.tension,
-                                     cond.mass_per_length)
-        dofs = 2 * np.arange(self.n_elements)[:, None] + np.arange(4)[None, :]   # (n_el, 4)
+        k_e, m_e = _element_matrices(
+            self.element_length, cond.ei, self.span.tension, cond.mass_per_length
+        )
+        dofs = 2 * np.arange(self.n_elements)[:, None] + np.arange(4)[None, :]  # (n_el, 4)
         rows = np.repeat(dofs, 4, axis=1).ravel()
         cols = np.tile(dofs, (1, 4)).ravel()
         n_total = self._n_total
-        stiffness = sp.coo_array((np.tile(k_e.ravel(), self.n_elements), (rows, cols)),
-                                 shape=(n_total, n_total)).tocsr()
-        mass = sp.coo_array((np.tile(m_e.ravel(), self.n_elements), (rows, cols)),
-                            shape=(n_total, n_total)).tocsr()
+        stiffness = sp.coo_array(
+            (np.tile(k_e.ravel(), self.n_elements), (rows, cols)), shape=(n_total, n_total)
+        ).tocsr()
+        mass = sp.coo_array(
+            (np.tile(m_e.ravel(), self.n_elements), (rows, cols)), shape=(n_total, n_total)
+        ).tocsr()
         damper = sp.csr_array((n_total, n_total))
         if self.mdr is not None:
             mass, stiffness, damper = self._attach_mdr(mass, stiffness, damper, n_total)
         free = self._free
-        return (mass[free][:, free].tocsr(), stiffness[free][:, free].tocsr(),
-                damper[free][:, free].tocsr())
+        return (
+            mass[free][:, free].tocsr(),
+            stiffness[free][:, free].tocsr(),
+            damper[free][:, free].tocsr(),
+        )
 
     def _attach_mdr(self, mass, stiffness, damper, n_total):
-        """Body mass m_r N N^T on the line; spring/damper [[N N^T, -N], [-N^T, 1]] to the absorber."""
+        """Body mass m_r N N^T on the line; spring and damper k, c [[N N^T, -N], [-N^T, 1]]."""
         robot = self.mdr
         h = self.element_length
         element = min(int(robot.position // h), self.n_elements - 1)
         n_vec = np.zeros(n_total)
-        n_vec[2 * element: 2 * element + 4] = _hermite(np.array((robot.position - element * h) / h), h)
+        n_vec[2 * element : 2 * element + 4] = _hermite(
+            np.array((robot.position - element * h) / h), h
+        )
         if robot.has_absorber:
-            n_vec[-1] = -1.0          # relative displacement y(x_r) - y_d
+            n_vec[-1] = -1.0  # relative displacement y(x_r) - y_d
         body = np.zeros(n_total)
         body[: self._n_line_dofs] = n_vec[: self._n_line_dofs]
         mass = mass + robot.body_mass * sp.csr_array(np.outer(body, body))
@@ -469,25 +548,36 @@ class LineModel:
         n = self.n_dofs
         if n_modes is None:
             if n > DENSE_EIGEN_LIMIT:
-                raise InputError(f"The 'n_modes' parameter is required for a model with {n} "
-                                 f"DOFs (> {DENSE_EIGEN_LIMIT}); ask for the modes you need.")
+                raise InputError(
+                    f"The 'n_modes' parameter is required for a model with {n} "
+                    f"DOFs (> {DENSE_EIGEN_LIMIT}); ask for the modes you need."
+                )
             n_modes = n
         n_modes = check_int("n_modes", n_modes, low=1, high=n)
         try:
             if n <= DENSE_EIGEN_LIMIT or n_modes >= n - 1:
-                omega2, shapes = scipy.linalg.eigh(self.stiffness_matrix.toarray(),
-                                                   self.mass_matrix.toarray(),
-                                                   subset_by_index=(0, n_modes - 1))
+                omega2, shapes = scipy.linalg.eigh(
+                    self.stiffness_matrix.toarray(),
+                    self.mass_matrix.toarray(),
+                    subset_by_index=(0, n_modes - 1),
+                )
             else:
-                omega2, shapes = spla.eigsh(self.stiffness_matrix.tocsc(), k=n_modes,
-                                            M=self.mass_matrix.tocsc(), sigma=0.0, which="LM")
+                omega2, shapes = spla.eigsh(
+                    self.stiffness_matrix.tocsc(),
+                    k=n_modes,
+                    M=self.mass_matrix.tocsc(),
+                    sigma=0.0,
+                    which="LM",
+                )
                 order = np.argsort(omega2)
                 omega2, shapes = omega2[order], shapes[:, order]
         except (np.linalg.LinAlgError, RuntimeError, spla.ArpackError) as exc:
             raise ModelError(f"The eigen-solve for {n_modes} modes failed: {exc}") from exc
         if omega2[0] <= 0:
-            raise ModelError(f"The stiffness matrix is not positive definite (lowest omega^2 = "
-                             f"{omega2[0]:.3g}); check tension, EI and supports.")
+            raise ModelError(
+                f"The stiffness matrix is not positive definite (lowest omega^2 = "
+                f"{omega2[0]:.3g}); check tension, EI and supports."
+            )
         # Normalise to unit modal mass (eigsh does not guarantee it) and a positive first entry
         # of largest magnitude, so shapes are reproducible.
         modal_mass = np.einsum("ik,ik->k", shapes, self.mass_matrix @ shapes)
@@ -502,8 +592,9 @@ class LineModel:
         if isinstance(self.damping, ModalDamping):
             damping = damping + np.diag(2 * self.damping.ratios(omega.size) * omega)
         elif isinstance(self.damping, RayleighDamping):
-            damping = damping + np.diag(self.damping.mass_coefficient
-                                        + self.damping.stiffness_coefficient * omega**2)
+            damping = damping + np.diag(
+                self.damping.mass_coefficient + self.damping.stiffness_coefficient * omega**2
+            )
         return damping
 
     def natural_frequencies(self, n_modes: int = 10) -> np.ndarray:
@@ -543,9 +634,13 @@ class LineModel:
         below = int(np.count_nonzero(self.span.pinned_frequencies(self.n_dofs) <= max_frequency))
         return int(min(self.n_dofs - 2, below + 10))
 
-    def to_statespace(self, dt: float | None = None, force_positions: Sequence[float] = (),
-                      outputs: Sequence[float] | np.ndarray | None = None,
-                      n_modes: int | None = None) -> ct.StateSpace:
+    def to_statespace(
+        self,
+        dt: float | None = None,
+        force_positions: Sequence[float] = (),
+        outputs: Sequence[float] | np.ndarray | None = None,
+        n_modes: int | None = None,
+    ) -> ct.StateSpace:
         """Export to a ``control.StateSpace`` in modal coordinates.
 
         States are ``[q_1..q_r, qdot_1..qdot_r]`` (mass-normalised modal coordinates), so the poles
@@ -582,8 +677,11 @@ class LineModel:
         r = basis.n_modes
         a = np.block([[np.zeros((r, r)), np.eye(r)], [-np.diag(basis.omega**2), -basis.damping]])
         positions = [self._check_position("force_positions", x) for x in force_positions]
-        loads = np.column_stack([self.point_load(x) for x in positions]) if positions else \
-            np.zeros((self.n_dofs, 0))
+        loads = (
+            np.column_stack([self.point_load(x) for x in positions])
+            if positions
+            else np.zeros((self.n_dofs, 0))
+        )
         b = np.vstack([np.zeros((r, len(positions))), basis.shapes.T @ loads])
         out_map = self.displacement_map(outputs)
         c = np.hstack([out_map @ basis.shapes, np.zeros((out_map.shape[0], r))])
@@ -593,7 +691,8 @@ class LineModel:
             # python-control signal names may not contain '.', so positions go in the docstring:
             # input i is the force at force_positions[i], output j the displacement at outputs[j].
             inputs=[f"F{i}" for i in range(len(positions))],
-            outputs=[f"w{j}" for j in range(self.n_nodes)] if outputs is None
+            outputs=[f"w{j}" for j in range(self.n_nodes)]
+            if outputs is None
             else [f"y{j}" for j in range(len(outputs))],
         )
         sys = ct.ss(a, b, c, d, **names)
@@ -604,9 +703,10 @@ class LineModel:
         # ZOH input matrix: integral_0^dt expm(A s) ds B, through the augmented exponential.
         aug = np.zeros((2 * r + b.shape[1], 2 * r + b.shape[1]))
         aug[: 2 * r, : 2 * r] = a * dt
-        aug[: 2 * r, 2 * r:] = b * dt
-        bd = scipy.linalg.expm(aug)[: 2 * r, 2 * r:]
+        aug[: 2 * r, 2 * r :] = b * dt
+        bd = scipy.linalg.expm(aug)[: 2 * r, 2 * r :]
         if not np.all(np.isfinite(ad)):
-            warnings.warn("The discretisation overflowed; use fewer modes or a smaller dt.",
-                          stacklevel=2)
+            warnings.warn(
+                "The discretisation overflowed; use fewer modes or a smaller dt.", stacklevel=2
+            )
         return ct.ss(ad, bd, c, d, dt, **names)

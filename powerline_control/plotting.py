@@ -1,4 +1,4 @@
-"""Matplotlib figures of the main results. Each function returns a ``Figure`` and draws nothing else.
+"""Matplotlib figures of the main results; each function returns a ``Figure``.
 
 Figures are made with the object-oriented API on a fresh ``Figure`` (no pyplot state), so they
 work headless and in threads.
@@ -44,8 +44,9 @@ def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray]) -> Figure:
     return fig
 
 
-def plot_estimate(t: np.ndarray, truth: np.ndarray, estimate: np.ndarray, nodes: Sequence[int],
-                  x: np.ndarray) -> Figure:
+def plot_estimate(
+    t: np.ndarray, truth: np.ndarray, estimate: np.ndarray, nodes: Sequence[int], x: np.ndarray
+) -> Figure:
     """Estimate against truth at a few (unmeasured) nodes (the paper's Figs. 7-8).
 
     Parameters
@@ -82,8 +83,11 @@ def plot_estimate(t: np.ndarray, truth: np.ndarray, estimate: np.ndarray, nodes:
     return fig
 
 
-def plot_envelope(x: np.ndarray, envelopes: dict[str, np.ndarray],
-                  markers: dict[str, Sequence[float]] | None = None) -> Figure:
+def plot_envelope(
+    x: np.ndarray,
+    envelopes: dict[str, np.ndarray],
+    markers: dict[str, Sequence[float]] | None = None,
+) -> Figure:
     """Amplitude envelopes along the span, with antinodes or sensors marked.
 
     Parameters
@@ -109,11 +113,13 @@ def plot_envelope(x: np.ndarray, envelopes: dict[str, np.ndarray],
     ax = fig.add_subplot()
     for label, values in envelopes.items():
         ax.plot(x, 1e3 * np.asarray(values), label=label)
-    for (label, positions), style in zip((markers or {}).items(), ("k:", "g--", "m-."),
-                                         strict=False):
+    for (label, positions), style in zip(
+        (markers or {}).items(), ("k:", "g--", "m-."), strict=False
+    ):
         for i, position in enumerate(positions):
-            ax.axvline(position, color=style[0], ls=style[1:], lw=1,
-                       label=label if i == 0 else None)
+            ax.axvline(
+                position, color=style[0], ls=style[1:], lw=1, label=label if i == 0 else None
+            )
     ax.set(xlabel="x (m)", ylabel="amplitude (mm)")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -137,7 +143,8 @@ def plot_closed_loop(result) -> Figure:
     >>> from types import SimpleNamespace
     >>> t = np.linspace(0, 1, 11)
     >>> fake = SimpleNamespace(t=t, robot_position=t, target=t, calibration_time=0.2,
-    ...                        displacement=np.ones((3, 11)), baseline_displacement=np.ones((3, 11)))
+    ...                        displacement=np.ones((3, 11)),
+    ...                        baseline_displacement=np.ones((3, 11)))
     >>> len(plot_closed_loop(fake).axes)
     2
     """

@@ -81,8 +81,10 @@ class Snapshots:
     def force(self) -> np.ndarray:
         """The single load's time history, shape (n_t,); an error if there are several."""
         if self.inputs.shape[0] != 1:
-            raise InputError(f"These snapshots have {self.inputs.shape[0]} loads; use "
-                             "'inputs' (n_forces, n_t) instead of 'force'.")
+            raise InputError(
+                f"These snapshots have {self.inputs.shape[0]} loads; use "
+                "'inputs' (n_forces, n_t) instead of 'force'."
+            )
         return self.inputs[0]
 
     @property
@@ -98,8 +100,10 @@ def _as_force_list(force: object) -> list:
     for item in forces:
         is_load = hasattr(item, "values") and hasattr(item, "load_vector")
         if not (is_load or hasattr(item, "bind")):
-            raise InputError("The 'force' parameter must be a load (HarmonicForce, AeolianForce, "
-                             f"RandomForce), a list of them or None. Got {type(item).__name__}.")
+            raise InputError(
+                "The 'force' parameter must be a load (HarmonicForce, AeolianForce, "
+                f"RandomForce), a list of them or None. Got {type(item).__name__}."
+            )
     return forces
 
 
@@ -114,28 +118,36 @@ def _initial_dofs(model: LineModel, name: str, value: object) -> np.ndarray:
         w = np.asarray(value(x), dtype=float)
         step = 1e-6 * model.span.length
         left, right = np.clip(x - step, 0, x[-1]), np.clip(x + step, 0, x[-1])
-        slope = (np.asarray(value(right), dtype=float) - np.asarray(value(left), dtype=float)) \
-            / (right - left)
+        slope = (np.asarray(value(right), dtype=float) - np.asarray(value(left), dtype=float)) / (
+            right - left
+        )
     else:
         w = check_array(name, value, shape=(model.n_nodes,))
         slope = np.gradient(w, x, edge_order=2)
     full = np.zeros(model._n_total)
-    full[0: 2 * model.n_nodes: 2], full[1: 2 * model.n_nodes: 2] = w, slope
+    full[0 : 2 * model.n_nodes : 2], full[1 : 2 * model.n_nodes : 2] = w, slope
     dofs = full[model._free]
     if model.mdr is not None and model.mdr.has_absorber:
         dofs[-1] = model.shape_vector(model.mdr.position)[:-1] @ dofs[:-1]
     return dofs
 
 
-def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt: float = 1e-3, *,
-             noise_std: float = 0.0, noise_fraction: float | None = None,
-             seed: int | np.random.Generator | None = None,
-             initial_displacement: np.ndarray | Callable | None = None,
-             initial_velocity: np.ndarray | Callable | None = None,
-             initial_modes: dict[int, float] | None = None,
-             initial_state: tuple[np.ndarray, np.ndarray] | None = None,
-             start_time: float = 0.0,
-             n_modes: int | None = None) -> Snapshots:
+def simulate(
+    model: LineModel,
+    force: object = None,
+    duration: float = 10.0,
+    dt: float = 1e-3,
+    *,
+    noise_std: float = 0.0,
+    noise_fraction: float | None = None,
+    seed: int | np.random.Generator | None = None,
+    initial_displacement: np.ndarray | Callable | None = None,
+    initial_velocity: np.ndarray | Callable | None = None,
+    initial_modes: dict[int, float] | None = None,
+    initial_state: tuple[np.ndarray, np.ndarray] | None = None,
+    start_time: float = 0.0,
+    n_modes: int | None = None,
+) -> Snapshots:
     """Simulate nodal displacement snapshots, (n_nodes, n_samples).
 
     Parameters
@@ -200,8 +212,9 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     dt = check_real("dt", dt, low=0.0)
     start_time = check_real("start_time", start_time)
     if dt > duration:
-        raise InputError(f"The 'dt' parameter ({dt:g} s) must not exceed 'duration' "
-                         f"({duration:g} s).")
+        raise InputError(
+            f"The 'dt' parameter ({dt:g} s) must not exceed 'duration' ({duration:g} s)."
+        )
     noise_std = check_real("noise_std", noise_std, low=0.0, low_inclusive=True)
     if noise_fraction is not None:
         noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True)
@@ -211,8 +224,9 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     forces = [f.bind(model) if hasattr(f, "bind") else f for f in _as_force_list(force)]
     for f in forces:
         if f.position is not None:
-            check_real("force position", f.position, low=0.0, low_inclusive=True,
-                       high=model.span.length)
+            check_real(
+                "force position", f.position, low=0.0, low_inclusive=True, high=model.span.length
+            )
     t = dt * np.arange(int(np.floor(duration / dt + 1e-9)) + 1)
     nyquist = 0.5 / dt
     load_frequencies = [f.frequency for f in forces if f.frequency is not None]
@@ -227,8 +241,9 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     _warn_unresolved(load_frequencies, nyquist, basis.frequencies[-1])
 
     complex_modes = _complex_modes_of(model, basis)
-    q0 = _initial_modal_state(model, basis, initial_displacement, initial_velocity, initial_modes,
-                              initial_state)
+    q0 = _initial_modal_state(
+        model, basis, initial_displacement, initial_velocity, initial_modes, initial_state
+    )
     # Work in output space as early as possible: a harmonic load's particular solution is one
     # rotating phasor per node, so it never needs the (modes x samples) matrix. Every homogeneous
     # part (initial state, and what cancels each particular solution at t = 0) is collected in
@@ -236,15 +251,19 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     gains = complex_modes.output_gains(model.displacement_map() @ basis.shapes)  # (n_nodes, kept)
     homogeneous = complex_modes.project(q0)
     clean = np.zeros((model.n_nodes, t.size))
-    final = np.zeros_like(homogeneous)          # complex modal state at the last sample
+    final = np.zeros_like(homogeneous)  # complex modal state at the last sample
     inputs = []
     for f in forces:
         forcing = complex_modes.input_gain(basis.shapes.T @ f.load_vector(model))
         values = f.values(start_time + t)
-        if f.frequency is not None and _exact_harmonic_possible(complex_modes.eigenvalues, f.frequency):
+        if f.frequency is not None and _exact_harmonic_possible(
+            complex_modes.eigenvalues, f.frequency
+        ):
             plus, minus = _harmonic_phasors(complex_modes.eigenvalues, forcing, f, start_time)
             rotation = np.exp(2j * np.pi * f.frequency * t)
-            clean += (np.outer(gains @ plus, rotation) + np.outer(gains @ minus, rotation.conj())).real
+            clean += (
+                np.outer(gains @ plus, rotation) + np.outer(gains @ minus, rotation.conj())
+            ).real
             homogeneous = homogeneous - (plus + minus)
             final += plus * rotation[-1] + minus * rotation[-1].conj()
         else:
@@ -257,23 +276,37 @@ def simulate(model: LineModel, force: object = None, duration: float = 10.0, dt:
     if noise_fraction is not None:
         noise_std = noise_fraction * float(np.sqrt(np.mean(clean**2)))
     noisy = clean + noise_std * rng.standard_normal(clean.shape) if noise_std > 0 else clean.copy()
-    return Snapshots(t=start_time + t, dt=dt, x=model.node_positions.copy(), displacement=noisy,
-                     true_displacement=clean, final_state=complex_modes.to_dofs(basis, final),
-                     inputs=np.array(inputs) if inputs else np.zeros((0, t.size)),
-                     force_positions=tuple(f.position for f in forces), noise_std=noise_std,
-                     mode_frequencies=basis.frequencies)
+    return Snapshots(
+        t=start_time + t,
+        dt=dt,
+        x=model.node_positions.copy(),
+        displacement=noisy,
+        true_displacement=clean,
+        final_state=complex_modes.to_dofs(basis, final),
+        inputs=np.array(inputs) if inputs else np.zeros((0, t.size)),
+        force_positions=tuple(f.position for f in forces),
+        noise_std=noise_std,
+        mode_frequencies=basis.frequencies,
+    )
 
 
 def _warn_unresolved(load_frequencies: Sequence[float], nyquist: float, top_mode: float) -> None:
     for frequency in load_frequencies:
         if frequency >= nyquist:
-            warnings.warn(f"A load at {frequency:g} Hz is at or above the Nyquist frequency "
-                          f"{nyquist:g} Hz of dt: the samples alias it; reduce dt.",
-                          TruncationWarning, stacklevel=3)
+            warnings.warn(
+                f"A load at {frequency:g} Hz is at or above the Nyquist frequency "
+                f"{nyquist:g} Hz of dt: the samples alias it; reduce dt.",
+                TruncationWarning,
+                stacklevel=3,
+            )
         if frequency > top_mode:
-            warnings.warn(f"A load at {frequency:g} Hz lies above the highest mode kept "
-                          f"({top_mode:g} Hz): the truncated model cannot resolve it; keep more "
-                          "modes (n_modes).", TruncationWarning, stacklevel=3)
+            warnings.warn(
+                f"A load at {frequency:g} Hz lies above the highest mode kept "
+                f"({top_mode:g} Hz): the truncated model cannot resolve it; keep more "
+                "modes (n_modes).",
+                TruncationWarning,
+                stacklevel=3,
+            )
 
 
 @dataclass(frozen=True)
@@ -286,10 +319,10 @@ class _ComplexModes:
     the real response is twice the real part.
     """
 
-    eigenvalues: np.ndarray      # (n_kept,)
-    right: np.ndarray            # (2r, n_kept) eigenvectors of the scaled system
-    left: np.ndarray             # (n_kept, 2r) rows of the inverse eigenvector matrix
-    weight: np.ndarray           # (n_kept,) 2 for a conjugate pair, 1 for a real eigenvalue
+    eigenvalues: np.ndarray  # (n_kept,)
+    right: np.ndarray  # (2r, n_kept) eigenvectors of the scaled system
+    left: np.ndarray  # (n_kept, 2r) rows of the inverse eigenvector matrix
+    weight: np.ndarray  # (n_kept,) 2 for a conjugate pair, 1 for a real eigenvalue
     omega: np.ndarray
 
     def project(self, q0: np.ndarray) -> np.ndarray:
@@ -298,7 +331,7 @@ class _ComplexModes:
         return self.left @ scaled
 
     def input_gain(self, modal_load: np.ndarray) -> np.ndarray:
-        return self.left[:, self.omega.size:] @ modal_load
+        return self.left[:, self.omega.size :] @ modal_load
 
     def to_dofs(self, basis, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Free-DOF displacement and velocity from the kept complex modal state."""
@@ -309,7 +342,7 @@ class _ComplexModes:
     def output_gains(self, nodal_shapes: np.ndarray) -> np.ndarray:
         """Map from kept complex modes to nodal displacement (real part taken by the caller)."""
         r = self.omega.size
-        gains = (nodal_shapes / self.omega) @ self.right[:r]      # undo the omega scaling
+        gains = (nodal_shapes / self.omega) @ self.right[:r]  # undo the omega scaling
         return gains * self.weight
 
 
@@ -348,8 +381,10 @@ def _complex_modes(basis) -> _ComplexModes:
     try:
         inverse = np.linalg.solve(vectors, np.eye(2 * r))
     except np.linalg.LinAlgError as exc:
-        raise ModelError("The modal system is defective (repeated, critically damped modes); "
-                         "change the damping slightly.") from exc
+        raise ModelError(
+            "The modal system is defective (repeated, critically damped modes); "
+            "change the damping slightly."
+        ) from exc
     keep = values_all.imag > 0
     real = np.abs(values_all.imag) <= 1e-12 * np.abs(values_all).max()
     keep |= real
@@ -363,8 +398,10 @@ def _initial_modal_state(model, basis, displacement, velocity, modes, state) -> 
     mass = model.mass_matrix
     if state is not None:
         if not isinstance(state, tuple | list) or len(state) != 2:
-            raise InputError("The 'initial_state' parameter must be a (displacement, velocity) "
-                             f"pair over the free DOFs. Got {type(state).__name__}.")
+            raise InputError(
+                "The 'initial_state' parameter must be a (displacement, velocity) "
+                f"pair over the free DOFs. Got {type(state).__name__}."
+            )
         u0 = check_array("initial_state[0]", state[0], shape=(model.n_dofs,))
         v0 = check_array("initial_state[1]", state[1], shape=(model.n_dofs,))
         q[:r], q[r:] = basis.shapes.T @ (mass @ u0), basis.shapes.T @ (mass @ v0)
@@ -382,7 +419,7 @@ def _initial_modal_state(model, basis, displacement, velocity, modes, state) -> 
 
 
 def _exact_harmonic_possible(eigenvalues: np.ndarray, frequency: float) -> bool:
-    """False when the load sits (numerically) on an undamped resonance: 1/(i w - lambda) blows up."""
+    """False when the load sits (numerically) on an undamped resonance: 1/(i w - lambda)."""
     omega = 2 * np.pi * frequency
     return bool(np.min(np.abs(1j * omega - eigenvalues)) > 1e-9 * omega)
 

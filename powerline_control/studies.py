@@ -50,7 +50,9 @@ def parameter_grid(**axes: Iterable) -> list[dict]:
     for name, options in zip(names, values, strict=True):
         if not options:
             raise InputError(f"The grid axis {name!r} has no values.")
-    return [dict(zip(names, combination, strict=True)) for combination in itertools.product(*values)]
+    return [
+        dict(zip(names, combination, strict=True)) for combination in itertools.product(*values)
+    ]
 
 
 @dataclass(frozen=True)
@@ -99,13 +101,16 @@ class StudyResult:
 def _call(func: Callable, parameters: Mapping) -> dict:
     result = func(**parameters)
     if not isinstance(result, Mapping):
-        raise InputError(f"The study function must return a dict of results. Got "
-                         f"{type(result).__name__} for {dict(parameters)}.")
+        raise InputError(
+            f"The study function must return a dict of results. Got "
+            f"{type(result).__name__} for {dict(parameters)}."
+        )
     return dict(result)
 
 
-def run_study(func: Callable[..., Mapping], grid: Sequence[Mapping],
-              executor: Executor | None = None) -> StudyResult:
+def run_study(
+    func: Callable[..., Mapping], grid: Sequence[Mapping], executor: Executor | None = None
+) -> StudyResult:
     """Evaluate ``func(**point)`` at every grid point, on ``executor`` if given.
 
     Parameters
@@ -137,8 +142,10 @@ def run_study(func: Callable[..., Mapping], grid: Sequence[Mapping],
     if not callable(func):
         raise InputError(f"The 'func' parameter must be callable. Got {type(func).__name__}.")
     if executor is not None and not callable(getattr(executor, "submit", None)):
-        raise InputError("The 'executor' parameter must be a concurrent.futures.Executor (with "
-                         f"submit) or None. Got {type(executor).__name__}.")
+        raise InputError(
+            "The 'executor' parameter must be a concurrent.futures.Executor (with "
+            f"submit) or None. Got {type(executor).__name__}."
+        )
     grid = [dict(point) for point in grid]
     if not grid:
         raise InputError("The 'grid' parameter is empty: a study needs at least one point.")

@@ -14,12 +14,20 @@ def result():
     # 40 elements keep the test quick; forced at 24 Hz, next to mode 3 (24.5 Hz), whose nodes are
     # at L/3 and 2L/3. The robot starts at 1.2 m, next to the node at L/3 = 1.22 m: the worst place.
     f3 = plc.LineModel(LAB, 40).natural_frequencies(3)[2]
-    robot = plc.MDR.tuned(1.2, body_mass=0.02, suspended_mass=0.05, frequency=f3,
-                          damping_ratio=0.1)
+    robot = plc.MDR.tuned(1.2, body_mass=0.02, suspended_mass=0.05, frequency=f3, damping_ratio=0.1)
     limits = plc.RobotLimits(v_max=0.5, a_max=1.0)
-    return run_closed_loop(LAB, plc.HarmonicForce(1.0, 24.0, 0.5), robot, limits,
-                           sensors=[6, 16, 28], n_elements=40, duration=6.0, calibration=2.0,
-                           obstacles=[(2.6, 2.8)], seed=1)
+    return run_closed_loop(
+        LAB,
+        plc.HarmonicForce(1.0, 24.0, 0.5),
+        robot,
+        limits,
+        sensors=[6, 16, 28],
+        n_elements=40,
+        duration=6.0,
+        calibration=2.0,
+        obstacles=[(2.6, 2.8)],
+        seed=1,
+    )
 
 
 def test_line_vibrates_less_than_with_the_robot_parked(result):
@@ -37,7 +45,7 @@ def test_robot_ends_in_the_loop_whose_antinode_it_was_sent_to(result):
 
 
 def test_robot_respects_its_limits_and_the_obstacle(result):
-    # Constant acceleration per period: the sampled velocity is exact, so the limit holds at samples.
+    # Constant acceleration per period: sampled velocity is exact, so the limit holds at samples.
     assert np.abs(result.robot_velocity).max() <= 0.5 + 1e-9
     accel = np.diff(result.robot_velocity) / np.diff(result.t)
     assert np.abs(accel).max() <= 1.0 + 1e-6

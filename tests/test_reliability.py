@@ -26,7 +26,7 @@ import zipfile
 import control as ct
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from strategies import dmd_models, line_models, scenarios, sensor_constraints
 
@@ -36,7 +36,7 @@ from powerline_control.errors import FileFormatError, InputError
 from powerline_control.observability import steady_state_covariance
 
 # Derandomized: the same examples every run (tests are seeded, CI must not flake); the strategies
-# were also run once with 200-300 examples each, all green (the bugs they found are fixed; rows below say what each one was).
+# were also run once with 200-300 examples each; the bugs they found are fixed.
 FAST = settings(max_examples=15, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 LAB = plc.Span.paper_lab()
