@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
+from . import __version__, plotting
 from .antinode import locate_antinodes, nearest_antinode
 from .closed_loop import run_closed_loop
 from .config import Scenario, load_scenario, scenario_to_toml
@@ -30,6 +30,7 @@ from .fem import MDR
 from .identify import fit_dmd, select_alpha
 from .io import save_model
 from .plan import RobotLimits, plan_motion
+from .report import write_report
 from .sensors import select_sensors
 from .simulate import simulate
 
@@ -41,17 +42,23 @@ TRAIN_FRACTION = 0.6
 
 @dataclass
 class _Report:
-    """Collects the printed lines, the report sections and the headline numbers of a run."""
+    """Collects the printed lines, the report sections, their figures and the headline numbers.
+
+    A stage hands each figure over as a function that draws it, so figures cost nothing unless
+    an output folder asks for them.
+    """
 
     echo: Callable[[str], object]
     sections: list = field(default_factory=list)
+    figures: dict = field(default_factory=dict)
     numbers: dict = field(default_factory=dict)
 
-    def section(self, title: str, rows: Sequence[tuple[str, str]], figures: Sequence[str] = ()):
+    def section(self, title: str, rows: Sequence[tuple[str, str]], figures: dict | None = None):
         self.echo(title)
         for label, value in rows:
             self.echo(f"  {label:<40} {value}")
-        self.sections.append({"title": title, "rows": rows, "figures": list(figures)})
+        self.figures.update(figures or {})
+        self.sections.append({"title": title, "rows": rows, "figures": list(figures or {})})
 
 
 def _mm(value: float) -> str:
@@ -113,7 +120,7 @@ def _stage_data(scenario: Scenario, model, report: _Report):
             ("sensor noise std", _mm(snap.noise_std)),
         ],
     )
-    return force, snap, envelope
+    return force, snap
 
 
 def _stage_identify(scenario: Scenario, snap, report: _Report):
@@ -152,10 +159,14 @@ def _stage_identify(scenario: Scenario, snap, report: _Report):
             ("paper recipe (delays 1, alpha 0.1)", f"spectral radius {paper.spectral_radius:.6f}"),
             ("plain DMD (alpha 0)", f"spectral radius {plain.spectral_radius:.6f}{plain_note}"),
         ],
-        figures=["eigenvalues.png"],
+        figures={
+            "eigenvalues.png": lambda: plotting.plot_eigenvalues(
+                {"this run": dmd.eigenvalues, "paper recipe": paper.eigenvalues}
+            )
+        },
     )
     report.numbers.update(alpha=dmd.alpha, spectral_radius=dmd.spectral_radius)
-    return dmd, n_train, {"this run": dmd.eigenvalues, "paper recipe": paper.eigenvalues}
+    return dmd, n_train
 
 
 def _stage_estimate(scenario: Scenario, dmd, snap, n_train: int, report: _Report):
@@ -224,7 +235,7 @@ def _stage_estimate(scenario: Scenario, dmd, snap, n_train: int, report: _Report
                 f"{100 * paper_accuracy.relative_rms_error_unmeasured:.3g} % of RMS displacement",
             ),
         ],
-        figures=["estimate.png"],
+        figures={"estimate.png": lambda: _estimate_figure(snap, n_train, results, sensors)},
     )
     report.numbers.update(
         sensors=sensors,
@@ -234,7 +245,23 @@ def _stage_estimate(scenario: Scenario, dmd, snap, n_train: int, report: _Report
     return sensors, results["chosen"][0]
 
 
-def _stage_antinode_and_plan(scenario: Scenario, span, snap, estimate, n_train, report: _Report):
+def _estimate_figure(snap, n_train: int, results: dict, sensors: list):
+    """Estimate against truth at three unmeasured nodes (the paper's Figs. 7-8)."""
+    spread = np.linspace(0, snap.x.size - 1, 5).astype(int)[1:-1]
+    unmeasured = [i for i in spread if i not in sensors] or [snap.x.size // 2]
+    held_out = slice(n_train, None)
+    return plotting.plot_estimate(
+        snap.t[held_out],
+        snap.true_displacement[:, held_out],
+        results["chosen"][0].field,
+        unmeasured,
+        snap.x,
+    )
+
+
+def _stage_antinode_and_plan(
+    scenario: Scenario, span, snap, estimate, n_train, sensors, report: _Report
+):
     window = slice(-min(500, estimate.field.shape[1]), None)
     estimated = locate_antinodes(estimate.field[:, window], snap.x, dt=snap.dt)
     true = locate_antinodes(snap.true_displacement[:, n_train:][:, window], snap.x, dt=snap.dt)
@@ -260,18 +287,26 @@ def _stage_antinode_and_plan(scenario: Scenario, span, snap, estimate, n_train, 
                 f"a_max {robot.a_max:g} m/s^2)",
             ),
         ],
-        figures=["envelope.png"],
+        figures={
+            "envelope.png": lambda: plotting.plot_envelope(
+                snap.x,
+                {"true amplitude": np.abs(snap.true_displacement[:, n_train:]).max(axis=1)},
+                {
+                    "estimated antinodes": [a.position for a in estimated],
+                    "sensors": [snap.x[i] for i in sensors],
+                },
+            )
+        },
     )
     report.numbers.update(
         antinode=target.position, true_antinode=truth.position, move_duration=plan.duration
     )
-    return estimated
 
 
 def _stage_closed_loop(scenario: Scenario, span, model, force, report: _Report, sensors):
     robot_cfg = scenario.robot
     if robot_cfg.closed_loop <= 0:
-        return None
+        return
     load_frequency = getattr(force, "frequency", None) or model.natural_frequencies(1)[0]
     frequencies = model.natural_frequencies(min(20, model.n_dofs))
     tuned = float(frequencies[np.argmin(np.abs(frequencies - load_frequency))])
@@ -317,64 +352,21 @@ def _stage_closed_loop(scenario: Scenario, span, model, force, report: _Report, 
             ),
             ("real-time factor", f"{result.real_time_factor:.2f}"),
         ],
-        figures=["closed_loop.png"],
+        figures={"closed_loop.png": lambda: plotting.plot_closed_loop(result)},
     )
     report.numbers.update(
         vibration_reduction=result.vibration_reduction,
         final_robot_position=float(result.robot_position[-1]),
     )
-    return result
 
 
-def _write_outputs(
-    out: Path,
-    scenario,
-    report: _Report,
-    snap,
-    estimate,
-    sensors,
-    n_train,
-    eigenvalues,
-    antinodes,
-    envelope,
-    dmd,
-    closed,
-) -> None:
-    from . import plotting
-    from .report import write_report
-
+def _write_outputs(out: Path, scenario: Scenario, report: _Report, dmd) -> None:
     out.mkdir(parents=True, exist_ok=True)
     (out / "scenario.toml").write_text(scenario_to_toml(scenario))
     save_model(out / "dmd_model.npz", dmd)
-    unmeasured = [
-        i for i in np.linspace(0, snap.x.size - 1, 5).astype(int)[1:-1] if i not in sensors
-    ] or [snap.x.size // 2]
-    figures = {
-        "eigenvalues.png": plotting.plot_eigenvalues(eigenvalues),
-        "estimate.png": plotting.plot_estimate(
-            snap.t[n_train:],
-            snap.true_displacement[:, n_train:],
-            estimate.field,
-            unmeasured,
-            snap.x,
-        ),
-        "envelope.png": plotting.plot_envelope(
-            snap.x,
-            {"true amplitude": envelope},
-            {
-                "estimated antinodes": [a.position for a in antinodes],
-                "sensors": [snap.x[i] for i in sensors],
-            },
-        ),
-    }
-    if closed is not None:
-        figures["closed_loop.png"] = plotting.plot_closed_loop(closed)
-    for name, figure in figures.items():
-        figure.savefig(out / name, dpi=110)
-    sections = [s for s in report.sections if all(f in figures for f in s["figures"])] + [
-        {**s, "figures": []} for s in report.sections if any(f not in figures for f in s["figures"])
-    ]
-    write_report(out / "report.html", "powerline_control run", sections, __version__)
+    for name, draw in report.figures.items():
+        draw().savefig(out / name, dpi=110)
+    write_report(out / "report.html", "powerline_control run", report.sections, __version__)
     (out / "summary.json").write_text(json.dumps(report.numbers, indent=2, default=float))
 
 
@@ -410,26 +402,13 @@ def run_scenario(scenario: Scenario, out: Path | None = None, echo=print) -> dic
     """
     report = _Report(echo)
     span, model = _stage_model(scenario, report)
-    force, snap, envelope = _stage_data(scenario, model, report)
-    dmd, n_train, eigenvalues = _stage_identify(scenario, snap, report)
+    force, snap = _stage_data(scenario, model, report)
+    dmd, n_train = _stage_identify(scenario, snap, report)
     sensors, estimate = _stage_estimate(scenario, dmd, snap, n_train, report)
-    antinodes = _stage_antinode_and_plan(scenario, span, snap, estimate, n_train, report)
-    closed = _stage_closed_loop(scenario, span, model, force, report, sensors)
+    _stage_antinode_and_plan(scenario, span, snap, estimate, n_train, sensors, report)
+    _stage_closed_loop(scenario, span, model, force, report, sensors)
     if out is not None:
-        _write_outputs(
-            out,
-            scenario,
-            report,
-            snap,
-            estimate,
-            sensors,
-            n_train,
-            eigenvalues,
-            antinodes,
-            envelope,
-            dmd,
-            closed,
-        )
+        _write_outputs(out, scenario, report, dmd)
         echo(f"Results written to {out}/ (report.html, summary.json, figures, dmd_model.npz)")
     return report.numbers
 
