@@ -26,7 +26,6 @@ a line the covariances are ~1e-8 m^2 and, unscaled, the conic solvers return inf
 
 from __future__ import annotations
 
-import contextlib
 import itertools
 import math
 import numbers
@@ -40,6 +39,7 @@ import control as ct
 import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
+from threadpoolctl import threadpool_limits
 
 from ._sensor_criteria import (
     KalmanCriterion,
@@ -52,11 +52,6 @@ from ._sensor_criteria import (
 from ._validation import check_array, check_choice, check_int, check_psd, check_real, check_rng
 from .errors import InputError, SensorSelectionError
 
-try:  # optional: present wherever scikit-learn is
-    from threadpoolctl import threadpool_limits
-except ImportError:  # pragma: no cover - then BLAS keeps its own thread count
-    threadpool_limits = None
-
 __all__ = ["select_sensors", "SensorSelection", "Baseline", "sensor_count_study",
            "SensorCountStudy"]
 
@@ -66,8 +61,6 @@ def _small_matrix_blas():
     Measured on a loaded 2-core machine: a 101 x 101 Cholesky solve took 36 ms with two
     OpenBLAS threads and well under 1 ms with one.
     """
-    if threadpool_limits is None:
-        return contextlib.nullcontext()
     return threadpool_limits(limits=1, user_api="blas")
 
 
