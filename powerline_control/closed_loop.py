@@ -24,6 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ._validation import check_int, check_real, check_rng
 from .antinode import locate_antinodes, nearest_antinode
@@ -172,6 +173,10 @@ def _next_goal(
     )
 
 
+# Thousands of small (n ~ 100-400) products per simulated second: one BLAS thread is several
+# times faster than two contending ones on a shared 2-core machine (measured: real-time factor
+# 0.18 with the default threads, 0.69 with one). The limit applies inside this call only.
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def run_closed_loop(
     span: Span,
     force: object,
