@@ -69,6 +69,26 @@ def _frozen(array: np.ndarray) -> np.ndarray:
     return array
 
 
+class _LazyField:
+    """A dataclass field that also accepts a :class:`_DeferredCovariance`, evaluated (once) when
+    the field is first read.  Without a default (``__get__`` on the class raises)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._key = f"_{name}_value"
+
+    def __get__(self, instance: object, owner: type | None = None) -> np.ndarray:
+        if instance is None:
+            raise AttributeError("no default")
+        value = instance.__dict__[self._key]
+        if isinstance(value, _DeferredCovariance):
+            value = value()
+            instance.__dict__[self._key] = value
+        return value
+
+    def __set__(self, instance: object, value: object) -> None:
+        instance.__dict__[self._key] = value
+
+
 @dataclass(frozen=True, eq=False)
 class StabilityReport:
     """Stability of an identified model, with advice.
@@ -142,7 +162,8 @@ class DMDModel:
         Covariance of the one-step training residuals ``z_{k+1} - A z_k - B u_k``, divided by
         the number of pairs: a data-driven process-noise covariance ``Q`` in the model's state
         coordinates.  Without rank truncation and with delays only its first
-        ``n_nodes x n_nodes`` block is non-zero (the shift rows are exact).
+        ``n_nodes x n_nodes`` block is non-zero (the shift rows are exact).  When the fit took
+        the Cholesky route, the n x n products it needs are evaluated on first access.
     n_pairs : int
         Number of snapshot pairs used for the fit.
     initial_state : ndarray, shape (n_states,)
@@ -175,7 +196,7 @@ class DMDModel:
     n_nodes: int
     field_map: np.ndarray
     basis: np.ndarray | None
-    residual_covariance: np.ndarray
+    residual_covariance: np.ndarray = _LazyField()  # type: ignore[assignment]
     n_pairs: int
     initial_state: np.ndarray = field(repr=False)
 
@@ -620,12 +641,14 @@ def _sign_fixed(U: np.ndarray) -> np.ndarray:
 
 def _ridge_gram(
     target: np.ndarray, regressor: np.ndarray, alpha: float, gram: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Cholesky route of :func:`_ridge`: ``(coef, gram, cross)`` or None when not accurate.
+) -> tuple[np.ndarray, _TargetGram, np.ndarray] | None:
+    """Cholesky route of :func:`_ridge`: ``(coef, target_gram, W)`` or None when not accurate.
 
     Solving ``(G + alpha I) coef^T = R Y^T`` loses about ``eps (1 + s_max^2 / alpha)``; it is
     taken only when that is below ~1e-10 (and when ``R R^T`` is the smaller Gram matrix).
-    ``gram`` (``R R^T``, unmodified) is returned for the residual covariance.
+    With ``G + alpha I = L L^T`` the solve is two triangular solves, ``W = L^{-1} R Y^T`` and
+    ``coef^T = L^{-T} W``; ``W`` and ``Y Y^T`` (as a :class:`_TargetGram`) are returned for the
+    residual covariance.  ``gram`` (``R R^T``), when given, is overwritten by the factor.
     """
     n_reg, n_pairs = regressor.shape
     if alpha <= 0 or n_reg > n_pairs:
@@ -633,11 +656,47 @@ def _ridge_gram(
     gram = regressor @ regressor.T if gram is None else gram
     if alpha < _GRAM_ALPHA_FRACTION * np.trace(gram):
         return None
-    shifted = gram.copy()
-    shifted[np.diag_indices_from(shifted)] += alpha
     cross = regressor @ target.T
-    factor = sla.cho_factor(shifted, lower=True, check_finite=False)
-    return sla.cho_solve(factor, cross, check_finite=False).T, gram, cross.T
+    diagonal = gram.diagonal().copy()
+    # G is symmetric, so its transpose is the same matrix in Fortran order, which LAPACK
+    # factors in place; the factor fills the lower triangle and leaves G's strict upper one.
+    shifted = gram.T
+    shifted[np.diag_indices_from(shifted)] += alpha
+    factor, _ = sla.cho_factor(shifted, lower=True, overwrite_a=True, check_finite=False)
+    W = sla.solve_triangular(factor, cross, lower=True, overwrite_b=True, check_finite=False)
+    coef_t = sla.solve_triangular(factor, W, lower=True, trans="T", check_finite=False)
+    k = target.shape[0]
+    target_gram = _TargetGram(factor, diagonal, regressor[:k, 0].copy(), target[:, -1].copy())
+    return coef_t.T, target_gram, W
+
+
+class _TargetGram:
+    """``Y Y^T`` of a shifted target, from the regressor's Gram matrix without a data pass.
+
+    The target is always the regressor's state rows shifted by one sample, so
+    ``Y Y^T = G[:k, :k] - r_0 r_0^T + y_N y_N^T``.  ``G`` is read from the strict upper triangle
+    of ``factor`` (a Cholesky factor stored in the lower triangle) and from ``diagonal``.
+    """
+
+    def __init__(
+        self, factor: np.ndarray, diagonal: np.ndarray, first: np.ndarray, last: np.ndarray
+    ) -> None:
+        self.factor, self.diagonal, self.first, self.last = factor, diagonal, first, last
+
+    def trace(self) -> float:
+        k = self.first.size
+        return float(self.diagonal[:k].sum() - self.first @ self.first + self.last @ self.last)
+
+    def minus(self, other: np.ndarray) -> np.ndarray:
+        """``Y Y^T - other`` (a new array; ``other`` is symmetric)."""
+        k = self.first.size
+        gram = np.triu(self.factor[:k, :k], 1)
+        gram += gram.T  # numpy buffers the overlapping transpose
+        gram[np.diag_indices(k)] = self.diagonal[:k]
+        gram -= other
+        gram -= np.outer(self.first, self.first)
+        gram += np.outer(self.last, self.last)
+        return gram
 
 
 def _ridge(
@@ -667,25 +726,62 @@ def _ridge(
 
 
 def _residual_covariance_from_gram(
-    target: np.ndarray, regressor: np.ndarray, coef: np.ndarray, gram: np.ndarray,
-    cross: np.ndarray,
-) -> np.ndarray | None:
+    coef: np.ndarray, alpha: float, target_gram: _TargetGram, W: np.ndarray
+) -> _DeferredScatter | None:
     """``E E^T`` for ``E = Y - coef R`` from Gram matrices, or None when cancellation bites.
 
-    The target is always the regressor's state rows shifted by one sample, so
-    ``Y Y^T = G[:k, :k] - r_0 r_0^T + y_N y_N^T``: no pass over the data is needed, and the
-    cost is O(n^3) instead of O(n^2 N).  The difference of large terms is accurate to about
-    eps ||Y||^2, so the result is used only when the residual is at least 1e-8 of the data.
+    With the normal equations ``coef (G + alpha I) = C^T`` (``C = R Y^T``, ``G + alpha I =
+    L L^T``, ``W = L^{-1} C``), ``E E^T = Y Y^T - coef C - alpha coef coef^T
+    = Y Y^T - W^T W - alpha coef coef^T``: two symmetric n x n products instead of a pass over
+    the data.  The difference of large terms is accurate to about eps ||Y||^2, so the result is
+    used only when the residual is at least 1e-8 of the data; its trace is checked here in
+    O(n^2), and the products are deferred until the covariance is first read.
     """
-    k = target.shape[0]
-    first, last = regressor[:k, 0], target[:, -1]
-    target_gram = gram[:k, :k] - np.outer(first, first) + np.outer(last, last)
-    # coef G coef^T - C coef^T - coef C^T = sym((coef G - 2 C) coef^T): two products, not three
-    half = (coef @ gram - 2.0 * cross) @ coef.T
-    result = target_gram + (half + half.T) / 2
-    if np.trace(result) < 1e-8 * np.trace(target_gram):
+    total = target_gram.trace()
+    trace = total - _squared_norm(W) - alpha * _squared_norm(coef)
+    if trace < 1e-8 * total:
         return None
-    return result
+    return _DeferredScatter(target_gram, W, coef, alpha)
+
+
+def _squared_norm(M: np.ndarray) -> float:
+    flat = M.ravel(order="K")  # no copy for C- or Fortran-ordered arrays
+    return float(flat @ flat)
+
+
+class _DeferredScatter:
+    """``Y Y^T - W^T W - alpha coef coef^T``, evaluated when called (see above)."""
+
+    def __init__(
+        self, target_gram: _TargetGram, W: np.ndarray, coef: np.ndarray, alpha: float
+    ) -> None:
+        self.target_gram, self.W, self.coef, self.alpha = target_gram, W, coef, alpha
+
+    def __call__(self) -> np.ndarray:
+        # M^T M and M M^T are evaluated by numpy as symmetric rank-k updates (syrk).
+        W, coef = self.W, self.coef
+        products = coef @ coef.T
+        products *= self.alpha
+        products += W.T @ W
+        return self.target_gram.minus(products)
+
+
+class _DeferredCovariance:
+    """The model's residual covariance, computed on first access from a deferred scatter."""
+
+    def __init__(self, scatter: _DeferredScatter, n_states: int, n_pairs: int) -> None:
+        self.scatter, self.n_states, self.n_pairs = scatter, n_states, n_pairs
+
+    def __call__(self) -> np.ndarray:
+        return _covariance(self.scatter(), self.n_states, self.n_pairs)
+
+
+def _covariance(scatter: np.ndarray, n_states: int, n_pairs: int) -> np.ndarray:
+    """``scatter / n_pairs`` in the leading block of a symmetric (n_states, n_states) matrix."""
+    Q = np.zeros((n_states, n_states))
+    k = scatter.shape[0]
+    Q[:k, :k] = scatter / n_pairs
+    return _frozen((Q + Q.T) / 2)
 
 
 def _ridge_svd(
@@ -726,10 +822,8 @@ def _fit_problem(
     )
     kept_ratio, scatter = None, None
     if gram_route is not None:
-        coef, gram, cross = gram_route
-        scatter = _residual_covariance_from_gram(
-            problem.target, problem.regressor, coef, gram, cross
-        )
+        coef, target_gram, W = gram_route
+        scatter = _residual_covariance_from_gram(coef, alpha, target_gram, W)
     else:
         coef, kept_ratio = _ridge(problem.target, problem.regressor, alpha, svd)
     if (
@@ -746,13 +840,12 @@ def _fit_problem(
             stacklevel=3,
         )
     A, B = _assemble(problem, coef)
+    n_pairs = problem.regressor.shape[1]
     if scatter is None:
         residual = problem.target - coef @ problem.regressor
-        scatter = residual @ residual.T
-    n_pairs = problem.regressor.shape[1]
-    Q = np.zeros((problem.n_states, problem.n_states))
-    k = scatter.shape[0]
-    Q[:k, :k] = scatter / n_pairs
+        covariance = _covariance(residual @ residual.T, problem.n_states, n_pairs)
+    else:
+        covariance = _DeferredCovariance(scatter, problem.n_states, n_pairs)
     n_states, n_nodes = problem.n_states, problem.n_nodes
     if problem.basis is None:
         field_map = np.eye(n_nodes, n_states)
@@ -770,7 +863,7 @@ def _fit_problem(
         n_nodes=n_nodes,
         field_map=_frozen(field_map),
         basis=None if problem.basis is None else _frozen(problem.basis),
-        residual_covariance=_frozen((Q + Q.T) / 2),
+        residual_covariance=covariance,  # type: ignore[arg-type]
         n_pairs=n_pairs,
         initial_state=_frozen(problem.regressor[:n_states, 0].copy()),
     )
