@@ -69,26 +69,6 @@ def _frozen(array: np.ndarray) -> np.ndarray:
     return array
 
 
-class _LazyField:
-    """A dataclass field that also accepts a :class:`_DeferredCovariance`, evaluated (once) when
-    the field is first read.  Without a default (``__get__`` on the class raises)."""
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self._key = f"_{name}_value"
-
-    def __get__(self, instance: object, owner: type | None = None) -> np.ndarray:
-        if instance is None:
-            raise AttributeError("no default")
-        value = instance.__dict__[self._key]
-        if isinstance(value, _DeferredCovariance):
-            value = value()
-            instance.__dict__[self._key] = value
-        return value
-
-    def __set__(self, instance: object, value: object) -> None:
-        instance.__dict__[self._key] = value
-
-
 @dataclass(frozen=True, eq=False)
 class StabilityReport:
     """Stability of an identified model, with advice.
@@ -162,8 +142,7 @@ class DMDModel:
         Covariance of the one-step training residuals ``z_{k+1} - A z_k - B u_k``, divided by
         the number of pairs: a data-driven process-noise covariance ``Q`` in the model's state
         coordinates.  Without rank truncation and with delays only its first
-        ``n_nodes x n_nodes`` block is non-zero (the shift rows are exact).  When the fit took
-        the Cholesky route, the n x n products it needs are evaluated on first access.
+        ``n_nodes x n_nodes`` block is non-zero (the shift rows are exact).
     n_pairs : int
         Number of snapshot pairs used for the fit.
     initial_state : ndarray, shape (n_states,)
@@ -196,7 +175,7 @@ class DMDModel:
     n_nodes: int
     field_map: np.ndarray
     basis: np.ndarray | None
-    residual_covariance: np.ndarray = _LazyField()  # type: ignore[assignment]
+    residual_covariance: np.ndarray
     n_pairs: int
     initial_state: np.ndarray = field(repr=False)
 
@@ -727,53 +706,30 @@ def _ridge(
 
 def _residual_covariance_from_gram(
     coef: np.ndarray, alpha: float, target_gram: _TargetGram, W: np.ndarray
-) -> _DeferredScatter | None:
+) -> np.ndarray | None:
     """``E E^T`` for ``E = Y - coef R`` from Gram matrices, or None when cancellation bites.
 
     With the normal equations ``coef (G + alpha I) = C^T`` (``C = R Y^T``, ``G + alpha I =
     L L^T``, ``W = L^{-1} C``), ``E E^T = Y Y^T - coef C - alpha coef coef^T
     = Y Y^T - W^T W - alpha coef coef^T``: two symmetric n x n products instead of a pass over
     the data.  The difference of large terms is accurate to about eps ||Y||^2, so the result is
-    used only when the residual is at least 1e-8 of the data; its trace is checked here in
-    O(n^2), and the products are deferred until the covariance is first read.
+    used only when the residual is at least 1e-8 of the data (checked on the trace, in
+    O(n^2), before the products are formed).
     """
     total = target_gram.trace()
     trace = total - _squared_norm(W) - alpha * _squared_norm(coef)
     if trace < 1e-8 * total:
         return None
-    return _DeferredScatter(target_gram, W, coef, alpha)
+    # M^T M and M M^T are evaluated by numpy as symmetric rank-k updates (syrk).
+    products = coef @ coef.T
+    products *= alpha
+    products += W.T @ W
+    return target_gram.minus(products)
 
 
 def _squared_norm(M: np.ndarray) -> float:
     flat = M.ravel(order="K")  # no copy for C- or Fortran-ordered arrays
     return float(flat @ flat)
-
-
-class _DeferredScatter:
-    """``Y Y^T - W^T W - alpha coef coef^T``, evaluated when called (see above)."""
-
-    def __init__(
-        self, target_gram: _TargetGram, W: np.ndarray, coef: np.ndarray, alpha: float
-    ) -> None:
-        self.target_gram, self.W, self.coef, self.alpha = target_gram, W, coef, alpha
-
-    def __call__(self) -> np.ndarray:
-        # M^T M and M M^T are evaluated by numpy as symmetric rank-k updates (syrk).
-        W, coef = self.W, self.coef
-        products = coef @ coef.T
-        products *= self.alpha
-        products += W.T @ W
-        return self.target_gram.minus(products)
-
-
-class _DeferredCovariance:
-    """The model's residual covariance, computed on first access from a deferred scatter."""
-
-    def __init__(self, scatter: _DeferredScatter, n_states: int, n_pairs: int) -> None:
-        self.scatter, self.n_states, self.n_pairs = scatter, n_states, n_pairs
-
-    def __call__(self) -> np.ndarray:
-        return _covariance(self.scatter(), self.n_states, self.n_pairs)
 
 
 def _covariance(scatter: np.ndarray, n_states: int, n_pairs: int) -> np.ndarray:
@@ -843,9 +799,8 @@ def _fit_problem(
     n_pairs = problem.regressor.shape[1]
     if scatter is None:
         residual = problem.target - coef @ problem.regressor
-        covariance = _covariance(residual @ residual.T, problem.n_states, n_pairs)
-    else:
-        covariance = _DeferredCovariance(scatter, problem.n_states, n_pairs)
+        scatter = residual @ residual.T
+    covariance = _covariance(scatter, problem.n_states, n_pairs)
     n_states, n_nodes = problem.n_states, problem.n_nodes
     if problem.basis is None:
         field_map = np.eye(n_nodes, n_states)
@@ -863,7 +818,7 @@ def _fit_problem(
         n_nodes=n_nodes,
         field_map=_frozen(field_map),
         basis=None if problem.basis is None else _frozen(problem.basis),
-        residual_covariance=covariance,  # type: ignore[arg-type]
+        residual_covariance=covariance,
         n_pairs=n_pairs,
         initial_state=_frozen(problem.regressor[:n_states, 0].copy()),
     )
