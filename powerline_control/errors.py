@@ -10,6 +10,7 @@ from __future__ import annotations
 __all__ = [
     "PowerlineControlError",
     "InputError",
+    "PresetNotFoundError",
     "ModelError",
     "IdentificationError",
     "EstimationError",
@@ -28,6 +29,17 @@ class PowerlineControlError(Exception):
 
 class InputError(PowerlineControlError, ValueError):
     """An argument has a value without a defined meaning (wrong type, range, shape)."""
+
+
+class PresetNotFoundError(InputError, KeyError):
+    """A preset name (e.g. a conductor) is not in the catalogue.
+
+    Also a ``KeyError``, so ``name in conductors`` and ``conductors.get(name)`` work as for any
+    mapping.
+    """
+
+    def __str__(self) -> str:  # KeyError would quote the message; keep it readable
+        return str(self.args[0]) if self.args else ""
 
 
 class ModelError(PowerlineControlError, RuntimeError):

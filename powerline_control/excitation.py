@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import check_array, check_real, check_rng
+from ._validation import check_array, check_int, check_real
 from .fem import LineModel
 from .line import Conductor
 
@@ -225,7 +225,9 @@ class RandomForce:
         check_real("std", self.std, low=0.0)
         check_real("position", self.position, low=0.0, low_inclusive=True)
         check_real("bandwidth", self.bandwidth, low=0.0)
-        check_rng(self.seed)
+        # An int, not a Generator: values(t) must give the same force on every call (a
+        # Generator would advance, None would draw fresh entropy each time).
+        check_int("seed", self.seed, low=0)
 
     def values(self, t: np.ndarray) -> np.ndarray:
         """Force at times ``t`` (s, >= 0), N."""

@@ -13,7 +13,6 @@ optional last one is the robot's suspended mass. Supports remove ``w`` (pinned) 
 
 from __future__ import annotations
 
-import functools
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -226,6 +225,11 @@ class ModalBasis:
         return self.omega.size
 
 
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
+
+
 def _hermite(xi: np.ndarray, h: float) -> np.ndarray:
     """Hermite cubic shape functions N1..N4 at local coordinates xi in [0, 1], shape (..., 4)."""
     return np.stack(
@@ -359,6 +363,7 @@ class LineModel:
         self.node_positions = np.linspace(0.0, span.length, self.n_elements + 1)
         self._n_line_dofs = 2 * (self.n_elements + 1)
         self._free = self._free_dofs()
+        self._modes_cache: dict[int, ModalBasis] = {}
         if self._free.size == 0:
             raise InputError(
                 f"The 'n_elements' parameter must be >= 2 for supports {self.bc}: "
@@ -519,7 +524,6 @@ class LineModel:
         return mass, stiffness, damper
 
     # ------------------------------------------------------------------ modal analysis
-    @functools.lru_cache(maxsize=8)  # noqa: B019 - the model is immutable after __init__
     def modes(self, n_modes: int | None = None) -> ModalBasis:
         """The lowest ``n_modes`` undamped modes (all modes if None and the model is small).
 
@@ -554,6 +558,14 @@ class LineModel:
                 )
             n_modes = n
         n_modes = check_int("n_modes", n_modes, low=1, high=n)
+        # The model is immutable after __init__, so each mode count is solved once per model;
+        # the arrays are read-only so no caller can change what the next one gets.
+        if n_modes not in self._modes_cache:
+            self._modes_cache[n_modes] = self._solve_modes(n_modes)
+        return self._modes_cache[n_modes]
+
+    def _solve_modes(self, n_modes: int) -> ModalBasis:
+        n = self.n_dofs
         try:
             if n <= DENSE_EIGEN_LIMIT or n_modes >= n - 1:
                 omega2, shapes = scipy.linalg.eigh(
@@ -585,7 +597,8 @@ class LineModel:
         signs = np.sign(shapes[np.argmax(np.abs(shapes), axis=0), np.arange(n_modes)])
         shapes = shapes * signs
         omega = np.sqrt(omega2)
-        return ModalBasis(omega=omega, shapes=shapes, damping=self._modal_damping(omega, shapes))
+        return ModalBasis(omega=_read_only(omega), shapes=_read_only(shapes),
+                          damping=_read_only(self._modal_damping(omega, shapes)))
 
     def _modal_damping(self, omega: np.ndarray, shapes: np.ndarray) -> np.ndarray:
         damping = shapes.T @ (self.damper_matrix @ shapes)

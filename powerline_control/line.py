@@ -13,7 +13,7 @@ from importlib import resources
 import numpy as np
 
 from ._validation import check_int, check_real
-from .errors import InputError
+from .errors import InputError, PresetNotFoundError
 
 __all__ = ["Conductor", "Span", "conductors", "PAPER_LAB_MASS_PER_LENGTH"]
 
@@ -240,7 +240,7 @@ class _ConductorCatalogue(Mapping[str, Conductor]):
             return self._presets[name]
         except KeyError:
             allowed = ", ".join(repr(n) for n in self._presets)
-            raise InputError(
+            raise PresetNotFoundError(
                 f"Unknown conductor preset {name!r}; the presets are {allowed}."
             ) from None
 

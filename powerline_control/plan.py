@@ -202,7 +202,8 @@ class Trajectory:
         >>> float(np.round(traj.sample(traj.duration / 2)[0], 6))
         0.5
         """
-        times = np.clip(check_array("t", t, ndim=(0, 1)), 0.0, self.duration)
+        requested = check_array("t", t, ndim=(0, 1))
+        times = np.clip(requested, 0.0, self.duration)
         if self.t.size == 1:
             zeros = np.zeros_like(times)
             return zeros + self.position[0], zeros + self.velocity[0], zeros
@@ -212,7 +213,9 @@ class Trajectory:
         j = self.jerk[k] if self.jerk is not None else 0.0
         position = p + v * tau + a * tau**2 / 2 + j * tau**3 / 6
         velocity = v + a * tau + j * tau**2 / 2
-        acceleration = a + j * tau
+        # Before the start and after the end the robot holds its state: no acceleration.
+        outside = (requested < 0.0) | (requested > self.duration)
+        acceleration = np.where(outside, 0.0, a + j * tau)
         return position, velocity, acceleration
 
 

@@ -26,6 +26,7 @@ import scipy.signal
 
 from ._validation import check_array, check_int, check_real, check_rng
 from .errors import InputError, ModelError, TruncationWarning
+from .excitation import BoundAeolianForce, HarmonicForce
 from .fem import LineModel
 
 __all__ = ["Snapshots", "simulate"]
@@ -98,13 +99,23 @@ def _as_force_list(force: object) -> list:
         return []
     forces = list(force) if isinstance(force, list | tuple) else [force]
     for item in forces:
-        is_load = hasattr(item, "values") and hasattr(item, "load_vector")
+        is_load = all(hasattr(item, name) for name in ("values", "load_vector", "position"))
         if not (is_load or hasattr(item, "bind")):
             raise InputError(
-                "The 'force' parameter must be a load (HarmonicForce, AeolianForce, "
-                f"RandomForce), a list of them or None. Got {type(item).__name__}."
+                "The 'force' parameter must be a load (HarmonicForce, AeolianForce, RandomForce, "
+                "or an object with values(t), load_vector(model) and position), a list of them "
+                f"or None. Got {type(item).__name__}."
             )
     return forces
+
+
+def _sine_frequency(force: object) -> float | None:
+    """Frequency of a load that is exactly amplitude * sin(2 pi f t + phase), else None.
+
+    Only those are integrated in closed form; any other load (a user's own included) goes
+    through its ``values(t)``, whatever attributes it carries.
+    """
+    return force.frequency if isinstance(force, HarmonicForce | BoundAeolianForce) else None
 
 
 def _initial_dofs(model: LineModel, name: str, value: object) -> np.ndarray:
@@ -229,7 +240,7 @@ def simulate(
             )
     t = dt * np.arange(int(np.floor(duration / dt + 1e-9)) + 1)
     nyquist = 0.5 / dt
-    load_frequencies = [f.frequency for f in forces if f.frequency is not None]
+    load_frequencies = [f for f in map(_sine_frequency, forces) if f is not None]
     if n_modes is None:
         # Large models: the modes the samples can show, but no more than the load can drive
         # dynamically (above ~4x its frequency a mode only responds quasi-statically, ~1/omega^2).
@@ -256,9 +267,8 @@ def simulate(
     for f in forces:
         forcing = complex_modes.input_gain(basis.shapes.T @ f.load_vector(model))
         values = f.values(start_time + t)
-        if f.frequency is not None and _exact_harmonic_possible(
-            complex_modes.eigenvalues, f.frequency
-        ):
+        frequency = _sine_frequency(f)
+        if frequency is not None and _exact_harmonic_possible(complex_modes.eigenvalues, frequency):
             plus, minus = _harmonic_phasors(complex_modes.eigenvalues, forcing, f, start_time)
             rotation = np.exp(2j * np.pi * f.frequency * t)
             clean += (

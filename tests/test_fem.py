@@ -259,3 +259,13 @@ def test_bad_model_arguments(kwargs, name):
 def test_bad_parameters_name_the_parameter(make, name):
     with pytest.raises(InputError, match=name):
         make()
+
+
+def test_modes_are_cached_per_model_and_read_only():
+    model = plc.LineModel(LAB, 20)
+    basis = model.modes(3)
+    assert model.modes(n_modes=3) is basis
+    with pytest.raises(ValueError, match="read-only"):
+        basis.omega[:] = 0.0
+    # Another model's cache is its own.
+    assert plc.LineModel(LAB, 20).modes(3) is not basis

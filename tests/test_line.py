@@ -47,3 +47,10 @@ def test_span_without_stiffness_is_rejected():
 def test_booleans_are_not_numbers():
     with pytest.raises(plc.InputError, match="length"):
         plc.Span(length=True, tension=1.0, conductor=plc.conductors["drake"])
+
+
+def test_catalogue_behaves_as_a_mapping():
+    assert "drake" in plc.conductors and "unobtainium" not in plc.conductors
+    assert plc.conductors.get("unobtainium") is None
+    with pytest.raises(KeyError):
+        plc.conductors["unobtainium"]

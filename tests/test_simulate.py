@@ -1,5 +1,6 @@
 """Simulation against closed forms: free vibration, FOH vs exact harmonic, noise, warnings."""
 
+import control as ct
 import numpy as np
 import pytest
 
@@ -143,3 +144,44 @@ def test_continuing_from_final_state_equals_one_long_run(force):
     # evaluated at the same absolute times).
     np.testing.assert_allclose(joined, whole.true_displacement, atol=1e-12 * np.abs(joined).max())
     np.testing.assert_allclose(second.t, whole.t[400:], atol=1e-12)
+
+
+def test_user_load_with_a_frequency_attribute_is_integrated_from_its_values():
+    class SquareWave:
+        """A 5 N square wave: it has a frequency, but it is no sine."""
+
+        frequency = 12.0
+        position = 0.5
+
+        def values(self, t):
+            return 5.0 * np.sign(np.sin(2 * np.pi * self.frequency * t))
+
+        def load_vector(self, model):
+            return model.point_load(self.position)
+
+    model = plc.LineModel(LAB, 10)
+    snap = plc.simulate(model, SquareWave(), duration=0.5, dt=1e-4)
+    # The independent peer integrates the same sampled values (linear between samples).
+    reference = ct.forced_response(model.to_statespace(force_positions=[0.5]), snap.t,
+                                   SquareWave().values(snap.t)).outputs
+    np.testing.assert_allclose(snap.displacement, reference, atol=1e-9 * np.abs(reference).max())
+
+
+def test_load_without_position_is_a_clear_error():
+    class Nowhere:
+        def values(self, t):
+            return np.ones_like(t)
+
+        def load_vector(self, model):
+            return model.point_load(1.0)
+
+    with pytest.raises(InputError, match="position"):
+        plc.simulate(MODEL20, Nowhere(), duration=0.1, dt=1e-3)
+
+
+def test_random_force_rejects_generators_so_values_repeat():
+    with pytest.raises(InputError, match="seed"):
+        plc.RandomForce(1.0, 0.5, seed=np.random.default_rng(0))
+    force = plc.RandomForce(1.0, 0.5, seed=3)
+    t = np.linspace(0, 1, 7)
+    np.testing.assert_array_equal(force.values(t), force.values(t))
