@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import cvxpy as cp
 import numpy as np
@@ -404,7 +405,40 @@ def _weighted_sum_expr(mats: np.ndarray, z: cp.Variable):
 
 
 @dataclass
-class LogDetCriterion:
+class _WeightedSumCriterion:
+    """A criterion of ``W(S) = sum_{i in S} W_i`` (maximised, stored negated as a cost).
+
+    Subclasses give ``_cost`` (the cost of a batch of ``W``) and ``_keep_smallest``: which
+    eigen-directions of ``sum_i W_i`` the cut relaxation keeps when ``d > relaxation_rank``.
+    """
+
+    mats: np.ndarray  # (m, d, d) the W_i
+    relaxation_rank: int = 20
+    n_exact: int = 0
+    sense: str = "maximize"
+    relaxation_scale: float = 1.0
+    _keep_smallest: ClassVar[bool] = False
+
+    def __post_init__(self) -> None:
+        self._reduced_mats = _project(self.mats, _subspace(self.mats, self.relaxation_rank,
+                                                           smallest=self._keep_smallest))
+
+    @staticmethod
+    def _cost(w: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def exact(self, layouts: np.ndarray, chunk: int = 256) -> np.ndarray:
+        layouts = np.atleast_2d(layouts)
+        out = np.empty(len(layouts))
+        for start in range(0, len(layouts), chunk):
+            w = self.mats[layouts[start:start + chunk]].sum(axis=1)
+            out[start:start + chunk] = self._cost(w)
+        self.n_exact += len(layouts)
+        return out
+
+
+@dataclass
+class LogDetCriterion(_WeightedSumCriterion):
     """D-optimal: ``log det sum_{i in S} W_i`` (Gramian) or ``log det Psi_S^T Psi_S`` (basis).
 
     ``mats`` holds, per candidate, ``W_i``: the finite-horizon Gramian of candidate ``i`` or the
@@ -415,26 +449,10 @@ class LogDetCriterion:
     the starting weights, and the bound comes from Frank-Wolfe steps on the full relaxation.
     """
 
-    mats: np.ndarray  # (m, d, d) the W_i
-    relaxation_rank: int = 20
-    n_exact: int = 0
-    sense: str = "maximize"
-    relaxation_scale: float = 1.0
-
-    def __post_init__(self) -> None:
-        self._reduced_mats = _project(self.mats, _subspace(self.mats, self.relaxation_rank,
-                                                           smallest=False))
-
-    def exact(self, layouts: np.ndarray, chunk: int = 256) -> np.ndarray:
-        layouts = np.atleast_2d(layouts)
-        out = np.empty(len(layouts))
-        for start in range(0, len(layouts), chunk):
-            part = layouts[start:start + chunk]
-            w = self.mats[part].sum(axis=1)
-            sign, logdet = np.linalg.slogdet(w)
-            out[start:start + chunk] = np.where(sign > 0, -logdet, np.inf)
-        self.n_exact += len(layouts)
-        return out
+    @staticmethod
+    def _cost(w: np.ndarray) -> np.ndarray:
+        sign, logdet = np.linalg.slogdet(w)
+        return np.where(sign > 0, -logdet, np.inf)
 
     def relaxation(self, z: cp.Variable):
         return -cp.log_det(_weighted_sum_expr(self._reduced_mats, z))
@@ -453,7 +471,7 @@ class LogDetCriterion:
 
 
 @dataclass
-class MinEigCriterion:
+class MinEigCriterion(_WeightedSumCriterion):
     """E-optimal: the smallest eigenvalue of ``sum_{i in S} W_i`` (maximised).
 
     For ``d`` larger than ``relaxation_rank`` the relaxation keeps the directions ``U`` where
@@ -461,24 +479,11 @@ class MinEigCriterion:
     so the reduced problem still bounds every layout from above.
     """
 
-    mats: np.ndarray
-    relaxation_rank: int = 20
-    n_exact: int = 0
-    sense: str = "maximize"
-    relaxation_scale: float = 1.0
+    _keep_smallest: ClassVar[bool] = True
 
-    def __post_init__(self) -> None:
-        self._reduced_mats = _project(self.mats, _subspace(self.mats, self.relaxation_rank,
-                                                           smallest=True))
-
-    def exact(self, layouts: np.ndarray, chunk: int = 256) -> np.ndarray:
-        layouts = np.atleast_2d(layouts)
-        out = np.empty(len(layouts))
-        for start in range(0, len(layouts), chunk):
-            w = self.mats[layouts[start:start + chunk]].sum(axis=1)
-            out[start:start + chunk] = -np.linalg.eigvalsh((w + np.swapaxes(w, 1, 2)) / 2)[:, 0]
-        self.n_exact += len(layouts)
-        return out
+    @staticmethod
+    def _cost(w: np.ndarray) -> np.ndarray:
+        return -np.linalg.eigvalsh((w + np.swapaxes(w, 1, 2)) / 2)[:, 0]
 
     def relaxation(self, z: cp.Variable):
         return -cp.lambda_min(_weighted_sum_expr(self._reduced_mats, z))

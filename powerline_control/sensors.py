@@ -15,10 +15,12 @@ criterion                 exact (integer) criterion                             
 ========================  =========================================================  ==========
 
 The relaxed optimum bounds every integer layout (the certificate); the weights are rounded and
-then improved by a swap search judged on the *exact* criterion. For ``"kalman"`` the swaps are
-ranked by a one-step surrogate and only the most promising are solved exactly, with a batched
-doubling Riccati solver (see :mod:`powerline_control._sensor_criteria`), because a DARE per swap
-is what makes a naive search take minutes at ``n = 101``.
+then improved by a swap search judged on the *exact* criterion. When there are few layouts
+(``brute_force_limit``) every feasible one is evaluated, and the certificate is the optimum.
+For ``"kalman"`` the swaps are ranked by a one-step surrogate and only the most promising are
+solved exactly, with a batched doubling Riccati solver (see
+:mod:`powerline_control._sensor_criteria`), because a DARE per swap is what makes a naive
+search take minutes at ``n = 101``.
 
 Work happens in units of the measurement noise (covariances divided by a reference variance): on
 a line the covariances are ~1e-8 m^2 and, unscaled, the conic solvers return infinite bounds.
@@ -50,7 +52,8 @@ from ._sensor_criteria import (
     linear_extreme,
 )
 from ._validation import check_array, check_choice, check_int, check_psd, check_real, check_rng
-from .errors import InputError, SensorSelectionError
+from .errors import EstimationError, InputError, SensorSelectionError
+from .observability import _check_discrete_system, _solve_filter_dare
 
 __all__ = ["select_sensors", "SensorSelection", "Baseline", "sensor_count_study",
            "SensorCountStudy"]
@@ -110,12 +113,14 @@ class SensorSelection:
         ``"gramian"`` / ``"reconstruction"`` a log determinant, for ``"min-eig"`` an eigenvalue.
     bound : float
         Certificate: no layout satisfying the constraints does better than this (a lower bound
-        for a minimised criterion, an upper bound for a maximised one).
+        for a minimised criterion, an upper bound for a maximised one). Equal to ``objective``
+        when ``certificate`` is ``"exhaustive"``.
     gap : float
         Relative distance to the bound, >= 0, an upper bound on the distance to the best layout:
         ``(objective - bound) / objective`` for ``"kalman"``; ``(bound - objective) / bound`` for
         ``"min-eig"``; ``1 - exp(-(bound - objective) / d)`` for the log determinants (the gap in
-        the geometric-mean eigenvalue ``det^(1/d)``, ``d`` the matrix size).
+        the geometric-mean eigenvalue ``det^(1/d)``, ``d`` the matrix size). 0 when
+        ``certificate`` is ``"exhaustive"`` (the layout is proved optimal).
     weights : numpy.ndarray
         Relaxed weights ``z`` (read-only), one per candidate.
     criterion : str
@@ -137,7 +142,9 @@ class SensorSelection:
     certificate : str
         ``"convexity"``: the bound comes from the convexity inequality at the solver's weights
         with an exact linear program, valid whatever the solver's accuracy; ``"solver"``: the
-        solver's optimal value (valid up to its tolerance).
+        solver's optimal value (valid up to its tolerance); ``"exhaustive"``: every feasible
+        layout was evaluated on the exact criterion (``C(m, k)`` within ``brute_force_limit``),
+        so ``nodes`` is the optimum, ``bound`` equals ``objective`` and ``gap`` is 0.
     n_exact_evaluations : int
         Exact criterion evaluations used (Riccati solves for ``"kalman"``).
     runtime : float
@@ -179,10 +186,22 @@ class SensorSelection:
             Markdown text.
         """
         better = "lower" if self.sense == "minimize" else "higher"
+        pct = f"{100 * self.gap:.3g} %"
+        # What the gap guarantees (see the ``gap`` attribute): a relative distance to the optimum.
+        if self.certificate == "exhaustive":
+            claim = ("proved optimal by exhaustive search over every feasible layout, within 0 % "
+                     "of the best possible layout")
+        elif self.sense == "minimize":
+            claim = (f"certified: the best possible layout's objective lies within {pct} below "
+                     "this one's")
+        else:
+            quantity = "objective" if self.criterion == "min-eig" else "det^(1/d)"
+            claim = (f"certified: this layout's {quantity} lies within {pct} below the best "
+                     "possible layout's")
         lines = [
             f"criterion {self.criterion!r} ({better} is better), k = {self.k}",
             f"nodes {list(self.nodes)}: objective {self.objective:.6g}, bound {self.bound:.6g}, "
-            f"within {100 * self.gap:.3g} % of the best possible layout",
+            f"gap {pct}: {claim}",
             "",
             "| layout | objective |",
             "|---|---|",
@@ -233,20 +252,6 @@ class SensorCountStudy:
 
 
 # -------------------------------------------------------------------------------- validation
-def _check_system(sys: object) -> ct.StateSpace:
-    if not isinstance(sys, ct.StateSpace):
-        raise InputError(
-            "The 'sys' parameter must be a discrete control.StateSpace whose outputs are the "
-            f"candidate sensors. Got {type(sys).__name__} instead."
-        )
-    if not sys.isdtime(strict=True):
-        raise InputError(
-            "The 'sys' parameter must be a discrete-time system (dt > 0); sensor selection uses "
-            "the discrete Kalman filter. Discretise it first, e.g. model.to_statespace(dt=1e-3)."
-        )
-    return sys
-
-
 def _check_noise(R: object, m: int) -> np.ndarray:
     if isinstance(R, numbers.Real) and not isinstance(R, bool):
         return np.full(m, check_real("R", R, low=0.0))
@@ -656,7 +661,8 @@ def select_sensors(
     n_random : int
         Random layouts in the baseline (mean and best).
     brute_force_limit : int
-        Enumerate every feasible layout when ``C(m, k)`` is at most this (0 disables).
+        Enumerate every feasible layout when ``C(m, k)`` is at most this (0 disables); the
+        result is then proved optimal (``certificate="exhaustive"``, ``gap`` 0).
     seed : int, numpy.random.Generator or None
         Seed of the random baseline.
 
@@ -691,7 +697,7 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
                     budget, error_weight, basis, horizon, relaxation_rank, solver, n_random,
                     brute_force_limit, seed) -> SensorSelection:
     started = time.perf_counter()
-    sys = _check_system(sys)
+    sys = _check_discrete_system("sys", sys)
     a = np.asarray(sys.A, dtype=float)
     c = np.asarray(sys.C, dtype=float)
     n, m = a.shape[0], c.shape[0]
@@ -762,10 +768,10 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
     greedy = _greedy(crit, feas, k)
     if greedy is not None:
         starts.append(greedy)
-    if not starts and brute_force_limit:  # rounding and greedy can stall where a layout exists
-        found = _brute_force(crit, feas, k, brute_force_limit)
-        if found is not None:
-            starts.append(found[0])
+    # Every feasible layout, when there are few enough: the exact optimum.
+    brute = _brute_force(crit, feas, k, brute_force_limit) if brute_force_limit else None
+    if not starts and brute is not None:  # rounding and greedy can stall where a layout exists
+        starts.append(brute[0])
     if not starts:
         raise SensorSelectionError(
             "No layout honouring the constraints could be built from the relaxed weights; "
@@ -777,7 +783,6 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
         layout, value = _swap_search(crit, feas, start, start_cost)
         if best_layout is None or value < best_cost:
             best_layout, best_cost = layout, value
-    brute = _brute_force(crit, feas, k, brute_force_limit) if brute_force_limit else None
     if brute is not None and brute[1] < best_cost:
         best_layout, best_cost = brute
     if not np.isfinite(best_cost):
@@ -786,6 +791,10 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
             "criterion is infinite): some mode on or outside the unit circle is invisible to "
             "them. Raise k or add candidates."
         )
+    if brute is not None:
+        # The search saw every feasible layout: best_cost is the optimum itself, a tighter bound
+        # than any relaxation.
+        bound_cost, certificate = best_cost, "exhaustive"
     bound_cost = min(bound_cost, best_cost)  # guard against round-off above the optimum
 
     baselines = _baselines(crit, feas, k, greedy, psi, x, rng, n_random, brute, to_physical)
@@ -990,8 +999,20 @@ def _simulated_rms(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, h
                    layout: Sequence[int], n_steps: int, rng: np.random.Generator) -> float:
     """RMS of ``H (x - x_hat)`` for a steady-state Kalman filter on a simulated trajectory."""
     cs, rs = c[list(layout)], r[list(layout)]
-    prior = sla.solve_discrete_are(a.T, cs.T, q, np.diag(rs))
+    try:  # SciPy's solver, with the doubling fallback for ill-conditioned identified models
+        prior = _solve_filter_dare(a, cs, q, np.diag(rs))
+    except EstimationError as exc:
+        raise SensorSelectionError(
+            f"The steady-state Kalman filter of the layout {list(layout)} that checks the "
+            f"predicted RMS error could not be computed: {exc}"
+        ) from exc
     gain = np.linalg.solve(cs @ prior @ cs.T + np.diag(rs), cs @ prior).T
+    # The error of the prediction evolves by A (I - K C): a stabilising solution makes it stable.
+    if np.max(np.abs(np.linalg.eigvals(a - a @ gain @ cs))) >= 1:
+        raise SensorSelectionError(
+            f"The layout {list(layout)} cannot estimate the state (its Kalman filter is not "
+            "stable): some mode on or outside the unit circle is invisible to it."
+        )
     lam, vec = np.linalg.eigh((q + q.T) / 2)
     q_half = vec * np.sqrt(np.clip(lam, 0, None))
     lam, vec = np.linalg.eigh((prior + prior.T) / 2)
@@ -1062,7 +1083,7 @@ def sensor_count_study(
     >>> study.k, bool(study.rms_error[1] < study.rms_error[0])
     ((1, 2), True)
     """
-    sys = _check_system(sys)
+    sys = _check_discrete_system("sys", sys)
     ks = [check_int("k_values", k, low=1) for k in k_values]
     if not ks or sorted(set(ks)) != ks:
         raise InputError(

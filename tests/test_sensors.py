@@ -52,6 +52,16 @@ def line_problem(seed: int, bc: str = "pinned", n_modes: int = 5):
     return model, sys, q, noise_std**2
 
 
+def brute_force_optimum(sys, k, criterion, **kwargs) -> float:
+    """The optimum over every layout: the library's own enumeration (its brute-force baseline).
+
+    Tests of the relaxation's certificate run without it (``brute_force_limit=0``), since with it
+    the bound is the enumerated optimum itself.
+    """
+    sel = plc.select_sensors(sys, k=k, criterion=criterion, n_random=0, **kwargs)
+    return sel.baselines["brute-force"].objective
+
+
 def exact_trace(sys, q, r, layout) -> float:
     """Independent exact criterion: SciPy's DARE through observability.py."""
     return float(np.trace(steady_state_covariance(sys, q, r, list(layout))))
@@ -267,6 +277,17 @@ def test_bad_input_names_the_parameter(kwargs, message):
         plc.select_sensors(sys, **args)
 
 
+def test_nan_in_the_model_is_rejected():
+    model, sys, q, r = line_problem(0)
+    a = np.array(sys.A)
+    a[0, 1] = np.nan
+    bad = ct.ss(a, sys.B, sys.C, sys.D, sys.dt)
+    with pytest.raises(InputError, match="'sys' parameter has 1 NaN or infinite entries"):
+        plc.select_sensors(bad, k=2, Q=q, R=r)
+    with pytest.raises(InputError, match="'sys'"):
+        plc.sensor_count_study(bad, [1, 2], Q=q, R=r)
+
+
 def test_continuous_system_is_rejected():
     model = plc.LineModel(SPAN, n_elements=4)
     with pytest.raises(InputError, match="discrete-time"):
@@ -277,9 +298,10 @@ def test_continuous_system_is_rejected():
 @pytest.mark.parametrize("solver", ["CLARABEL", "SCS"])
 def test_solvers_shipped_with_cvxpy_give_a_sound_certificate(solver):
     model, sys, q, r = line_problem(2)
-    sel = plc.select_sensors(sys, k=3, Q=q, R=r, solver=solver, n_random=0)
+    # Without brute force, so that the bound is the relaxation's (brute force would replace it).
+    sel = plc.select_sensors(sys, k=3, Q=q, R=r, solver=solver, n_random=0, brute_force_limit=0)
     assert sel.solver == solver and sel.certificate == "convexity"
-    optimum = sel.baselines["brute-force"].objective
+    optimum = brute_force_optimum(sys, 3, "kalman", Q=q, R=r)
     assert sel.bound <= optimum * (1 + 1e-9) and sel.objective == pytest.approx(optimum)
 
 
@@ -295,6 +317,25 @@ def test_undetectable_model_is_reported():
     sys = ct.ss(a, np.zeros((2, 0)), np.array([[0.0, 1.0], [0.0, 2.0]]), np.zeros((2, 0)), 1.0)
     with pytest.raises(SensorSelectionError, match="cannot estimate the state"):
         plc.select_sensors(sys, k=1, Q=np.eye(2))
+
+
+# ------------------------------------------------------------------------ exhaustive search
+def test_exhaustive_search_certifies_the_optimum_with_zero_gap():
+    sys, q = random_system(5)  # 10 candidates, k = 3: C(10, 3) = 120 layouts, brute force runs
+    r = 0.1
+    sel = plc.select_sensors(sys, k=3, Q=q, R=r, n_random=0)
+    # Independent brute force: SciPy's DARE (through observability.py) on every layout.
+    values = {lay: exact_trace(sys, q, r, lay) for lay in itertools.combinations(range(10), 3)}
+    optimum = min(values.values())
+    # Two Riccati solvers (batched doubling vs SciPy's QZ): round-off, 1e-8 relative.
+    assert sel.objective == pytest.approx(optimum, rel=1e-8)
+    assert values[sel.nodes] == pytest.approx(optimum, rel=1e-8)
+    assert sel.certificate == "exhaustive" and sel.gap == 0 and sel.bound == sel.objective
+    assert "proved optimal" in sel.summary()
+    # Without the enumeration the same problem gets the relaxation's (looser) certificate.
+    relaxed = plc.select_sensors(sys, k=3, Q=q, R=r, n_random=0, brute_force_limit=0)
+    assert relaxed.certificate == "convexity" and relaxed.bound <= optimum * (1 + 1e-8)
+    assert f"gap {100 * relaxed.gap:.3g} %: certified" in relaxed.summary()
 
 
 # --------------------------------------------------------------------------- result object
@@ -326,6 +367,34 @@ def test_sensor_count_study_simulation_agrees_with_riccati():
     again = plc.sensor_count_study(sys, [1, 2, 3], Q=q, R=r, n_steps=10, seed=1,
                                    error_weight="outputs", target_error=target)
     assert again.smallest_k == 2
+
+
+def test_sensor_count_study_survives_a_failing_qz_dare(monkeypatch):
+    """SciPy's QZ DARE gives up on some identified models; the doubling fallback takes over."""
+    model, sys, q, r = line_problem(9)
+    reference = plc.sensor_count_study(sys, [1, 2], Q=q, R=r, n_steps=200, seed=1)
+
+    calls = []
+
+    def fail(*args, **kwargs):
+        calls.append(args)
+        raise np.linalg.LinAlgError("Failed to find a finite solution.")
+
+    monkeypatch.setattr(sla, "solve_discrete_are", fail)
+    study = plc.sensor_count_study(sys, [1, 2], Q=q, R=r, n_steps=200, seed=1)
+    assert len(calls) == 2 and study.layouts == reference.layouts  # one DARE per k, both failed
+    # Same seeded simulation, two Riccati solvers: only round-off differs.
+    np.testing.assert_allclose(study.simulated_rms_error, reference.simulated_rms_error,
+                               rtol=1e-6)
+
+
+def test_simulated_rms_refuses_a_layout_that_cannot_estimate_the_state():
+    from powerline_control.sensors import _simulated_rms
+
+    a = np.diag([1.0, 0.5])  # a random walk that candidate 1 does not see
+    with pytest.raises(SensorSelectionError, match=r"layout \[1\] cannot estimate the state"):
+        _simulated_rms(a, np.eye(2), np.eye(2), np.ones(2), np.eye(2), [1], 10,
+                       np.random.default_rng(0))
 
 
 # ------------------------------------------------------------ must show: the paper's 101 states
@@ -364,8 +433,8 @@ def test_cut_relaxation_still_bounds_the_optimum(criterion):
     """relaxation_rank below the state size: the cvxpy problem is cut, the bound must hold."""
     model, sys, q, r = line_problem(13, "clamped", n_modes=3)  # 6 states, cut to 3
     sel = plc.select_sensors(sys, k=3, criterion=criterion, Q=q, R=r, relaxation_rank=3,
-                             n_random=0)
-    optimum = sel.baselines["brute-force"].objective  # every layout, exact criterion
+                             n_random=0, brute_force_limit=0)
+    optimum = brute_force_optimum(sys, 3, criterion, Q=q, R=r)  # every layout, exact criterion
     if sel.sense == "minimize":
         assert sel.bound <= optimum * (1 + 1e-9)
     else:
@@ -376,8 +445,9 @@ def test_cut_relaxation_still_bounds_the_optimum(criterion):
 @pytest.mark.parametrize("criterion", ["reconstruction", "gramian"])
 def test_scs_handles_the_log_det_relaxations(criterion):
     model, sys, q, r = line_problem(3, n_modes=3)
-    sel = plc.select_sensors(sys, k=3, criterion=criterion, Q=q, R=r, solver="SCS", n_random=0)
-    optimum = sel.baselines["brute-force"].objective
+    sel = plc.select_sensors(sys, k=3, criterion=criterion, Q=q, R=r, solver="SCS", n_random=0,
+                             brute_force_limit=0)
+    optimum = brute_force_optimum(sys, 3, criterion, Q=q, R=r)
     assert sel.solver == "SCS" and sel.bound >= optimum - 1e-9 * abs(optimum)
 
 
