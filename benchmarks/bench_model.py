@@ -5,29 +5,19 @@ BLAS is pinned to one thread (set below, before numpy loads): on this shared 2-c
 multi-threaded BLAS was measured 15-50x slower under load.
 """
 
-import os
+import sys
+from pathlib import Path
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"
-
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 import argparse  # noqa: E402
-import statistics  # noqa: E402
-import time  # noqa: E402
 
+import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import control as ct  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.linalg  # noqa: E402
+from _common import timed  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
-
-
-def timed(func, repeats):
-    times, result = [], None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = func()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), result
 
 
 def modal_rows(sizes, repeats):
@@ -104,7 +94,7 @@ def main():
     repeats = 1 if args.quick else 3
     sizes = (100, 1000) if args.quick else (100, 1000, 5000)
     rows = modal_rows(sizes, repeats) + simulation_rows(repeats)
-    print("BLAS threads pinned to 1 (OPENBLAS/OMP/MKL_NUM_THREADS=1); median of", repeats, "runs\n")
+    print(f"{_common.PINNED}; median of {repeats} runs\n")
     print("| workload | ours (s) | peer | peer (s) | peer / ours | agreement |")
     print("|---|---|---|---|---|---|")
     for name, ours, peer, peer_t, agree in rows:
