@@ -370,7 +370,9 @@ def _doubling_dare(
     Iterates ``A <- A W^-1 A``, ``G <- G + A W^-1 G A^T``, ``H <- H + A^T H W^-1 A`` with
     ``W = I + G H``, from ``A = A^T``, ``G = C^T R^-1 C``, ``H = Q``; ``H`` converges
     quadratically to the stabilising solution (Chu, Fan, Lin & Wang, 2004). The result is accepted
-    only if it satisfies the Riccati equation to a small relative residual.
+    only if it satisfies the Riccati equation to a small relative residual and is stabilising
+    (the predictor A - A P C^T S^-1 C has spectral radius < 1): an undetectable marginal mode
+    makes the iterates grow without bound while the relative residual can still look small.
     """
     n = a.shape[0]
     ak = a.T.copy()
@@ -400,6 +402,9 @@ def _doubling_dare(
     s = c @ pct + r
     residual = a @ (hk - pct @ np.linalg.solve(s, pct.T)) @ a.T + q - hk
     if np.max(np.abs(residual)) > 1e-8 * max(np.max(np.abs(hk)), np.max(np.abs(q))):
+        return None
+    predictor = a - a @ pct @ np.linalg.solve(s, c)
+    if np.max(np.abs(np.linalg.eigvals(predictor))) >= 1.0:
         return None
     return hk
 

@@ -284,3 +284,17 @@ def test_property_more_sensors_never_hurt(n, seed, radius):
     assert np.allclose(few, few.T) and np.linalg.eigvalsh(few).min() > -1e-9 * np.abs(few).max()
     # PSD order up to the round-off of two DARE solutions (1e-8 of the scale).
     assert np.linalg.eigvalsh(few - more).min() > -1e-8 * np.abs(few).max()
+
+
+def test_undetectable_random_walk_has_no_steady_state_even_through_the_fallback(monkeypatch):
+    # x1 is a random walk nobody measures; x2 is stable and measured. No stabilising Riccati
+    # solution exists: the doubling fallback must say so instead of returning ~1e60.
+    import scipy.linalg
+
+    def refuse(*args, **kwargs):
+        raise np.linalg.LinAlgError("forced: use the fallback")
+
+    monkeypatch.setattr(scipy.linalg, "solve_discrete_are", refuse)
+    sys = ct.ss(np.diag([1.0, 0.5]), np.zeros((2, 1)), [[0.0, 1.0]], [[0.0]], dt=1.0)
+    with pytest.raises(EstimationError, match="stabilising"):
+        steady_state_covariance(sys, Q=np.eye(2), R=1.0)
