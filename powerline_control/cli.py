@@ -198,8 +198,8 @@ def _stage_estimate(scenario: Scenario, dmd, snap, n_train: int, report: _Report
         )
         sensors = list(selection.nodes)
         how = (
-            f"optimised (Kalman criterion; certified gap to the relaxation bound "
-            f"{100 * selection.gap:.2g} %)"
+            f"optimised (Kalman criterion; {selection.certificate} certificate: at most "
+            f"{100 * selection.gap:.2g} % from the best possible layout)"
         )
     held_out = slice(n_train, None)
     results = {}
