@@ -22,6 +22,8 @@ __all__ = [
     "check_square",
     "check_psd",
     "check_rng",
+    "check_indices",
+    "read_only",
 ]
 
 
@@ -172,3 +174,39 @@ def check_rng(seed: object) -> np.random.Generator:
             f"Got {_describe(seed)} instead."
         )
     return np.random.default_rng(int(seed))
+
+
+def check_indices(name: str, value: object, n: int, *, allow_empty: bool = False) -> np.ndarray:
+    """Return distinct integer indices into ``0..n-1`` (in the order given) as an int array.
+
+    Used for sensor, node and candidate lists. Booleans, floats and strings are rejected, as is
+    a bare integer where a list is expected.
+    """
+    if isinstance(value, str | numbers.Integral) or not isinstance(value, Sequence | np.ndarray):
+        raise InputError(
+            f"The {name!r} parameter must be a sequence of integer indices. "
+            f"Got {_describe(value)} instead."
+        )
+    items = list(np.ravel(value)) if isinstance(value, np.ndarray) else list(value)
+    for item in items:
+        if isinstance(item, bool | np.bool_) or not isinstance(item, numbers.Integral):
+            raise InputError(
+                f"The {name!r} parameter must contain integer indices. "
+                f"Got {_describe(item)} of type {type(item).__name__}."
+            )
+    index = np.asarray(items, dtype=int)
+    if index.size == 0 and not allow_empty:
+        raise InputError(f"The {name!r} parameter must name at least one index. Got none.")
+    if index.size and (index.min() < 0 or index.max() >= n):
+        raise InputError(
+            f"The {name!r} parameter must hold indices in [0, {n - 1}]. Got {index.tolist()}."
+        )
+    if np.unique(index).size != index.size:
+        raise InputError(f"The {name!r} parameter must not repeat an index. Got {index.tolist()}.")
+    return index
+
+
+def read_only(array: np.ndarray) -> np.ndarray:
+    """Mark ``array`` read-only and return it: results hand out arrays nobody can change."""
+    array.setflags(write=False)
+    return array

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ._validation import check_int, check_real, check_rng
+from ._validation import check_indices, check_int, check_real, check_rng
 from .antinode import locate_antinodes, nearest_antinode
 from .errors import InputError, PowerlineControlError
 from .estimate import KalmanFilter
@@ -277,9 +277,7 @@ def run_closed_loop(
             f"positive multiple of dt ({dt:g} s)."
         )
     n_elements = check_int("n_elements", n_elements, low=1)
-    sensors = tuple(check_int("sensors", s, low=0, high=n_elements) for s in sensors)
-    if not sensors:
-        raise InputError("The 'sensors' parameter must name at least one node.")
+    sensors = tuple(check_indices("sensors", sensors, n_elements + 1).tolist())
     rng = check_rng(seed)
     # The physics sees the robot's position rounded to 1 cm (0.3 % of the lab span, far below a
     # loop length): each new position costs an eigen-solve, and 1 cm moves nothing measurable.

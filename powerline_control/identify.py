@@ -33,7 +33,7 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 
-from ._validation import check_array, check_choice, check_int, check_real
+from ._validation import check_array, check_choice, check_indices, check_int, check_real
 from .errors import IdentificationError, IllConditionedWarning, InputError, UnstableModelWarning
 
 __all__ = [
@@ -487,19 +487,7 @@ def _spectral_order(values: np.ndarray) -> np.ndarray:
 def _check_nodes(name: str, nodes: object, n_nodes: int) -> list[int]:
     if nodes is None:
         return list(range(n_nodes))
-    values = np.atleast_1d(np.asarray(nodes))
-    ok_type = values.dtype.kind in "iu" or (values.size == 0 and values.dtype.kind == "f")
-    if values.ndim != 1 or not ok_type:
-        raise InputError(
-            f"The {name!r} parameter must be a sequence of integer node indices. Got {nodes!r}."
-        )
-    if values.size and (values.min() < 0 or values.max() >= n_nodes):
-        raise InputError(
-            f"The {name!r} parameter must hold node indices in [0, {n_nodes - 1}]. Got {nodes!r}."
-        )
-    if len(set(values.tolist())) != values.size:
-        raise InputError(f"The {name!r} parameter must not repeat a node. Got {nodes!r}.")
-    return [int(v) for v in values]
+    return check_indices(name, nodes, n_nodes, allow_empty=True).tolist()
 
 
 # ----------------------------------------------------------------------------------------------

@@ -30,7 +30,7 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 
-from ._validation import check_array, check_int, check_psd
+from ._validation import check_array, check_indices, check_int, check_psd
 from .errors import EstimationError, InputError
 
 __all__ = [
@@ -73,34 +73,10 @@ def _check_discrete_system(name: str, sys: object) -> ct.StateSpace:
 
 
 def _check_sensors(sensors: object, n_outputs: int) -> np.ndarray:
-    """Return sensor indices (sorted as given, no duplicates) into the outputs of the system."""
+    """Sensor indices into the outputs of the system (all of them when None)."""
     if sensors is None:
         return np.arange(n_outputs)
-    if isinstance(sensors, numbers.Integral) or isinstance(sensors, str):
-        raise InputError(
-            "The 'sensors' parameter must be a sequence of output indices. "
-            f"Got {sensors!r} instead."
-        )
-    items = list(sensors)  # type: ignore[call-overload]
-    for item in items:
-        if isinstance(item, bool) or not isinstance(item, numbers.Integral):
-            raise InputError(
-                "The 'sensors' parameter must contain integer output indices. "
-                f"Got {item!r} of type {type(item).__name__}."
-            )
-    index = np.asarray(items, dtype=int)
-    if index.size == 0:
-        raise InputError("The 'sensors' parameter must name at least one output. Got none.")
-    if np.any(index < 0) or np.any(index >= n_outputs):
-        raise InputError(
-            f"The 'sensors' parameter must contain indices in [0, {n_outputs - 1}] "
-            f"(the outputs of the system). Got {index.tolist()}."
-        )
-    if np.unique(index).size != index.size:
-        raise InputError(
-            f"The 'sensors' parameter must not repeat an output. Got {index.tolist()}."
-        )
-    return index
+    return check_indices("sensors", sensors, n_outputs)
 
 
 def _noise_covariance(name: str, value: object, size: int, index: np.ndarray | None = None):

@@ -51,7 +51,15 @@ from ._sensor_criteria import (
     frank_wolfe_bound,
     linear_extreme,
 )
-from ._validation import check_array, check_choice, check_int, check_psd, check_real, check_rng
+from ._validation import (
+    check_array,
+    check_choice,
+    check_indices,
+    check_int,
+    check_psd,
+    check_real,
+    check_rng,
+)
 from .errors import EstimationError, InputError, SensorSelectionError
 from .observability import _check_discrete_system, _solve_filter_dare
 
@@ -281,22 +289,7 @@ def _check_positions(positions: object, m: int) -> np.ndarray | None:
 def _check_indices(name: str, value: object, m: int) -> np.ndarray:
     if value is None:
         return np.zeros(0, dtype=int)
-    items = list(value) if isinstance(value, Sequence | np.ndarray) else None
-    if items is None or any(
-        isinstance(i, bool) or not isinstance(i, numbers.Integral) for i in items
-    ):
-        raise InputError(
-            f"The {name!r} parameter must be a sequence of candidate indices (int). "
-            f"Got {value!r} instead."
-        )
-    idx = np.array(items, dtype=int)
-    if idx.size and (idx.min() < 0 or idx.max() >= m):
-        raise InputError(
-            f"The {name!r} parameter must hold indices in 0..{m - 1}. Got {idx.tolist()}."
-        )
-    if len(set(idx.tolist())) != idx.size:
-        raise InputError(f"The {name!r} parameter has repeated indices: {idx.tolist()}.")
-    return idx
+    return check_indices(name, value, m, allow_empty=True)
 
 
 def _check_zones(forbidden: object) -> list[tuple[float, float]]:
@@ -1006,13 +999,8 @@ def _simulated_rms(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, h
             f"The steady-state Kalman filter of the layout {list(layout)} that checks the "
             f"predicted RMS error could not be computed: {exc}"
         ) from exc
+    # _solve_filter_dare returns only stabilising solutions: the filter below is stable.
     gain = np.linalg.solve(cs @ prior @ cs.T + np.diag(rs), cs @ prior).T
-    # The error of the prediction evolves by A (I - K C): a stabilising solution makes it stable.
-    if np.max(np.abs(np.linalg.eigvals(a - a @ gain @ cs))) >= 1:
-        raise SensorSelectionError(
-            f"The layout {list(layout)} cannot estimate the state (its Kalman filter is not "
-            "stable): some mode on or outside the unit circle is invisible to it."
-        )
     lam, vec = np.linalg.eigh((q + q.T) / 2)
     q_half = vec * np.sqrt(np.clip(lam, 0, None))
     lam, vec = np.linalg.eigh((prior + prior.T) / 2)
