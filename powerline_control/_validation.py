@@ -207,6 +207,7 @@ def check_indices(name: str, value: object, n: int, *, allow_empty: bool = False
 
 
 def read_only(array: np.ndarray) -> np.ndarray:
-    """Mark ``array`` read-only and return it: results hand out arrays nobody can change."""
+    """``array`` (made C-contiguous) marked read-only: results hand out arrays nobody can change."""
+    array = np.ascontiguousarray(array)
     array.setflags(write=False)
     return array

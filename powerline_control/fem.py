@@ -23,7 +23,7 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ._validation import check_array, check_choice, check_int, check_real
+from ._validation import check_array, check_choice, check_int, check_real, read_only
 from .errors import InputError, ModelError
 from .line import Span
 
@@ -223,11 +223,6 @@ class ModalBasis:
     def n_modes(self) -> int:
         """Number of modes kept."""
         return self.omega.size
-
-
-def _read_only(array: np.ndarray) -> np.ndarray:
-    array.setflags(write=False)
-    return array
 
 
 def _hermite(xi: np.ndarray, h: float) -> np.ndarray:
@@ -597,8 +592,8 @@ class LineModel:
         signs = np.sign(shapes[np.argmax(np.abs(shapes), axis=0), np.arange(n_modes)])
         shapes = shapes * signs
         omega = np.sqrt(omega2)
-        return ModalBasis(omega=_read_only(omega), shapes=_read_only(shapes),
-                          damping=_read_only(self._modal_damping(omega, shapes)))
+        return ModalBasis(omega=read_only(omega), shapes=read_only(shapes),
+                          damping=read_only(self._modal_damping(omega, shapes)))
 
     def _modal_damping(self, omega: np.ndarray, shapes: np.ndarray) -> np.ndarray:
         damping = shapes.T @ (self.damper_matrix @ shapes)

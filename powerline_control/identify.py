@@ -33,7 +33,7 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 
-from ._validation import check_array, check_choice, check_indices, check_int, check_real
+from ._validation import check_array, check_choice, check_indices, check_int, check_real, read_only
 from .errors import IdentificationError, IllConditionedWarning, InputError, UnstableModelWarning
 
 __all__ = [
@@ -61,12 +61,6 @@ _UNIT_CIRCLE_TOL = 1e-9
 # ----------------------------------------------------------------------------------------------
 # Results
 # ----------------------------------------------------------------------------------------------
-
-
-def _frozen(array: np.ndarray) -> np.ndarray:
-    array = np.ascontiguousarray(array)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,7 +191,7 @@ class DMDModel:
     def eigenvalues(self) -> np.ndarray:
         """Discrete-time eigenvalues of ``A``, by decreasing magnitude (complex, (n_states,))."""
         values = sla.eigvals(self.A)  # no eigenvectors: several times cheaper than eig
-        return _frozen(values[_spectral_order(values)])
+        return read_only(values[_spectral_order(values)])
 
     @cached_property
     def modes(self) -> np.ndarray:
@@ -207,18 +201,18 @@ class DMDModel:
         round-off.
         """
         values, vectors = sla.eig(self.A)
-        return _frozen(vectors[:, _spectral_order(values)])
+        return read_only(vectors[:, _spectral_order(values)])
 
     @property
     def mode_shapes(self) -> np.ndarray:
         """Nodal mode shapes ``field_map @ modes``, shape (n_nodes, n_states), complex."""
-        return _frozen(self.field_map @ self.modes)
+        return read_only(self.field_map @ self.modes)
 
     @cached_property
     def amplitudes(self) -> np.ndarray:
         """Mode amplitudes ``b`` with ``modes @ b = initial_state`` (least squares), complex."""
         b, *_ = sla.lstsq(self.modes, self.initial_state.astype(complex))
-        return _frozen(b)
+        return read_only(b)
 
     @property
     def spectral_radius(self) -> float:
@@ -240,18 +234,18 @@ class DMDModel:
         """``s = log(lambda) / dt`` (rad/s).  An eigenvalue at 0 maps to ``log(tiny)/dt``."""
         magnitude = np.maximum(np.abs(self.eigenvalues), np.finfo(float).tiny)
         s = (np.log(magnitude) + 1j * np.angle(self.eigenvalues)) / self.dt
-        return _frozen(s)
+        return read_only(s)
 
     @property
     def frequencies(self) -> np.ndarray:
         """Undamped natural frequency ``|s| / 2 pi`` of each eigenvalue, Hz (0 for lambda = 0)."""
         f = np.abs(self.continuous_eigenvalues) / (2 * np.pi)
-        return _frozen(np.where(self._at_origin, 0.0, f))
+        return read_only(np.where(self._at_origin, 0.0, f))
 
     @property
     def damped_frequencies(self) -> np.ndarray:
         """Damped frequency ``|Im s| / 2 pi`` of each eigenvalue, Hz."""
-        return _frozen(np.abs(self.continuous_eigenvalues.imag) / (2 * np.pi))
+        return read_only(np.abs(self.continuous_eigenvalues.imag) / (2 * np.pi))
 
     @property
     def damping_ratios(self) -> np.ndarray:
@@ -260,7 +254,7 @@ class DMDModel:
         magnitude = np.abs(s)
         safe = np.where(magnitude > 0, magnitude, 1.0)
         zeta = np.where(magnitude > 0, -s.real / safe, 0.0)
-        return _frozen(np.where(self._at_origin, 1.0, zeta))
+        return read_only(np.where(self._at_origin, 1.0, zeta))
 
     @property
     def _at_origin(self) -> np.ndarray:
@@ -725,7 +719,7 @@ def _covariance(scatter: np.ndarray, n_states: int, n_pairs: int) -> np.ndarray:
     Q = np.zeros((n_states, n_states))
     k = scatter.shape[0]
     Q[:k, :k] = scatter / n_pairs
-    return _frozen((Q + Q.T) / 2)
+    return read_only((Q + Q.T) / 2)
 
 
 def _ridge_svd(
@@ -796,19 +790,19 @@ def _fit_problem(
         field_map = problem.basis[:n_nodes]
     s_max = problem.s_max
     return DMDModel(
-        A=_frozen(A),
-        B=None if B is None else _frozen(B),
+        A=read_only(A),
+        B=None if B is None else read_only(B),
         dt=dt,
         alpha=alpha,
         alpha_relative=alpha / s_max**2 if s_max > 0 else 0.0,
         delays=problem.delays,
         rank=None if problem.basis is None else n_states,
         n_nodes=n_nodes,
-        field_map=_frozen(field_map),
-        basis=None if problem.basis is None else _frozen(problem.basis),
+        field_map=read_only(field_map),
+        basis=None if problem.basis is None else read_only(problem.basis),
         residual_covariance=covariance,
         n_pairs=n_pairs,
-        initial_state=_frozen(problem.regressor[:n_states, 0].copy()),
+        initial_state=read_only(problem.regressor[:n_states, 0].copy()),
     )
 
 
@@ -1194,14 +1188,14 @@ def select_alpha(
         best_stable = float(given[meets][int(np.argmin(multi_arr[meets]))])
     persistence = _relative_error(held[:, :-1], held[:, 1:])
     return AlphaCurve(
-        alphas=_frozen(given),
+        alphas=read_only(given),
         alpha_mode=alpha_mode,
-        alphas_absolute=_frozen(absolute),
-        alphas_relative=_frozen(relative),
-        spectral_radius=_frozen(radius_arr),
-        n_unstable=_frozen(np.array(unstable, dtype=int)),
-        one_step_error=_frozen(np.array(one_step)),
-        multi_step_error=_frozen(multi_arr),
+        alphas_absolute=read_only(absolute),
+        alphas_relative=read_only(relative),
+        spectral_radius=read_only(radius_arr),
+        n_unstable=read_only(np.array(unstable, dtype=int)),
+        one_step_error=read_only(np.array(one_step)),
+        multi_step_error=read_only(multi_arr),
         persistence_error=persistence,
         margin=margin,
         horizon=horizon,
@@ -1396,17 +1390,17 @@ class OnlineDMD:
         Q[:k, :k] = self._residual_sum / self._weight
         s_max = self._s_max
         return DMDModel(
-            A=_frozen(A),
-            B=None if B is None else _frozen(B),
+            A=read_only(A),
+            B=None if B is None else read_only(B),
             dt=self.dt,
             alpha=self.alpha,
             alpha_relative=self.alpha / s_max**2 if s_max > 0 else 0.0,
             delays=self.delays,
             rank=None,
             n_nodes=self._n_nodes,
-            field_map=_frozen(np.eye(self._n_nodes, self._n_states)),
+            field_map=read_only(np.eye(self._n_nodes, self._n_states)),
             basis=None,
-            residual_covariance=_frozen((Q + Q.T) / 2),
+            residual_covariance=read_only((Q + Q.T) / 2),
             n_pairs=self._initial_pairs + self.n_updates,
-            initial_state=_frozen(self._first_state),
+            initial_state=read_only(self._first_state),
         )

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ._validation import read_only
 from .errors import FileFormatError, InputError
 from .identify import DMDModel
 
@@ -112,28 +113,22 @@ def _dmd_from_arrays(arrays: dict[str, np.ndarray], metadata: dict[str, Any]) ->
     if has_basis:
         basis = _expect_shape("basis", arrays["basis"], (n_nodes * delays, n))
     return DMDModel(
-        A=_readonly(_expect_shape("A", A, (n, n))),
-        B=None if B is None else _readonly(B),
+        A=read_only(_expect_shape("A", A, (n, n))),
+        B=None if B is None else read_only(B),
         dt=dt,
         alpha=alpha,
         alpha_relative=alpha_relative,
         delays=delays,
         rank=rank,
         n_nodes=n_nodes,
-        field_map=_readonly(_expect_shape("field_map", arrays["field_map"], (n_nodes, n))),
-        basis=None if basis is None else _readonly(basis),
-        residual_covariance=_readonly(
+        field_map=read_only(_expect_shape("field_map", arrays["field_map"], (n_nodes, n))),
+        basis=None if basis is None else read_only(basis),
+        residual_covariance=read_only(
             _expect_shape("residual_covariance", arrays["residual_covariance"], (n, n))
         ),
         n_pairs=n_pairs,
-        initial_state=_readonly(_expect_shape("initial_state", arrays["initial_state"], (n,))),
+        initial_state=read_only(_expect_shape("initial_state", arrays["initial_state"], (n,))),
     )
-
-
-def _readonly(array: np.ndarray) -> np.ndarray:
-    array = np.ascontiguousarray(array)
-    array.setflags(write=False)
-    return array
 
 
 def save_model(path: str | os.PathLike[str], model: DMDModel) -> None:

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ._validation import check_array, check_choice, check_int, check_real
+from ._validation import check_array, check_choice, check_int, check_real, read_only
 from .errors import InputError, PlanningError
 
 __all__ = ["RobotLimits", "Trajectory", "plan_motion", "MotionPlanner", "MPCStep"]
@@ -528,13 +528,6 @@ def _solve(program: _Program) -> tuple[ca.OptiSol | None, dict, float]:
     return solution, stats, elapsed
 
 
-def _read_only(array: np.ndarray) -> np.ndarray:
-    """A result's arrays are read-only, like the frozen dataclass that holds them."""
-    array = np.array(array, dtype=float)
-    array.flags.writeable = False
-    return array
-
-
 def _trajectory_from(
     program: _Program,
     solution: ca.OptiSol,
@@ -559,11 +552,11 @@ def _trajectory_from(
         a0, a1 = acceleration[:-1], acceleration[1:]
         energy = float(h / 3 * np.sum(a0 * a0 + a0 * a1 + a1 * a1))
     return Trajectory(
-        t=_read_only(np.linspace(0.0, duration, n + 1)),
-        position=_read_only(states[0].copy()),
-        velocity=_read_only(states[1].copy()),
-        acceleration=_read_only(acceleration),
-        jerk=None if jerk is None else _read_only(jerk),
+        t=read_only(np.linspace(0.0, duration, n + 1)),
+        position=read_only(states[0].copy()),
+        velocity=read_only(states[1].copy()),
+        acceleration=read_only(acceleration),
+        jerk=None if jerk is None else read_only(jerk),
         duration=duration,
         energy=energy,
         objective=objective,
