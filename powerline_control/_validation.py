@@ -8,6 +8,7 @@ allowed and the value received, in the style of scikit-learn's parameter validat
 from __future__ import annotations
 
 import numbers
+import os
 from collections.abc import Sequence
 
 import numpy as np
@@ -24,7 +25,17 @@ __all__ = [
     "check_rng",
     "check_indices",
     "read_only",
+    "MEMORY_BUDGET_BYTES",
+    "WORK_BUDGET",
+    "check_budget",
 ]
+
+# Default budgets for what one public call may commit before it starts (documented in
+# docs/conventions.md). A user with a bigger machine raises them per call (``memory_budget=``)
+# or for the session with the environment variables below; the point is a clear refusal with
+# the number, instead of a 12 GiB allocation or a loop that runs for an hour.
+MEMORY_BUDGET_BYTES = int(float(os.environ.get("POWERLINE_CONTROL_MEMORY_BUDGET", 4 * 2**30)))
+WORK_BUDGET = int(float(os.environ.get("POWERLINE_CONTROL_WORK_BUDGET", 1e12)))
 
 
 def _describe(value: object) -> str:
@@ -211,3 +222,57 @@ def read_only(array: np.ndarray) -> np.ndarray:
     array = np.ascontiguousarray(array)
     array.setflags(write=False)
     return array
+
+
+def _format_bytes(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if n < 1024 or unit == "TiB":
+            return f"{n:.3g} {unit}"
+        n /= 1024
+    return f"{n:.3g} TiB"  # pragma: no cover
+
+
+def check_budget(
+    what: str,
+    *,
+    nbytes: float = 0.0,
+    flops: float = 0.0,
+    parameter: str,
+    value: object,
+    fix: str,
+    memory_budget: float | None = None,
+    work_budget: float | None = None,
+) -> None:
+    """Refuse, before allocating, a call whose estimated memory or work exceeds the budget.
+
+    ``nbytes`` and ``flops`` are estimates made from the arguments alone; ``parameter`` and
+    ``value`` name what drives them and ``fix`` says how to reduce it. Budgets default to
+    :data:`MEMORY_BUDGET_BYTES` (4 GiB) and :data:`WORK_BUDGET` (1e12 floating-point operations,
+    minutes on one core), each overridable per call.
+
+    Examples
+    --------
+    >>> check_budget("the mass matrix", nbytes=8 * 1000**2, parameter="n_elements",
+    ...              value=1000, fix="use fewer elements")
+    >>> check_budget("the mass matrix", nbytes=8 * 10**6 * 10**6, parameter="n_elements",
+    ...              value=10**6, fix="use fewer elements")
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: ...
+    """
+    memory_budget = MEMORY_BUDGET_BYTES if memory_budget is None else memory_budget
+    work_budget = WORK_BUDGET if work_budget is None else work_budget
+    if nbytes > memory_budget:
+        raise InputError(
+            f"{what} would need about {_format_bytes(nbytes)} of memory (the {parameter!r} "
+            f"parameter is {_describe(value)}), over the budget of {_format_bytes(memory_budget)}. "
+            f"To fix: {fix}, or raise the budget (memory_budget=... or the environment variable "
+            "POWERLINE_CONTROL_MEMORY_BUDGET)."
+        )
+    if flops > work_budget:
+        raise InputError(
+            f"{what} would need about {flops:.2g} floating-point operations (the {parameter!r} "
+            f"parameter is {_describe(value)}), over the budget of {work_budget:.2g}. "
+            f"To fix: {fix}, or raise the budget (work_budget=... or the environment variable "
+            "POWERLINE_CONTROL_WORK_BUDGET)."
+        )

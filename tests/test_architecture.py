@@ -14,8 +14,11 @@ import powerline_control as plc
 PACKAGE = pathlib.Path(plc.__file__).parent
 
 # design.md section 2: a module may import only modules above it. Leaf utilities are free.
-ORDER = ["line", "fem", "excitation", "simulate", "identify", "observability", "estimate",
-         "sensors", "antinode", "plan", "closed_loop", "studies"]
+# Planned homes: tuning (tune_damper), riccati (_riccati: the one DARE solver), recipe
+# (design_estimator), severity (the energy balance; it uses plan.RobotLimits).
+ORDER = ["line", "fem", "tuning", "excitation", "simulate", "identify", "riccati",
+         "observability", "estimate", "sensors", "recipe", "antinode", "plan", "severity",
+         "closed_loop", "studies"]
 LEAVES = {"errors", "_validation"}
 ANYTHING_GOES = {"plotting", "report", "io", "config", "cli", "__init__", "__main__"}
 
