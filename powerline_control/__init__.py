@@ -62,22 +62,36 @@ from .sensors import Baseline, SensorCountStudy, SensorSelection, select_sensors
 from .antinode import Antinode, largest_antinode, locate_antinodes, nearest_antinode
 from .plan import MotionPlanner, MPCStep, RobotLimits, Trajectory, plan_motion
 
+# --- aeolian severity by the energy balance (severity.py) ---
+from .severity import (
+    SELF_DAMPING_LAWS, WIND_POWER_CURVES, AtAntinode, CatenaryCheck, ImpedanceDamper, RobotValue,
+    SelfDampingLaw, SeverityResult, TimeDomainCheck, WindDistribution, WindPowerCurve,
+    aeolian_severity, catenary_check, damper_impedance, damper_power, harmonic_mean_position,
+    robot_value, self_damping_power, time_domain_check, wind_power,
+)
+
 # --- the whole chain (closed_loop.py) ---
 from .closed_loop import ClosedLoopResult, run_closed_loop
 from .studies import StudyResult, parameter_grid, run_study
 
 __all__ = [
     "Accuracy",
+    "aeolian_severity",
     "AeolianForce",
     "AlphaCurve",
     "analyze_observability",
     "Antinode",
+    "AtAntinode",
     "Baseline",
+    "catenary_check",
+    "CatenaryCheck",
     "ClosedLoopResult",
     "compare_sensor_sets",
     "Conductor",
     "conductors",
     "Consistency",
+    "damper_impedance",
+    "damper_power",
     "DMDModel",
     "Estimate",
     "estimation_accuracy",
@@ -85,9 +99,11 @@ __all__ = [
     "FileFormatError",
     "filter_consistency",
     "fit_dmd",
+    "harmonic_mean_position",
     "HarmonicForce",
     "IdentificationError",
     "IllConditionedWarning",
+    "ImpedanceDamper",
     "InputError",
     "KalmanFilter",
     "largest_antinode",
@@ -112,17 +128,23 @@ __all__ = [
     "PresetNotFoundError",
     "RandomForce",
     "RayleighDamping",
+    "robot_value",
     "RobotLimits",
+    "RobotValue",
     "run_closed_loop",
     "run_study",
     "save_model",
     "select_alpha",
     "select_sensors",
+    "SELF_DAMPING_LAWS",
+    "self_damping_power",
+    "SelfDampingLaw",
     "sensor_count_study",
     "SensorCountStudy",
     "SensorSelection",
     "SensorSelectionError",
     "SensorSetComparison",
+    "SeverityResult",
     "simulate",
     "Snapshots",
     "Span",
@@ -130,9 +152,15 @@ __all__ = [
     "steady_state_covariance",
     "strouhal_frequency",
     "StudyResult",
+    "time_domain_check",
+    "TimeDomainCheck",
     "Trajectory",
     "TruncationWarning",
     "UnstableModelWarning",
+    "wind_power",
+    "WIND_POWER_CURVES",
+    "WindDistribution",
+    "WindPowerCurve",
 ]
 
 __version__ = "0.1.0"
