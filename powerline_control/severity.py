@@ -1583,7 +1583,7 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     True
     """
     span = _check_span(span)
-    speed = float(_check_wind_speeds([wind_speed])[0])
+    speed = check_real("wind_speed", wind_speed, low=0.0)
     n_elements = check_int("n_elements", n_elements, low=2)
     settle = check_real("settle", settle, low=0.0)
     samples = check_int("samples_per_period", samples_per_period, low=4)
