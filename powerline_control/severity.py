@@ -600,7 +600,8 @@ class AtAntinode:
     """A damper (an :class:`~powerline_control.fem.MDR` or :class:`ImpedanceDamper`) that sits
     at an antinode at every wind speed: the robot that has reached its target.
 
-    Its own ``position`` is ignored; the placement factor is 1.
+    Its own ``position`` is ignored; the placement factor phi^2 is ``factor`` (1 at the
+    antinode; 1/2 is its average over a uniform traverse from a node to an antinode).
 
     Parameters
     ----------
@@ -608,6 +609,8 @@ class AtAntinode:
         The device.
     label : str
         Name in tables and figures.
+    factor : float
+        Placement factor phi^2 in [0, 1] (default 1: at the antinode).
 
     Examples
     --------
@@ -618,8 +621,11 @@ class AtAntinode:
 
     damper: MDR | ImpedanceDamper
     label: str = "robot at antinode"
+    factor: float = 1.0
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "factor", check_real("factor", self.factor, low=0.0,
+                                                      low_inclusive=True, high=1.0))
         if not isinstance(self.damper, MDR | ImpedanceDamper):
             raise InputError("The 'damper' parameter of AtAntinode must be an MDR or an "
                              f"ImpedanceDamper. Got {type(self.damper).__name__}.")
@@ -711,7 +717,7 @@ def damper_power(damper: MDR | ImpedanceDamper | AtAntinode, span: Span,
     """
     y = check_array("amplitude", amplitude)
     if isinstance(damper, AtAntinode):
-        factor = 1.0
+        factor = damper.factor
     else:
         if not isinstance(damper, MDR | ImpedanceDamper):
             raise InputError("The 'damper' parameter must be an MDR, an ImpedanceDamper or an "
@@ -1349,6 +1355,8 @@ class RobotValue:
         lifetime used per year).
     persistence : float
         How long a wind speed persists, s.
+    en_route : str
+        The span's state while the robot travels ("average" or "undamped").
 
     Examples
     --------
@@ -1369,6 +1377,7 @@ class RobotValue:
     fraction_over_endurance: np.ndarray
     fatigue_index: np.ndarray
     persistence: float
+    en_route: str = "average"
 
     def table(self) -> list[dict]:
         """One row per configuration.
@@ -1401,6 +1410,7 @@ def robot_value(
     *,
     distribution: WindDistribution | None = None,
     persistence: float = 600.0,
+    en_route: str = "average",
     **severity_options,
 ) -> RobotValue:
     """What a robot at the antinode is worth against no damper and the same damper parked at x*.
@@ -1408,9 +1418,13 @@ def robot_value(
     Model (documented in docs/severity.md): each wind speed bin holds for ``persistence``
     seconds at a time; at each change the robot starts, in the worst case, half a loop from the
     nearest antinode and needs the time-optimal rest-to-rest move under ``limits`` to get there.
-    Until it arrives the span is counted as undamped (conservative: the robot passes nodes);
-    afterwards at the antinode amplitude. Cycles per year in a bin are f x probability x one
-    year; Miner's damage sums cycles / (cycles to the safe border line at the clamp stress).
+    Until it arrives the span vibrates at the ``en_route`` amplitude: ``"average"`` (default)
+    the steady amplitude with the damper's placement factor averaged over a node-to-antinode
+    traverse (phi^2 = 1/2), ``"undamped"`` (a conservative bound) the undamped one; afterwards
+    at the antinode amplitude. Cycles per year in a bin are f x probability x one year; Miner's
+    damage sums cycles / (cycles to the safe border line at the clamp stress). Both numbers
+    assume aeolian vibration whenever the wind is in the band: they compare configurations,
+    they do not predict a service life.
 
     Parameters
     ----------
@@ -1426,6 +1440,8 @@ def robot_value(
         Wind climate (default Weibull k = 2, c = 4 m/s).
     persistence : float
         How long a wind speed lasts, s (default 600: the 10-minute mean of wind records).
+    en_route : {"average", "undamped"}
+        The span's state while the robot travels (see above).
     **severity_options
         Passed to :func:`aeolian_severity` (curve, law, St, ...).
 
@@ -1456,6 +1472,7 @@ def robot_value(
         raise InputError("The 'distribution' parameter must be a WindDistribution. Got "
                          f"{type(distribution).__name__}.")
     persistence = check_real("persistence", persistence, low=0.0)
+    en_route = check_choice("en_route", en_route, ("average", "undamped"))
     strouhal = severity_options.get("strouhal", DEFAULT_STROUHAL)
     x_star = harmonic_mean_position(span, speeds, strouhal)
     if isinstance(damper, MDR):
@@ -1468,6 +1485,11 @@ def robot_value(
                              **severity_options)
     robot = aeolian_severity(span, speeds, (AtAntinode(damper),), label="robot at antinode",
                              **severity_options)
+    if en_route == "average":
+        moving = aeolian_severity(span, speeds, (AtAntinode(damper, "robot moving", 0.5),),
+                                  label="robot moving", **severity_options)
+    else:
+        moving = none
     move = np.array([_rest_to_rest_time(0.5 * loop, limits) for loop in robot.loop_length])
     at_antinode = np.clip(1.0 - move / persistence, 0.0, 1.0)
     probability = distribution.probability_of(speeds)
@@ -1482,17 +1504,17 @@ def robot_value(
 
     fraction = np.array([
         over(none).sum(), over(fixed).sum(),
-        (at_antinode * over(robot) + (1 - at_antinode) * over(none)).sum()])
+        (at_antinode * over(robot) + (1 - at_antinode) * over(moving)).sum()])
     index = np.array([
         yearly(none).sum(), yearly(fixed).sum(),
-        (at_antinode * yearly(robot) + (1 - at_antinode) * yearly(none)).sum()])
+        (at_antinode * yearly(robot) + (1 - at_antinode) * yearly(moving)).sum()])
     return RobotValue(
         configurations=("no damper", "fixed damper at x*", "robot at antinode"),
         severities=(none, fixed, robot), probability=read_only(probability),
         fixed_position=x_star, move_time=read_only(move),
         time_at_antinode=read_only(at_antinode),
         fraction_over_endurance=read_only(fraction), fatigue_index=read_only(index),
-        persistence=persistence)
+        persistence=persistence, en_route=en_route)
 
 
 # --------------------------------------------------------------------------- time-domain check

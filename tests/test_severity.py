@@ -246,7 +246,7 @@ def test_fatigue_index_is_miners_sum_on_the_safe_border_line():
     climate = plc.WindDistribution.histogram([0.75, 2.25, 3.75, 5.25, 6.75, 12.0],
                                              [0.15, 0.2, 0.15, 0.1, 0.1 / 5.25])
     value = plc.robot_value(span, robot, plc.RobotLimits(0.3, 0.5), speeds,
-                            distribution=climate, persistence=300.0)
+                            distribution=climate, persistence=300.0, en_route="undamped")
     none = value.severities[0]
     # Bins centred on the speeds with edges half way: exactly the histogram's bins here.
     np.testing.assert_allclose(value.probability, [0.225, 0.3, 0.225, 0.15], rtol=1e-12)
@@ -264,6 +264,14 @@ def test_fatigue_index_is_miners_sum_on_the_safe_border_line():
     move = np.where(half <= 0.3**2 / 0.5, 2 * np.sqrt(half / 0.5), half / 0.3 + 0.3 / 0.5)
     np.testing.assert_allclose(value.move_time, move, rtol=1e-12)
     np.testing.assert_allclose(value.time_at_antinode, 1 - move / 300.0, rtol=1e-12)
+    # Robot: at the antinode after the move, undamped before it (en_route="undamped").
+    robot_damage = 0.0
+    for i, (f, p) in enumerate(zip(none.frequency, value.probability, strict=True)):
+        per_cycle = [1 / float(sv._sbl_cycles(sev.stress_ps[i], "multi"))
+                     for sev in (value.severities[2], none)]
+        a = value.time_at_antinode[i]
+        robot_damage += f * p * 365.25 * 86400 * (a * per_cycle[0] + (1 - a) * per_cycle[1])
+    assert value.fatigue_index[2] == pytest.approx(robot_damage, rel=1e-12)
 
 
 def test_weibull_bins_are_cdf_differences():
@@ -400,6 +408,9 @@ CUSTOM = plc.Span(300.0, 20e3, plc.Conductor(1.5, 0.028, 40.0, rated_strength=12
     (lambda: sv.ImpedanceDamper(1.0, [2.0, 1.0], [1.0, 1.0]), r"'frequencies'.*ascending"),
     (lambda: STOCKBRIDGE_LIKE.impedance_at(90.0), r"'frequency'.*<= 80"),
     (lambda: sv.AtAntinode("robot"), r"'damper'.*MDR.*ImpedanceDamper"),
+    (lambda: sv.AtAntinode(ROBOT, factor=1.5), r"'factor'.*<= 1"),
+    (lambda: plc.robot_value(SPAN, ROBOT, plc.RobotLimits(0.3, 0.5), en_route="parked"),
+     r"'en_route'.*'average'.*'undamped'"),
     (lambda: plc.wind_power(0.05, 10.0, 0.028, wind_curve="pon"),
      r"'amplitude'.*\[0, 0\.3 D\].*'pon'"),
     (lambda: sv.standing_wave_shape(SPAN, 10.0, 301.0), r"'position'.*\[0, 300\]"),
