@@ -345,12 +345,26 @@ def test_catenary_parameter_check():
 # ----------------------------------------------------------------- time domain
 def test_time_domain_check_within_ten_percent():
     span = plc.Span.at_rts_fraction(26.0, "cardinal", 0.22)
-    check = plc.time_domain_check(span, 2.6, n_elements=52)
-    # The issue asks for 10 %; measured about 0.3 % (the residue is the clamped FE mode's
+    check = plc.time_domain_check(span, 2.6, n_elements=52, settle=6.0)  # e^-6 transient left
+    # The issue asks for 10 %; measured 0.2 % (the residue is the clamped FE mode's
     # projection on the sin(beta x) load and its modal mass against m L / 2).
     assert abs(check.relative_error) < 0.10
     assert check.frequency == pytest.approx(0.185 * check.wind_speed / 0.03038, rel=1e-12)
     assert 0.0 < check.damping_ratio < 0.01
+
+
+def test_time_domain_check_with_the_robot_in_the_fe_model():
+    span = plc.Span.at_rts_fraction(32.0, "drake", 0.19)
+    robot = plc.MDR.tuned(2.3, 0.0, 0.04, frequency=15.5, damping_ratio=0.25)
+    # settle = 6 decay times leaves e^-6 = 0.25 % of the start-up transient.
+    check = plc.time_domain_check(span, 2.1, n_elements=64, damper=robot, settle=6.0)
+    bare = plc.aeolian_severity(span, [check.wind_speed])
+    assert check.ebm_amplitude < 0.2 * bare.amplitude[0]     # the damper does the work here
+    # The FE computes the absorber's dissipation itself: this checks the first-order damper
+    # power (impedance and placement factor) against the coupled model. Measured 0.3 % (1-5 %
+    # for heavier or other placements); the issue's 10 % is the bound (the damper perturbs
+    # the standing wave at second order, which the energy balance ignores).
+    assert abs(check.relative_error) < 0.10
 
 
 # ----------------------------------------------------------------- plots
@@ -418,6 +432,8 @@ CUSTOM = plc.Span(300.0, 20e3, plc.Conductor(1.5, 0.028, 40.0, rated_strength=12
     (lambda: plc.catenary_check(SPAN, limit=-3.0), r"'limit'.*> 0"),
     (lambda: plc.time_domain_check(SPAN, 0.0, n_elements=40), r"'wind_speed'.*> 0"),
     (lambda: plc.time_domain_check(SPAN, 2.0, n_elements=1), r"'n_elements'.*>= 2"),
+    (lambda: plc.time_domain_check(SPAN, 2.0, n_elements=40, damper=STOCKBRIDGE_LIKE),
+     r"'damper'.*must be an MDR"),
 ])
 def test_bad_input(call, pattern):
     with pytest.raises(InputError, match=pattern):
