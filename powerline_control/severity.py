@@ -789,8 +789,9 @@ def _sbl_cycles(stress: np.ndarray, layers: str) -> np.ndarray:
     """
     threshold, a1, b1, a2, b2 = SAFE_BORDER_LINES[layers]
     s = np.maximum(np.asarray(stress, dtype=float) / 1e6, 1e-300)
-    first = (s / a1) ** (1 / b1)
-    second = (s / a2) ** (1 / b2)
+    with np.errstate(over="ignore"):  # vanishing stress: infinitely many cycles, as intended
+        first = (s / a1) ** (1 / b1)
+        second = (s / a2) ** (1 / b2)
     cycles = np.where(first <= threshold, first, np.where(second >= threshold, second, threshold))
     return np.where(np.asarray(stress) > 0, cycles, np.inf)
 
