@@ -29,7 +29,7 @@ import scipy.optimize
 from ._validation import check_array, check_choice, check_int, check_real, read_only
 from .errors import InputError
 from .excitation import AIR_DENSITY, DEFAULT_STROUHAL, AeolianForce
-from .fem import MDR, LineModel, ModalDamping
+from .fem import DENSE_EIGEN_LIMIT, MDR, LineModel, ModalDamping
 from .line import Span
 from .plan import RobotLimits
 from .simulate import simulate
@@ -1629,6 +1629,11 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     cond = span.conductor
     target = strouhal * speed / cond.diameter
     bare = LineModel(span, n_elements=n_elements, bc=bc)
+    if bare.n_dofs > DENSE_EIGEN_LIMIT:
+        raise InputError(
+            f"The 'n_elements' parameter ({n_elements}) gives {bare.n_dofs} DOFs; the time-domain "
+            f"check solves all modes densely and accepts up to {DENSE_EIGEN_LIMIT} DOFs. Use a "
+            "shorter span (tens of metres) or fewer elements.")
     n_modes = min(bare.n_dofs, max(10, int(3 * target / span.pinned_frequencies(1)[0]) + 5))
     frequencies = bare.natural_frequencies(n_modes)
     index = int(np.argmin(np.abs(frequencies - target)))

@@ -357,6 +357,25 @@ def test_clamp_stress_formulas_and_their_agreement():
     np.testing.assert_allclose(result.sbl_margin, sbl / result.stress_ps, rtol=1e-12)
 
 
+@pytest.mark.parametrize("mode_index", [3, 5])
+def test_clamped_standing_wave_matches_the_fe_mode_near_the_clamp(mode_index):
+    """The clamp shape behind Poffenberger-Swart's Y_b and the placement factor, against the
+    clamped FE model (h = 3.5 cm against the boundary layer 1/alpha = 4 cm)."""
+    span = plc.Span.at_rts_fraction(7.0, "cardinal", 0.23)
+    model = plc.LineModel(span, n_elements=200, bc="clamped")
+    basis = model.modes(6)
+    f = float(basis.frequencies[mode_index])
+    x = np.linspace(0.0, 0.5, 51)
+    everywhere = model.displacement_map(np.linspace(0.0, 7.0, 2801)) @ basis.shapes[:, mode_index]
+    fe = model.displacement_map(x) @ basis.shapes[:, mode_index]
+    fe = fe / np.max(np.abs(everywhere)) * np.sign(fe[10])
+    phi = sv.standing_wave_shape(span, f, x)
+    # Measured 1-2e-4 (FE error plus sampling the peak on a 2.5 mm grid); a plain sine (no
+    # boundary layer) misses by 5-8e-2, so 1e-3 tells the two apart.
+    assert np.max(np.abs(fe - phi)) < 1e-3
+    assert np.max(np.abs(fe - np.sin(math.pi * x / sv.loop_length(span, f)))) > 2e-2
+
+
 def test_user_self_damping_law():
     span = plc.Span.at_rts_fraction(250.0, "cardinal", 0.21)
     p = plc.self_damping_power(0.0031, 17.0, span, self_damping_k=0.7,
@@ -478,6 +497,8 @@ CUSTOM = plc.Span(300.0, 20e3, plc.Conductor(1.5, 0.028, 40.0, rated_strength=12
     (lambda: plc.catenary_check(SPAN, limit=-3.0), r"'limit'.*> 0"),
     (lambda: plc.time_domain_check(SPAN, 0.0, n_elements=40), r"'wind_speed'.*> 0"),
     (lambda: plc.time_domain_check(SPAN, 2.0, n_elements=1), r"'n_elements'.*>= 2"),
+    (lambda: plc.time_domain_check(SPAN, 2.0, n_elements=700),
+     r"'n_elements'.*700.*1200 DOFs.*shorter span"),
     (lambda: plc.time_domain_check(SPAN, 2.0, n_elements=40, damper=STOCKBRIDGE_LIKE),
      r"'damper'.*must be an MDR"),
 ])
