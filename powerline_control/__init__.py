@@ -67,7 +67,8 @@ from .severity import (
     SELF_DAMPING_LAWS, WIND_POWER_CURVES, AtAntinode, CatenaryCheck, ImpedanceDamper, RobotValue,
     SelfDampingLaw, SeverityResult, TimeDomainCheck, WindDistribution, WindPowerCurve,
     aeolian_severity, catenary_check, damper_impedance, damper_power, harmonic_mean_position,
-    robot_value, self_damping_power, time_domain_check, wind_power,
+    loop_length, robot_value, self_damping_power, standing_wave_shape, time_domain_check,
+    turbulence_factor, wind_power,
 )
 
 # --- the whole chain (closed_loop.py) ---
@@ -110,6 +111,7 @@ __all__ = [
     "LineModel",
     "load_model",
     "locate_antinodes",
+    "loop_length",
     "MDR",
     "ModalBasis",
     "ModalDamping",
@@ -149,6 +151,7 @@ __all__ = [
     "Snapshots",
     "Span",
     "StabilityReport",
+    "standing_wave_shape",
     "steady_state_covariance",
     "strouhal_frequency",
     "StudyResult",
@@ -156,6 +159,7 @@ __all__ = [
     "TimeDomainCheck",
     "Trajectory",
     "TruncationWarning",
+    "turbulence_factor",
     "UnstableModelWarning",
     "wind_power",
     "WIND_POWER_CURVES",
