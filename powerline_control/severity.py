@@ -868,9 +868,11 @@ class SeverityResult:
     strain_pp, strain_pp_fymax : ndarray
         Peak-to-peak bending strain at the clamp (2 sigma_a / E_a) by the two methods.
     sbl_margin : ndarray
-        Safe-border-line stress at ``reference_cycles`` divided by ``stress_ps`` (> 1: below).
+        Safe-border-line stress at ``reference_cycles`` divided by ``stress_ps`` (> 1: below;
+        +inf where the span does not vibrate).
     endurance_margin : ndarray
-        ``endurance_strain_pp`` divided by ``strain_pp`` (> 1: below the endurance strain).
+        ``endurance_strain_pp`` divided by ``strain_pp`` (> 1: below the endurance strain;
+        +inf where the span does not vibrate).
     label : str
         Configuration name.
     damper_labels : tuple of str
