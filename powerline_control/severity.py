@@ -589,7 +589,12 @@ class ImpedanceDamper:
         (2+0j)
         """
         low, high = self.frequencies[0], self.frequencies[-1]
-        frequency = check_real("frequency", frequency, low=low, high=high, low_inclusive=True)
+        frequency = check_real("frequency", frequency, low=0.0)
+        if not low <= frequency <= high:
+            raise InputError(
+                f"The 'frequency' ({frequency:g} Hz) is outside the impedance table of damper "
+                f"{self.label!r} ({low:g}-{high:g} Hz); extend the table or restrict the wind "
+                "speeds.")
         z = np.asarray(self.impedance)
         return complex(np.interp(frequency, self.frequencies, z.real)
                        + 1j * np.interp(frequency, self.frequencies, z.imag))
