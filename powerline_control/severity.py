@@ -28,7 +28,7 @@ import scipy.optimize
 
 from ._validation import check_array, check_choice, check_int, check_real, read_only
 from .errors import InputError
-from .excitation import AIR_DENSITY, DEFAULT_STROUHAL, AeolianForce
+from .excitation import DEFAULT_STROUHAL, AeolianForce
 from .fem import DENSE_EIGEN_LIMIT, MDR, LineModel, ModalDamping
 from .line import Span
 from .plan import RobotLimits
@@ -63,6 +63,7 @@ __all__ = [
 ]
 
 GRAVITY = 9.80665
+AIR_DENSITY = 1.225  # kg/m^3, for the lift coefficient of the time-domain check's load
 SECONDS_PER_YEAR = 365.25 * 86400.0
 #: Young's modulus of the aluminium outer strands, Pa (domain.md 2.6, E_Al).
 ALUMINIUM_MODULUS = 68.9e9
@@ -1665,7 +1666,8 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     q = 4 * float(sev.wind_power[0]) / (omega * y)
     lift = q / (0.5 * AIR_DENSITY * speed**2 * cond.diameter)
     model = LineModel(span, n_elements=n_elements, bc=bc, damping=ModalDamping(zeta), mdr=damper)
-    force = AeolianForce(wind_speed=speed, strouhal=strouhal, lift_coefficient=lift)
+    force = AeolianForce(wind_speed=speed, strouhal=strouhal, lift_coefficient=lift,
+                         air_density=AIR_DENSITY)
     period = 1.0 / f
     # The settling run only has to carry the state forward (harmonic loads are propagated in
     # closed form, exact at any sample interval), so it samples coarsely (Nyquist 2 f); the
