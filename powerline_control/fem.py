@@ -22,6 +22,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
 
 from ._validation import (
     check_array,
@@ -943,6 +944,9 @@ class LineModel:
             self._modes_cache[n_modes] = self._solve_modes(n_modes)
         return self._modes_cache[n_modes]
 
+    # One BLAS thread: the eigen-solves are small-matrix work (ARPACK's restarts, eigh of a
+    # few thousand), measured 10x slower with two contending threads on a shared 2-core machine.
+    @threadpool_limits.wrap(limits=1, user_api="blas")
     def _solve_modes(self, n_modes: int) -> ModalBasis:
         n = self.n_dofs
         try:
@@ -969,12 +973,17 @@ class LineModel:
                 f"The stiffness matrix is not positive definite (lowest omega^2 = "
                 f"{omega2[0]:.3g}); check tension, EI and supports."
             )
-        # Normalise to unit modal mass (eigsh does not guarantee it) and a positive first entry
-        # of largest magnitude, so shapes are reproducible.
+        # Normalise to unit modal mass (eigsh does not guarantee it) and a sign that survives
+        # round-off: the leftmost nodal displacement of at least half the peak is positive (the
+        # largest entry alone is ambiguous: symmetric modes have equal peaks).
         modal_mass = np.einsum("ik,ik->k", shapes, self.mass_matrix @ shapes)
         shapes = shapes / np.sqrt(modal_mass)
-        signs = np.sign(shapes[np.argmax(np.abs(shapes), axis=0), np.arange(n_modes)])
-        shapes = shapes * signs
+        nodal = self.displacement_map() @ shapes
+        if self.mdr is not None and self.mdr.has_absorber:
+            nodal = np.vstack([nodal, shapes[-1:]])     # a mode of the absorber alone
+        big = np.abs(nodal) >= 0.5 * np.abs(nodal).max(axis=0)
+        signs = np.sign(nodal[np.argmax(big, axis=0), np.arange(n_modes)])
+        shapes = shapes * np.where(signs == 0, 1.0, signs)
         omega = np.sqrt(omega2)
         return ModalBasis(omega=read_only(omega), shapes=read_only(shapes),
                           damping=read_only(self._modal_damping(omega, shapes)))
