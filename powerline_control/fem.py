@@ -125,9 +125,10 @@ def physics_mesh(span: Span, bc: tuple[str, str], max_frequency: float,
     Interior elements are at most ``loop_length(max_frequency) / elements_per_loop`` long. At a
     clamped support the bending boundary layer ``delta = sqrt(EI / T)`` is resolved like the
     shortest loop: the first element is ``delta * pi / (4 elements_per_loop)`` long (4x finer
-    in k h for exp(-x / delta) than for sin(k x); :data:`BOUNDARY_LAYER_REFINEMENT`), and sizes grow by
-    :data:`GRADING_RATIO` up to the interior size. Every size scales with 1 / elements_per_loop, so refinement keeps the mesh's shape and
-    the error falls at the interior rate.
+    in k h for exp(-x / delta) than for sin(k x); :data:`BOUNDARY_LAYER_REFINEMENT`), and sizes
+    grow by :data:`GRADING_RATIO` up to the interior size. Every size scales with
+    1 / elements_per_loop, so refinement keeps the mesh's shape and the error falls at the
+    interior rate.
 
     Examples
     --------
@@ -561,8 +562,9 @@ class LineModel:
             needed = LineModel._needed_elements(span, self.max_frequency, per_loop)
             warnings.warn(
                 f"The mesh of 'n_elements'={self.n_elements} does not resolve the requested band "
-                f"up to {self.max_frequency:.4g} Hz (loop {span.loop_length(self.max_frequency):.3g}"
-                f" m, elements up to {self.element_length:.3g} m; it resolves up to "
+                f"up to {self.max_frequency:.4g} Hz (loop "
+                f"{span.loop_length(self.max_frequency):.3g} m, elements up to "
+                f"{self.element_length:.3g} m; it resolves up to "
                 f"{self.max_resolved_frequency:.4g} Hz). Use about {needed} elements or "
                 "n_elements=None.",
                 TruncationWarning,
@@ -672,7 +674,8 @@ class LineModel:
         lo, hi = 0.0, f_hi
         for _ in range(60):   # bisection: the error estimate grows monotonically with f
             mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if self.frequency_error(mid) <= self.frequency_tolerance else (lo, mid)
+            ok = self.frequency_error(mid) <= self.frequency_tolerance
+            lo, hi = (mid, hi) if ok else (lo, mid)
         return lo
 
     def check_resolution(self, frequency: float, what: str = "load") -> bool:

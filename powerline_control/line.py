@@ -236,7 +236,9 @@ class Span:
         """
         f = np.asarray(frequency, dtype=float)
         if np.any(~np.isfinite(f)) or np.any(f < 0):
-            raise InputError(f"The 'frequency' parameter must be finite and >= 0. Got {frequency!r}.")
+            raise InputError(
+                f"The 'frequency' parameter must be finite and >= 0. Got {frequency!r}."
+            )
         cond = self.conductor
         mw2 = cond.mass_per_length * (2 * np.pi * f) ** 2
         t = self.tension
@@ -245,7 +247,7 @@ class Span:
         return float(k) if np.ndim(k) == 0 else k
 
     def loop_length(self, frequency: float | np.ndarray) -> float | np.ndarray:
-        """Half wavelength pi / k (m) of the standing wave at ``frequency`` (Hz): one vibration loop.
+        """Half wavelength pi / k (m) of the standing wave at ``frequency`` (Hz): one loop.
 
         Examples
         --------
