@@ -211,7 +211,8 @@ def simulate(
         (omega_k^2 - omega^2)] F`` times the load's time factor (exact for the undamped dropped
         modes); for other loads the static ``[K^-1 - sum_kept phi phi^T / omega_k^2] F``. Both by
         sparse LU factorisation, so truncation costs accuracy only for dropped modes that respond
-        dynamically (those near the load, which the default cut-off keeps).
+        dynamically (those near the load, which the default cut-off keeps) and for their own
+        transients (ringing from initial conditions or a load's onset, which decays).
     memory_budget : float or None
         Bytes the output and work arrays may take (default 4 GiB, see
         :func:`~powerline_control._validation.check_budget`).
