@@ -622,7 +622,7 @@ class LineModel:
             fixed.add(2 * node)
             if side == "clamped":
                 fixed.add(2 * node + 1)
-        return np.array([d for d in range(n_total) if d not in fixed])
+        return np.array([d for d in range(n_total) if d not in fixed], dtype=np.int64)
 
     def _check_position(self, name: str, position: object) -> float:
         return check_real(name, position, low=0.0, low_inclusive=True, high=self.span.length)
