@@ -35,6 +35,7 @@ from .identify import (
     select_alpha,
 )
 from .io import load_model, save_model
+from .recipe import EstimatorDesign, design_estimator
 
 # --- observability and estimation (observability.py, estimate.py) ---
 from .estimate import (
@@ -78,10 +79,12 @@ __all__ = [
     "Conductor",
     "conductors",
     "Consistency",
+    "design_estimator",
     "DMDModel",
     "Estimate",
     "estimation_accuracy",
     "EstimationError",
+    "EstimatorDesign",
     "FileFormatError",
     "filter_consistency",
     "fit_dmd",
