@@ -28,6 +28,7 @@ from .simulate import Snapshots, simulate
 # --- identification (identify.py) ---
 from .identify import (
     AlphaCurve,
+    DampingReport,
     DMDModel,
     OnlineDMD,
     StabilityReport,
@@ -79,6 +80,7 @@ __all__ = [
     "Conductor",
     "conductors",
     "Consistency",
+    "DampingReport",
     "design_estimator",
     "DMDModel",
     "Estimate",
