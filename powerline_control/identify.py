@@ -509,6 +509,13 @@ class DMDModel:
         ------
         InputError
             Wrong shapes, missing or unexpected inputs.
+        IdentificationError
+            The free run of an unstable model overflows (never NaN or inf results).
+
+        Warns
+        -----
+        UnstableModelWarning
+            The model is unstable (its free run grows).
 
         Examples
         --------
@@ -519,7 +526,24 @@ class DMDModel:
         """
         n_steps = check_int("n_steps", n_steps, low=1)
         u = self._check_prediction_inputs(inputs, n_steps)
-        z = self.window_to_state(initial)
+        if not self.is_stable:
+            warnings.warn(
+                f"predict: the model is unstable (spectral radius {self.spectral_radius:.6g}); "
+                "the free run grows without bound. Refit with alpha > 0 or a rank.",
+                UnstableModelWarning, stacklevel=2,
+            )
+        with np.errstate(over="ignore", invalid="ignore"):
+            field_run = self._free_run(self.window_to_state(initial), n_steps, u)
+        bad = ~np.isfinite(field_run).all(axis=0)
+        if bad.any():
+            raise IdentificationError(
+                f"predict: the free run of this unstable model overflows at step "
+                f"{int(np.argmax(bad)) + 1} of {n_steps}. Predict fewer steps or refit a stable "
+                "model (alpha > 0, see select_alpha)."
+            )
+        return field_run
+
+    def _free_run(self, z: np.ndarray, n_steps: int, u: np.ndarray | None) -> np.ndarray:
         states = np.empty((self.n_states, n_steps))
         for k in range(n_steps):
             z = self.A @ z if u is None else self.A @ z + self.B @ u[:, k]
@@ -978,7 +1002,18 @@ def _fit_problem(
 
 
 def _check_snapshots(X: object) -> np.ndarray:
+    if np.iscomplexobj(X):
+        raise InputError(
+            "The 'X' parameter must be real: complex snapshots would lose their imaginary part. "
+            "Stack real and imaginary parts as rows (np.vstack([X.real, X.imag])) instead."
+        )
     X = check_array("X", X, ndim=2)
+    if X.shape[0] >= 10 * X.shape[1] and X.shape[1] < 100:
+        raise InputError(
+            f"The 'X' parameter has {X.shape[0]} rows (states) but only {X.shape[1]} columns "
+            "(samples): it looks transposed. The layout is (n_nodes, n_samples), one column per "
+            "sample; pass X.T if the rows are samples."
+        )
     if X.shape[0] < 1 or X.shape[1] < 2:
         raise InputError(
             "The 'X' parameter must be a (n_nodes, n_samples) snapshot matrix with at least one "
@@ -1215,7 +1250,8 @@ def _held_out_errors(
         for t0 in starts:
             window = X[:, t0 - d + 1 : t0 + 1]
             inputs = None if u is None else u[:, t0 : t0 + horizon]
-            predicted = model.predict(window, horizon, inputs)
+            u_run = model._check_prediction_inputs(inputs, horizon)
+            predicted = model._free_run(model.window_to_state(window), horizon, u_run)
             true = X[:, t0 + 1 : t0 + 1 + horizon]
             num += float(np.sum((predicted - true) ** 2))
             den += float(np.sum(true**2))

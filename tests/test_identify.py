@@ -693,3 +693,37 @@ def test_damping_report_flags_a_record_too_short_for_the_decay():
     report = plc.fit_dmd(X, 5e-3, delays=2, rank=2).damping_report()
     assert np.allclose(report.damping_ratio, 0.002, rtol=1e-6)  # exact, yet not resolvable
     assert not report.trusted.any() and "longer record" in report.message
+
+
+# ----------------------------------------------------------------------------------------------
+# Misread input and silent NaN (issue 12)
+# ----------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "X, match",
+    [
+        (np.ones((2001, 20)), "looks transposed"),        # 20 samples of 2001 states
+        (np.ones((300, 12)), "looks transposed"),
+        (np.ones((3, 40)) * (1 + 1j), "must be real"),    # never drop the imaginary part
+        (np.array([[1 + 0j, 2, 3, 4]]), "must be real"),
+    ],
+)
+@pytest.mark.parametrize("entry", ["fit_dmd", "select_alpha", "OnlineDMD"])
+def test_misread_snapshots_are_refused(X, match, entry):
+    call = {"fit_dmd": lambda: plc.fit_dmd(X, 0.01, alpha=1e-3),
+            "select_alpha": lambda: plc.select_alpha(X, 0.01, horizon=2),
+            "OnlineDMD": lambda: plc.OnlineDMD(X, 0.01, alpha=1e-3)}[entry]
+    with pytest.raises(InputError, match=match):
+        call()
+
+
+def test_predict_on_an_unstable_model_warns_and_refuses_overflow():
+    dmd = plc.fit_dmd(np.array([[1.5**k for k in range(12)]]), dt=0.1)   # lambda = 1.5 exactly
+    with pytest.warns(UnstableModelWarning, match="unstable"):
+        short = dmd.predict([[1.0]], 5)
+    # 1.5^k, k = 1..5: exact powers, so only round-off.
+    assert np.allclose(short[0], 1.5 ** np.arange(1, 6), rtol=1e-9)
+    with pytest.warns(UnstableModelWarning), pytest.raises(IdentificationError,
+                                                           match="overflows at step"):
+        dmd.predict([[1.0]], 2000)                                      # 1.5^1751 > 1.8e308
