@@ -178,6 +178,9 @@ class DMDModel:
         Number of snapshot pairs used for the fit.
     initial_state : ndarray, shape (n_states,)
         The first training state, used for the mode amplitudes.
+    regressor_gram : ndarray, shape (n_states + n_inputs, n_states + n_inputs) or None
+        Gram matrix of the regressor (states and inputs) when alpha > 0 and it has at most 500
+        rows, kept for :meth:`damping_report`; ``None`` otherwise and for loaded models.
 
     Examples
     --------
