@@ -28,6 +28,7 @@ from .simulate import Snapshots, simulate
 # --- identification (identify.py) ---
 from .identify import (
     AlphaCurve,
+    DampingReport,
     DMDModel,
     OnlineDMD,
     StabilityReport,
@@ -35,6 +36,7 @@ from .identify import (
     select_alpha,
 )
 from .io import load_model, save_model
+from .recipe import EstimatorDesign, design_estimator
 
 # --- observability and estimation (observability.py, estimate.py) ---
 from .estimate import (
@@ -93,10 +95,13 @@ __all__ = [
     "Consistency",
     "damper_impedance",
     "damper_power",
+    "DampingReport",
+    "design_estimator",
     "DMDModel",
     "Estimate",
     "estimation_accuracy",
     "EstimationError",
+    "EstimatorDesign",
     "FileFormatError",
     "filter_consistency",
     "fit_dmd",
