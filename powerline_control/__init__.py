@@ -16,6 +16,7 @@ from .errors import (
     PresetNotFoundError,
     SensorSelectionError,
     TruncationWarning,
+    UndetectableModeWarning,
     UnstableModelWarning,
 )
 
@@ -132,6 +133,7 @@ __all__ = [
     "StudyResult",
     "Trajectory",
     "TruncationWarning",
+    "UndetectableModeWarning",
     "UnstableModelWarning",
 ]
 
