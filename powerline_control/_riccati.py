@@ -335,8 +335,8 @@ def posterior_from_predicted(
     Examples
     --------
     >>> post = posterior_from_predicted(np.array([[2.0]]), np.eye(1), np.ones(1))
-    >>> float(post[0, 0])
-    0.6666666666666666
+    >>> round(float(post[0, 0]), 12)   # 2 * 1 / (2 + 1)
+    0.666666666667
     """
     n, p = predicted.shape[0], c.shape[0]
     if p > n:

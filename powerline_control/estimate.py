@@ -27,10 +27,9 @@ against their chi-square bands).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
-
-import warnings
 
 import control as ct
 import numpy as np
@@ -39,7 +38,7 @@ import scipy.stats as sstats
 
 from ._riccati import (
     describe_modes,
-    field_variances,
+    field_variances as mapped_variances,
     filter_gain,
     posterior_from_predicted,
     solve_filter_dare,
@@ -276,10 +275,9 @@ class _Recursion:
             innovation[:] = e
             return innovation, float(self.nis_frozen(e[:, None])[0]), kf._p
         if p_pred is None:
-            if self.converged:
-                p_pred = self.predicted_ss
-            else:
-                p_pred = kf._A @ self.P @ kf._A.T + kf._q_eff
+            # From the current covariance: after a frozen full sample P is the stationary
+            # posterior and this is the stationary prior; during a dropout it grows as it must.
+            p_pred = kf._A @ self.P @ kf._A.T + kf._q_eff
         if not mask.any():
             self.x, self.P = x_pred, (p_pred + p_pred.T) / 2
             self.last_full_gain = None if not kf.steady_state else self.last_full_gain
@@ -792,7 +790,7 @@ class KalmanFilter:
         def field_variance_of(cov: np.ndarray) -> np.ndarray:
             nonlocal last_p, last_field_var
             if cov is not last_p:
-                last_p, last_field_var = cov, field_variances(cov, field_map)
+                last_p, last_field_var = cov, mapped_variances(cov, field_map)
             return last_field_var
 
         run = _Recursion(self)
@@ -803,6 +801,7 @@ class KalmanFilter:
                 end = int(nan_positions[nxt]) if nxt < nan_positions.size else n_t
                 if end - k >= _MIN_BATCH and self._batch_ready(run):
                     self._run_batch(run, y_all, u_all, k, end, states, innovations, nis)
+                    run.P = run.posterior_ss  # every sample of the stretch was a frozen update
                     if variances is not None:
                         variances[:, k:end] = np.diag(run.P)[:, None]
                     if field_variances is not None:
@@ -827,7 +826,7 @@ class KalmanFilter:
             field = field_map @ states
             if variance_constant:
                 field_variances = np.broadcast_to(
-                    field_variances(run.P, field_map)[:, None], (field.shape[0], n_t)
+                    mapped_variances(run.P, field_map)[:, None], (field.shape[0], n_t)
                 )
         gain = run.last_full_gain if run.last_full_gain is not None else np.full((n, p), np.nan)
         return Estimate(
@@ -1074,12 +1073,8 @@ def estimation_accuracy(
     unmeasured_error = unmeasured_own = None
     if measured is not None:
         rows = np.zeros(true.shape[0], dtype=bool)
-        index = np.asarray(list(measured), dtype=int)
-        if index.size and (index.min() < 0 or index.max() >= true.shape[0]):
-            raise InputError(
-                f"The 'measured' parameter must hold row indices in [0, {true.shape[0] - 1}]. "
-                f"Got {index.tolist()}."
-            )
+        # Integer row indices only: measured=[0.7] used to be read as row 0.
+        index = check_indices("measured", measured, true.shape[0], allow_empty=True)
         rows[index] = True
         if (~rows).any():
             err_u = float(np.sqrt(np.mean(error[~rows] ** 2)))
@@ -1091,7 +1086,7 @@ def estimation_accuracy(
         relative_rms_error_unmeasured=unmeasured_error,
         relative_rms_error_unmeasured_own=unmeasured_own,
         rms_truth=rms_truth,
-        per_signal_rms_error=per_signal,
+        per_signal_rms_error=read_only(per_signal),
         n_samples=int(true.shape[1]),
     )
 
@@ -1238,7 +1233,7 @@ def filter_consistency(
     var = np.asarray(variances)[:, discard:]
     positive = var > 0
     normalised = np.where(positive, error**2 / np.where(positive, var, 1.0), 0.0).mean(axis=1)
-    result["normalised_error"] = normalised
+    result["normalised_error"] = read_only(normalised)
     if covariance is not None and estimate.converged_at is not None:
         start = max(discard, estimate.converged_at)
         if start < n_t:
