@@ -158,7 +158,7 @@ class SensorSelection:
         * ``"exhaustive"``: every feasible layout was evaluated on the exact criterion, so
           ``nodes`` is the optimum, ``bound`` equals ``objective`` and ``gap`` is 0. Used when
           ``C(m, k)`` is within ``brute_force_limit``, and also, when the relaxation failed on
-          every solver, within the default limit (100,000) even if ``brute_force_limit=0``;
+          every solver and ``brute_force_limit=0``, within the default limit (100,000);
         * ``"convexity"``: the bound comes from the convexity inequality at the relaxed weights
           (the solver's, or a feasible point when every solver failed) with an exact linear
           program, valid whatever the solver's accuracy;
@@ -882,8 +882,8 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
         starts.append(greedy)
     # Every feasible layout, when there are few enough: the exact optimum. Without a relaxation
     # the enumeration runs up to the default limit even when brute_force_limit=0 disabled it.
-    limit = brute_force_limit if relaxed is not None else max(brute_force_limit,
-                                                              _DEFAULT_BRUTE_FORCE_LIMIT)
+    limit = brute_force_limit if relaxed is not None else (brute_force_limit
+                                                           or _DEFAULT_BRUTE_FORCE_LIMIT)
     brute = _brute_force(crit, feas, k, limit) if limit else None
     if not starts and brute is not None:  # rounding and greedy can stall where a layout exists
         starts.append(brute[0])
