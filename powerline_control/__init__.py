@@ -16,6 +16,7 @@ from .errors import (
     PresetNotFoundError,
     SensorSelectionError,
     TruncationWarning,
+    UndetectableModeWarning,
     UnstableModelWarning,
 )
 
@@ -165,6 +166,7 @@ __all__ = [
     "Trajectory",
     "TruncationWarning",
     "turbulence_factor",
+    "UndetectableModeWarning",
     "UnstableModelWarning",
     "wind_power",
     "WIND_POWER_CURVES",
