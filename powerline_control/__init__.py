@@ -24,6 +24,7 @@ from .excitation import AeolianForce, HarmonicForce, RandomForce, strouhal_frequ
 from .fem import MDR, LineModel, ModalBasis, ModalDamping, RayleighDamping
 from .line import Conductor, Span, conductors
 from .simulate import Snapshots, simulate
+from .tuning import den_hartog_optimum, tune_damper
 
 # --- identification (identify.py) ---
 from .identify import (
@@ -78,6 +79,7 @@ __all__ = [
     "Conductor",
     "conductors",
     "Consistency",
+    "den_hartog_optimum",
     "DMDModel",
     "Estimate",
     "estimation_accuracy",
@@ -132,6 +134,7 @@ __all__ = [
     "StudyResult",
     "Trajectory",
     "TruncationWarning",
+    "tune_damper",
     "UnstableModelWarning",
 ]
 
