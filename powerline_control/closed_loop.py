@@ -66,6 +66,15 @@ MAX_ROBOT_MASS_RATIO = 0.25
 # Static slope of the line under the robot's weight, W / (2 T) at midspan: beyond 0.05 rad the
 # small-slope (linear taut-string) model of the line is not valid.
 MAX_STATIC_SLOPE = 0.05
+# The policy: a window whose two halves give excited shapes differing by more than this (relative)
+# still beats with a decaying mode; wait up to MAX_WAIT s for a steady one. At most MAX_CHOICES
+# loops are tried per excitation before the choice is final.
+UNSTEADY_LIMIT = 0.25
+MAX_WAIT = 3.0
+MAX_CHOICES = 3
+# Local minima of the predicted RMS within this fraction of the lowest count as equally good:
+# the robot takes the nearest (equal loops of a resonant mode need no long trip).
+NEAR_OPTIMAL = 0.03
 
 
 @dataclass(frozen=True)
@@ -157,6 +166,10 @@ class ClosedLoopResult:
         on the calibration record: the estimator's model is taken as valid below 3.
     damper_power : ndarray, shape (n_t,)
         Power dissipated in the robot's damper, W.
+    predictions : tuple of (float, ndarray, ndarray, ndarray)
+        At each target choice and confirmation: the time (s), the positions and the steady-state
+        RMS (m) the controller predicted for the robot parked there, and the robot-free excited
+        shape (complex amplitude at every node, m) it predicted from.
 
     Examples
     --------
@@ -195,6 +208,7 @@ class ClosedLoopResult:
     settle_times: tuple = ()
     innovation_ratio: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     damper_power: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    predictions: tuple = field(default=(), repr=False)
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""
@@ -252,7 +266,8 @@ class _ModalPlant:
     def __init__(self, model: LineModel, robot: MDR | None, n_modes: int, dt: float):
         basis = model.modes(n_modes)
         self.model, self.dt = model, dt
-        self.robot = robot if robot is not None and (robot.body_mass or robot.has_absorber) else None
+        active = robot is not None and (robot.body_mass > 0 or robot.has_absorber)
+        self.robot = robot if active else None
         self.shapes = np.asarray(basis.shapes)
         self.omega2 = np.asarray(basis.omega) ** 2
         self.line_damping = np.asarray(basis.damping)
@@ -489,6 +504,29 @@ def _antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float, 
     return found
 
 
+def _kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
+    """Robot-free excited shape at every node from the sensors' and the robot's phasors.
+
+    The robot's reaction ``D_r W_r`` is removed from every measurement with the bare line's
+    receptance; the robot-free shape is then the posterior mean of a Gaussian prior over the bare
+    modal amplitudes with variance ``1 / |omega_n^2 - omega^2 + i omega z_n|^2`` (what a load
+    spread evenly over the modes would drive): near a resonance it is that mode, fitted; between
+    two, the mix the few measurements support.
+    """
+    n_r = plant.coupling(x_r)
+    dynamic = np.diag(plant.omega2 - omega**2) + 1j * omega * plant.line_damping
+    rows = np.vstack([sensor_rows, n_r])  # (p + 1, r)
+    values = np.append(sensed, at_robot)
+    reaction = _robot_dynamic_stiffness(robot, omega) * at_robot
+    values = values - rows @ np.linalg.solve(dynamic, n_r) * reaction
+    # A floor of 0.1 % damping keeps the prior finite on an undamped line at resonance.
+    floor = 2e-3 * np.sqrt(plant.omega2) * omega
+    variance = 1.0 / (np.abs(plant.omega2 - omega**2) ** 2 + floor**2)
+    gram = (rows * variance) @ rows.T
+    gram = gram + 1e-6 * np.trace(gram) / gram.shape[0] * np.eye(gram.shape[0])
+    return (plant.nodal * variance) @ (rows.T @ np.linalg.solve(gram, values))
+
+
 def _predicted_rms(bare_shape, plant, robot, omega, positions, weights):
     """RMS over the span, in steady state, with the robot parked at each of ``positions``.
 
@@ -512,7 +550,10 @@ def _predicted_rms(bare_shape, plant, robot, omega, positions, weights):
 
 def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high):
     """The predicted best parked position: among the local minima of the predicted RMS within
-    10 % of the lowest, the one nearest the robot. Returns (position, loop length) or None."""
+    NEAR_OPTIMAL of the lowest, the one nearest the robot.
+
+    Returns (position, loop length, grid, predicted RMS on the grid), or None without a loop.
+    """
     x = plant.model.node_positions
     antinodes = _antinodes_of(bare_shape, x)
     if not antinodes:
@@ -522,7 +563,7 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
     minima = [i for i in range(grid.size)
               if (i == 0 or predicted[i] <= predicted[i - 1])
               and (i == grid.size - 1 or predicted[i] <= predicted[i + 1])]
-    good = [i for i in minima if predicted[i] <= 1.1 * predicted.min()]
+    good = [i for i in minima if predicted[i] <= (1 + NEAR_OPTIMAL) * predicted.min()]
     pick = min(good, key=lambda i: abs(grid[i] - robot_position))
     if 0 < pick < grid.size - 1:
         # Parabola through the grid minimum and its neighbours (uniform grid).
@@ -533,7 +574,7 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
     else:
         position = float(grid[pick])
     loop = min(antinodes, key=lambda a: abs(a[0] - position))[2]
-    return position, loop
+    return position, loop, read_only(grid), read_only(predicted)
 
 
 def _half_wavelength(span: Span, frequency: float) -> float:
@@ -651,7 +692,9 @@ def run_closed_loop(
     plant_period: float = 0.01,
     noise_fraction: float = 0.01,
     delays: int = 2,
-    antinode_window: float = 0.5,
+    antinode_window: float = 1.0,
+    frequency_window: float = 2.0,
+    retarget_threshold: float = 0.05,
     settle_margin: float = 1.0,
     n_modes: int | None = None,
     clamp_distance: float | None = None,
@@ -698,7 +741,13 @@ def run_closed_loop(
     delays : int
         Time delays of the DMD model (2 makes the displacement model exact for a linear line).
     antinode_window : float
-        Length of the window the dominant frequency and the excited shape are fitted on, s.
+        Length of the window the excited shape is fitted on, s.
+    frequency_window : float
+        Length of the window the dominant frequency is measured on, s (its resolution is about
+        1 / window: long enough to tell the load from the beating of a decaying mode).
+    retarget_threshold : float
+        Relative change of the dominant frequency that, held for ``antinode_window`` (and at
+        least 1 s), makes the robot choose a new target (a wind change).
     settle_margin : float
         Time after the robot's arrival before the settled window starts, s.
     n_modes : int or None
@@ -759,6 +808,8 @@ def run_closed_loop(
     n_cal = _check_multiple("calibration", calibration, dt) + 1
     noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True)
     antinode_window = check_real("antinode_window", antinode_window, low=0.0)
+    frequency_window = check_real("frequency_window", frequency_window, low=0.0)
+    retarget_threshold = check_real("retarget_threshold", retarget_threshold, low=0.0)
     settle_margin = check_real("settle_margin", settle_margin, low=0.0, low_inclusive=True)
     delays = check_int("delays", delays, low=1)
     if motion not in ("closed_form", "mpc"):
@@ -843,8 +894,9 @@ def run_closed_loop(
     measured = np.zeros((len(sensor_list), n_t))
     measured[:, :n_cal] = calib_noisy[sensor_list]
     window = max(int(round(antinode_window / dt)), 2 * steps_per_period)
+    frequency_samples = max(int(round(frequency_window / dt)), 2 * steps_per_period)
     statuses, frequencies, innovation_ratio = [], [], []
-    retarget_times, target_starts = [], []
+    retarget_times, target_starts, predictions = [], [], []
     planner = None
     if motion == "mpc":
         braking = limits.v_max / limits.a_max
@@ -854,70 +906,97 @@ def run_closed_loop(
             **({} if planner_time_budget is None else {"time_budget": planner_time_budget}),
         )
     goal, anchor, loop = np.nan, np.nan, np.nan
-    anchor_frequency, refined, pending_since, still_since = np.nan, False, None, None
+    anchor_frequency, pending_since, still_since = np.nan, None, None
+    choices, confirmed = 0, False
     x_r, v_r = robot.position, 0.0
+    steer = x_r
     z = start_states[n_cal - 1].copy()
     margin = 0.02 * span.length
 
-    def excited_shape(end: int, frequency: float) -> np.ndarray:
-        """W_bare over the last window: estimate phasor minus the robot's own reaction."""
-        lo = max(end + 1 - window, 0)
+    sensor_rows = nodal[sensor_list]
+
+    def bare_shape(lo: int, end: int, frequency: float) -> np.ndarray:
+        """The robot-free excited shape from the sensors' and the robot's own phasors."""
         tt = t[lo : end + 1]
-        state_phasor = _fit_phasor(states[lo : end + 1].T, tt, frequency)
-        shape = field_map @ state_phasor
-        robot_phasor = _fit_phasor(robot_measured[None, lo : end + 1], tt, frequency)[0]
-        omega = 2 * np.pi * frequency
-        reaction = _robot_dynamic_stiffness(robot, omega) * robot_phasor
-        return shape - plant.receptance(x_r, omega) * reaction
+        sensed = _fit_phasor(measured[:, lo : end + 1], tt, frequency)
+        at_robot = _fit_phasor(robot_measured[None, lo : end + 1], tt, frequency)[0]
+        return _kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot,
+                             2 * np.pi * frequency)
+
+    def excited_shape(end: int, frequency: float) -> tuple[np.ndarray, float]:
+        """W_bare over the last window (estimate phasor minus the robot's own reaction), and
+        how unsteady it is: the relative difference of the shapes fitted on its two halves."""
+        lo = max(end + 1 - window, 0)
+        mid = (lo + end) // 2
+        first, second = bare_shape(lo, mid, frequency), bare_shape(mid, end, frequency)
+        scale = np.linalg.norm(first) + np.linalg.norm(second)
+        unsteady = 2 * float(np.linalg.norm(first - second)) / max(scale, 1e-300)
+        return bare_shape(lo, end, frequency), unsteady
 
     wall_start = time.perf_counter()
     k = n_cal - 1
     while k < n_t - 1:
         end = min(k + steps_per_period, n_t - 1)
         lo = max(k + 1 - window, 0)
-        frequency = _dominant_frequency(measured[:, lo : k + 1], dt)
+        frequency = _dominant_frequency(measured[:, max(k + 1 - frequency_samples, 0) : k + 1], dt)
         frequencies.append(frequency)
         innovation = measured[:, lo + 1 : k + 1] - predict_sensors @ states[lo : k].T
         innovation_ratio.append(
             float(np.sqrt(np.mean(innovation**2))) / max(calib_innovation, 1e-300)
         )
-        robot_still = abs(v_r) < 1e-3 and (np.isnan(goal) or abs(x_r - goal) < 1e-3)
+        robot_still = abs(v_r) < 1e-3 and abs(x_r - steer) < 1e-3
         still_since = (still_since if still_since is not None else t[k]) if robot_still else None
         changed = (
             not np.isnan(anchor_frequency)
-            and abs(frequency - anchor_frequency) > 0.03 * anchor_frequency
+            and abs(frequency - anchor_frequency) > retarget_threshold * anchor_frequency
         )
         if changed and pending_since is None:
             pending_since = t[k]
         elif not changed:
             pending_since = None
         window_time = window * dt
-        if np.isnan(goal) or (
-            pending_since is not None and t[k] - pending_since >= window_time and robot_still
-        ):
-            low, high = _free_interval(x_r, obstacles, span.length, margin)
-            omega_now = 2 * np.pi * frequency
-            choice = _choose_target(excited_shape(k, frequency), plant, robot, omega_now, weights,
-                                    x_r, low, high)
-            if choice is not None:
-                anchor, loop = choice
-                goal, refined, anchor_frequency, pending_since = anchor, False, frequency, None
-                retarget_times.append(float(t[k]))
-                target_starts.append(k)
-        elif (
-            not refined
+        retarget = np.isnan(goal) or (
+            pending_since is not None
+            and t[k] - pending_since >= max(window_time, 1.0)
+            and robot_still
+        )
+        confirm = (
+            not retarget
+            and not confirmed
             and still_since is not None
             and t[k] - still_since >= max(window_time, settle_margin)
-        ):
-            # One refinement once the robot sits still at the goal, gated around the anchor: only
-            # a better estimate of the same minimum is accepted, never a move to another loop.
+        )
+        if retarget or confirm:
+            shape, unsteady = excited_shape(k, frequency)
+            since = pending_since if retarget else still_since
+            waited = t[k] - since if since is not None else 0.0
+            # A window that still beats with a decaying mode misleads the prediction: wait (up to
+            # MAX_WAIT s) for a steady one, except for the very first target.
+            if unsteady > UNSTEADY_LIMIT and waited < MAX_WAIT and not np.isnan(goal):
+                retarget = confirm = False
+        if retarget or confirm:
             low, high = _free_interval(x_r, obstacles, span.length, margin)
-            low, high = max(low, anchor - 0.25 * loop), min(high, anchor + 0.25 * loop)
-            choice = _choose_target(excited_shape(k, frequency), plant, robot,
-                                    2 * np.pi * frequency, weights, anchor, low, high)
+            omega_now = 2 * np.pi * frequency
+            choice = _choose_target(shape, plant, robot, omega_now, weights, x_r, low, high)
             if choice is not None:
-                goal = choice[0]
-            refined = True
+                position_choice, loop_choice, grid, predicted = choice
+                predictions.append((float(t[k]), grid, predicted, read_only(shape)))
+                if retarget:
+                    anchor, loop, goal = position_choice, loop_choice, position_choice
+                    anchor_frequency, pending_since = frequency, None
+                    choices, confirmed = 1, False
+                    retarget_times.append(float(t[k]))
+                    target_starts.append(k)
+                elif abs(position_choice - anchor) <= 0.25 * loop:
+                    # The same minimum, better estimated from a steady window: accept it (the
+                    # gate is anchored to the choice, it never moves with the goal) and stop.
+                    goal, confirmed = position_choice, True
+                elif choices < MAX_CHOICES:
+                    # Another loop: the first choice came from a beating window. Go there.
+                    anchor, loop, goal = position_choice, loop_choice, position_choice
+                    choices += 1
+                else:
+                    confirmed = True
         low, high = _free_interval(x_r, obstacles, span.length, margin)
         steer = float(np.clip(goal, low, high)) if not np.isnan(goal) else x_r
         period = (end - k) * dt
@@ -1078,4 +1157,5 @@ def run_closed_loop(
         settle_times=tuple(settle_times),
         innovation_ratio=read_only(np.array(innovation_ratio)),
         damper_power=read_only(loop_power),
+        predictions=tuple(predictions),
     )
