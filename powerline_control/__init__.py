@@ -25,6 +25,7 @@ from .excitation import AeolianForce, HarmonicForce, RandomForce, strouhal_frequ
 from .fem import MDR, LineModel, ModalBasis, ModalDamping, RayleighDamping
 from .line import Conductor, Span, conductors
 from .simulate import Snapshots, simulate
+from .tuning import den_hartog_optimum, tune_damper
 
 # --- identification (identify.py) ---
 from .identify import (
@@ -98,6 +99,7 @@ __all__ = [
     "damper_power",
     "DampingReport",
     "design_estimator",
+    "den_hartog_optimum",
     "DMDModel",
     "Estimate",
     "estimation_accuracy",
@@ -167,6 +169,7 @@ __all__ = [
     "TruncationWarning",
     "turbulence_factor",
     "UndetectableModeWarning",
+    "tune_damper",
     "UnstableModelWarning",
     "wind_power",
     "WIND_POWER_CURVES",
