@@ -1180,8 +1180,10 @@ def _build_parser() -> argparse.ArgumentParser:
                                + help_text[1:] + ".", epilog=f"{_UNITS}\n{_EXIT_CODES}",
                                formatter_class=_Formatter)
         if scenario:
-            sub.add_argument("scenario", help="a scenario TOML file, or the name of a shipped "
-                             "scenario (list them with 'powerline-control scenario')")
+            sub.add_argument("scenario", nargs="?", default=None,
+                             help="a scenario TOML file, or the name of a shipped scenario "
+                             "(list them with 'powerline-control scenario'); default: the "
+                             "built-in scenario (the paper's lab span, 100 elements)")
         if out:
             sub.add_argument("--out", type=Path, default=None, required=out_required,
                              help="folder for the results (created if missing; must be empty "

@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import textwrap
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -74,7 +75,7 @@ class ScenarioInfo:
 
 @dataclass(frozen=True)
 class SpanConfig:
-    """Which span: ``preset = "paper_lab"`` or a conductor preset with length and tension."""
+    """Which span: `preset = "paper_lab"` or a conductor preset with length and tension."""
 
     preset: str = _key(
         "paper_lab", "", "The paper's lab span (Table 1: 3.66 m, 395 N) or a conductor preset.",
@@ -87,6 +88,10 @@ class SpanConfig:
     rts_fraction: float = _key(
         0.20, "", "Everyday tension as a fraction of the conductor's rated tensile strength.",
         low=0.0, high=0.6, when=("preset", ("conductor",)))
+    tension: float | None = _key(
+        None, "N", "Tension, instead of span.rts_fraction (unset: from rts_fraction).",
+        kind="real", low=0.0, when=("preset", ("conductor",)),
+        allowed="a real number > 0 N, below the conductor's rated strength")
 
     def build(self):
         """The :class:`~powerline_control.line.Span` this section describes."""
@@ -94,6 +99,9 @@ class SpanConfig:
 
         if self.preset == "paper_lab":
             return Span.paper_lab()
+        if self.tension is not None:
+            return Span(length=self.length, tension=self.tension,
+                        conductor=conductors[self.conductor])
         return Span.at_rts_fraction(self.length, conductors[self.conductor], self.rts_fraction)
 
 
@@ -121,7 +129,7 @@ class ModelConfig:
 
 @dataclass(frozen=True)
 class ForcingConfig:
-    """The load: ``kind`` is "harmonic", "aeolian" or "random"."""
+    """The load: `kind` is "harmonic", "aeolian" or "random"."""
 
     kind: str = _key("harmonic", "", "Point harmonic force, aeolian vortex shedding (distributed, "
                      "Strouhal lock-in) or a band-limited random point force.",
@@ -131,7 +139,7 @@ class ForcingConfig:
     frequency: float = _key(24.0, "Hz", "Frequency of the harmonic force.", low=0.0, high=1e4,
                             when=("kind", ("harmonic",)))
     position: float = _key(0.5, "m", "Where the point force acts, from the left support.",
-                           low=0.0, when=("kind", ("harmonic", "random")),
+                           kind="real", when=("kind", ("harmonic", "random")),
                            allowed="0 < position < span length")
     wind_speed: float = _key(3.0, "m/s", "Wind speed of the aeolian load (shedding at "
                              "f = 0.185 V / d).", low=0.0, high=30.0, when=("kind", ("aeolian",)))
@@ -213,7 +221,7 @@ class EstimationConfig:
         kind="int_list", low=0, allowed="node indices inside the span, off the fixed supports")
     sensor_positions: tuple[float, ...] | None = _key(
         None, "m", "Measured positions (the nearest node is used); unset: chosen optimally.",
-        kind="real_list", low=0.0, allowed="0 < x < span length")
+        kind="real_list", allowed="0 < x < span length")
     n_sensors: int = _key(3, "", "How many sensors to choose optimally (Kalman criterion).",
                           low=1, high=50)
 
@@ -228,7 +236,7 @@ class RobotConfig:
     """
 
     start: float = _key(1.2, "m", "Where the robot starts (and stays parked in the comparison).",
-                        low=0.0, allowed="0 < start < span length")
+                        kind="real", allowed="0 < start < span length")
     body_mass: float = _key(0.02, "kg", "Mass of the robot's body, rigid on the line.",
                             low=0.0, low_inclusive=True, high=1000.0)
     suspended_mass: float = _key(0.05, "kg", "Mass of the tuned absorber.", low=0.0, high=1000.0)
@@ -452,6 +460,16 @@ def _check_scenario(check: _Checker, scenario: Scenario, given: dict) -> None:
         if span.conductor not in conductors:
             check.fail("span.conductor", span.conductor,
                        "one of " + ", ".join(_repr(n) for n in conductors))
+        if span.tension is not None:
+            if "rts_fraction" in given.get("span", {}):
+                raise InputError(f"{check.source}: span.tension conflicts with span.rts_fraction: "
+                                 "give the tension in N or as a fraction of the rated strength, "
+                                 "not both.")
+            rated = conductors[span.conductor].rated_strength
+            if span.tension >= rated:
+                check.fail("span.tension", span.tension,
+                           f"a real number > 0 N and < {rated:g} N (the rated strength of "
+                           f"{span.conductor})", "The conductor would break.")
     length = scenario.span_length()
     inside = f"0 < x < {length:g} m (the span length)"
     if scenario.forcing.kind != "aeolian" and not 0 < scenario.forcing.position < length:
@@ -671,8 +689,9 @@ def scenario_to_toml(scenario: Scenario, *, comments: bool = True) -> str:
             meta = f.metadata
             value = getattr(section, f.name)
             if comments:
-                unit = f" [{meta['unit']}]" if meta["unit"] else ""
-                lines.append(f"# {meta['doc']}{unit} Allowed: {_range_text(meta)}.")
+                unit = f" Unit: {meta['unit']}." if meta["unit"] else ""
+                lines += textwrap.wrap(f"{meta['doc']}{unit} Allowed: {_range_text(meta)}.",
+                                       width=98, initial_indent="# ", subsequent_indent="# ")
             active = _applies(section, meta)
             if value is None:
                 lines.append(f"# {f.name} = (not set)")
