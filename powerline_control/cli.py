@@ -275,7 +275,7 @@ class _Study:
             [
                 ("record", f"{snap.t.size} samples at dt = {snap.dt:g} s ({sim.duration:g} s); "
                  f"first {TRAIN_FRACTION:.0%} identify the model, the rest test it"),
-                ("modes kept", f"{snap.n_modes} (quasi-static part of the others included)"
+                ("modes kept", f"{snap.n_modes} of {self.model.n_dofs}"
                  if hasattr(snap, "n_modes") else "-"),
                 ("RMS / peak displacement (last quarter)",
                  f"{_mm(np.sqrt(np.mean(tail**2)))} / {_mm(np.abs(tail).max())}"),
@@ -1153,7 +1153,15 @@ def _verb_study(args, console: _Console) -> int:
 # ----------------------------------------------------------------------------- parser
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
-    pass
+    """Keeps the verb list's layout; the epilog paragraphs are wrapped by :func:`_epilog`."""
+
+
+def _epilog(*paragraphs: str) -> str:
+    import shutil
+    import textwrap
+
+    width = min(shutil.get_terminal_size((100, 24)).columns, 100) - 2
+    return "\n".join(textwrap.fill(p, width=width) for p in paragraphs)
 
 
 def _common(parser: argparse.ArgumentParser, suppress: bool) -> None:
@@ -1175,8 +1183,8 @@ def _build_parser() -> argparse.ArgumentParser:
         prog="powerline-control", formatter_class=_Formatter,
         description="Vibration of overhead power lines: model, simulate, identify (DMD), "
         "place sensors, estimate (Kalman), plan and run a mobile damping robot.",
-        epilog=f"{_UNITS}\n{_EXIT_CODES}\nScenario keys: docs/scenarios.md, or "
-        "'powerline-control scenario NAME' for a commented template.")
+        epilog=_epilog(_UNITS, _EXIT_CODES, "Scenario keys: docs/scenarios.md, or "
+                       "'powerline-control scenario NAME' for a commented template."))
     parser.add_argument("--version", action="version", version=f"powerline-control {__version__}")
     _common(parser, suppress=False)
     verbs = parser.add_subparsers(dest="command", metavar="VERB", title="verbs",
@@ -1185,7 +1193,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
     def verb(name, help_text, *, scenario=True, out=True, out_required=False):
         sub = verbs.add_parser(name, help=help_text, description=help_text[0].upper()
-                               + help_text[1:] + ".", epilog=f"{_UNITS}\n{_EXIT_CODES}",
+                               + help_text[1:] + ".", epilog=_epilog(_UNITS, _EXIT_CODES),
                                formatter_class=_Formatter)
         if scenario:
             sub.add_argument("scenario", nargs="?", default=None,
@@ -1193,7 +1201,7 @@ def _build_parser() -> argparse.ArgumentParser:
                              "(list them with 'powerline-control scenario'); default: the "
                              "built-in scenario (the paper's lab span, 100 elements)")
         if out:
-            sub.add_argument("--out", type=Path, default=None, required=out_required,
+            sub.add_argument("--out", type=Path, default=None, required=out_required, metavar="DIR",
                              help="folder for the results (created if missing; must be empty "
                              "or hold only this command's files)")
             sub.add_argument("--force", action="store_true",
