@@ -529,33 +529,46 @@ class _Study:
         if not hasattr(plc, "aeolian_severity"):
             raise InputError("The severity study needs powerline_control.aeolian_severity, "
                              "which this installation does not have.")
-        result = plc.aeolian_severity(self.span, wind_speeds=np.asarray(sev_cfg.wind_speeds))
+        speeds = np.asarray(sev_cfg.wind_speeds, dtype=float)
+        results = [plc.aeolian_severity(self.span, wind_speeds=speeds)]
+        robot_text = ""
+        if hasattr(plc, "AtAntinode"):
+            robot, _ = _tuned_robot(self.scenario, self.model,
+                                    self.scenario.forcing.load_frequency(self.span))
+            results.append(plc.aeolian_severity(self.span, wind_speeds=speeds,
+                                                dampers=[plc.AtAntinode(robot)]))
+            robot_text = " With the robot: its absorber parked at the antinode of each wind speed."
+        bare = results[0]
         rows = []
-        for row in result.table():
-            speed = row.get("wind_speed", float("nan"))
-            amp = row.get("amplitude", float("nan"))
-            strain = row.get("strain_pp", float("nan"))
-            freq = row.get("frequency", float("nan"))
-            rows.append((f"wind {speed:g} m/s", f"{freq:.3g} Hz, antinode amplitude "
-                         f"{_mm(amp)}, clamp strain {1e6 * strain:.3g} µε peak-to-peak"))
-        plotting = _plotting()
+        for i, speed in enumerate(bare.wind_speed):
+            text = (f"{bare.frequency[i]:.3g} Hz, loops {bare.loop_length[i]:.3g} m; antinode "
+                    f"amplitude {_mm(bare.amplitude[i])}, clamp strain "
+                    f"{1e6 * bare.strain_pp[i]:.3g} µε peak-to-peak")
+            if len(results) > 1:
+                robot_result = results[1]
+                text += (f"; with the robot {_mm(robot_result.amplitude[i])}, "
+                         f"{1e6 * robot_result.strain_pp[i]:.3g} µε")
+            rows.append((f"wind {speed:g} m/s", text))
         figures = []
-        if hasattr(plotting, "plot_severity"):
-            figures.append(_Figure("severity", functools.partial(_severity_figure, result),
-                                   "Antinode amplitude and bending strain at the clamp against "
-                                   "wind speed, from the energy balance. Look for strains above "
-                                   "the 150 µε endurance line: those winds fatigue the "
-                                   "conductor."))
+        if hasattr(_plotting(), "plot_severity"):
+            figures.append(_Figure("severity", functools.partial(_severity_figure, results),
+                                   "Antinode amplitude (mm, zero to peak) and peak-to-peak "
+                                   "bending strain at the clamp (µε) against wind speed (m/s), "
+                                   "from the energy balance, without dampers and with the robot. "
+                                   "Look for strains above the endurance line: those winds "
+                                   "fatigue the conductor."))
         self.report.section(
             "Aeolian severity (energy balance)", rows,
             intro="For each wind speed the steady antinode amplitude is where the wind's power "
-            "input equals the conductor's self-damping (and any damper's) dissipation.",
+            "input equals the power the conductor's self-damping (and any damper) dissipates; "
+            "the clamp strain follows from it (Poffenberger-Swart)." + robot_text,
             figures=figures,
             notes=["150 µε peak-to-peak is the endurance limit commonly used for ACSR "
-                   "(CIGRE / EPRI)."])
-        self.report.numbers.update(severity=[{k: float(v) if isinstance(v, int | float) else v
-                                              for k, v in row.items()}
-                                             for row in result.table()])
+                   "conductors (CIGRE / EPRI)."])
+        self.report.numbers.update(severity=[
+            {"wind_speed": float(bare.wind_speed[i]), "frequency_hz": float(bare.frequency[i]),
+             "amplitude_m": float(bare.amplitude[i]), "loop_length_m": float(bare.loop_length[i]),
+             "strain_pp": float(bare.strain_pp[i])} for i in range(bare.wind_speed.size)])
 
 
 @dataclass
@@ -595,7 +608,7 @@ class _Design:
              f"regularised (alpha = {self.dmd.alpha:.2g})": self.dmd.eigenvalues})
 
     def count_figure(self):
-        return _plotting().plot_sensor_count(*self.count_curve)
+        return _plotting().plot_sensor_count(*self.count_curve())
 
 
 def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_sensors=True):
@@ -667,7 +680,9 @@ def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_s
                            f"{100 * selection.gap:.2g} % above the best possible layout of {k} "
                            "sensors")
         if n_nodes <= 201:
-            count_curve = _sensor_count_curve(candidates, dmd, noise_var, x, supports, k)
+            # Several more selections: computed only if the report draws the figure.
+            count_curve = functools.partial(_sensor_count_curve, candidates, dmd, noise_var, x,
+                                            supports, k)
     layouts = {"chosen": sensors}
     notes = {}
     spread = list(np.linspace(0, n_nodes - 1, len(sensors) + 2).round().astype(int)[1:-1])
@@ -954,11 +969,12 @@ def run_scenario(scenario, out: Path | None = None, echo=print, *, stages=None,
     output = _Output(out, force=force)
     stages = tuple(stages or _STAGES["run"])
     report = _Report(console)
-    with _Progress(console, _count_stages(scenario, stages)) as progress:
+    with _Progress(console, _count_stages(scenario, stages) + (out is not None)) as progress:
         study = _Study(scenario, report, progress)
         _run_stages(study, stages)
-    if out is not None:
-        _write_outputs(output, study, report)
+        if out is not None:
+            progress.stage("drawing the figures and writing the report")
+            _write_outputs(output, study, report)
     return report.numbers
 
 
@@ -981,16 +997,20 @@ def _numerics():
         yield
 
 
-def _verb_stages(args, console: _Console) -> int:
+def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
     scenario = _load(console, args.scenario)
     output = _Output(args.out, force=args.force) if getattr(args, "out", None) else None
     stages = _STAGES[args.command]
     report = _Report(console)
     start = time.perf_counter()
-    with _numerics(), _Progress(console, _count_stages(scenario, stages)) as progress:
+    n_stages = _count_stages(scenario, stages) + (output is not None)
+    with _numerics(), _Progress(console, n_stages) as progress:
         study = _Study(scenario, report, progress)
         _run_stages(study, stages)
-        written = _write_outputs(output, study, report) if output is not None else []
+        written = []
+        if output is not None:
+            progress.stage("drawing the figures and writing the report")
+            written = _write_outputs(output, study, report, full=full)
     report.numbers["elapsed_s"] = round(time.perf_counter() - start, 2)
     _finish(console, report.numbers, output, written)
     return EXIT_OK
@@ -1021,19 +1041,8 @@ def _verb_demo(args, console: _Console) -> int:
 
 
 def _verb_report(args, console: _Console) -> int:
-    scenario = _load(console, args.scenario)
-    output = _Output(args.out, force=args.force)
-    stages = _STAGES["run"]
-    report = _Report(console)
-    start = time.perf_counter()
-    with _numerics(), _Progress(console, _count_stages(scenario, stages) + 1) as progress:
-        study = _Study(scenario, report, progress)
-        _run_stages(study, stages)
-        progress.stage("drawing the figures and writing the report")
-        written = _write_outputs(output, study, report, full=False)
-    report.numbers["elapsed_s"] = round(time.perf_counter() - start, 2)
-    _finish(console, report.numbers, output, written)
-    return EXIT_OK
+    args.command = "run"
+    return _verb_stages(args, console, full=False)
 
 
 def _verb_scenario(args, console: _Console) -> int:

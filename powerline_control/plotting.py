@@ -136,49 +136,6 @@ def plot_envelope(
     return fig
 
 
-def plot_closed_loop(result) -> Figure:
-    """Robot position and target, and line vibration, with the robot moving versus parked.
-
-    Parameters
-    ----------
-    result : ClosedLoopResult
-        From :func:`~powerline_control.closed_loop.run_closed_loop`.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-
-    Examples
-    --------
-    >>> from types import SimpleNamespace
-    >>> t = np.linspace(0, 1, 11)
-    >>> fake = SimpleNamespace(t=t, robot_position=t, target=t, calibration_time=0.2,
-    ...                        displacement=np.ones((3, 11)),
-    ...                        baseline_displacement=np.ones((3, 11)))
-    >>> len(plot_closed_loop(fake).axes)
-    2
-    """
-    fig = Figure(figsize=(8, 5))
-    top, bottom = fig.subplots(2, 1, sharex=True)
-    top.plot(result.t, result.robot_position, label="robot")
-    top.plot(result.t, result.target, "k:", label="antinode target")
-    top.axvline(result.calibration_time, color="grey", lw=0.8)
-    top.set_ylabel("x (m)")
-    top.legend(fontsize=8)
-    window = max(int(0.1 / max(result.t[1] - result.t[0], 1e-12)), 1)
-
-    def moving_rms(field):
-        power = np.mean(np.asarray(field) ** 2, axis=0)
-        return np.sqrt(np.convolve(power, np.ones(window) / window, mode="same"))
-
-    bottom.plot(result.t, 1e3 * moving_rms(result.baseline_displacement), label="robot parked")
-    bottom.plot(result.t, 1e3 * moving_rms(result.displacement), label="closed loop")
-    bottom.set(xlabel="t (s)", ylabel="RMS over span (mm)")
-    bottom.legend(fontsize=8)
-    fig.tight_layout()
-    return fig
-
-
 def plot_error_along_span(
     x: np.ndarray, errors: dict[str, np.ndarray], sensors: Sequence[float] = ()
 ) -> Figure:
@@ -355,4 +312,47 @@ def plot_robot_path(
     low = max(x[0], visited.min() - margin) if visited.size else x[0]
     high = min(x[-1], visited.max() + margin) if visited.size else x[-1]
     bottom.set_xlim(low, high)
+    return fig
+
+
+def plot_closed_loop(result) -> Figure:
+    """Robot position and target, and line vibration, with the robot moving versus parked.
+
+    Parameters
+    ----------
+    result : ClosedLoopResult
+        From :func:`~powerline_control.closed_loop.run_closed_loop`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> t = np.linspace(0, 1, 11)
+    >>> fake = SimpleNamespace(t=t, robot_position=t, target=t, calibration_time=0.2,
+    ...                        displacement=np.ones((3, 11)),
+    ...                        baseline_displacement=np.ones((3, 11)))
+    >>> len(plot_closed_loop(fake).axes)
+    2
+    """
+    fig = Figure(figsize=(8, 5))
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    top.plot(result.t, result.robot_position, label="robot")
+    top.plot(result.t, result.target, "k:", label="antinode target")
+    top.axvline(result.calibration_time, color="grey", lw=0.8)
+    top.set_ylabel("x (m)")
+    top.legend(fontsize=8)
+    window = max(int(0.1 / max(result.t[1] - result.t[0], 1e-12)), 1)
+
+    def moving_rms(field):
+        power = np.mean(np.asarray(field) ** 2, axis=0)
+        return np.sqrt(np.convolve(power, np.ones(window) / window, mode="same"))
+
+    bottom.plot(result.t, 1e3 * moving_rms(result.baseline_displacement), label="robot parked")
+    bottom.plot(result.t, 1e3 * moving_rms(result.displacement), label="closed loop")
+    bottom.set(xlabel="t (s)", ylabel="RMS over span (mm)")
+    bottom.legend(fontsize=8)
+    fig.tight_layout()
     return fig
