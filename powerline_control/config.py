@@ -642,7 +642,18 @@ def _toml_value(value: object) -> str:
     return repr(value)
 
 
-def _applies(section_obj, meta: dict) -> bool:
+# Keys made redundant by another key of their section (written commented out in templates, and
+# a conflict when a file sets both): key -> (the other keys, why).
+_SUPERSEDED = {
+    ("span", "rts_fraction"): (("tension",), "span.tension is set"),
+    ("estimation", "n_sensors"): (("sensors", "sensor_positions"), "the sensors are listed"),
+}
+
+
+def _applies(section_obj, meta: dict, section: str = "", key: str = "") -> bool:
+    others, _ = _SUPERSEDED.get((section, key), ((), ""))
+    if any(getattr(section_obj, other) is not None for other in others):
+        return False
     if meta["when"] is None:
         return True
     other, allowed_values = meta["when"]
@@ -692,12 +703,15 @@ def scenario_to_toml(scenario: Scenario, *, comments: bool = True) -> str:
                 unit = f" Unit: {meta['unit']}." if meta["unit"] else ""
                 lines += textwrap.wrap(f"{meta['doc']}{unit} Allowed: {_range_text(meta)}.",
                                        width=98, initial_indent="# ", subsequent_indent="# ")
-            active = _applies(section, meta)
+            active = _applies(section, meta, name, f.name)
             if value is None:
                 lines.append(f"# {f.name} = (not set)")
             elif not active:
-                lines.append(f"# {f.name} = {_toml_value(value)}    "
-                             f"# used only with {_when_text(meta)}")
+                others, reason = _SUPERSEDED.get((name, f.name), ((), ""))
+                superseded = any(getattr(section, other) is not None for other in others)
+                why = (f"unset because {reason}" if superseded
+                       else f"used only with {_when_text(meta)}")
+                lines.append(f"# {f.name} = {_toml_value(value)}    # {why}")
             else:
                 lines.append(f"{f.name} = {_toml_value(value)}")
     return "\n".join(lines) + "\n"

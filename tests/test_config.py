@@ -162,3 +162,14 @@ def test_file_errors_name_the_file(tmp_path):
     path.write_text("[robot]\nstart = -1.0\n")
     with pytest.raises(InputError, match=r"bad\.toml: robot\.start = -1\.0"):
         load_scenario(path)
+
+
+def test_template_of_a_scenario_with_listed_sensors_and_a_tension_loads_back():
+    # n_sensors and rts_fraction are superseded by listed sensors and a tension: the template
+    # writes them commented out, so it does not contradict itself.
+    scenario = load_scenario(text="[estimation]\nsensors = [3, 7]\n[span]\npreset = 'conductor'"
+                                  "\ntension = 25000.0\n")
+    text = scenario_to_toml(scenario)
+    assert "# n_sensors = 3    # unset because the sensors are listed" in text
+    assert load_scenario(text=text) == scenario
+    assert scenario.span.build().tension == 25000.0
