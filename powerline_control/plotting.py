@@ -356,3 +356,98 @@ def plot_closed_loop(result) -> Figure:
     bottom.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+# ============================================================================ severity figures
+# Section owned by the severity engineer (issue 14): energy-balance severity and robot value.
+
+__all__ += ["plot_severity", "plot_robot_value"]
+
+
+def plot_severity(result, ax=None, *, endurance: bool = True) -> Figure:
+    """Antinode amplitude and clamp strain against wind speed, one line per configuration.
+
+    Parameters
+    ----------
+    result : SeverityResult or sequence of SeverityResult
+        From :func:`~powerline_control.severity.aeolian_severity` (e.g. no damper, a fixed
+        damper, the robot at the antinode: ``robot_value(...).severities``).
+    ax : None, Axes or pair of Axes
+        None draws a new figure with two panels (amplitude, peak-to-peak strain); one Axes draws
+        the amplitude only; a pair draws both into them.
+    endurance : bool
+        Draw the endurance strain of each result as a horizontal line.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from powerline_control import Span, aeolian_severity
+    >>> sev = aeolian_severity(Span.at_rts_fraction(300.0, "drake", 0.2), [1.0, 2.0, 3.0])
+    >>> len(plot_severity(sev).axes)
+    2
+    """
+    results = [result] if hasattr(result, "amplitude") else list(result)
+    if ax is None:
+        fig = Figure(figsize=(8, 6))
+        axes = list(fig.subplots(2, 1, sharex=True))
+    elif hasattr(ax, "plot"):
+        fig, axes = ax.figure, [ax]
+    else:
+        axes = list(ax)
+        fig = axes[0].figure
+    for res in results:
+        line = axes[0].plot(res.wind_speed, 1e3 * res.amplitude, "-o", ms=4, label=res.label)[0]
+        unbalanced = ~np.asarray(res.balanced)
+        if unbalanced.any():  # no balance in the curve's range: the value is a bound
+            axes[0].plot(res.wind_speed[unbalanced], 1e3 * res.amplitude[unbalanced], "x",
+                         color=line.get_color(), ms=9)
+        if len(axes) > 1:
+            axes[1].semilogy(res.wind_speed, 1e6 * np.maximum(res.strain_pp, 1e-12), "-o",
+                             color=line.get_color(), ms=4, label=res.label)
+    axes[0].set(ylabel="antinode amplitude (mm, 0-pk)")
+    axes[0].legend(fontsize=8)
+    if len(axes) > 1:
+        if endurance and results:
+            limit = results[0].parameters.get("endurance_strain_pp", 150e-6)
+            axes[1].axhline(1e6 * limit, color="k", ls=":", lw=1, label="endurance limit")
+        axes[1].set(ylabel="clamp bending strain (µε, pk-pk)")
+        axes[1].legend(fontsize=8)
+    axes[-1].set_xlabel("wind speed (m/s)")
+    fig.tight_layout()
+    return fig
+
+
+def plot_robot_value(value) -> Figure:
+    """Fraction of time over the endurance strain and Miner's damage per year, per configuration.
+
+    Parameters
+    ----------
+    value : RobotValue
+        From :func:`~powerline_control.severity.robot_value`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> fake = SimpleNamespace(configurations=("a", "b"), fraction_over_endurance=np.ones(2),
+    ...                        fatigue_index=np.ones(2))
+    >>> len(plot_robot_value(fake).axes)
+    2
+    """
+    fig = Figure(figsize=(8, 3.5))
+    left, right = fig.subplots(1, 2)
+    names = list(value.configurations)
+    left.bar(names, 100 * np.asarray(value.fraction_over_endurance), color="C0")
+    left.set(ylabel="time over endurance strain (%)")
+    right.bar(names, np.maximum(np.asarray(value.fatigue_index), 1e-30), color="C3")
+    right.set(yscale="log", ylabel="Miner damage per year")
+    for axis in (left, right):
+        axis.tick_params(axis="x", labelrotation=15, labelsize=8)
+    fig.tight_layout()
+    return fig
