@@ -64,7 +64,7 @@ from .plan import MotionPlanner, MPCStep, RobotLimits, Trajectory, plan_motion
 
 # --- the whole chain (closed_loop.py) ---
 from .closed_loop import ClosedLoopResult, run_closed_loop
-from .studies import StudyResult, parameter_grid, run_study
+from .studies import StudyResult, parameter_grid, point_seed, run_study
 
 __all__ = [
     "Accuracy",
@@ -107,6 +107,7 @@ __all__ = [
     "OnlineDMD",
     "parameter_grid",
     "plan_motion",
+    "point_seed",
     "PlanningError",
     "PowerlineControlError",
     "PresetNotFoundError",
