@@ -9,7 +9,10 @@ order, whatever the order in which workers finish.
 Reproducibility: with ``seed=`` the study passes each grid point its own seed, derived from the
 base seed and the point's *values* (not its index, not the worker, not the order of completion),
 so a study gives the same table on one core, on a process pool and on a Dask cluster, and a single
-point can be re-run alone with :func:`point_seed`.
+point can be re-run alone with :func:`point_seed`. Each point also runs with one BLAS thread by
+default: a multi-threaded BLAS splits its sums differently with the number of threads (a Dask
+worker, for one, starts with ``OPENBLAS_NUM_THREADS=1``), which changes the last bits of the
+results; one thread per point also keeps parallel workers from oversubscribing the cores.
 """
 
 from __future__ import annotations
@@ -20,7 +23,9 @@ import itertools
 import json
 import math
 import numbers
+import os
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Executor, as_completed
@@ -294,9 +299,53 @@ def _finite_or_none(value: object) -> object:
     return value
 
 
-def _call(func: Callable, parameters: Mapping) -> dict:
-    """Run one grid point (in the worker) and return its results as plain scalars."""
-    result = func(**parameters)
+_BLAS_LOCK = threading.Lock()
+_BLAS_STATE: dict = {"depth": 0, "limiter": None}
+
+
+class _BlasThreads:
+    """Limit BLAS to ``n`` threads while any study (or point) of this process runs.
+
+    threadpoolctl's limits are process-wide, so overlapping users (points running in a worker
+    process's threads, nested studies) share one limit, applied by the first to start and lifted
+    by the last to finish. A limit set from a thread other than the main one does not always
+    reach OpenBLAS's thread pool, so run_study sets it in the calling thread for the whole study
+    (which covers serial runs and thread executors) and worker processes set it per point.
+    """
+
+    def __init__(self, n: int | None) -> None:
+        self.n = n
+
+    def __enter__(self) -> None:
+        if self.n is None:
+            return
+        with _BLAS_LOCK:
+            if _BLAS_STATE["depth"] == 0:
+                from threadpoolctl import threadpool_limits
+
+                _BLAS_STATE["limiter"] = threadpool_limits(limits=self.n, user_api="blas")
+            _BLAS_STATE["depth"] += 1
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self.n is None:
+            return
+        with _BLAS_LOCK:
+            _BLAS_STATE["depth"] -= 1
+            if _BLAS_STATE["depth"] == 0:
+                _BLAS_STATE["limiter"].restore_original_limits()
+                _BLAS_STATE["limiter"] = None
+
+
+def _call(
+    func: Callable, parameters: Mapping, blas_threads: int | None = None, caller: int = -1
+) -> dict:
+    """Run one grid point (in the worker) and return its results as plain scalars.
+
+    ``caller`` is the process id of run_study's process, whose limit already applies here when
+    the point runs in that same process.
+    """
+    with _BlasThreads(None if os.getpid() == caller else blas_threads):
+        result = func(**parameters)
     if not isinstance(result, Mapping):
         raise InputError(
             f"The study function must return a dict of results. Got "
@@ -313,6 +362,7 @@ def run_study(
     seed: int | None = None,
     progress: bool | None = None,
     description: str = "study",
+    blas_threads: int | None = 1,
 ) -> StudyResult:
     """Evaluate ``func(**point)`` at every grid point, on ``executor`` if given.
 
@@ -334,6 +384,10 @@ def run_study(
         is a terminal.
     description : str
         Label of the progress bar.
+    blas_threads : int or None
+        BLAS threads while a point runs (default 1, through threadpoolctl): the same arithmetic
+        in every worker, hence identical floating-point results on every executor, and no
+        oversubscription by parallel workers. None leaves the BLAS library as it is.
 
     Returns
     -------
@@ -373,6 +427,8 @@ def run_study(
         )
     if seed is not None:
         seed = check_int("seed", seed, low=0)
+    if blas_threads is not None:
+        blas_threads = check_int("blas_threads", blas_threads, low=1)
     if progress is not None and not isinstance(progress, bool):
         raise InputError(
             f"The 'progress' parameter must be True, False or None. Got {progress!r}."
@@ -417,13 +473,20 @@ def run_study(
 
     start = time.perf_counter()
     results: list[dict | None] = [None] * len(calls)
-    with tqdm(total=len(calls), desc=description, unit="point", disable=not show) as bar:
+    caller = os.getpid()
+    with (
+        _BlasThreads(blas_threads),
+        tqdm(total=len(calls), desc=description, unit="point", disable=not show) as bar,
+    ):
         if executor is None:
             for index, call in enumerate(calls):
-                results[index] = _run_point(func, call, index, points[index])
+                results[index] = _run_point(func, call, index, points[index], caller)
                 bar.update()
         else:
-            futures = {executor.submit(_call, func, call): i for i, call in enumerate(calls)}
+            futures = {
+                executor.submit(_call, func, call, blas_threads, caller): i
+                for i, call in enumerate(calls)
+            }
             try:
                 for future in as_completed(futures):
                     index = futures[future]
@@ -442,9 +505,9 @@ def run_study(
     )
 
 
-def _run_point(func: Callable, call: Mapping, index: int, point: Mapping) -> dict:
+def _run_point(func: Callable, call: Mapping, index: int, point: Mapping, caller: int) -> dict:
     try:
-        return _call(func, call)
+        return _call(func, call, None, caller)
     except Exception as error:
         error.add_note(f"(run_study: at grid point {index}, {point})")
         raise

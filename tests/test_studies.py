@@ -66,6 +66,7 @@ def test_seeded_study_is_identical_on_serial_process_pool_and_dask():
         pooled = run_study(noisy_record, grid, pool, seed=2026)
     # Threads in one process keep the test quick and leak nothing; the executor is Dask's own
     # (scheduler, worker, futures), which is what run_study sees from any Dask cluster.
+    # examples/dask_study.py (run by tests/test_examples.py) checks worker processes too.
     with (
         distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
                                  dashboard_address=None) as cluster,
@@ -115,6 +116,33 @@ class ReverseCompletionExecutor(Executor):
             for waiting, func, a, kw in reversed(self.pending):
                 waiting.set_result(func(*a, **kw))
         return future
+
+
+def blas_threads_now(k):
+    """How many threads the BLAS library would use right now (threadpoolctl's view)."""
+    from threadpoolctl import threadpool_info
+
+    counts = [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
+    return {"threads": max(counts) if counts else -1}
+
+
+def test_points_run_with_one_blas_thread_and_the_limit_is_lifted_after():
+    from threadpoolctl import threadpool_info
+
+    if not any(pool["user_api"] == "blas" for pool in threadpool_info()):
+        pytest.skip("no BLAS library visible to threadpoolctl")
+    before = blas_threads_now(0)["threads"]  # the machine's default (2 here, 1 on one core)
+    serial = run_study(blas_threads_now, parameter_grid(k=[1, 2]))
+    with ThreadPoolExecutor(2) as pool:
+        threaded = run_study(blas_threads_now, parameter_grid(k=range(6)), pool)
+    with ProcessPoolExecutor(2) as pool:
+        pool.submit(abs, -1).result()  # workers exist (forked before the study), as in reuse
+        pooled = run_study(blas_threads_now, parameter_grid(k=range(4)), pool)
+    assert set(pooled.column("threads")) == {1}
+    untouched = run_study(blas_threads_now, parameter_grid(k=[1]), blas_threads=None)
+    after = blas_threads_now(0)["threads"]
+    assert set(serial.column("threads")) == {1} and set(threaded.column("threads")) == {1}
+    assert untouched.column("threads")[0] == before == after  # None leaves BLAS alone
 
 
 def test_table_csv_json_and_dataframe_agree(tmp_path):
@@ -191,6 +219,7 @@ def ok(k):
         (ok, [{"k": 1}], {"seed": -1}, "'seed' parameter must be >= 0"),
         (ok, [{"k": 1}], {"seed": 1.5}, "'seed' parameter must be an integer"),
         (ok, [{"k": 1}], {"progress": "yes"}, "'progress' parameter must be True"),
+        (ok, [{"k": 1}], {"blas_threads": 0}, "'blas_threads' parameter must be >= 1"),
         (ok, {"k": 1}, {}, "'grid' parameter must be a sequence of dicts"),
         (ok, [3], {}, "point 0 is a int"),
         (ok, [{1: 2}], {}, "keys must be parameter names"),

@@ -127,7 +127,7 @@ def example_page(path: Path) -> str:
         f"$ python examples/{path.name} out/{path.stem}",
         "```",
         "",
-        f"(the argument is the output folder; without it the script writes into `out/`). CI runs "
+        "(the argument is the output folder; without it the script writes into `out/`). CI runs "
         "every example this way (`tests/test_examples.py`).",
         "",
     ]
