@@ -79,7 +79,7 @@ _LAZY_EXPORTS = {
         "ClosedLoopResult", "run_closed_loop",
     ),
     "studies": (
-        "StudyResult", "parameter_grid", "run_study",
+        "StudyResult", "parameter_grid", "point_seed", "run_study",
     ),
 }
 _MODULE_OF = {name: module for module, names in _LAZY_EXPORTS.items() for name in names}
@@ -160,6 +160,7 @@ __all__ = [
     "OnlineDMD",
     "parameter_grid",
     "plan_motion",
+    "point_seed",
     "PlanningError",
     "PowerlineControlError",
     "PresetNotFoundError",
