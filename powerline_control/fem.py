@@ -539,7 +539,11 @@ class LineModel:
                          fix="use fewer elements (n_elements=None picks what the band needs)",
                          memory_budget=memory_budget)
             self.node_positions = read_only(np.linspace(0.0, span.length, self.n_elements + 1))
-        self.element_lengths = read_only(np.diff(self.node_positions))
+        if n_elements is None:
+            self.element_lengths = read_only(np.diff(self.node_positions))
+        else:
+            # exactly L / n (np.diff of the nodes differs in the last bit from element to element)
+            self.element_lengths = read_only(np.full(self.n_elements, span.length / self.n_elements))
         if mdr is not None:
             if not isinstance(mdr, MDR):
                 raise InputError(f"The 'mdr' parameter must be an MDR. Got {type(mdr).__name__}.")
