@@ -147,7 +147,8 @@ def physics_mesh(span: Span, bc: tuple[str, str], max_frequency: float,
     layers = []
     for side in bc:
         sizes: list[float] = []
-        if side == "clamped" and first * GRADING_RATIO < interior:
+        # (a string, EI = 0, has no layer: delta = 0 and no grading)
+        if side == "clamped" and 0.0 < first and first * GRADING_RATIO < interior:
             size = first
             while size < interior:
                 sizes.append(size)
