@@ -544,7 +544,8 @@ class LineModel:
             self.element_lengths = read_only(np.diff(self.node_positions))
         else:
             # exactly L / n (np.diff of the nodes differs in the last bit from element to element)
-            self.element_lengths = read_only(np.full(self.n_elements, span.length / self.n_elements))
+            uniform = np.full(self.n_elements, span.length / self.n_elements)
+            self.element_lengths = read_only(uniform)
         if mdr is not None:
             if not isinstance(mdr, MDR):
                 raise InputError(f"The 'mdr' parameter must be an MDR. Got {type(mdr).__name__}.")
