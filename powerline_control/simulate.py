@@ -457,6 +457,8 @@ def _complex_modes_of(model: LineModel, basis) -> _ComplexModes:
 def _complex_modes(basis) -> _ComplexModes:
     r = basis.n_modes
     omega = basis.omega
+    check_budget(f"The complex modes of {r} modes", nbytes=16.0 * 3 * (2 * r) ** 2,
+                 parameter="n_modes", value=r, fix="keep fewer modes (n_modes)")
     system = np.block([[np.zeros((r, r)), np.diag(omega)], [-np.diag(omega), -basis.damping]])
     if np.count_nonzero(basis.damping - np.diag(np.diag(basis.damping))) == 0:
         # Proportional damping: each mode is an independent 2x2 block with closed-form eigen-pair.
