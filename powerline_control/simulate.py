@@ -9,8 +9,10 @@ propagated exactly:
   hold), one complex recursion per mode run by ``scipy.signal.lfilter``.
 
 No small-step explicit integration is involved, so the only approximations are the modal
-truncation (none for models up to :data:`~powerline_control.fem.DENSE_EIGEN_LIMIT` DOFs) and, for
-non-harmonic loads, the linear interpolation of the load between samples.
+truncation (none for models up to :data:`~powerline_control.fem.DENSE_EIGEN_LIMIT` DOFs; above,
+the dropped modes' quasi-static response is added back by sparse factorisation, so only their
+dynamic part is lost) and, for non-harmonic loads, the linear interpolation of the load between
+samples.
 """
 
 from __future__ import annotations
