@@ -503,3 +503,12 @@ def test_physics_mesh_of_a_string_or_a_slack_beam():
     omega = (4.7300407 / 10.0) ** 2 * np.sqrt(10.0)
     f1 = plc.LineModel(beam_span, bc="clamped").natural_frequencies(1)[0]
     assert 2 * np.pi * f1 == pytest.approx(omega, rel=1e-6)
+
+
+def test_band_below_the_first_mode_still_gives_a_small_usable_model():
+    # max_frequency below f1: at least 4 interior elements, graded layers capped at L/4 each
+    model = plc.LineModel(DRAKE, bc="clamped", max_frequency=0.05)
+    assert model.n_elements < 200
+    # domain.md 3.3: clamped Drake f1 = 0.21871101711 Hz (root finder); 4 interior elements of
+    # 75 m still give mode 1 to ~(k h)^6 / 60480 ~ 1e-6
+    assert model.natural_frequencies(1)[0] == pytest.approx(0.21871101711, rel=1e-4)
