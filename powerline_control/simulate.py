@@ -46,7 +46,7 @@ class Snapshots:
     dt : float
         Sample interval, s.
     x : ndarray, shape (n_nodes,)
-        Node positions, m.
+        Node positions, m (or the ``outputs`` positions asked of simulate).
     displacement : ndarray, shape (n_nodes, n_t)
         Measured nodal displacements, m (noise included).
     true_displacement : ndarray, shape (n_nodes, n_t)
@@ -173,6 +173,7 @@ def simulate(
     n_modes: int | None = None,
     quasi_static: bool = True,
     memory_budget: float | None = None,
+    outputs: Sequence[float] | np.ndarray | None = None,
 ) -> Snapshots:
     """Simulate nodal displacement snapshots, (n_nodes, n_samples).
 
@@ -218,6 +219,10 @@ def simulate(
     memory_budget : float or None
         Bytes the output and work arrays may take (default 4 GiB, see
         :func:`~powerline_control._validation.check_budget`).
+    outputs : sequence of float or None
+        Positions (m) where displacement is recorded; None (default) records every node. A
+        few positions on a large mesh keep the output (n_outputs, n_t) small; ``Snapshots.x``
+        then holds these positions.
 
     Returns
     -------
@@ -284,7 +289,14 @@ def simulate(
         n_modes = check_int("n_modes", n_modes, low=1, high=model.n_dofs)
     # Before anything of size n_t exists: the output (noise-free and measured), the rotating
     # phasors and the homogeneous part (kept modes x n_t, complex).
-    n_out = model.n_nodes
+    if outputs is None:
+        out_map, out_x = model.displacement_map(), model.node_positions
+    else:
+        out_x = check_array("outputs", outputs, ndim=1)
+        for x in out_x:
+            check_real("outputs", float(x), low=0.0, low_inclusive=True, high=model.span.length)
+        out_map = model.displacement_map(out_x)
+    n_out = out_x.size
     n_kept = 2 * min(n_modes, model.n_dofs)
     nbytes = 8.0 * n_t * (4 * n_out + 2 * n_kept + 8 * max(1, len(forces)))
     check_budget(
@@ -311,12 +323,12 @@ def simulate(
     # rotating phasor per node, so it never needs the (modes x samples) matrix. Every homogeneous
     # part (initial state, and what cancels each particular solution at t = 0) is collected in
     # one coefficient and costs one exponential matrix.
-    gains = complex_modes.output_gains(model.displacement_map() @ basis.shapes)  # (n_nodes, kept)
+    gains = complex_modes.output_gains(out_map @ basis.shapes)  # (n_outputs, kept)
     homogeneous = complex_modes.project(q0)
-    clean = np.zeros((model.n_nodes, t.size))
+    clean = np.zeros((n_out, t.size))
     final = np.zeros_like(homogeneous)  # complex modal state at the last sample
     inputs = []
-    nodal = model.displacement_map()
+    nodal = out_map
     truncated = quasi_static and basis.n_modes < model.n_dofs
     residual_state = [np.zeros(model.n_dofs), np.zeros(model.n_dofs)]
     for i, f in enumerate(forces):
@@ -356,7 +368,7 @@ def simulate(
     return Snapshots(
         t=start_time + t,
         dt=dt,
-        x=model.node_positions.copy(),
+        x=np.array(out_x, dtype=float),
         displacement=noisy,
         true_displacement=clean,
         final_state=tuple(part + extra for part, extra in
