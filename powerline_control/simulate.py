@@ -302,8 +302,8 @@ def simulate(
     check_budget(
         f"simulate's {n_out} x {n_t} output", nbytes=nbytes, parameter="duration",
         value=duration,
-        fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use fewer nodes "
-        f"(n_elements; {n_out} now)",
+        fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or record fewer "
+        f"positions (outputs=[...], {n_out} now)",
         memory_budget=memory_budget,
     )
     t = dt * np.arange(n_t)

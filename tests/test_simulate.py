@@ -339,7 +339,7 @@ def test_bad_inputs_of_issue_12_are_input_errors(kwargs, name):
 
 
 def test_output_budget_refusal_gives_the_number_and_the_fixes():
-    with pytest.raises(InputError, match=r"TiB.*duration.*dt.*n_elements"):
+    with pytest.raises(InputError, match=r"TiB.*duration.*dt.*outputs"):
         plc.simulate(MODEL20, None, duration=1e9, dt=1e-3)
 
 
