@@ -9,16 +9,22 @@
    limit, not a clock, so the run is the same on an idle and a busy machine; a step that cannot
    be solved brakes and says so (status "safe_stop"), and the summary below copes with any mix.
 
-Run: /work/main/.venv/bin/python examples/plan_to_antinode.py [--plot]
+Run: /work/main/.venv/bin/python examples/plan_to_antinode.py [OUT]
+(writes OUT/plan_to_antinode.png, default folder ./out)
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
+from pathlib import Path
 
-import numpy as np
+import matplotlib
 
-import powerline_control as plc
+matplotlib.use("Agg")  # files only, no display
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+import powerline_control as plc  # noqa: E402
 
 
 def antinodes_near(model: plc.LineModel, frequency: float, seed: int) -> list[plc.Antinode]:
@@ -27,7 +33,7 @@ def antinodes_near(model: plc.LineModel, frequency: float, seed: int) -> list[pl
     return plc.locate_antinodes(snap.displacement[:, -1000:], snap.x, dt=snap.dt)
 
 
-def main(plot: bool = False) -> None:
+def main(out: Path) -> None:
     span = plc.Span.paper_lab()
     model = plc.LineModel(span, n_elements=100, bc="pinned", damping=plc.ModalDamping(0.01))
     limits = plc.RobotLimits(v_max=0.5, a_max=1.0, length=0.2)
@@ -74,20 +80,22 @@ def main(plot: bool = False) -> None:
     print(f"MPC: final position {state[0]:.3f} m; steps by status {counts}; {solves} "
           f"(limit {planner.max_iter}; a step that reaches it brakes instead)")
 
-    if plot:
-        import matplotlib.pyplot as plt
-
-        fig, ax = plt.subplots(figsize=(7, 3))
-        ax.plot(times, positions, label="robot (MPC)")
-        ax.axhline(new_target, ls="--", c="k", lw=0.8, label="antinode after wind change")
-        ax.axhspan(*obstacles[0], color="0.8", label="obstacle")
-        ax.set_xlabel("t (s)")
-        ax.set_ylabel("position (m)")
-        ax.legend()
-        fig.tight_layout()
-        fig.savefig("plan_to_antinode.png", dpi=120)
-        print("saved plan_to_antinode.png")
+    fig, ax = plt.subplots(figsize=(7, 3))
+    ax.plot(times, positions, label="robot (MPC)")
+    ax.axhline(new_target, ls="--", c="k", lw=0.8, label="antinode after wind change")
+    ax.axhspan(*obstacles[0], color="0.8", label="obstacle")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("position (m)")
+    ax.legend()
+    fig.tight_layout()
+    out.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out / "plan_to_antinode.png", dpi=120)
+    plt.close(fig)
+    print(f"saved {out / 'plan_to_antinode.png'}")
 
 
 if __name__ == "__main__":
-    main(plot="--plot" in sys.argv)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("out", nargs="?", default="out", type=Path,
+                        help="output folder (default: ./out)")
+    main(parser.parse_args().out)
