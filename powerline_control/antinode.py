@@ -81,8 +81,9 @@ class Antinode:
     fit_samples : int
         Number of samples the position was fitted to (3 for a three-point interpolation).
     uncertainty : str
-        Where ``position_std`` comes from: ``"variances"`` (propagated from those given) or
-        ``"estimated"`` (from the field's estimated noise and the fit's residual).
+        Where ``position_std`` comes from: ``"variances"`` (propagated from those given),
+        ``"estimated"`` (from the field's estimated noise and the fit's residual) or ``"none"``
+        (an ``Antinode`` built by hand without one).
 
     Examples
     --------
@@ -102,7 +103,7 @@ class Antinode:
     frequency: float | None = None
     noise_std: float | None = None
     fit_samples: int = 0
-    uncertainty: str = "variances"
+    uncertainty: str = "none"
 
     @property
     def loop_length(self) -> float:
