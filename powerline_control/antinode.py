@@ -363,7 +363,9 @@ def _sine_parameters(
         a, b, k = a + step[0], b + step[1], k + step[2]
         if not k0 / 3 <= k <= 3 * k0:
             return None
-        if abs(step[2]) <= 1e-13 * k and abs(step[0]) + abs(step[1]) <= 1e-13 * math.hypot(a, b):
+        # Converged when the steps are round-off for the position (1e-10 of the loop) and the
+        # amplitude; with noise Gauss-Newton converges linearly, so the test is not 1e-16.
+        if abs(step[2]) <= 1e-10 * k and abs(step[0]) + abs(step[1]) <= 1e-10 * math.hypot(a, b):
             return float(a), float(b), float(k)
     return None
 
