@@ -156,7 +156,8 @@ def test_energy_is_conserved_with_no_damping_and_a_still_robot():
     robot = plc.MDR(1.1, body_mass=0.03, suspended_mass=0.04, stiffness=1500.0, damping=0.0)
     plant = _ModalPlant(BARE, robot, 15, 1e-3)
     rng = np.random.default_rng(17)
-    z = np.concatenate([1e-3 * rng.standard_normal(plant.n_q), 0.1 * rng.standard_normal(plant.n_q)])
+    z = np.concatenate([1e-3 * rng.standard_normal(plant.n_q),
+                        0.1 * rng.standard_normal(plant.n_q)])
     phi, _, _ = plant.discretise(1.1)
     e0 = plant.energy(z, 1.1)
     energies = []
