@@ -51,11 +51,10 @@ from threadpoolctl import threadpool_limits
 
 from ._validation import check_indices, check_int, check_real, check_rng, read_only
 from .errors import InputError
-from .estimate import KalmanFilter
 from .fem import MDR, LineModel
-from .identify import fit_dmd, select_alpha
 from .line import Span
 from .plan import MotionPlanner, RobotLimits
+from .recipe import design_estimator
 
 __all__ = ["ClosedLoopResult", "Comparison", "run_closed_loop"]
 
@@ -666,16 +665,18 @@ def _check_multiple(name: str, value: float, dt: float) -> int:
     return steps
 
 
-def _calibrated_filter(record, dt, sensors, delays, noise_var, rank):
-    """Steady-state Kalman filter on a DMD model of the calibration record (alpha from data)."""
-    curve = select_alpha(record, dt, delays=delays, rank=rank)
-    alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None else curve.best_alpha
-    dmd = fit_dmd(record, dt, alpha=alpha, delays=delays, rank=rank, alpha_mode=curve.alpha_mode)
-    sys = dmd.to_statespace(measured=list(sensors))
-    kf = KalmanFilter(
-        sys, Q=dmd.residual_covariance, R=noise_var, steady_state=True, field_map=dmd.field_map
-    )
-    return kf, np.asarray(dmd.field_map), np.asarray(sys.C) @ np.asarray(sys.A)
+def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
+    """The estimator recipe (:func:`~powerline_control.recipe.design_estimator`) on the
+    calibration record with the given sensors: filter, field map and the one-step sensor
+    predictor C A (for the innovation check)."""
+    options = {} if delays is None else {"delays": delays}
+    if rank is not None:
+        options["rank"] = rank
+    design = design_estimator(record, len(sensors), dt=dt, sensors=list(sensors),
+                              noise_std=noise_std if noise_std > 0 else None, **options)
+    sys = design.model.to_statespace(measured=list(sensors))
+    return (design.filter, np.asarray(design.model.field_map),
+            np.asarray(sys.C) @ np.asarray(sys.A))
 
 
 # Thousands of small products per simulated second: one BLAS thread is several times faster than
@@ -697,8 +698,8 @@ def run_closed_loop(
     control_period: float = 0.05,
     plant_period: float = 0.01,
     noise_fraction: float = 0.01,
-    delays: int = 2,
-    estimator_rank: int | None = 40,
+    delays: int | None = None,
+    estimator_rank: int | None = None,
     antinode_window: float = 1.0,
     frequency_window: float = 2.0,
     retarget_threshold: float = 0.05,
@@ -745,11 +746,11 @@ def run_closed_loop(
     noise_fraction : float
         Sensor noise as a fraction of the RMS displacement of the calibration window (0: none;
         the filter then assumes a 1e-4 floor so that its Riccati equation stays regular).
-    delays : int
-        Time delays of the DMD model (2 makes the displacement model exact for a linear line).
+    delays : int or None
+        Time delays of the estimator's DMD model (None: the recipe's default).
     estimator_rank : int or None
-        Rank of the DMD model (None: full). The filter's cost grows with it, not with the mesh;
-        40 keeps the modes the calibration excites on the lab span.
+        Rank of the estimator's model (None: the recipe's default). The filter's cost grows
+        with it, not with the mesh.
     antinode_window : float
         Length of the window the excited shape is fitted on, s.
     frequency_window : float
@@ -821,13 +822,15 @@ def run_closed_loop(
     frequency_window = check_real("frequency_window", frequency_window, low=0.0)
     retarget_threshold = check_real("retarget_threshold", retarget_threshold, low=0.0)
     settle_margin = check_real("settle_margin", settle_margin, low=0.0, low_inclusive=True)
-    delays = check_int("delays", delays, low=1)
+    if delays is not None:
+        delays = check_int("delays", delays, low=1)
     if estimator_rank is not None:
         estimator_rank = check_int("estimator_rank", estimator_rank, low=1)
     if motion not in ("closed_form", "mpc"):
         raise InputError(f"The 'motion' parameter must be 'closed_form' or 'mpc'. Got {motion!r}.")
     n_elements = check_int("n_elements", n_elements, low=2)
-    sensors = tuple(check_indices("sensors", sensors, n_elements + 1).tolist())
+    # Sorted: the estimator's outputs follow the node order.
+    sensors = tuple(sorted(check_indices("sensors", sensors, n_elements + 1).tolist()))
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
     obstacles = [
@@ -883,11 +886,8 @@ def run_closed_loop(
     calib_rms = float(np.sqrt(np.mean(calib_true**2)))
     noise_std = noise_fraction * calib_rms
     calib_noisy = calib_true + noise_std * rng.standard_normal(calib_true.shape)
-    filter_var = max(noise_std, 1e-4 * calib_rms) ** 2
     kf, field_map, predict_sensors = _calibrated_filter(
-        calib_noisy, dt, sensor_list, delays, filter_var,
-        # A rank near the delay-embedded size saves nothing: full rank there.
-        estimator_rank if estimator_rank and estimator_rank < bare.n_nodes * delays // 2 else None,
+        calib_noisy, dt, sensor_list, delays, noise_std, estimator_rank
     )
     states = np.empty((n_t, field_map.shape[1]))
     warm = kf.filter(calib_noisy[sensor_list], update_state=True)
