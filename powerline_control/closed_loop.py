@@ -71,6 +71,8 @@ MAX_STATIC_SLOPE = 0.05
 UNSTEADY_LIMIT = 0.25
 MAX_WAIT = 3.0
 MAX_CHOICES = 3
+# The plant keeps every mode below 8x the load frequency up to this many, else a band of modes.
+SMALL_PLANT_MODES = 48
 # Local minima of the predicted RMS within this fraction of the lowest count as equally good:
 # the robot takes the nearest (equal loops of a resonant mode need no long trip).
 NEAR_OPTIMAL = 0.03
@@ -266,18 +268,24 @@ class ClosedLoopResult:
 
 # ---------------------------------------------------------------------------------- the plant
 class _ModalPlant:
-    """The bare line's lowest modes with the robot coupled at its position (see module doc)."""
+    """Bare-line modes with the robot coupled at its position (see module doc).
 
-    def __init__(self, model: LineModel, robot: MDR | None, n_modes: int, dt: float):
-        basis = model.modes(n_modes)
+    ``modes``: how many of the lowest modes, or the indices (0-based) of a band of them.
+    """
+
+    def __init__(self, model: LineModel, robot: MDR | None, modes, dt: float):
+        index = np.arange(modes) if np.ndim(modes) == 0 else np.asarray(modes)
+        basis = model.modes(int(index.max()) + 1)
         self.model, self.dt = model, dt
         active = robot is not None and (robot.body_mass > 0 or robot.has_absorber)
         self.robot = robot if active else None
-        self.shapes = np.asarray(basis.shapes)
-        self.omega2 = np.asarray(basis.omega) ** 2
-        self.line_damping = np.asarray(basis.damping)
+        self.shapes = np.asarray(basis.shapes)[:, index]
+        self.omega2 = np.asarray(basis.omega)[index] ** 2
+        self.line_damping = np.asarray(basis.damping)[np.ix_(index, index)]
         self.nodal = model.displacement_map() @ self.shapes  # (n_nodes, r)
-        self.r = basis.n_modes
+        self.r = index.size
+        off_diagonal = self.line_damping - np.diag(np.diag(self.line_damping))
+        self._diagonal = not np.any(off_diagonal)
         self.absorber = self.robot is not None and self.robot.has_absorber
         self.n_q = self.r + (1 if self.absorber else 0)
         self._cache: dict[float, tuple] = {}
@@ -343,11 +351,32 @@ class _ModalPlant:
         rhs[: self.r] = modal_force
         return np.linalg.solve(stiff - omega**2 * mass + 1j * omega * damp, rhs)
 
+    def modal_response(self, load: np.ndarray, omega: float) -> np.ndarray:
+        """Bare line's modal amplitudes under a harmonic modal load (diagonal when it can)."""
+        if self._diagonal:
+            return load / (self.omega2 - omega**2 + 1j * omega * np.diag(self.line_damping))
+        dynamic = np.diag(self.omega2 - omega**2) + 1j * omega * self.line_damping
+        return np.linalg.solve(dynamic, load)
+
     def receptance(self, x: float, omega: float) -> np.ndarray:
         """Bare line's displacement at every node per unit harmonic force at x (modal sum)."""
-        n = self.coupling(x)
-        dynamic = np.diag(self.omega2 - omega**2) + 1j * omega * self.line_damping
-        return self.nodal @ np.linalg.solve(dynamic, n)
+        return self.nodal @ self.modal_response(self.coupling(x), omega)
+
+
+def _default_modes(span: Span, bare: LineModel, frequencies: list, dt: float):
+    """The plant's modes: every mode below 8x the highest load frequency when that is a few
+    dozen (short spans: the robot's local flexibility converges), else the band
+    [0.6 f_min, 1.4 f_max] (long spans: ~100 modes near the load; the others respond weakly and
+    the loads' part of them is the quasi-static residual)."""
+    f_max = max(frequencies) if frequencies else 0.125 / dt
+    f_min = min(frequencies) if frequencies else 0.0
+    estimate = span.pinned_frequencies(bare.n_dofs)
+    below = int(np.count_nonzero(estimate <= 8 * f_max))
+    if below <= SMALL_PLANT_MODES:
+        return int(min(bare.n_dofs, max(12, below + 2)))
+    first = int(np.count_nonzero(estimate < 0.6 * f_min))
+    last = int(min(bare.n_dofs, np.count_nonzero(estimate <= 1.4 * f_max) + 1))
+    return np.arange(first, last)
 
 
 def _robot_dynamic_stiffness(robot: MDR, omega: float) -> complex:
@@ -519,11 +548,10 @@ def _kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
     two, the mix the few measurements support.
     """
     n_r = plant.coupling(x_r)
-    dynamic = np.diag(plant.omega2 - omega**2) + 1j * omega * plant.line_damping
     rows = np.vstack([sensor_rows, n_r])  # (p + 1, r)
     values = np.append(sensed, at_robot)
     reaction = _robot_dynamic_stiffness(robot, omega) * at_robot
-    values = values - rows @ np.linalg.solve(dynamic, n_r) * reaction
+    values = values - rows @ plant.modal_response(n_r, omega) * reaction
     # A floor of 0.1 % damping keeps the prior finite on an undamped line at resonance.
     floor = 2e-3 * np.sqrt(plant.omega2) * omega
     variance = 1.0 / (np.abs(plant.omega2 - omega**2) ** 2 + floor**2)
@@ -544,8 +572,7 @@ def _predicted_rms(bare_shape, plant, robot, omega, positions, weights):
     for i, p in enumerate(positions):
         h = plant.receptance(p, omega)
         n = plant.coupling(p)
-        at_robot = complex(n @ np.linalg.solve(
-            np.diag(plant.omega2 - omega**2) + 1j * omega * plant.line_damping, n))
+        at_robot = complex(n @ plant.modal_response(n, omega))
         w_bare_p = complex(np.interp(p, plant.model.node_positions, bare_shape.real)
                            + 1j * np.interp(p, plant.model.node_positions, bare_shape.imag))
         shape = bare_shape + h * reaction * w_bare_p / (1 - at_robot * reaction)
@@ -689,7 +716,7 @@ def run_closed_loop(
     limits: RobotLimits | None = None,
     *,
     sensors: Sequence[int],
-    n_elements: int = 100,
+    n_elements: int | None = 100,
     bc: object = "pinned",
     damping: object = None,
     duration: float = 10.0,
@@ -708,7 +735,7 @@ def run_closed_loop(
     clamp_distance: float | None = None,
     obstacles: Sequence[tuple[float, float]] = (),
     motion: str = "closed_form",
-    planner_time_budget: float | None = 1.0,
+    planner_time_budget: float | None = None,
     seed: int | np.random.Generator | None = 0,
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
@@ -726,8 +753,9 @@ def run_closed_loop(
         Speed and acceleration limits (default v_max = 0.5 m/s, a_max = 1 m/s^2).
     sensors : sequence of int
         Measured node indices (not at a pinned support, where the line never moves).
-    n_elements : int
-        Elements of the FE model whose modes play the real line.
+    n_elements : int or None
+        Elements of the FE model whose modes play the real line (None: the mesh the physics
+        chooses for the aeolian band, see :class:`~powerline_control.fem.LineModel`).
     bc : str or (str, str)
         Supports.
     damping : None, ModalDamping or RayleighDamping
@@ -762,8 +790,9 @@ def run_closed_loop(
     settle_margin : float
         Time after the robot's arrival before the settled window starts, s.
     n_modes : int or None
-        Bare-line modes of the plant; None keeps those below 8x the highest load frequency (at
-        least 12; all of a small model).
+        Lowest bare-line modes kept by the plant; None keeps those below 8x the highest load
+        frequency (at least 12) when they are at most 48, else the band from 0.6x the lowest to
+        1.4x the highest load frequency (long spans).
     clamp_distance : float or None
         Where the "near clamp" comparison parks the robot, m from the left support; default
         min(0.05 L, 1.5 m), where fixed dampers sit.
@@ -772,7 +801,8 @@ def run_closed_loop(
     motion : {"closed_form", "mpc"}
         Motion law: the closed-form time-optimal approach, or the receding-horizon planner.
     planner_time_budget : float or None
-        Wall-clock budget of one MPC step, s (``motion="mpc"`` only).
+        Wall-clock budget of one MPC step, s (``motion="mpc"`` only); None (default): the
+        planner's iteration limits, so results do not depend on the machine's load.
     seed : int, Generator or None
         Sensor noise.
 
@@ -828,9 +858,10 @@ def run_closed_loop(
         estimator_rank = check_int("estimator_rank", estimator_rank, low=1)
     if motion not in ("closed_form", "mpc"):
         raise InputError(f"The 'motion' parameter must be 'closed_form' or 'mpc'. Got {motion!r}.")
-    n_elements = check_int("n_elements", n_elements, low=2)
-    # Sorted: the estimator's outputs follow the node order.
-    sensors = tuple(sorted(check_indices("sensors", sensors, n_elements + 1).tolist()))
+    if n_elements is not None:
+        n_elements = check_int("n_elements", n_elements, low=2)
+    if n_elements is not None:  # early, before any model is built
+        check_indices("sensors", sensors, n_elements + 1)
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
     obstacles = [
@@ -850,6 +881,8 @@ def run_closed_loop(
 
     setup_start = time.perf_counter()
     bare = LineModel(span, n_elements, bc, damping=damping)
+    # Sorted: the estimator's outputs follow the node order.
+    sensors = tuple(sorted(check_indices("sensors", sensors, bare.n_nodes).tolist()))
     fixed_nodes = [j for j in sensors if bare.displacement_map()[[j]].nnz == 0]
     if fixed_nodes:
         raise InputError(
@@ -863,13 +896,15 @@ def run_closed_loop(
     )
     t = dt * np.arange(_check_multiple("duration", duration, dt) + 1)
     n_t = t.size
-    top_frequency = max(
-        (float(f.frequency) for _, loads in segments for f in loads if hasattr(f, "frequency")),
-        default=0.5 / dt / 4,
-    )
+    load_frequencies = [
+        float(b.frequency)
+        for _, loads in segments
+        for f in loads
+        for b in [f.bind(bare) if hasattr(f, "bind") else f]
+        if hasattr(b, "frequency")
+    ]
     if n_modes is None:
-        below = int(np.count_nonzero(span.pinned_frequencies(bare.n_dofs) <= 8 * top_frequency))
-        n_modes = int(min(bare.n_dofs, max(12, below + 2)))
+        n_modes = _default_modes(span, bare, load_frequencies, dt)
     else:
         n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
     plant = _ModalPlant(bare, robot, n_modes, dt)
@@ -1135,7 +1170,7 @@ def run_closed_loop(
             shape = nodal @ amplitude[:r] + static_amplitude
             return float(np.sqrt(0.5 * weights @ np.abs(shape) ** 2))
 
-        coarse = np.linspace(0.0, span.length, 4 * n_elements + 1)[1:-1]
+        coarse = np.linspace(0.0, span.length, 4 * bare.n_elements + 1)[1:-1]
         coarse_rms = np.array([steady_rms(x) for x in coarse])
         i = int(np.argmin(coarse_rms))
         step = coarse[1] - coarse[0]

@@ -257,3 +257,15 @@ def test_robot_too_heavy_for_the_tension():
     with pytest.raises(plc.InputError, match="tension"):
         run_closed_loop(slack, plc.HarmonicForce(1.0, 5.0, 0.5), plc.MDR(1.2, 0.1),
                         sensors=[5, 10], n_elements=20, duration=3.0, calibration=1.0)
+
+
+def test_aeolian_load_and_mpc_motion_run():
+    # A distributed lock-in load (bound to the model: it has a frequency) and the MPC planner:
+    # the loop runs, the planner reports its statuses, the scan exists (the load is a sine).
+    span = plc.Span.paper_lab()
+    wind = plc.AeolianForce(wind_speed=1.5)
+    robot = plc.MDR(1.0, 0.03, 0.04, 1500.0, 2.0)
+    result = run_closed_loop(span, wind, robot, sensors=[5, 9, 14], n_elements=20,
+                             duration=1.5, calibration=1.0, motion="mpc", seed=6)
+    assert len(result.statuses) == 10 and "closed_form" not in result.statuses
+    assert result.scan_rms.size > 0 and np.isfinite(result.best_position)
