@@ -763,7 +763,8 @@ def run_closed_loop(
     duration : float
         Total simulated time, s, calibration included.
     calibration : float
-        Initial window with the robot parked, used to identify the estimator's model, s.
+        Initial window with the robot parked, used to identify the estimator's model, s
+        (floored to whole samples, like ``duration``).
     dt : float
         Sample interval, s.
     control_period : float
@@ -846,7 +847,13 @@ def run_closed_loop(
     plant_period = check_real("plant_period", plant_period, low=0.0)
     steps_per_period = _check_multiple("control_period", control_period, dt)
     plant_steps = _check_multiple("plant_period", plant_period, dt)
-    n_cal = _check_multiple("calibration", calibration, dt) + 1
+    # Durations are sampled (floored to whole samples, as simulate does); rates must divide.
+    n_cal = int(np.floor(calibration / dt + 1e-9)) + 1
+    if n_cal < 3:
+        raise InputError(
+            f"The 'calibration' parameter ({calibration:g} s) must hold at least 2 samples of "
+            f"dt ({dt:g} s)."
+        )
     noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True)
     antinode_window = check_real("antinode_window", antinode_window, low=0.0)
     frequency_window = check_real("frequency_window", frequency_window, low=0.0)
@@ -894,7 +901,7 @@ def run_closed_loop(
         if clamp_distance is None
         else check_real("clamp_distance", clamp_distance, low=0.0, high=span.length)
     )
-    t = dt * np.arange(_check_multiple("duration", duration, dt) + 1)
+    t = dt * np.arange(int(np.floor(duration / dt + 1e-9)) + 1)
     n_t = t.size
     load_frequencies = [
         float(b.frequency)

@@ -230,10 +230,10 @@ def test_estimate_tracks_the_true_field(settled_case):
         (dict(sensors=[0, 5]), "sensors"),  # a pinned support: the model has no displacement
         (dict(sensors=[5, 5]), "sensors"),
         (dict(calibration=10.0), "calibration"),
-        (dict(calibration=1.0005), "calibration"),
+        (dict(calibration=0.001), "calibration"),
         (dict(control_period=0.0015), "control_period"),
         (dict(plant_period=0.0025), "plant_period"),
-        (dict(duration=3.0004), "duration"),
+        (dict(dt=0.0007), "control_period"),  # 50 ms is not a multiple of 0.7 ms
         (dict(noise_fraction=-0.1), "noise_fraction"),
         (dict(motion="fast"), "motion"),
         (dict(obstacles=[(1.0, 1.5)]), "robot.position"),
