@@ -723,7 +723,7 @@ def run_closed_loop(
     calibration: float = 2.0,
     dt: float = 1e-3,
     control_period: float = 0.05,
-    plant_period: float = 0.01,
+    plant_period: float | None = None,
     noise_fraction: float = 0.01,
     delays: int | None = None,
     estimator_rank: int | None = None,
@@ -769,9 +769,10 @@ def run_closed_loop(
         Sample interval, s.
     control_period : float
         Interval between control steps, s (a multiple of ``dt``).
-    plant_period : float
+    plant_period : float or None
         Interval over which the plant holds the robot's (mid-block) position, s (a multiple of
-        ``dt``).
+        ``dt``). None: 10 ms, or the control period when the plant keeps a band of more than 48
+        modes (a long span: each new position costs a matrix exponential of the band).
     noise_fraction : float
         Sensor noise as a fraction of the RMS displacement of the calibration window (0: none;
         the filter then assumes a 1e-4 floor so that its Riccati equation stays regular).
@@ -844,9 +845,12 @@ def run_closed_loop(
     )
     dt = check_real("dt", dt, low=0.0)
     control_period = check_real("control_period", control_period, low=0.0)
-    plant_period = check_real("plant_period", plant_period, low=0.0)
+    if plant_period is not None:
+        plant_period = check_real("plant_period", plant_period, low=0.0)
     steps_per_period = _check_multiple("control_period", control_period, dt)
-    plant_steps = _check_multiple("plant_period", plant_period, dt)
+    plant_steps = (
+        _check_multiple("plant_period", plant_period, dt) if plant_period is not None else None
+    )
     # Durations are sampled (floored to whole samples, as simulate does); rates must divide.
     n_cal = int(np.floor(calibration / dt + 1e-9)) + 1
     if n_cal < 3:
@@ -915,6 +919,14 @@ def run_closed_loop(
     else:
         n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
     plant = _ModalPlant(bare, robot, n_modes, dt)
+    if plant_steps is None:
+        # 10 ms blocks, or one block per control period for a long span's band of ~100 modes
+        # (each new position costs an exponential of a (4r + 2)-square matrix).
+        plant_steps = (
+            steps_per_period
+            if plant.r > SMALL_PLANT_MODES
+            else max(1, min(steps_per_period, int(round(0.01 / dt))))
+        )
     free_plant = _ModalPlant(bare, None, n_modes, dt)
     modal_force, residual, harmonic = _load_histories(bare, plant, segments, t)
     nodal = plant.nodal
