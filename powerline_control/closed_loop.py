@@ -1,4 +1,4 @@
-"""The whole chain in closed loop: sensors -> Kalman estimate -> target -> motion -> robot moves.
+"""The whole chain in closed loop: sensors -> estimate -> target -> motion -> robot moves.
 
 The plant
 ---------
@@ -22,19 +22,21 @@ at its mid-block value over blocks of ``plant_period``.
 The policy (docs/closed_loop.md)
 --------------------------------
 Chasing the antinode of the field the robot is damping is unstable: the damped loop's maximum
-moves away from the robot. Here the robot targets the antinode of the *robot-free* excited shape:
-from the estimated field's phasor ``W`` at the dominant frequency and the robot's own measured
-motion ``W_r``, the robot's reaction is removed with the bare line's receptance,
+moves away from the robot. Here the robot targets something its damping does not move. From the
+sensors' and its own motion's phasors at the dominant frequency it removes its own reaction with
+the bare line's receptance,
 
     W_bare(x) = W(x) - H(x, x_r; omega) D_r(omega) W_r,
     D_r = omega^2 m_b + omega^2 m_a (k + i omega c) / (k + i omega c - omega^2 m_a),
 
-which in steady state does not depend on where the robot is. The target is chosen once (the
-largest antinode within 3/4 of a loop of the robot), refined once after the robot has settled
-there (only inside a gate of a quarter loop around that first choice: the gate is anchored, it
-does not move with the goal), and chosen anew only when the dominant frequency changes (a wind
-change). The motion law is the closed-form time-optimal approach of a double integrator (or the
-MPC planner on request).
+(the robot-free excited shape, fitted on the bare modes), which in steady state is the same
+wherever the robot is; then it predicts the span's RMS with itself parked at every p,
+``W_p = W_bare + H(., p) D_r W_bare(p) / (1 - H(p, p) D_r)``, and goes to the best (the nearest
+of the near-best minima). The choice is confirmed once the robot has settled and the window is
+steady: a refinement inside a quarter loop of the *anchor* (the gate does not move with the
+goal), or at most two moves to another loop; a new target only when the dominant frequency
+changes (a wind change). The motion law is the closed-form time-optimal approach of a double
+integrator (or the MPC planner on request).
 """
 
 from __future__ import annotations
@@ -175,7 +177,8 @@ class ClosedLoopResult:
         Wall-clock seconds spent in: setup (modes, calibration, identification), plant (sample
         stepping and sensing), plant update (re-discretising after a move), filter (Kalman
         steps), policy and motion, comparisons (parked runs and the steady-state scan); and
-        "loop cpu", the process time of the loop (less sensitive to the machine's load).
+        "loop cpu", the process time of the loop (less sensitive to the machine's load), and
+        "modes", the number of bare-line modes the plant kept.
 
     Examples
     --------
@@ -1005,7 +1008,7 @@ def run_closed_loop(
         return bare_shape(lo, end, frequency), unsteady
 
     timings = {"setup": time.perf_counter() - setup_start, "plant": 0.0, "plant update": 0.0,
-               "filter": 0.0}
+               "filter": 0.0, "modes": plant.r}
     wall_start, cpu_start = time.perf_counter(), time.process_time()
     k = n_cal - 1
     while k < n_t - 1:
