@@ -64,7 +64,8 @@ final = wind.t >= wind.t[-1] - 2.0
 rms = {name: 1e3 * np.sqrt(np.mean(wind.displacement[:, m] ** 2))
        for name, m in (("before", before), ("after", just_after), ("final", final))}
 print(f"wind change at 8 s: retargeted at {wind.retarget_times[-1]:.2f} s, settled "
-      f"{wind.settle_times[-1]:.2f} s later at {wind.robot_position[-1]:.3f} m (best "
+      f"{wind.settle_times[-1]:.2f} s later ({wind.follow_times[0]:.2f} s after the change) at "
+      f"{wind.robot_position[-1]:.3f} m (best "
       f"{wind.best_position:.3f} m); RMS {rms['before']:.3f} -> {rms['after']:.3f} -> "
       f"{rms['final']:.3f} mm")
 plot_closed_loop_path(wind).savefig(out / "closed_loop_wind_change.png", dpi=110)

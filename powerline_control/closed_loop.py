@@ -164,6 +164,10 @@ class ClosedLoopResult:
     retarget_times, settle_times : tuple of float
         When the controller chose a new target (s), and how long the robot then took to arrive
         and stay within 1 % of a loop (s; NaN if it did not).
+    follow_times : tuple of float
+        For every change of load in a schedule (a wind change): the time from the change until
+        the robot arrived at its new target and stayed (detection, retarget and move), s; NaN
+        when it did not.
     innovation_ratio : ndarray, shape (n_steps,)
         RMS one-step prediction error of the sensors over the last window, relative to its value
         on the calibration record: the estimator's model is taken as valid below 3.
@@ -219,6 +223,7 @@ class ClosedLoopResult:
     damper_power: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     predictions: tuple = field(default=(), repr=False)
     timings: dict = field(default_factory=dict, repr=False)
+    follow_times: tuple = ()
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""
@@ -234,6 +239,11 @@ class ClosedLoopResult:
     def window_mask(self) -> np.ndarray:
         """Boolean mask of the samples in :attr:`settled_window`."""
         return (self.t >= self.settled_window[0]) & (self.t <= self.settled_window[1])
+
+    @property
+    def estimator_valid(self) -> np.ndarray:
+        """Per control step: the estimator's model still fits (innovation ratio below 3)."""
+        return self.innovation_ratio < 3.0
 
     @property
     def rms_closed_loop(self) -> float:
@@ -1137,6 +1147,15 @@ def run_closed_loop(
     for begin, stop in zip(target_starts, bounds, strict=True):
         arrival = _arrival_index(position[: stop + 1], begin, tolerance)
         settle_times.append(float(t[arrival] - t[begin]) if arrival is not None else float("nan"))
+    follow_times = []
+    for change in (start for start, _ in segments[1:]):
+        later = [i for i, begin in enumerate(target_starts) if t[begin] >= change]
+        if not later:
+            follow_times.append(float("nan"))
+            continue
+        begin, stop = target_starts[later[0]], bounds[later[0]]
+        arrival = _arrival_index(position[: stop + 1], begin, tolerance)
+        follow_times.append(float(t[arrival] - change) if arrival is not None else float("nan"))
     last_begin = target_starts[-1] if target_starts else n_cal - 1
     arrival = _arrival_index(position, last_begin, tolerance)
     window_start = t[arrival] + settle_margin if arrival is not None else np.inf
@@ -1251,4 +1270,5 @@ def run_closed_loop(
         damper_power=read_only(loop_power),
         predictions=tuple(predictions),
         timings=timings,
+        follow_times=tuple(follow_times),
     )

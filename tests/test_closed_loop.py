@@ -101,6 +101,8 @@ def test_robot_settles(settled_case):
     last = result.t >= result.t[-1] - 3.0  # the test's own window: the last 3 s
     loop = LAB.length / mode
     assert np.ptp(result.robot_position[last]) < 0.02 * loop
+    # The goal itself does not drift (the old policy's goal wandered with the damped field).
+    assert np.ptp(result.target[last]) < 0.01 * loop
     assert result.settled
 
 
@@ -180,6 +182,9 @@ def test_wind_change_robot_follows_to_the_new_best_position():
                              calibration=2.0, seed=9)
     assert len(result.retarget_times) == 2 and result.retarget_times[1] > 8.0
     assert np.isfinite(result.settle_times[1])
+    # Detection (2 s frequency window, held 1 s), retarget and the move: reported, and finite.
+    assert len(result.follow_times) == 1 and 0 < result.follow_times[0] < 8.0
+    assert not np.all(result.estimator_valid)  # the model was seen not to fit after the change
     last = result.t >= result.t[-1] - 2.0
     assert np.ptp(result.robot_position[last]) < 0.02 * LAB.length / 3
     _, best_rms = _fe_best(robot, second)
