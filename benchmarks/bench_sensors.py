@@ -25,10 +25,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
-
 import warnings  # noqa: E402
 
+import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import numpy as np  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
 from _common import timed as _timed  # noqa: E402

@@ -11,13 +11,12 @@ import itertools
 import math
 
 import control as ct
+import cvxpy as cp
 import numpy as np
 import pytest
 import scipy.linalg as sla
 
 import powerline_control as plc
-import cvxpy as cp
-
 from powerline_control import _riccati
 from powerline_control._riccati import steady_state_batch
 from powerline_control._sensor_criteria import KalmanCriterion, _information
