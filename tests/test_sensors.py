@@ -662,3 +662,22 @@ def test_a_huge_horizon_costs_its_logarithm_not_its_length():
     lyap = sla.solve_discrete_lyapunov(a.T, cs.T @ cs)
     # The finite sum to 1e8 steps of a damped model equals the Lyapunov solution to round-off.
     assert sel.objective == pytest.approx(np.linalg.eigvalsh(lyap)[0], rel=1e-6)
+
+
+def test_the_fresh_machine_failure_falls_back_to_the_next_solver(monkeypatch):
+    """The issue's failure, reproduced: CLARABEL raises on the cut 'kalman' relaxation. The next
+    installed solver takes over; the certificate is checked against brute force."""
+    model, sys, q, r = line_problem(13, "clamped", n_modes=3)
+    optimum = brute_force_optimum(sys, 3, "kalman", Q=q, R=r)
+    original = cp.Problem.solve
+
+    def clarabel_fails(self, *args, **kwargs):
+        if kwargs.get("solver") == "CLARABEL":
+            raise cp.error.SolverError("Solver 'CLARABEL' failed. Try another solver.")
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(cp.Problem, "solve", clarabel_fails)
+    sel = plc.select_sensors(sys, k=3, Q=q, R=r, relaxation_rank=3, n_random=0,
+                             brute_force_limit=0)
+    assert sel.solver_attempts[0].startswith("CLARABEL: failed") and sel.solver != "CLARABEL"
+    check_certificate(sel, optimum)
