@@ -984,6 +984,11 @@ def _load(console, name_or_path):
     return load_scenario(name_or_path)
 
 
+#: Environment variable: BLAS threads of the verbs (default 1; 0 leaves the libraries' own
+#: choice, for benchmarks comparing the two).
+BLAS_THREADS_VARIABLE = "POWERLINE_CONTROL_BLAS_THREADS"
+
+
 @contextlib.contextmanager
 def _numerics():
     """Import the numerical stack, then limit BLAS to one thread for the verb's scope."""
@@ -993,7 +998,15 @@ def _numerics():
 
     from . import closed_loop  # noqa: F401  (loads control, cvxpy, casadi: all BLAS users)
 
-    with threadpool_limits(limits=1):
+    raw = os.environ.get(BLAS_THREADS_VARIABLE, "1").strip()
+    if not raw.isdigit():
+        raise InputError(f"The environment variable {BLAS_THREADS_VARIABLE} must be a whole "
+                         f"number of threads (0: no limit). Got {raw!r}.")
+    threads = int(raw)
+    if threads == 0:
+        yield
+        return
+    with threadpool_limits(limits=threads):
         yield
 
 
