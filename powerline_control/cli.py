@@ -499,6 +499,19 @@ class _Study:
              "Simulated seconds per second of computing: above 1 the loop runs faster than "
              "the line moves, as a controller on the robot must."),
         ]
+        window = getattr(result, "settled_window", None)
+        if window is not None and window[1] > window[0]:
+            rows.insert(2, ("settled window", f"{window[0]:.3g}-{window[1]:.3g} s"
+                            + ("" if getattr(result, "settled", True) else
+                               " (the robot did not settle: the last second)"),
+                            "Every RMS below is over this window, after the robot last "
+                            "arrived, so transients do not count."))
+        for comparison in getattr(result, "comparisons", ()):
+            label = _COMPARISON_WORDS.get(comparison.name, comparison.name)
+            where = "" if not np.isfinite(comparison.position) else \
+                f" at {comparison.position:.4g} m"
+            rows.append((f"RMS: {label}", f"{_mm(comparison.rms)}{where}",
+                         f"peak {_mm(comparison.peak)}"))
         self.report.section(
             "Closed loop (robot driven to the estimated antinode)", rows,
             figures=[
@@ -569,6 +582,15 @@ class _Study:
             {"wind_speed": float(bare.wind_speed[i]), "frequency_hz": float(bare.frequency[i]),
              "amplitude_m": float(bare.amplitude[i]), "loop_length_m": float(bare.loop_length[i]),
              "strain_pp": float(bare.strain_pp[i])} for i in range(bare.wind_speed.size)])
+
+
+_COMPARISON_WORDS = {
+    "no_robot": "no robot on the line",
+    "near_clamp": "robot parked near a clamp",
+    "start": "robot parked where it started",
+    "best": "robot parked at the best position",
+    "closed_loop": "robot moving (closed loop)",
+}
 
 
 @dataclass
