@@ -633,78 +633,97 @@ class _Design:
         return _plotting().plot_sensor_count(*self.count_curve())
 
 
-def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_sensors=True):
-    """The estimator recipe: DMD (alpha by held-out error), sensor choice, noise model.
+def _certificate_text(selection, k: int) -> str:
+    if selection is None:
+        return ""
+    if selection.certificate == "exhaustive" or selection.gap == 0:
+        return f"{selection.certificate}: proved the best of all layouts of {k} sensors"
+    return (f"{selection.certificate}: the chosen layout's criterion is at most "
+            f"{100 * selection.gap:.2g} % above the best possible layout of {k} sensors")
 
-    The one place with recipe decisions in the command (to be replaced by
-    ``powerline_control.design_estimator`` when it lands).
+
+def _given_sensors(scenario, x):
+    """The scenario's own sensors as node indices (None when they are to be chosen)."""
+    import numpy as np
+
+    est = scenario.estimation
+    if est.sensors is not None:
+        return sorted(int(i) for i in est.sensors), "from the scenario (node indices)"
+    if est.sensor_positions is not None:
+        return (sorted({int(np.argmin(np.abs(x - p))) for p in est.sensor_positions}),
+                "from the scenario (positions, nearest nodes)")
+    return None, ""
+
+
+def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_sensors=True):
+    """The estimator: identified model, sensors and noise model, by the package's recipe.
+
+    With ``powerline_control.design_estimator`` (the one recipe: delays, rank and alpha chosen
+    from held-out data, sensors, filter) the command makes no recipe decision of its own; the
+    scenario's identification keys, when set, are passed to it. Without it (an older package)
+    the previous path runs: ``select_alpha`` then ``fit_dmd`` then ``select_sensors``.
     """
     import numpy as np
 
-    from .identify import fit_dmd, select_alpha
-    from .sensors import select_sensors
+    import powerline_control as plc
+
+    from .identify import fit_dmd
 
     cfg = scenario.identification
     train = snap.displacement[:, :n_train]
-    if cfg.alpha == "auto":
-        curve = select_alpha(train, snap.dt, delays=cfg.delays, rank=cfg.rank)
-        alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None \
-            else curve.best_alpha
-        dmd = fit_dmd(train, snap.dt, alpha=alpha, delays=cfg.delays, rank=cfg.rank,
-                      alpha_mode=curve.alpha_mode)
-        chosen = (f"alpha {alpha:.3g} ({curve.alpha_mode}; {dmd.alpha:.3g} absolute), chosen by "
-                  "held-out prediction error")
+    x = np.asarray(snap.x)
+    n_nodes = x.size
+    k = scenario.estimation.n_sensors
+    # The supports never move: a sensor there would measure only noise.
+    half = 0.5 * float(min(x[1] - x[0], x[-1] - x[-2]))
+    supports = [(0.0, half), (x[-1] - half, x[-1])]
+    given, how = _given_sensors(scenario, x)
+    if given is None and not choose_sensors:
+        given = list(np.linspace(0, n_nodes - 1, k + 2).round().astype(int)[1:-1])
+        how = "evenly spaced (no optimisation in this verb)"
+    count_curve = None
+    if hasattr(plc, "design_estimator"):
+        if given is None:
+            progress.stage(f"choosing {k} sensor positions (Kalman criterion)")
+        options = {key: value for key, value in (("delays", cfg.delays), ("rank", cfg.rank))
+                   if value is not None}
+        if cfg.alpha != "auto":
+            options["alphas"] = [float(cfg.alpha)]
+        design = plc.design_estimator(
+            train, n_sensors=k, dt=snap.dt, noise_std=snap.noise_std or None, sensors=given,
+            positions=x, forbidden=supports, seed=scenario.simulation.seed, **options)
+        dmd = design.model
+        sensors = [int(i) for i in design.sensors]
+        selection = design.sensor_selection
+        noise_var = float(design.noise_std) ** 2
+        curve = design.alpha_curve
+        recipe = (f"the package's recipe (design_estimator): {dmd.delays} time delays, rank "
+                  f"{dmd.rank}, alpha {dmd.alpha:.3g} absolute, chosen on held-out data "
+                  f"({getattr(curve, 'alpha_mode', 'relative')} grid); trained on the first "
+                  f"{n_train} samples; sensor noise std {_mm(design.noise_std)} "
+                  f"({design.noise_source})")
     else:
-        dmd = fit_dmd(train, snap.dt, alpha=float(cfg.alpha), delays=cfg.delays, rank=cfg.rank)
-        chosen = f"alpha {dmd.alpha:.3g} (absolute, from the scenario)"
-    recipe = (f"{cfg.delays} time delay(s), rank {cfg.rank or 'full'}, {chosen}; trained on the "
-              f"first {n_train} samples")
+        dmd, recipe, selection, sensors, noise_var, count_curve = _legacy_estimator(
+            scenario, snap, train, x, supports, given, progress)
+    if given is not None:
+        sensors = list(given)
+    elif selection is not None:
+        how = "optimised (steady-state Kalman criterion)"
+    if noise_var <= 0:
+        # Noise-free data still needs a measurement variance for a well-posed Riccati
+        # equation: assume sensors resolve 0.01 % of the RMS motion.
+        noise_var = (1e-4 * float(np.sqrt(np.mean(snap.true_displacement**2)))) ** 2
+    certificate = _certificate_text(selection, k) if given is None else ""
+    if given is None and count_curve is None and n_nodes <= 201:
+        candidates = dmd.to_statespace(measured=list(range(n_nodes)))
+        # Several more selections: computed only if the report draws the figure.
+        count_curve = functools.partial(_sensor_count_curve, candidates, dmd, noise_var, x,
+                                        supports, k)
     paper = fit_dmd(train, snap.dt, alpha=0.1, delays=1)
     with warnings.catch_warnings(record=True) as caught:
         # On noise-free data plain DMD inverts round-off and says so; here that is the point.
         warnings.simplefilter("always")
         plain = fit_dmd(train, snap.dt, alpha=0.0, delays=1)
-    # Noise-free data still needs a measurement variance for a well-posed Riccati equation:
-    # assume sensors resolve 0.01 % of the RMS motion.
-    rms = float(np.sqrt(np.mean(snap.true_displacement**2)))
-    noise_var = max(snap.noise_std**2, (1e-4 * rms) ** 2)
-    x = np.asarray(snap.x)
-    n_nodes = x.size
-    est = scenario.estimation
-    certificate = ""
-    count_curve = None
-    k = est.n_sensors
-    if est.sensors is not None:
-        sensors = sorted(int(i) for i in est.sensors)
-        how = "from the scenario (node indices)"
-    elif est.sensor_positions is not None:
-        sensors = sorted({int(np.argmin(np.abs(x - p))) for p in est.sensor_positions})
-        how = "from the scenario (positions, nearest nodes)"
-    elif not choose_sensors:
-        sensors = list(np.linspace(0, n_nodes - 1, k + 2).round().astype(int)[1:-1])
-        how = "evenly spaced (no optimisation in this verb)"
-    else:
-        progress.stage(f"choosing {k} sensor positions (Kalman criterion, convex relaxation)")
-        candidates = dmd.to_statespace(measured=list(range(n_nodes)))
-        # The supports never move: a sensor there would measure only noise.
-        half = 0.5 * float(min(x[1] - x[0], x[-1] - x[-2]))
-        supports = [(0.0, half), (x[-1] - half, x[-1])]
-        selection = select_sensors(candidates, k=k, criterion="kalman",
-                                   Q=dmd.residual_covariance, R=noise_var, positions=x,
-                                   forbidden=supports)
-        sensors = [int(i) for i in selection.nodes]
-        how = "optimised (steady-state Kalman criterion)"
-        if selection.certificate == "exhaustive" or selection.gap == 0:
-            certificate = (f"{selection.certificate}: proved the best of all layouts of {k} "
-                           "sensors")
-        else:
-            certificate = (f"{selection.certificate}: the chosen layout's criterion is at most "
-                           f"{100 * selection.gap:.2g} % above the best possible layout of {k} "
-                           "sensors")
-        if n_nodes <= 201:
-            # Several more selections: computed only if the report draws the figure.
-            count_curve = functools.partial(_sensor_count_curve, candidates, dmd, noise_var, x,
-                                            supports, k)
     layouts = {"chosen": sensors}
     notes = {}
     spread = list(np.linspace(0, n_nodes - 1, len(sensors) + 2).round().astype(int)[1:-1])
@@ -727,6 +746,41 @@ def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_s
                      noise_var=noise_var, layouts=layouts, layout_notes=notes,
                      count_curve=count_curve)
     return design
+
+
+def _legacy_estimator(scenario, snap, train, x, supports, given, progress):
+    """The command's own recipe, used only when the package has no ``design_estimator``."""
+    import numpy as np
+
+    from .identify import fit_dmd, select_alpha
+    from .sensors import select_sensors
+
+    cfg = scenario.identification
+    delays = cfg.delays or 2
+    if cfg.alpha == "auto":
+        curve = select_alpha(train, snap.dt, delays=delays, rank=cfg.rank)
+        alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None \
+            else curve.best_alpha
+        dmd = fit_dmd(train, snap.dt, alpha=alpha, delays=delays, rank=cfg.rank,
+                      alpha_mode=curve.alpha_mode)
+        chosen = (f"alpha {alpha:.3g} ({curve.alpha_mode}; {dmd.alpha:.3g} absolute), chosen by "
+                  "held-out prediction error")
+    else:
+        dmd = fit_dmd(train, snap.dt, alpha=float(cfg.alpha), delays=delays, rank=cfg.rank,
+                      alpha_mode="relative")
+        chosen = f"alpha {float(cfg.alpha):.3g} relative ({dmd.alpha:.3g} absolute)"
+    recipe = (f"{delays} time delay(s), rank {cfg.rank or 'full'}, {chosen}; trained on the "
+              f"first {train.shape[1]} samples")
+    rms = float(np.sqrt(np.mean(snap.true_displacement**2)))
+    noise_var = max(snap.noise_std**2, (1e-4 * rms) ** 2)
+    if given is not None:
+        return dmd, recipe, None, list(given), noise_var, None
+    k = scenario.estimation.n_sensors
+    progress.stage(f"choosing {k} sensor positions (Kalman criterion, convex relaxation)")
+    candidates = dmd.to_statespace(measured=list(range(x.size)))
+    selection = select_sensors(candidates, k=k, criterion="kalman", Q=dmd.residual_covariance,
+                               R=noise_var, positions=x, forbidden=supports)
+    return dmd, recipe, selection, [int(i) for i in selection.nodes], noise_var, None
 
 
 def _sensor_count_curve(candidates, dmd, noise_var, x, supports, k):
