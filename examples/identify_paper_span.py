@@ -1,6 +1,7 @@
 """Identify the paper's lab span from simulated data: plain DMD, Tikhonov, delays, alpha choice.
 
-Run: python examples/identify_paper_span.py   (about half a minute)
+Run: python examples/identify_paper_span.py [out_dir]   (default out/; about 15 s; writes
+paper_span_dmd.npz and identified_spectrum.png)
 
 1. Noise-free data of the 100-element span (1 % modal damping) forced at 10 Hz: plain DMD
    (paper eq. 11) inverts round-off and is unstable; alpha = 0.1 (eq. 14) is stable.
@@ -9,16 +10,21 @@ Run: python examples/identify_paper_span.py   (about half a minute)
 3. Export for Kalman filtering (control.StateSpace + residual covariance) and save/load.
 """
 
+import argparse
 import pathlib
-import tempfile
 import warnings
 
-import numpy as np
+import matplotlib
 
-import powerline_control as plc
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+import powerline_control as plc  # noqa: E402
 
 
-def main() -> None:
+def main(out: pathlib.Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
     model = plc.LineModel(
         plc.Span.paper_lab(), n_elements=100, bc="pinned", damping=plc.ModalDamping(0.01)
     )
@@ -60,11 +66,31 @@ def main() -> None:
     sys = dmd.to_statespace(measured=[20, 45, 70])
     print(f"\nexported: {sys.nstates} states, outputs {sys.output_labels}, dt = {sys.dt}")
     print(f"residual covariance (data-driven Q): trace {np.trace(dmd.residual_covariance):.3g}")
-    path = pathlib.Path(tempfile.mkdtemp()) / "paper_span_dmd.npz"
+    path = out / "paper_span_dmd.npz"
     plc.save_model(path, dmd)
     same = np.array_equal(plc.load_model(path).A, dmd.A)
     print(f"saved to {path} and reloaded: identical A = {same}")
 
+    # The eigenvalues of the three models against the unit circle.
+    fig, ax = plt.subplots(figsize=(5.5, 5.5))
+    circle = np.exp(1j * np.linspace(0.0, 2.0 * np.pi, 400))
+    ax.plot(circle.real, circle.imag, color="grey", lw=0.8)
+    for model_, label, marker in ((plain, "plain DMD (alpha = 0)", "x"),
+                                  (regularised, "alpha = 0.1 (paper eq. 14)", "o"),
+                                  (dmd, "2 delays, held-out alpha", "+")):
+        ax.plot(model_.eigenvalues.real, model_.eigenvalues.imag, marker, ms=5, ls="none",
+                mfc="none", label=f"{label}: rho = {model_.spectral_radius:.4f}")
+    ax.set(xlabel="Re(lambda)", ylabel="Im(lambda)", aspect="equal",
+           title="Identified eigenvalues and the unit circle")
+    ax.legend(fontsize=8, loc="lower left")
+    fig.tight_layout()
+    fig.savefig(out / "identified_spectrum.png", dpi=110)
+    plt.close(fig)
+    print(f"figure: {out / 'identified_spectrum.png'}")
+
 
 if __name__ == "__main__":
-    main()
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("out", nargs="?", default="out", type=pathlib.Path,
+                        help="output folder (default: ./out)")
+    main(parser.parse_args().out)

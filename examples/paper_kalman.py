@@ -10,12 +10,13 @@ Two forcing scenarios: near the third resonance (24.5 Hz, mode 3 at 24.53 Hz) an
 second and third (19 Hz). Then the better recipe: delays and POD rank, the held-out-best alpha
 from ``select_alpha``, and 5 spread sensors instead of 13 clustered at one support.
 
-Run: python examples/paper_kalman.py [out_dir]      (default out/; writes five PNG figures)
+Run: python examples/paper_kalman.py [out_dir] [--fast]   (default out/; about 30 s, or 15 s
+with --fast, which trains on 4 s of data instead of 10; writes five PNG figures)
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
 import time
 from pathlib import Path
 
@@ -27,19 +28,20 @@ import numpy as np  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
 
-OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out")
 DT = 1e-3
+RECORDS = {"full": (10.0, 5.0), "fast": (4.0, 2.0)}  # training and test durations, s
 NOISE = 0.01  # sensor noise, fraction of the RMS displacement
 DISCARD = 500  # filter transient left out of the error (0.5 s)
 SCENARIOS = {"near resonance (24.5 Hz)": 24.5, "between resonances (19 Hz)": 19.0}
 SPREAD_5 = [12, 31, 50, 69, 88]  # 100-element span: about every 0.7 m, off the midspan symmetry
 
 
-def record_pair(model: plc.LineModel, frequency: float):
-    """Training record (10 s, seed 0) and an independent test record (5 s, seed 1, t0 = 3.3 s)."""
+def record_pair(model: plc.LineModel, frequency: float, durations=RECORDS["full"]):
+    """Training record (seed 0) and an independent test record (seed 1, from t0 = 3.3 s)."""
     force = plc.HarmonicForce(amplitude=1.0, frequency=frequency, position=0.5)
-    train = plc.simulate(model, force, duration=10.0, dt=DT, noise_fraction=NOISE, seed=0)
-    test = plc.simulate(model, force, duration=5.0, dt=DT, noise_fraction=NOISE, seed=1,
+    train = plc.simulate(model, force, duration=durations[0], dt=DT, noise_fraction=NOISE,
+                         seed=0)
+    test = plc.simulate(model, force, duration=durations[1], dt=DT, noise_fraction=NOISE, seed=1,
                         start_time=3.3)
     return train, test
 
@@ -77,8 +79,11 @@ def figure_like_paper(test, est, sensors, title, path, nodes):
     plt.close(fig)
 
 
-def main() -> None:
-    OUT.mkdir(parents=True, exist_ok=True)
+def main(out: Path, fast: bool = False) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    durations = RECORDS["fast" if fast else "full"]
+    print(f"training on {durations[0]:g} s, testing on {durations[1]:g} s of data"
+          f"{' (--fast)' if fast else ''}")
     print(f"sensor noise {NOISE:.0%} of the RMS displacement; errors after a {DISCARD}-sample "
           "transient, against an independent FE simulation.\n")
     rows = []
@@ -88,7 +93,7 @@ def main() -> None:
         model = plc.LineModel(plc.Span.paper_lab(), n_elements=elements)
         first = list(range(n_measured))
         for label, frequency in SCENARIOS.items():
-            train, test = record_pair(model, frequency)
+            train, test = record_pair(model, frequency, durations)
             for epsilon in (0.0, 1.0):
                 _, _, est, acc, _ = run_filter(train, test, first, alpha=0.1, epsilon=epsilon)
                 rows.append((f"{elements} el., first {n_measured}, paper (d=1, alpha=0.1, "
@@ -99,7 +104,7 @@ def main() -> None:
                         test, est, first,
                         f"Paper recipe, {elements} elements, first {n_measured} of "
                         f"{elements + 1} measured, {label}",
-                        OUT / f"paper_{fig_name}{suffix}.png",
+                        out / f"paper_{fig_name}{suffix}.png",
                         nodes=[n_measured - 1, elements // 4, elements // 2, 3 * elements // 4],
                     )
             if elements == 100:
@@ -123,7 +128,7 @@ def main() -> None:
     dmd, test, est, acc, elapsed = best[19.0]
     figure_like_paper(test, est, SPREAD_5,
                       "Better recipe, 100 elements, 5 spread sensors, between resonances (19 Hz)",
-                      OUT / "better_recipe_100_elements.png", nodes=[6, 25, 44, 60, 95])
+                      out / "better_recipe_100_elements.png", nodes=[6, 25, 44, 60, 95])
     print(f"\nbetter recipe: filter in {dmd.n_states} reduced coordinates, "
           f"{1e6 * elapsed / test.t.size:.1f} us per sample (lifted to {dmd.n_nodes} nodes)")
 
@@ -139,7 +144,7 @@ def main() -> None:
 
     # Per-node RMS error along the span: paper recipe vs better recipe, 19 Hz.
     model = plc.LineModel(plc.Span.paper_lab(), n_elements=100)
-    train, test_b = record_pair(model, 19.0)
+    train, test_b = record_pair(model, 19.0, durations)
     _, _, _, acc_paper, _ = run_filter(train, test_b, list(range(13)), alpha=0.1)
     fig, ax = plt.subplots(figsize=(8, 3.5))
     x = model.node_positions
@@ -152,12 +157,17 @@ def main() -> None:
     ax.set(xlabel="x (m)", ylabel="RMS error (mm)", title="Error along the span, 19 Hz forcing")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(OUT / "error_along_span.png", dpi=110)
+    fig.savefig(out / "error_along_span.png", dpi=110)
     plt.close(fig)
-    print(f"\nfigures in {OUT}/: paper_fig7_20_elements.png, paper_fig8_100_elements.png, "
+    print(f"\nfigures in {out}/: paper_fig7_20_elements.png, paper_fig8_100_elements.png, "
           "paper_fig8_100_elements_between_resonances.png, better_recipe_100_elements.png, "
           "error_along_span.png")
 
 
 if __name__ == "__main__":
-    main()
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("out", nargs="?", default="out", type=Path,
+                        help="output folder (default: ./out)")
+    parser.add_argument("--fast", action="store_true", help="shorter records (CI)")
+    arguments = parser.parse_args()
+    main(arguments.out, fast=arguments.fast)

@@ -1,9 +1,9 @@
 """The paper's lab span: modes against the closed form, a simulation, and the robot's effect.
 
-Run: python examples/simulate_paper_span.py [out_dir]     (writes span_response.png)
+Run: python examples/simulate_paper_span.py [out_dir]     (default out/; writes span_response.png)
 """
 
-import sys
+import argparse
 from pathlib import Path
 
 import matplotlib
@@ -14,7 +14,10 @@ import numpy as np  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
 
-out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out")
+parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+parser.add_argument("out", nargs="?", default="out", type=Path,
+                    help="output folder (default: ./out)")
+out = parser.parse_args().out
 out.mkdir(parents=True, exist_ok=True)
 
 span = plc.Span.paper_lab()

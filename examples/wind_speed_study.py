@@ -1,13 +1,14 @@
 """Design study: for each wind speed, which mode locks in, where its antinodes are, and how long
 the robot needs to get from its parking spot to the nearest one.
 
-Run: python examples/wind_speed_study.py [out_dir]      (writes wind_speed_study.csv)
+Run: python examples/wind_speed_study.py [out_dir] [--workers N]   (default out/; a few seconds;
+writes wind_speed_study.csv and wind_speed_study.json)
 
 Uses a process pool through powerline_control.studies (any concurrent.futures executor works,
 Dask's included).
 """
 
-import sys
+import argparse
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -36,13 +37,19 @@ def robot_travel(wind_speed: float) -> dict:
 
 
 if __name__ == "__main__":
-    out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out")
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("out", nargs="?", default="out", type=Path,
+                        help="output folder (default: ./out)")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    arguments = parser.parse_args()
+    out = arguments.out
     out.mkdir(parents=True, exist_ok=True)
     grid = plc.parameter_grid(wind_speed=[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0])
-    with ProcessPoolExecutor(max_workers=2) as pool:
-        study = plc.run_study(robot_travel, grid, pool)
+    with ProcessPoolExecutor(max_workers=arguments.workers) as pool:
+        study = plc.run_study(robot_travel, grid, pool, description="wind speeds")
     print("V (m/s)  f (Hz)  mode  loop (m)  target (m)  move (s)")
     for row in study.rows():
         print(f"{row['wind_speed']:7.1f} {row['frequency_hz']:7.2f} {row['mode']:5d} "
               f"{row['loop_length_m']:9.2f} {row['target_m']:11.2f} {row['move_time_s']:9.2f}")
-    print(f"table: {study.to_csv(out / 'wind_speed_study.csv')}")
+    print(f"table: {study.to_csv(out / 'wind_speed_study.csv')}, "
+          f"{study.to_json(out / 'wind_speed_study.json')}")

@@ -19,21 +19,36 @@ from .errors import (
     PresetNotFoundError,
     SensorSelectionError,
     TruncationWarning,
+    UndetectableModeWarning,
     UnstableModelWarning,
 )
 
 _LAZY_EXPORTS = {
-    # --- parameters and physics (line.py, fem.py, excitation.py, simulate.py) ---
-    "excitation": ("AeolianForce", "HarmonicForce", "RandomForce", "strouhal_frequency"),
-    "fem": ("MDR", "LineModel", "ModalBasis", "ModalDamping", "RayleighDamping"),
-    "line": ("Conductor", "Span", "conductors"),
-    "simulate": ("Snapshots", "simulate"),
-    # --- identification (identify.py) ---
-    "identify": (
-        "AlphaCurve", "DMDModel", "OnlineDMD", "StabilityReport", "fit_dmd", "select_alpha",
+    "excitation": (
+        "AeolianForce", "HarmonicForce", "RandomForce", "strouhal_frequency",
     ),
-    "io": ("load_model", "save_model"),
-    # --- observability and estimation (observability.py, estimate.py) ---
+    "fem": (
+        "MDR", "LineModel", "ModalBasis", "ModalDamping", "RayleighDamping",
+    ),
+    "line": (
+        "Conductor", "Span", "conductors",
+    ),
+    "simulate": (
+        "Snapshots", "simulate",
+    ),
+    "tuning": (
+        "den_hartog_optimum", "tune_damper",
+    ),
+    "identify": (
+        "AlphaCurve", "DampingReport", "DMDModel", "OnlineDMD", "StabilityReport", "fit_dmd",
+        "select_alpha",
+    ),
+    "io": (
+        "load_model", "save_model",
+    ),
+    "recipe": (
+        "EstimatorDesign", "design_estimator",
+    ),
     "estimate": (
         "Accuracy", "Consistency", "Estimate", "KalmanFilter", "estimation_accuracy",
         "filter_consistency",
@@ -43,26 +58,29 @@ _LAZY_EXPORTS = {
         "compare_sensor_sets", "observability_gramian", "observability_rank",
         "steady_state_covariance",
     ),
-    # --- sensor placement (sensors.py) ---
     "sensors": (
-        "Baseline", "SensorCountStudy", "SensorSelection", "select_sensors",
-        "sensor_count_study",
+        "Baseline", "SensorCountStudy", "SensorSelection", "select_sensors", "sensor_count_study",
     ),
-    # --- antinodes and motion planning (antinode.py, plan.py) ---
-    "antinode": ("Antinode", "largest_antinode", "locate_antinodes", "nearest_antinode"),
-    "plan": ("MotionPlanner", "MPCStep", "RobotLimits", "Trajectory", "plan_motion"),
-    # --- aeolian severity by the energy balance (severity.py) ---
+    "antinode": (
+        "Antinode", "largest_antinode", "locate_antinodes", "nearest_antinode",
+    ),
+    "plan": (
+        "MotionPlanner", "MPCStep", "RobotLimits", "Trajectory", "plan_motion",
+    ),
     "severity": (
-        "SELF_DAMPING_LAWS", "WIND_POWER_CURVES", "AtAntinode", "CatenaryCheck", "ImpedanceDamper",
-        "RobotValue", "SelfDampingLaw", "SeverityResult", "TimeDomainCheck", "WindDistribution",
-        "WindPowerCurve", "aeolian_severity", "catenary_check", "damper_impedance",
-        "damper_power", "harmonic_mean_position", "loop_length", "robot_value",
-        "self_damping_power", "standing_wave_shape", "time_domain_check", "turbulence_factor",
-        "wind_power",
+        "SELF_DAMPING_LAWS", "WIND_POWER_CURVES", "AtAntinode", "CatenaryCheck",
+        "ImpedanceDamper", "RobotValue", "SelfDampingLaw", "SeverityResult", "TimeDomainCheck",
+        "WindDistribution", "WindPowerCurve", "aeolian_severity", "catenary_check",
+        "damper_impedance", "damper_power", "harmonic_mean_position", "loop_length",
+        "robot_value", "self_damping_power", "standing_wave_shape", "time_domain_check",
+        "turbulence_factor", "wind_power",
     ),
-    # --- the whole chain (closed_loop.py) ---
-    "closed_loop": ("ClosedLoopResult", "run_closed_loop"),
-    "studies": ("StudyResult", "parameter_grid", "run_study"),
+    "closed_loop": (
+        "ClosedLoopResult", "run_closed_loop",
+    ),
+    "studies": (
+        "StudyResult", "parameter_grid", "point_seed", "run_study",
+    ),
 }
 _MODULE_OF = {name: module for module, names in _LAZY_EXPORTS.items() for name in names}
 
@@ -106,10 +124,14 @@ __all__ = [
     "Consistency",
     "damper_impedance",
     "damper_power",
+    "DampingReport",
+    "den_hartog_optimum",
+    "design_estimator",
     "DMDModel",
     "Estimate",
     "estimation_accuracy",
     "EstimationError",
+    "EstimatorDesign",
     "FileFormatError",
     "filter_consistency",
     "fit_dmd",
@@ -138,6 +160,7 @@ __all__ = [
     "OnlineDMD",
     "parameter_grid",
     "plan_motion",
+    "point_seed",
     "PlanningError",
     "PowerlineControlError",
     "PresetNotFoundError",
@@ -172,7 +195,9 @@ __all__ = [
     "TimeDomainCheck",
     "Trajectory",
     "TruncationWarning",
+    "tune_damper",
     "turbulence_factor",
+    "UndetectableModeWarning",
     "UnstableModelWarning",
     "wind_power",
     "WIND_POWER_CURVES",

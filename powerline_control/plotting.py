@@ -451,3 +451,104 @@ def plot_robot_value(value) -> Figure:
         axis.tick_params(axis="x", labelrotation=15, labelsize=8)
     fig.tight_layout()
     return fig
+
+# ------------------------------------------------------------------ closed-loop figures
+# (section owned by the closed-loop engineer; appended here so that cli/report can use them)
+__all__ += ["plot_closed_loop_envelope", "plot_robot_path"]  # noqa: PLE0605
+
+
+def plot_closed_loop_envelope(result, ax=None) -> Figure:
+    """Displacement envelope along the span over the settled window, before and after.
+
+    One curve per comparison of the result (no robot, parked near the clamp, at the start, at
+    the best position, closed loop) with the robot's final and best positions marked.
+
+    Parameters
+    ----------
+    result : ClosedLoopResult
+        From :func:`~powerline_control.closed_loop.run_closed_loop`.
+    ax : matplotlib Axes or None
+        Axes to draw on; a new figure when None.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> c = SimpleNamespace(name="closed_loop", position=1.0, rms=1e-3, envelope=np.ones(3))
+    >>> fake = SimpleNamespace(x=np.arange(3.0), comparisons=(c,), settled_window=(1.0, 2.0),
+    ...                        best_position=1.0)
+    >>> len(plot_closed_loop_envelope(fake).axes)
+    1
+    """
+    fig = Figure(figsize=(8, 4)) if ax is None else ax.figure
+    ax = fig.subplots() if ax is None else ax
+    styles = {"no_robot": "k-", "near_clamp": "C7--", "start": "C3-", "best": "C2:",
+              "closed_loop": "C0-"}
+    for c in result.comparisons:
+        if np.all(np.isfinite(c.envelope)):
+            label = f"{c.name.replace('_', ' ')} (rms {1e3 * c.rms:.3g} mm)"
+            ax.plot(result.x, 1e3 * np.asarray(c.envelope), styles.get(c.name, "-"), label=label)
+    final = [c for c in result.comparisons if c.name == "closed_loop"]
+    if final:
+        ax.axvline(final[0].position, color="C0", lw=0.8)
+    if np.isfinite(result.best_position):
+        ax.axvline(result.best_position, color="C2", lw=0.8, ls=":")
+    t0, t1 = result.settled_window
+    ax.set(xlabel="x (m)", ylabel="envelope (mm)",
+           title=f"largest |w| over the settled window {t0:.1f}-{t1:.1f} s")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def plot_robot_path(result, ax=None) -> Figure:
+    """The robot's path over the line's moving envelope (time down, position across).
+
+    The colour is the largest |w| at each node over 0.1 s blocks; the robot's position and its
+    target are drawn over it, with the retarget times marked.
+
+    Parameters
+    ----------
+    result : ClosedLoopResult
+        From :func:`~powerline_control.closed_loop.run_closed_loop`.
+    ax : matplotlib Axes or None
+        Axes to draw on; a new figure when None.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> t = np.linspace(0, 1, 201)
+    >>> fake = SimpleNamespace(t=t, x=np.arange(4.0), displacement=np.ones((4, 201)),
+    ...                        robot_position=np.ones(201), target=np.ones(201),
+    ...                        retarget_times=(0.5,), calibration_time=0.2)
+    >>> len(plot_robot_path(fake).axes)
+    2
+    """
+    fig = Figure(figsize=(6, 6)) if ax is None else ax.figure
+    ax = fig.subplots() if ax is None else ax
+    t = np.asarray(result.t)
+    dt = t[1] - t[0]
+    block = max(int(round(0.1 / dt)), 1)
+    n_blocks = t.size // block
+    field = np.abs(np.asarray(result.displacement)[:, : n_blocks * block])
+    envelope = field.reshape(field.shape[0], n_blocks, block).max(axis=2)
+    image = ax.pcolormesh(result.x, t[: n_blocks * block : block] + 0.5 * block * dt,
+                          1e3 * envelope.T, shading="nearest", cmap="magma")
+    fig.colorbar(image, ax=ax, label="envelope (mm)")
+    ax.plot(result.robot_position, t, "c-", lw=1.5, label="robot")
+    ax.plot(result.target, t, "w:", lw=1, label="target")
+    for when in result.retarget_times:
+        ax.axhline(when, color="w", lw=0.5, ls="--")
+    ax.axhline(result.calibration_time, color="grey", lw=0.8)
+    ax.set(xlabel="x (m)", ylabel="t (s)")
+    ax.invert_yaxis()
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    return fig

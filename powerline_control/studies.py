@@ -3,24 +3,45 @@
 Any ``concurrent.futures.Executor`` works: ``ProcessPoolExecutor`` on one machine, or Dask's
 (``dask.distributed.Client(...).get_executor()``) across many. The study function must be a
 module-level function (picklable for process pools) that takes the grid's keys as keyword
-arguments and returns a dict of numbers. Results come back in grid order, whatever the order in
-which workers finish, so a study is reproducible when its function is seeded.
+arguments and returns a dict of scalars (numbers, strings, booleans). Results come back in grid
+order, whatever the order in which workers finish.
+
+Reproducibility: with ``seed=`` the study passes each grid point its own seed, derived from the
+base seed and the point's *values* (not its index, not the worker, not the order of completion),
+so a study gives the same table on one core, on a process pool and on a Dask cluster, and a single
+point can be re-run alone with :func:`point_seed`. Each point also runs with one BLAS thread by
+default: a multi-threaded BLAS splits its sums differently with the number of threads (a Dask
+worker, for one, starts with ``OPENBLAS_NUM_THREADS=1``), which changes the last bits of the
+results; one thread per point also keeps parallel workers from oversubscribing the cores.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import itertools
+import json
+import math
+import numbers
+import os
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from concurrent.futures import Executor
-from dataclasses import dataclass
+from concurrent.futures import Executor, as_completed
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ._validation import check_int
+from .errors import FileFormatError, InputError
 
-__all__ = ["parameter_grid", "run_study", "StudyResult"]
+__all__ = ["parameter_grid", "point_seed", "run_study", "StudyResult"]
+
+_FORMAT = "powerline_control.study"
+_FORMAT_VERSION = 1
+_SEED_KEY = "seed"
 
 
 def parameter_grid(**axes: Iterable) -> list[dict]:
@@ -34,6 +55,7 @@ def parameter_grid(**axes: Iterable) -> list[dict]:
     Returns
     -------
     list of dict
+        One dict per grid point, in ``itertools.product`` order.
 
     Raises
     ------
@@ -55,6 +77,71 @@ def parameter_grid(**axes: Iterable) -> list[dict]:
     ]
 
 
+def _plain(value: object, where: str) -> object:
+    """``value`` as a plain Python scalar (numpy scalars unwrapped), or a clear error."""
+    if isinstance(value, np.generic | np.ndarray) and np.ndim(value) == 0:
+        value = value.item()
+    if value is None or isinstance(value, bool | str):
+        return value
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        return float(value)
+    shape = f" of shape {np.shape(value)}" if hasattr(value, "shape") else ""
+    raise InputError(
+        f"{where} must be a scalar (a number, string, boolean or None) so that the study is a "
+        f"tidy table. Got {type(value).__name__}{shape}; return summary numbers (e.g. a maximum "
+        "or an RMS) instead of arrays."
+    )
+
+
+def _canonical(point: Mapping) -> str:
+    """A text form of a grid point that is the same in every process and on every machine."""
+    return json.dumps(
+        {str(key): _plain(value, f"The grid value {key!r}") for key, value in point.items()},
+        sort_keys=True,
+        allow_nan=True,
+    )
+
+
+def point_seed(seed: int, point: Mapping) -> int:
+    """The seed :func:`run_study` gives the study function at one grid point.
+
+    It depends only on the base ``seed`` and the point's keys and values (SHA-256 of their
+    canonical JSON form, mixed by ``numpy.random.SeedSequence``), so it is the same whatever the
+    executor, the worker or the order in which points finish.
+
+    Parameters
+    ----------
+    seed : int
+        The study's base seed (>= 0).
+    point : dict
+        One grid point.
+
+    Returns
+    -------
+    int
+        A seed in [0, 2**63).
+
+    Raises
+    ------
+    InputError
+        If ``seed`` is not a non-negative integer or a value of the point is not a scalar.
+
+    Examples
+    --------
+    >>> point_seed(7, {"k": 2}) == point_seed(7, {"k": 2})
+    True
+    >>> point_seed(7, {"k": 2}) != point_seed(7, {"k": 3})
+    True
+    """
+    seed = check_int("seed", seed, low=0)
+    digest = hashlib.sha256(_canonical(point).encode()).digest()
+    words = [int.from_bytes(digest[i : i + 4], "little") for i in range(0, 32, 4)]
+    state = np.random.SeedSequence(entropy=seed, spawn_key=words).generate_state(1, np.uint64)
+    return int(state[0]) >> 1
+
+
 @dataclass(frozen=True)
 class StudyResult:
     """Parameters and results of a study, one row per grid point, in grid order.
@@ -64,32 +151,87 @@ class StudyResult:
     parameters : tuple of dict
         The grid points.
     results : tuple of dict
-        What the study function returned for each.
+        What the study function returned for each (plain Python scalars).
+    seeds : tuple of int or None
+        The seed each point received (see :func:`point_seed`), or None for an unseeded study.
+    base_seed : int or None
+        The study's ``seed`` argument.
+    wall_time : float
+        Seconds the whole study took (informative only: not compared by ``==``).
 
     Examples
     --------
     >>> study = run_study(lambda k: {"square": k * k}, parameter_grid(k=[1, 2, 3]))
     >>> study.column("square")
     array([1, 4, 9])
+    >>> study.table()[0]
+    {'k': 1, 'square': 1}
     """
 
     parameters: tuple
     results: tuple
+    seeds: tuple | None = None
+    base_seed: int | None = None
+    wall_time: float = field(default=0.0, compare=False)
+
+    @property
+    def columns(self) -> list[str]:
+        """Column names of the table: parameters, then the seed (if any), then the results."""
+        return list(self.table()[0])
 
     def column(self, name: str) -> np.ndarray:
-        """One parameter or result across the grid, as an array."""
-        rows = self.rows()
+        """One parameter, seed or result across the grid, as an array.
+
+        Parameters
+        ----------
+        name : str
+            A column name (see :attr:`columns`).
+
+        Returns
+        -------
+        numpy.ndarray
+            One value per grid point, in grid order.
+
+        Raises
+        ------
+        InputError
+            If there is no such column.
+        """
+        rows = self.table()
         if name not in rows[0]:
             raise InputError(f"No column {name!r}; the columns are {sorted(rows[0])}.")
         return np.array([row[name] for row in rows])
 
+    def table(self) -> list[dict]:
+        """The tidy table: one dict per grid point (parameters, seed, results), in grid order."""
+        seeds = self.seeds if self.seeds is not None else (None,) * len(self.parameters)
+        rows = []
+        for point, seed, result in zip(self.parameters, seeds, self.results, strict=True):
+            row = dict(point)
+            if seed is not None:
+                row[_SEED_KEY] = seed
+            row.update(result)
+            rows.append(row)
+        return rows
+
     def rows(self) -> list[dict]:
-        """Parameters and results merged, one dict per grid point."""
-        return [{**p, **r} for p, r in zip(self.parameters, self.results, strict=True)]
+        """Same as :meth:`table` (kept for existing scripts)."""
+        return self.table()
+
+    def to_dataframe(self):
+        """The table as a ``pandas.DataFrame`` (pandas is optional; this needs it installed)."""
+        try:
+            import pandas as pd
+        except ImportError as error:  # pragma: no cover - pandas is installed where tested
+            raise ImportError(
+                "StudyResult.to_dataframe needs pandas (pip install pandas); "
+                "table(), to_csv() and to_json() work without it."
+            ) from error
+        return pd.DataFrame(self.table(), columns=self.columns)
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the rows as CSV (a file to open in any spreadsheet) and return its path."""
-        rows = self.rows()
+        """Write the table as CSV (a file to open in any spreadsheet) and return its path."""
+        rows = self.table()
         path = Path(path)
         with path.open("w", newline="") as handle:
             writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
@@ -97,39 +239,167 @@ class StudyResult:
             writer.writerows(rows)
         return path
 
+    def to_json(self, path: str | Path) -> Path:
+        """Write the study as JSON (read back with :meth:`from_json`) and return its path.
 
-def _call(func: Callable, parameters: Mapping) -> dict:
-    result = func(**parameters)
+        NaN and infinite results are written as ``null`` (standard JSON has no NaN).
+        """
+        document = {
+            "format": _FORMAT,
+            "version": _FORMAT_VERSION,
+            "base_seed": self.base_seed,
+            "columns": self.columns,
+            "parameters": list(self.parameters),
+            "seeds": None if self.seeds is None else list(self.seeds),
+            "results": [
+                {key: _finite_or_none(value) for key, value in result.items()}
+                for result in self.results
+            ],
+        }
+        path = Path(path)
+        path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
+        return path
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> StudyResult:
+        """Read a study written by :meth:`to_json`.
+
+        Raises
+        ------
+        FileFormatError
+            If the file is not a study written by :meth:`to_json`.
+        """
+        path = Path(path)
+        try:
+            document = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as error:
+            raise FileFormatError(f"Cannot read the study file {str(path)!r}: {error}") from error
+        if not isinstance(document, dict) or document.get("format") != _FORMAT:
+            raise FileFormatError(
+                f"The file {str(path)!r} is not a study written by StudyResult.to_json "
+                f"(its 'format' must be {_FORMAT!r})."
+            )
+        seeds = document.get("seeds")
+        try:
+            return cls(
+                parameters=tuple(dict(p) for p in document["parameters"]),
+                results=tuple(dict(r) for r in document["results"]),
+                seeds=None if seeds is None else tuple(int(s) for s in seeds),
+                base_seed=document.get("base_seed"),
+            )
+        except (KeyError, TypeError, ValueError) as error:
+            raise FileFormatError(
+                f"The study file {str(path)!r} is incomplete or damaged: {error!r}."
+            ) from error
+
+
+def _finite_or_none(value: object) -> object:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+_BLAS_LOCK = threading.Lock()
+_BLAS_STATE: dict = {"depth": 0, "limiter": None}
+
+
+class _BlasThreads:
+    """Limit BLAS to ``n`` threads while any study (or point) of this process runs.
+
+    threadpoolctl's limits are process-wide, so overlapping users (points running in a worker
+    process's threads, nested studies) share one limit, applied by the first to start and lifted
+    by the last to finish. A limit set from a thread other than the main one does not always
+    reach OpenBLAS's thread pool, so run_study sets it in the calling thread for the whole study
+    (which covers serial runs and thread executors) and worker processes set it per point.
+    """
+
+    def __init__(self, n: int | None) -> None:
+        self.n = n
+
+    def __enter__(self) -> None:
+        if self.n is None:
+            return
+        with _BLAS_LOCK:
+            if _BLAS_STATE["depth"] == 0:
+                from threadpoolctl import threadpool_limits
+
+                _BLAS_STATE["limiter"] = threadpool_limits(limits=self.n, user_api="blas")
+            _BLAS_STATE["depth"] += 1
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self.n is None:
+            return
+        with _BLAS_LOCK:
+            _BLAS_STATE["depth"] -= 1
+            if _BLAS_STATE["depth"] == 0:
+                _BLAS_STATE["limiter"].restore_original_limits()
+                _BLAS_STATE["limiter"] = None
+
+
+def _call(
+    func: Callable, parameters: Mapping, blas_threads: int | None = None, caller: int = -1
+) -> dict:
+    """Run one grid point (in the worker) and return its results as plain scalars.
+
+    ``caller`` is the process id of run_study's process, whose limit already applies here when
+    the point runs in that same process.
+    """
+    with _BlasThreads(None if os.getpid() == caller else blas_threads):
+        result = func(**parameters)
     if not isinstance(result, Mapping):
         raise InputError(
             f"The study function must return a dict of results. Got "
             f"{type(result).__name__} for {dict(parameters)}."
         )
-    return dict(result)
+    return {str(key): _plain(value, f"The result {key!r}") for key, value in result.items()}
 
 
 def run_study(
-    func: Callable[..., Mapping], grid: Sequence[Mapping], executor: Executor | None = None
+    func: Callable[..., Mapping],
+    grid: Sequence[Mapping],
+    executor: Executor | None = None,
+    *,
+    seed: int | None = None,
+    progress: bool | None = None,
+    description: str = "study",
+    blas_threads: int | None = 1,
 ) -> StudyResult:
     """Evaluate ``func(**point)`` at every grid point, on ``executor`` if given.
 
     Parameters
     ----------
     func : callable
-        Takes the grid's keys as keyword arguments, returns a dict of results.
+        Takes the grid's keys as keyword arguments (and ``seed=`` when ``seed`` is given) and
+        returns a dict of scalars. Module-level for process pools and Dask (it is pickled).
     grid : sequence of dict
         Grid points, e.g. from :func:`parameter_grid`.
     executor : concurrent.futures.Executor or None
-        Where to run; None runs serially in this process.
+        Where to run: None runs serially in this process; a ``ProcessPoolExecutor``, a
+        ``ThreadPoolExecutor`` or a Dask ``Client.get_executor()`` runs the points in parallel.
+    seed : int or None
+        Base seed. When given, each point is called with ``seed=point_seed(seed, point)``, which
+        depends only on the point's values: the results are identical on every executor.
+    progress : bool or None
+        Show a progress bar (tqdm, on stderr) as points finish; None shows it only when stderr
+        is a terminal.
+    description : str
+        Label of the progress bar.
+    blas_threads : int or None
+        BLAS threads while a point runs (default 1, through threadpoolctl): the same arithmetic
+        in every worker, hence identical floating-point results on every executor, and no
+        oversubscription by parallel workers. None leaves the BLAS library as it is.
 
     Returns
     -------
     StudyResult
+        Results in grid order, whatever the order in which they finished.
 
     Raises
     ------
     InputError
-        If the grid is empty or ``func`` returns something other than a dict.
+        If the grid is empty, a point is not a dict of scalars, a point already has a ``seed``
+        key while ``seed`` is given, or ``func`` returns something other than a dict of scalars.
+        An exception raised by ``func`` propagates with a note naming the grid point.
 
     Examples
     --------
@@ -138,6 +408,15 @@ def run_study(
     ...     study = run_study(lambda a, b: {"sum": a + b}, parameter_grid(a=[1, 2], b=[10]), pool)
     >>> study.column("sum")
     array([11, 12])
+
+    Seeded: each point draws from its own generator, the same on any executor.
+
+    >>> import numpy as np
+    >>> def noisy(k, seed):
+    ...     return {"draw": float(np.random.default_rng(seed).normal(k, 0.1))}
+    >>> run_study(noisy, parameter_grid(k=[1, 2]), seed=5) == run_study(
+    ...     noisy, parameter_grid(k=[1, 2]), seed=5)
+    True
     """
     if not callable(func):
         raise InputError(f"The 'func' parameter must be callable. Got {type(func).__name__}.")
@@ -146,12 +425,97 @@ def run_study(
             "The 'executor' parameter must be a concurrent.futures.Executor (with "
             f"submit) or None. Got {type(executor).__name__}."
         )
-    grid = [dict(point) for point in grid]
-    if not grid:
+    if seed is not None:
+        seed = check_int("seed", seed, low=0)
+    if blas_threads is not None:
+        blas_threads = check_int("blas_threads", blas_threads, low=1)
+    if progress is not None and not isinstance(progress, bool):
+        raise InputError(
+            f"The 'progress' parameter must be True, False or None. Got {progress!r}."
+        )
+    if isinstance(grid, Mapping) or isinstance(grid, str):
+        raise InputError(
+            "The 'grid' parameter must be a sequence of dicts (one per grid point), e.g. from "
+            f"parameter_grid(). Got a {type(grid).__name__}."
+        )
+    points = []
+    for index, point in enumerate(grid):
+        if not isinstance(point, Mapping):
+            raise InputError(
+                f"The 'grid' parameter must hold dicts; point {index} is a "
+                f"{type(point).__name__}."
+            )
+        for key in point:
+            if not isinstance(key, str) or not key.isidentifier():
+                raise InputError(
+                    f"Grid point {index} has the key {key!r}; keys must be parameter names "
+                    "(identifiers)."
+                )
+        if seed is not None and _SEED_KEY in point:
+            raise InputError(
+                f"Grid point {index} has a {_SEED_KEY!r} key and run_study(seed=...) was given: "
+                "use one or the other."
+            )
+        _canonical(point)  # every value a scalar, checked before any work starts
+        points.append(dict(point))
+    if not points:
         raise InputError("The 'grid' parameter is empty: a study needs at least one point.")
-    if executor is None:
-        results = [_call(func, point) for point in grid]
-    else:
-        futures = [executor.submit(_call, func, point) for point in grid]
-        results = [future.result() for future in futures]
-    return StudyResult(parameters=tuple(grid), results=tuple(results))
+
+    seeds = None if seed is None else tuple(point_seed(seed, point) for point in points)
+    calls = (
+        points
+        if seeds is None
+        else [{**point, _SEED_KEY: s} for point, s in zip(points, seeds, strict=True)]
+    )
+    show = sys.stderr.isatty() if progress is None else progress
+
+    from tqdm import tqdm  # a light import, kept out of the package import path
+
+    start = time.perf_counter()
+    results: list[dict | None] = [None] * len(calls)
+    caller = os.getpid()
+    with (
+        _BlasThreads(blas_threads),
+        tqdm(total=len(calls), desc=description, unit="point", disable=not show) as bar,
+    ):
+        if executor is None:
+            for index, call in enumerate(calls):
+                results[index] = _run_point(func, call, index, points[index], caller)
+                bar.update()
+        else:
+            futures = {
+                executor.submit(_call, func, call, blas_threads, caller): i
+                for i, call in enumerate(calls)
+            }
+            try:
+                for future in as_completed(futures):
+                    index = futures[future]
+                    results[index] = _result_of(future, index, points[index])
+                    bar.update()
+            except BaseException:
+                for future in futures:
+                    future.cancel()
+                raise
+    return StudyResult(
+        parameters=tuple(points),
+        results=tuple(results),
+        seeds=seeds,
+        base_seed=seed,
+        wall_time=time.perf_counter() - start,
+    )
+
+
+def _run_point(func: Callable, call: Mapping, index: int, point: Mapping, caller: int) -> dict:
+    try:
+        return _call(func, call, None, caller)
+    except Exception as error:
+        error.add_note(f"(run_study: at grid point {index}, {point})")
+        raise
+
+
+def _result_of(future, index: int, point: Mapping) -> dict:
+    try:
+        return future.result()
+    except Exception as error:
+        error.add_note(f"(run_study: at grid point {index}, {point})")
+        raise

@@ -1,0 +1,116 @@
+"""The Sphinx site's generated pages: every public name in the API reference, every example in
+the gallery, every hand-written page in a toctree. (CI builds the site itself with -W.)"""
+
+from __future__ import annotations
+
+import importlib.util
+import pathlib
+import re
+import tomllib
+
+import pytest
+
+import powerline_control as plc
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+
+
+def _load_pages_module():
+    spec = importlib.util.spec_from_file_location("plc_pages", DOCS / "_ext" / "plc_pages.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+pages = _load_pages_module()
+
+
+def autosummary_entries(rst: str) -> list[str]:
+    """Names listed in the autosummary directives of an RST page (a reader written here)."""
+    names, inside = [], False
+    for line in rst.splitlines():
+        if line.startswith(".. autosummary::"):
+            inside = True
+            continue
+        if inside:
+            if line.strip().startswith(":") or not line.strip():
+                continue
+            if line.startswith("   "):
+                names.append(line.strip())
+            else:
+                inside = False
+    return names
+
+
+def test_every_public_name_is_in_the_api_reference_once():
+    entries = autosummary_entries(pages.api_page())
+    assert sorted(entries) == sorted(plc.__all__)
+    assert len(entries) == len(set(entries))
+
+
+def test_each_name_sits_in_the_section_of_its_defining_module():
+    rst = pages.api_page()
+    sections = re.split(r"\n(?=[^\n]+\n-{3,}\n)", rst)
+    for section in sections[1:]:
+        module = re.search(r"\(``([a-z_]+)``\)", section).group(1)
+        for name in autosummary_entries(section):
+            defined_in = getattr(plc, name).__module__
+            assert defined_in == f"powerline_control.{module}", (name, defined_in, module)
+
+
+def test_a_name_added_by_another_branch_is_listed(monkeypatch):
+    """A new public name from a module the page has never heard of still gets a section."""
+    import types
+
+    module = types.ModuleType("powerline_control.brand_new")
+    module.__doc__ = "Brand-new things: one function."
+
+    def fresh_function():
+        """Do nothing."""
+
+    fresh_function.__module__ = module.__name__
+    module.fresh_function = fresh_function
+    monkeypatch.setitem(__import__("sys").modules, module.__name__, module)
+    monkeypatch.setattr(plc, "fresh_function", fresh_function, raising=False)
+    monkeypatch.setattr(plc, "__all__", [*plc.__all__, "fresh_function"])
+    rst = pages.api_page()
+    assert "fresh_function" in autosummary_entries(rst)
+    assert "Brand-new things (``brand_new``)" in rst
+
+
+def test_every_example_has_a_gallery_page_with_its_source():
+    scripts = pages.example_scripts()
+    assert {p.name for p in scripts} >= {"simulate_paper_span.py", "dask_study.py"}
+    index = pages.gallery_index(scripts)
+    for path in scripts:
+        page = pages.example_page(path)
+        assert page.startswith("# ") and len(page.splitlines()[0]) > 5
+        assert f"{{literalinclude}} ../../examples/{path.name}" in page
+        assert f"({path.stem}.md)" in index
+
+
+def test_pages_the_index_does_not_list_go_under_more():
+    index = (DOCS / "index.md").read_text()
+    found = {p.stem for p in DOCS.glob("*.md")} | {"api/index", "gallery/index"}
+    extra = pages.other_pages(index, found)
+    # Every hand-written page is in a toctree: either listed in the index or added under "More".
+    listed = {line.strip() for line in index.splitlines()}
+    for page in found - {"index"}:
+        assert page in listed or page in extra, page
+    assert pages.other_pages(index, found | {"severity"}) == sorted({*extra, "severity"})
+
+
+def test_docs_extra_declares_what_conf_py_loads():
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"]
+    declared = {re.split(r"[<>=\[ ]", req)[0].lower() for req in extras["docs"]}
+    conf = (DOCS / "conf.py").read_text()
+    assert {"sphinx", "numpydoc", "myst-parser"} <= declared
+    assert '"myst_parser"' in conf and '"numpydoc"' in conf
+
+
+@pytest.mark.parametrize("page", ["getting_started.md", "theory.md", "studies.md"])
+def test_the_pages_this_site_adds_exist_and_have_a_title(page):
+    text = (DOCS / page).read_text()
+    assert text.startswith("# ")
