@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import functools
 import json
 import os
@@ -470,12 +471,18 @@ class _Study:
         robot, tuning_text = _tuned_robot(sc, self.model, load_frequency)
         if sensors is None:
             sensors = _default_closed_loop_sensors(sc, self.model)
-        calibration = min(2.0, robot_cfg.closed_loop / 3)
+        # Calibration (robot parked, the estimator identified): a third of the run, at most
+        # 2 s, in whole 50 ms control periods (the loop needs whole steps).
+        dt = sc.simulation.dt
+        period = max(dt, round(0.05 / dt) * dt)
+        calibration = max(1, round(min(2.0, robot_cfg.closed_loop / 3) / period)) * period
+        calibration = round(calibration / dt) * dt
         result = run_closed_loop(
             self.span, self.force, robot, RobotLimits(robot_cfg.v_max, robot_cfg.a_max),
             sensors=list(sensors), n_elements=self.model.n_elements, bc=self.model.bc,
-            duration=robot_cfg.closed_loop, calibration=calibration, dt=sc.simulation.dt,
-            noise_fraction=sc.simulation.noise_fraction, seed=sc.simulation.seed)
+            damping=self.model.damping, duration=robot_cfg.closed_loop,
+            calibration=calibration, dt=dt, noise_fraction=sc.simulation.noise_fraction,
+            seed=sc.simulation.seed)
         self.closed_loop = result
         final = float(result.robot_position[-1])
         reduction = float(result.vibration_reduction)
@@ -520,13 +527,11 @@ class _Study:
                         "grey line ends the calibration, robot parked). Bottom: RMS displacement "
                         "over the span, robot moving against parked (mm). Look for the moving "
                         "curve falling below the parked one once the robot arrives."),
-                _Figure("closed_loop_path", functools.partial(
-                    _path_figure, result.x,
-                    np.abs(result.baseline_displacement[:, result.t.size // 2:]).max(axis=1),
-                    result.t, result.robot_position, None, result.target),
-                    "The robot's path in the closed loop (bottom) under the amplitude envelope "
-                    "of the line with the robot parked (top). Look for the path settling under "
-                    "an envelope peak."),
+                _Figure("closed_loop_path", functools.partial(_closed_loop_path_figure, result),
+                        "The robot's path in the closed loop (position across, time down) over "
+                        "the line's moving vibration envelope (colour: largest |y| over 0.1 s), "
+                        "with its target. Look for the path settling where the colour is "
+                        "brightest near it, and staying there."),
             ])
         self.report.numbers.update(vibration_reduction=reduction, final_robot_position=final,
                                    real_time_factor=rtf)
@@ -804,11 +809,19 @@ def _tuned_robot(scenario, model, load_frequency: float):
     frequencies = np.asarray(model.natural_frequencies(min(400, model.n_dofs)))
     mode = int(np.argmin(np.abs(frequencies - load_frequency))) + 1
     if hasattr(plc, "tune_damper"):
-        mdr = plc.tune_damper(model, mode, cfg.start, cfg.suspended_mass,
+        # Tuned for where it will damp: the antinode of that mode nearest the start (the
+        # modal mass seen at a node is infinite), then placed at its start.
+        x = np.asarray(model.node_positions)
+        shape = np.abs(model.mode_shapes(mode)[:, mode - 1])
+        loop = model.span.length / mode
+        near = np.abs(x - cfg.start) <= loop
+        antinode = float(x[near][np.argmax(shape[near])]) if near.any() else cfg.start
+        mdr = plc.tune_damper(model, mode, antinode, cfg.suspended_mass,
                               body_mass=cfg.body_mass)
+        mdr = dataclasses.replace(mdr, position=cfg.start)
         return mdr, (f"absorber tuned (Den Hartog) to mode {mode} "
                      f"({frequencies[mode - 1]:.4g} Hz), the mode nearest the load's "
-                     f"{load_frequency:.4g} Hz")
+                     f"{load_frequency:.4g} Hz, for the antinode at {antinode:.4g} m")
     mdr = plc.MDR.tuned(cfg.start, cfg.body_mass, cfg.suspended_mass, load_frequency,
                         cfg.damping_ratio)
     return mdr, (f"absorber tuned to the load's {load_frequency:.4g} Hz (damping ratio "
@@ -857,8 +870,19 @@ def _envelope_figure(x, envelope, antinodes, sensors):
 
 
 def _path_figure(x, envelope, t, position, target, target_series):
-    return _plotting().plot_robot_path(x, envelope, t, position, target=target,
-                                       target_series=target_series)
+    return _plotting().plot_plan_path(x, envelope, t, position, target=target,
+                                      target_series=target_series)
+
+
+def _closed_loop_path_figure(result):
+    plotting = _plotting()
+    if hasattr(plotting, "plot_robot_path"):      # the closed loop's own figure
+        return plotting.plot_robot_path(result)
+    import numpy as np
+
+    return plotting.plot_plan_path(
+        result.x, np.abs(result.baseline_displacement[:, result.t.size // 2:]).max(axis=1),
+        result.t, result.robot_position, target_series=result.target)
 
 
 def _closed_loop_figure(result):
