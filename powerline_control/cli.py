@@ -490,10 +490,7 @@ class _Study:
         rows = [
             ("robot", f"body {robot.body_mass:g} kg + absorber {robot.suspended_mass:g} kg, "
              f"{tuning_text}; starts at {robot.position:g} m"),
-            ("where it ended", f"{final:.4g} m",
-             "The robot stops where the estimated excited shape of the line is largest near it "
-             "(an antinode), because its absorber dissipates most there; the last target was "
-             f"{float(np.nanmean(result.target[-10:])):.4g} m."),
+            ("where it ended", f"{final:.4g} m", _where_it_ended(result, final)),
             ("RMS displacement, settled window",
              f"{_mm(result.rms_closed_loop)} moving vs {_mm(result.rms_baseline)} parked at "
              "its start"),
@@ -587,6 +584,27 @@ class _Study:
             {"wind_speed": float(bare.wind_speed[i]), "frequency_hz": float(bare.frequency[i]),
              "amplitude_m": float(bare.amplitude[i]), "loop_length_m": float(bare.loop_length[i]),
              "strain_pp": float(bare.strain_pp[i])} for i in range(bare.wind_speed.size)])
+
+
+def _where_it_ended(result, final: float) -> str:
+    """Why the robot ended where it did, in words, from what the closed loop recorded."""
+    import numpy as np
+
+    targets = np.asarray(result.target, dtype=float)
+    targets = targets[np.isfinite(targets)]
+    text = ("The robot steers to where its absorber is predicted to dissipate most: an antinode "
+            "of the line's excited shape, estimated from the sensors.")
+    if targets.size:
+        text += f" Its last target was {targets[-1]:.4g} m."
+    best = getattr(result, "best_position", float("nan"))
+    loop = getattr(result, "loop_length", float("nan"))
+    if np.isfinite(best) and np.isfinite(loop) and loop > 0:
+        text += (f" The best parked position found by a steady-state scan is {best:.4g} m, "
+                 f"{abs(final - best) / loop:.2g} loop lengths ({loop:.3g} m) from where it ended.")
+    if not getattr(result, "settled", True):
+        text += (" It had not settled when the run ended, so the numbers are over the last "
+                 "second; a longer robot.closed_loop lets it arrive.")
+    return text
 
 
 _COMPARISON_WORDS = {
@@ -1172,7 +1190,10 @@ def _verb_scenario(args, console: _Console) -> int:
             print(f"  {name:<16} {description}")
         return EXIT_OK
     scenario = load_scenario(args.name)
-    print(scenario_to_toml(scenario), end="")
+    if console.as_json:
+        print(json.dumps(dataclasses.asdict(scenario), indent=2))
+    else:
+        print(scenario_to_toml(scenario), end="")
     return EXIT_OK
 
 

@@ -378,3 +378,8 @@ def test_verbs_limit_blas_to_one_thread_in_scope_only():
     assert inside and all(n == 1 for n in inside)
     after = [pool["num_threads"] for pool in threadpool_info()]
     assert after[: len(before)] == before                      # restored on exit
+
+
+def test_scenario_as_json():
+    data = _json(run_cli("scenario", "drake-300m", "--json"))
+    assert data["span"]["length"] == 300.0 and data["forcing"]["kind"] == "aeolian"
