@@ -383,3 +383,17 @@ def test_verbs_limit_blas_to_one_thread_in_scope_only():
 def test_scenario_as_json():
     data = _json(run_cli("scenario", "drake-300m", "--json"))
     assert data["span"]["length"] == 300.0 and data["forcing"]["kind"] == "aeolian"
+
+
+@pytest.mark.parametrize("verb", ["identify", "sensors", "estimate", "plan", "closed-loop",
+                                  "severity", "report", "study", "scenario"])
+def test_every_verb_refuses_a_bad_scenario_before_computing(tmp_path, verb):
+    path = tmp_path / "bad.toml"
+    path.write_text("[span]\npreset = 'conductor'\ntension = -1.0\n")
+    extra = {"report": ["--out", tmp_path / "out"],
+             "study": ["--vary", "estimation.n_sensors=1,2"]}.get(verb, [])
+    result = run_cli(verb, path, *extra)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [result.stderr.strip()]   # one line
+    assert "span.tension = -1.0" in result.stderr and "Traceback" not in result.stderr
+    assert STAGE_MARK not in result.stderr
