@@ -19,7 +19,7 @@ __all__ = [
     "plot_error_along_span",
     "plot_layouts",
     "plot_sensor_count",
-    "plot_robot_path",
+    "plot_plan_path",
 ]
 
 
@@ -250,7 +250,7 @@ def plot_sensor_count(
     return fig
 
 
-def plot_robot_path(
+def plot_plan_path(
     x: np.ndarray,
     envelope: np.ndarray,
     t: np.ndarray,
@@ -259,9 +259,10 @@ def plot_robot_path(
     target: float | None = None,
     target_series: np.ndarray | None = None,
 ) -> Figure:
-    """The robot's path (position against time) under the amplitude envelope of the line.
+    """The robot's planned path (position against time) under the amplitude envelope.
 
-    The horizontal axis (x, m) is shared and zoomed to where the robot travels, a few loop
+    (For the closed loop's path over the moving envelope see :func:`plot_robot_path`.) The
+    horizontal axis (x, m) is shared and zoomed to where the robot travels, a few loop
     lengths either side.
 
     Parameters
@@ -285,7 +286,7 @@ def plot_robot_path(
     --------
     >>> x = np.linspace(0, 3, 61)
     >>> t = np.linspace(0, 1, 11)
-    >>> fig = plot_robot_path(x, np.abs(np.sin(3 * x)), t, 1.0 + 0.5 * t, target=1.5)
+    >>> fig = plot_plan_path(x, np.abs(np.sin(3 * x)), t, 1.0 + 0.5 * t, target=1.5)
     >>> len(fig.axes)
     2
     """
