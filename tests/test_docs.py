@@ -114,3 +114,33 @@ def test_docs_extra_declares_what_conf_py_loads():
 def test_the_pages_this_site_adds_exist_and_have_a_title(page):
     text = (DOCS / page).read_text()
     assert text.startswith("# ")
+
+
+def test_an_executed_example_shows_its_output_and_figures(tmp_path):
+    script = tmp_path / "tiny_example.py"
+    script.write_text(
+        '"""A tiny example: prints and writes a figure."""\n'
+        "import pathlib, sys\n"
+        "out = pathlib.Path(sys.argv[1]); out.mkdir()\n"
+        "(out / 'fig.png').write_bytes(b'\\x89PNG\\r\\n\\x1a\\n' + bytes(200))\n"
+        "print('hello from the example')\n")
+    stdout, pngs = pages.run_example(script, tmp_path / "figures")
+    assert stdout.strip() == "hello from the example" and pngs == ["fig.png"]
+    page = pages.example_page(script, (stdout, pngs))
+    assert "hello from the example" in page
+    assert "{image} _figures/tiny_example/fig.png" in page
+    assert page.startswith("# A tiny example")
+    failing = tmp_path / "failing.py"
+    failing.write_text("raise SystemExit('no luck')\n")
+    with pytest.raises(RuntimeError, match="no luck"):
+        pages.run_example(failing, tmp_path / "figures")
+
+
+@pytest.mark.parametrize(("variable", "expected"), [("all", "every"), ("none", set()),
+                                                     ("", {"simulate_paper_span"})])
+def test_which_examples_the_build_runs(monkeypatch, variable, expected):
+    monkeypatch.setenv("PLC_DOCS_EXECUTE", variable)
+    chosen = pages.executed_examples(["simulate_paper_span"])
+    if expected == "every":
+        expected = {p.stem for p in pages.example_scripts()}
+    assert chosen == expected
