@@ -4,6 +4,9 @@ Data flows one way: model -> simulate -> identify -> estimate / sensors -> antin
 closed loop -> report / CLI.  See ``docs/`` and the README.
 """
 
+# Public names load lazily (PEP 562): ``import powerline_control`` costs milliseconds and the
+# ``powerline-control --help`` command never pays for numpy, SciPy, python-control, cvxpy or
+# CasADi. Add a new export as a line of this table (module -> names), not as an eager import.
 from .errors import (
     EstimationError,
     FileFormatError,
@@ -16,84 +19,134 @@ from .errors import (
     PresetNotFoundError,
     SensorSelectionError,
     TruncationWarning,
+    UndetectableModeWarning,
     UnstableModelWarning,
 )
 
-# --- parameters and physics (line.py, fem.py, excitation.py, simulate.py) ---
-from .excitation import AeolianForce, HarmonicForce, RandomForce, strouhal_frequency
-from .fem import MDR, LineModel, ModalBasis, ModalDamping, RayleighDamping
-from .line import Conductor, Span, conductors
-from .simulate import Snapshots, simulate
+_LAZY_EXPORTS = {
+    "excitation": (
+        "AeolianForce", "HarmonicForce", "RandomForce", "strouhal_frequency",
+    ),
+    "fem": (
+        "MDR", "LineModel", "ModalBasis", "ModalDamping", "RayleighDamping",
+    ),
+    "line": (
+        "Conductor", "Span", "conductors",
+    ),
+    "simulate": (
+        "Snapshots", "simulate",
+    ),
+    "tuning": (
+        "den_hartog_optimum", "tune_damper",
+    ),
+    "identify": (
+        "AlphaCurve", "DampingReport", "DMDModel", "OnlineDMD", "StabilityReport", "fit_dmd",
+        "select_alpha",
+    ),
+    "io": (
+        "load_model", "save_model",
+    ),
+    "recipe": (
+        "EstimatorDesign", "design_estimator",
+    ),
+    "estimate": (
+        "Accuracy", "Consistency", "Estimate", "KalmanFilter", "estimation_accuracy",
+        "filter_consistency",
+    ),
+    "observability": (
+        "ObservabilityReport", "SensorSetComparison", "analyze_observability",
+        "compare_sensor_sets", "observability_gramian", "observability_rank",
+        "steady_state_covariance",
+    ),
+    "sensors": (
+        "Baseline", "SensorCountStudy", "SensorSelection", "select_sensors", "sensor_count_study",
+    ),
+    "antinode": (
+        "Antinode", "largest_antinode", "locate_antinodes", "nearest_antinode",
+    ),
+    "plan": (
+        "MotionPlanner", "MPCStep", "RobotLimits", "Trajectory", "plan_motion",
+    ),
+    "severity": (
+        "SELF_DAMPING_LAWS", "WIND_POWER_CURVES", "AtAntinode", "CatenaryCheck",
+        "ImpedanceDamper", "RobotValue", "SelfDampingLaw", "SeverityResult", "TimeDomainCheck",
+        "WindDistribution", "WindPowerCurve", "aeolian_severity", "catenary_check",
+        "damper_impedance", "damper_power", "harmonic_mean_position", "loop_length",
+        "robot_value", "self_damping_power", "standing_wave_shape", "time_domain_check",
+        "turbulence_factor", "wind_power",
+    ),
+    "closed_loop": (
+        "ClosedLoopResult", "run_closed_loop",
+    ),
+    "studies": (
+        "StudyResult", "parameter_grid", "point_seed", "run_study",
+    ),
+}
+_MODULE_OF = {name: module for module, names in _LAZY_EXPORTS.items() for name in names}
 
-# --- identification (identify.py) ---
-from .identify import (
-    AlphaCurve,
-    DMDModel,
-    OnlineDMD,
-    StabilityReport,
-    fit_dmd,
-    select_alpha,
-)
-from .io import load_model, save_model
 
-# --- observability and estimation (observability.py, estimate.py) ---
-from .estimate import (
-    Accuracy,
-    Consistency,
-    Estimate,
-    KalmanFilter,
-    estimation_accuracy,
-    filter_consistency,
-)
-from .observability import (
-    ObservabilityReport,
-    SensorSetComparison,
-    analyze_observability,
-    compare_sensor_sets,
-    observability_gramian,
-    observability_rank,
-    steady_state_covariance,
-)
+def __getattr__(name: str):
+    """Import a public name (or a submodule) on first use."""
+    import importlib
 
-# --- sensor placement (sensors.py) ---
-from .sensors import Baseline, SensorCountStudy, SensorSelection, select_sensors, sensor_count_study
+    module = _MODULE_OF.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(f".{module}", __name__), name)
+        globals()[name] = value
+        return value
+    try:
+        return importlib.import_module(f".{name}", __name__)
+    except ModuleNotFoundError as exc:
+        if exc.name != f"{__name__}.{name}":
+            raise
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
 
-# --- antinodes and motion planning (antinode.py, plan.py) ---
-from .antinode import Antinode, largest_antinode, locate_antinodes, nearest_antinode
-from .plan import MotionPlanner, MPCStep, RobotLimits, Trajectory, plan_motion
 
-# --- the whole chain (closed_loop.py) ---
-from .closed_loop import ClosedLoopResult, run_closed_loop
-from .studies import StudyResult, parameter_grid, point_seed, run_study
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_MODULE_OF))
+
 
 __all__ = [
     "Accuracy",
+    "aeolian_severity",
     "AeolianForce",
     "AlphaCurve",
     "analyze_observability",
     "Antinode",
+    "AtAntinode",
     "Baseline",
+    "catenary_check",
+    "CatenaryCheck",
     "ClosedLoopResult",
     "compare_sensor_sets",
     "Conductor",
     "conductors",
     "Consistency",
+    "damper_impedance",
+    "damper_power",
+    "DampingReport",
+    "den_hartog_optimum",
+    "design_estimator",
     "DMDModel",
     "Estimate",
     "estimation_accuracy",
     "EstimationError",
+    "EstimatorDesign",
     "FileFormatError",
     "filter_consistency",
     "fit_dmd",
+    "harmonic_mean_position",
     "HarmonicForce",
     "IdentificationError",
     "IllConditionedWarning",
+    "ImpedanceDamper",
     "InputError",
     "KalmanFilter",
     "largest_antinode",
     "LineModel",
     "load_model",
     "locate_antinodes",
+    "loop_length",
     "MDR",
     "ModalBasis",
     "ModalDamping",
@@ -113,27 +166,43 @@ __all__ = [
     "PresetNotFoundError",
     "RandomForce",
     "RayleighDamping",
+    "robot_value",
     "RobotLimits",
+    "RobotValue",
     "run_closed_loop",
     "run_study",
     "save_model",
     "select_alpha",
     "select_sensors",
+    "SELF_DAMPING_LAWS",
+    "self_damping_power",
+    "SelfDampingLaw",
     "sensor_count_study",
     "SensorCountStudy",
     "SensorSelection",
     "SensorSelectionError",
     "SensorSetComparison",
+    "SeverityResult",
     "simulate",
     "Snapshots",
     "Span",
     "StabilityReport",
+    "standing_wave_shape",
     "steady_state_covariance",
     "strouhal_frequency",
     "StudyResult",
+    "time_domain_check",
+    "TimeDomainCheck",
     "Trajectory",
     "TruncationWarning",
+    "tune_damper",
+    "turbulence_factor",
+    "UndetectableModeWarning",
     "UnstableModelWarning",
+    "wind_power",
+    "WIND_POWER_CURVES",
+    "WindDistribution",
+    "WindPowerCurve",
 ]
 
 __version__ = "0.1.0"

@@ -26,8 +26,9 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.optimize as sopt
 
+from ._riccati import steady_state_batch
+
 __all__ = [
-    "steady_state_batch",
     "KalmanCriterion",
     "LogDetCriterion",
     "MinEigCriterion",
@@ -35,81 +36,19 @@ __all__ = [
     "linear_extreme",
 ]
 
-_MAX_DOUBLINGS = 64
-_DOUBLING_RTOL = 1e-12
-
-
-def steady_state_batch(
-    a: np.ndarray, q: np.ndarray, info: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Steady-state Kalman prior and posterior covariances of many layouts at once.
-
-    Structure-preserving doubling (Chu, Fan and Lin, 2005) for the filter Riccati equation
-    ``P = A P (I + G P)^-1 A^T + Q`` with ``G = C^T R^-1 C`` (the information of a layout).
-    Each step squares the closed-loop transition, so convergence is quadratic: about 20 steps of
-    ``O(n^3)`` even for modes with ``|lambda| = 0.9999``, against a QZ decomposition of a ``2n``
-    pencil per layout in SciPy's DARE, and it runs for a whole batch in stacked numpy calls.
-
-    Parameters
-    ----------
-    a : (n, n) transition matrix.
-    q : (n, n) process-noise covariance (noise units).
-    info : (b, n, n) information matrices ``G`` of the layouts.
-
-    Returns
-    -------
-    prior, posterior : (b, n, n) each; layouts whose iteration diverges (a mode on or outside the
-        unit circle that the layout cannot see) are NaN.
-    ok : (b,) bool, False where the iteration diverged.
-    """
-    b, n, _ = info.shape
-    eye = np.eye(n)
-    a_k = np.broadcast_to(a.T, (b, n, n)).copy()
-    g_k = info.copy()
-    h_k = np.broadcast_to(q, (b, n, n)).copy()
-    active = np.ones(b, dtype=bool)
-    for _ in range(_MAX_DOUBLINGS):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            break
-        A, G, H = a_k[idx], g_k[idx], h_k[idx]
-        W = eye + G @ H
-        with np.errstate(all="ignore"):
-            try:
-                S = np.linalg.solve(W, np.concatenate([A, G], axis=2))
-            except np.linalg.LinAlgError:
-                S = np.full((idx.size, n, 2 * n), np.nan)
-            WA, WG = S[:, :, :n], S[:, :, n:]
-            At = np.swapaxes(A, 1, 2)
-            H_new = H + At @ H @ WA
-            H_new = (H_new + np.swapaxes(H_new, 1, 2)) / 2
-            G_new = G + A @ WG @ At
-            G_new = (G_new + np.swapaxes(G_new, 1, 2)) / 2
-            A_new = A @ WA
-            change = np.abs(H_new - H).max(axis=(1, 2))
-            size = np.abs(H_new).max(axis=(1, 2))
-        finite = np.isfinite(size) & np.isfinite(change)
-        a_k[idx], g_k[idx], h_k[idx] = A_new, G_new, H_new
-        done = finite & (change <= _DOUBLING_RTOL * np.maximum(size, 1e-300))
-        blown = ~finite | (size > 1e150)
-        h_k[idx[blown]] = np.nan
-        active[idx[done | blown]] = False
-    h_k[active] = np.nan  # never converged: a marginal mode the layout cannot see
-    ok = np.all(np.isfinite(h_k), axis=(1, 2))
-    prior = h_k
-    with np.errstate(all="ignore"):
-        # Posterior (P^-1 + G)^-1 = (I + P G)^-1 P, without inverting a possibly singular P.
-        post = np.full_like(prior, np.nan)
-        if np.any(ok):
-            post[ok] = np.linalg.solve(eye + prior[ok] @ info[ok], prior[ok])
-            post[ok] = (post[ok] + np.swapaxes(post[ok], 1, 2)) / 2
-    return prior, post, ok
-
-
 def _information(g: np.ndarray, layouts: np.ndarray) -> np.ndarray:
     """``sum_{i in S} g_i g_i^T`` for each layout: ``(b, n, n)`` from ``g`` (m, n)."""
     rows = g[layouts]  # (b, k, n)
     return np.swapaxes(rows, 1, 2) @ rows
+
+
+def _correlated_information(c: np.ndarray, r: np.ndarray, layouts: np.ndarray) -> np.ndarray:
+    """``C_S^T R_SS^-1 C_S`` for each layout with a full (correlated) noise covariance ``r``."""
+    layouts = np.atleast_2d(layouts)
+    rows = c[layouts]  # (b, k, n)
+    r_ss = r[layouts[:, :, None], layouts[:, None, :]]  # (b, k, k)
+    info = np.swapaxes(rows, 1, 2) @ np.linalg.solve(r_ss, rows)
+    return (info + np.swapaxes(info, 1, 2)) / 2
 
 
 @dataclass(frozen=True)
@@ -257,6 +196,10 @@ class KalmanCriterion:
     weight: np.ndarray  # (n, n) = H^T H
     relaxation_rank: int
     n_exact: int = 0
+    # Correlated noise: (C, R) in noise units. The exact criterion then uses the layout's true
+    # information C_S^T R_SS^-1 C_S; ``g`` holds rows c_i / sqrt(lambda_min(R)), whose information
+    # dominates it (R_SS >= lambda_min(R) I by interlacing), so the relaxation stays a bound.
+    correlated: tuple[np.ndarray, np.ndarray] | None = None
     prior_bound: np.ndarray = field(init=False)
     _reduced: tuple = field(init=False)
     sense: str = "minimize"
@@ -265,10 +208,16 @@ class KalmanCriterion:
     def n_states(self) -> int:
         return self.a.shape[0]
 
+    def info(self, layouts: np.ndarray) -> np.ndarray:
+        """Exact information matrices ``(b, n, n)`` of a batch of layouts."""
+        if self.correlated is None:
+            return _information(self.g, np.atleast_2d(layouts))
+        return _correlated_information(*self.correlated, layouts)
+
     def __post_init__(self) -> None:
         m, n = self.g.shape
         full = np.arange(m)[None, :]
-        _, post_all, ok = steady_state_batch(self.a, self.q, _information(self.g, full))
+        _, post_all, ok = steady_state_batch(self.a, self.q, self.info(full))
         if not ok[0]:
             raise FloatingPointError("all candidates together cannot estimate the state")
         pbar = self.a @ post_all[0] @ self.a.T + self.q
@@ -291,7 +240,7 @@ class KalmanCriterion:
         out = np.empty(len(layouts))
         for start in range(0, len(layouts), chunk):
             part = layouts[start:start + chunk]
-            _, post, ok = steady_state_batch(self.a, self.q, _information(self.g, part))
+            _, post, ok = steady_state_batch(self.a, self.q, self.info(part))
             vals = np.einsum("ij,bji->b", self.weight, np.where(ok[:, None, None], post, 0.0))
             out[start:start + chunk] = np.where(ok, vals, np.inf)
         self.n_exact += len(layouts)
@@ -299,7 +248,7 @@ class KalmanCriterion:
 
     def steady(self, layout: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         prior, post, ok = steady_state_batch(
-            self.a, self.q, _information(self.g, np.asarray(layout)[None, :]))
+            self.a, self.q, self.info(np.asarray(layout)[None, :]))
         self.n_exact += 1
         return (prior[0], post[0]) if ok[0] else None
 

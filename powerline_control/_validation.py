@@ -276,3 +276,127 @@ def check_budget(
             f"To fix: {fix}, or raise the budget (work_budget=... or the environment variable "
             "POWERLINE_CONTROL_WORK_BUDGET)."
         )
+
+
+# --------------------------------------------------------------------------- systems and noise
+# (shared by observability, estimate and sensors: one home for the system and covariance rules)
+
+
+def check_discrete_system(name: str, sys: object):
+    """Return ``sys`` if it is a finite discrete-time ``control.StateSpace`` with states.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> check_discrete_system("sys", ct.ss([[0.5]], [[1.0]], [[1.0]], 0, dt=1.0)).nstates
+    1
+    """
+    import control as ct  # the leaf stays importable without python-control's start-up cost
+
+    if not isinstance(sys, ct.StateSpace):
+        raise InputError(
+            f"The {name!r} parameter must be a discrete-time control.StateSpace. "
+            f"Got an object of type {type(sys).__name__} instead."
+        )
+    if sys.dt is None or (sys.dt is not True and sys.dt == 0):
+        raise InputError(
+            f"The {name!r} parameter must be a discrete-time system (dt > 0 or dt=True). "
+            f"Got a continuous-time system (dt={sys.dt!r}); discretise it first, e.g. with "
+            "sys.sample(dt) or LineModel.to_statespace(dt=...)."
+        )
+    for label in ("A", "B", "C", "D"):
+        matrix = np.asarray(getattr(sys, label))
+        if not np.all(np.isfinite(matrix)):
+            raise InputError(
+                f"The {name!r} parameter has {int(np.count_nonzero(~np.isfinite(matrix)))} "
+                f"NaN or infinite entries in its {label} matrix; the model must be finite."
+            )
+    if sys.nstates == 0:
+        raise InputError(f"The {name!r} parameter must have at least one state. Got 0 states.")
+    return sys
+
+
+def check_covariance(
+    name: str,
+    value: object,
+    size: int,
+    *,
+    index: np.ndarray | None = None,
+    definite: bool = False,
+) -> np.ndarray:
+    """The one rule for noise covariances (``Q``, ``R``, ``P0``): a ``(size, size)`` matrix from
+
+    * a scalar variance (the same for every signal, uncorrelated),
+    * a ``(size,)`` vector of variances (one per signal, uncorrelated), or
+    * a full ``(size, size)`` symmetric matrix.
+
+    Entries must be finite; the matrix positive semidefinite, or positive definite with
+    ``definite`` (a measurement-noise covariance used by a Riccati equation: a sensor without
+    noise makes it singular). With ``index`` the value describes all ``size`` signals and the rows
+    and columns of ``index`` are returned (checked on those rows).
+
+    Examples
+    --------
+    >>> check_covariance("R", 2.0, 2).tolist()
+    [[2.0, 0.0], [0.0, 2.0]]
+    >>> check_covariance("R", [1.0, 3.0, 5.0], 3, index=np.array([2, 0])).tolist()
+    [[5.0, 0.0], [0.0, 1.0]]
+    """
+    what = "positive" if definite else "non-negative"
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        variance = float(value)
+        if not np.isfinite(variance) or variance < 0 or (definite and variance == 0):
+            raise InputError(
+                f"The {name!r} parameter must be a finite {what} variance. Got {variance!r}."
+            )
+        out = variance * np.eye(size)
+    else:
+        array = check_array(name, value, ndim=(1, 2))
+        shape_ok = array.shape == (size,) if array.ndim == 1 else array.shape == (size, size)
+        if not shape_ok:
+            raise InputError(
+                f"The {name!r} parameter has the wrong shape: expected a scalar, ({size},) "
+                f"variances or a ({size}, {size}) matrix but found {array.shape}."
+            )
+        if array.ndim == 1:
+            if np.any(array < 0) or (definite and np.any(array == 0)):
+                raise InputError(
+                    f"The {name!r} parameter must contain {what} variances. "
+                    f"Got a smallest value of {array.min():.3g}."
+                )
+            out = np.diag(array)
+        else:
+            out = check_psd(name, array, size)
+    if index is not None:
+        out = out[np.ix_(index, index)]
+    out = (out + out.T) / 2
+    if definite and out.ndim == 2 and out.size:
+        try:
+            np.linalg.cholesky(out)
+        except np.linalg.LinAlgError:
+            smallest = float(np.linalg.eigvalsh(out).min())
+            raise InputError(
+                f"The {name!r} parameter must be positive definite (every sensor needs noise: a "
+                f"noise-free or perfectly correlated pair makes the Riccati equation singular). "
+                f"Its smallest eigenvalue is {smallest:.3g}."
+            ) from None
+    return out
+
+
+def check_field_map(field_map: object, n: int) -> np.ndarray | None:
+    """``None`` or an ``(n_nodes, n)`` map from the model state to the field of interest.
+
+    Examples
+    --------
+    >>> check_field_map([[1.0, 0.0]], 2).shape
+    (1, 2)
+    """
+    if field_map is None:
+        return None
+    matrix = check_array("field_map", field_map, ndim=2)
+    if matrix.shape[1] != n:
+        raise InputError(
+            "The 'field_map' parameter has the wrong shape: expected (n_nodes, "
+            f"{n}) (one column per model state) but found {matrix.shape}."
+        )
+    return matrix

@@ -9,29 +9,46 @@ harmonic at each node (a least-squares sine fit at the frequency of the largest 
 spectrum), which rejects broadband noise and the other modes; ``"rms"`` (RMS times sqrt 2) and
 ``"peak"`` (largest absolute value) are simpler alternatives.
 
-The loop of an antinode extends between the neighbouring nodes of the vibration: zero crossings
-of the (phase-aligned) signed shape where there is one, else minima of the envelope.  Each local
-maximum of the envelope is then refined below the node spacing: by default a least-squares fit of
-a sine with the loop's wavenumber over the middle of the loop (exact for a sinusoidal loop, the
-shape of a taut string's, and averaging the noise of every sample there), or by interpolation
-through the three samples around it (``"cosine"``, ``"parabolic"``).  The position uncertainty
-propagates the estimator's variances to first order, assuming independent errors (see
-:func:`locate_antinodes`).
+The loops are found from the field itself, before any maximum is looked at: their ends are the
+vibration nodes, the zero crossings of the mode-like signed shape (the phase-aligned dominant
+harmonic of a window, the phase-aligned mode shape).  Samples within a few noise standard
+deviations of zero are "uncertain"; a node lies between two confidently signed samples of opposite
+sign (one clean crossing: the exact zero of a sine through four samples or linear interpolation;
+several noisy ones: the root of a least-squares line through them).  So a small loop between
+resonances is a loop of its own and does not stretch its neighbours.  Each antinode is then
+refined inside its own loop: by default a least-squares fit of ``a cos(k u) + b sin(k u)`` with the
+wavenumber ``k`` fitted too (Gauss-Newton), over the samples of the loop above half its maximum
+(exact for a sinusoidal loop of any length, e.g. a loop next to a point load or a support, which
+is not half a wavelength long), or by interpolation through the three samples around the maximum
+(``"cosine"``, ``"parabolic"``).  Every antinode has a position uncertainty: propagated to first
+order from the variances given, or else from the estimated noise of the field (and the fit's
+residual when the loop is not a sine), so it grows with the noise.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.signal import find_peaks
 
 from ._validation import check_array, check_choice, check_real
 from .errors import InputError
 
 __all__ = ["Antinode", "locate_antinodes", "nearest_antinode", "largest_antinode"]
+
+# A sample is confidently signed (counts toward a loop, not toward a node) when its magnitude
+# exceeds this many noise standard deviations: the chance that noise flips it is 6e-5 (Gaussian).
+_NOISE_SIGMAS = 4.0
+# Floor of that noise, relative to the largest |signed shape|: round-off of an exact field must not
+# create loops.
+_ROUND_OFF = 1e-9
+# The sine fit of a loop uses the samples whose envelope is at least one of these fractions of the
+# loop's largest sample, the widest whose residual the noise explains (0.5: the middle two thirds
+# of a sinusoidal loop): near the nodes the envelope is small (poor signal to noise) and next to a
+# load or a support the loop departs from a sine.
+_FIT_LEVELS = (0.5, 0.7, 0.85, 0.95)
 
 
 @dataclass(frozen=True)
@@ -48,13 +65,24 @@ class Antinode:
     loop_start, loop_end : float
         Ends of the loop (the neighbouring vibration nodes), m.
     position_std : float or None
-        Standard deviation of ``position``, m, from the variances given; None without them.
+        Standard deviation of ``position``, m: propagated from the variances given, else from the
+        field's estimated noise (and the fit's residual); it grows with the noise.  None only for
+        an ``Antinode`` built by hand.
     amplitude_std : float or None
-        Standard deviation of ``amplitude``, m; None without variances.
+        Standard deviation of ``amplitude``, m, likewise.
     index : int
         Index of the sample (node) nearest the antinode, the local maximum of the envelope.
     frequency : float or None
         Frequency of the dominant harmonic, Hz, for a window with ``dt`` given; else None.
+    noise_std : float or None
+        Estimated noise standard deviation of the envelope near the antinode, m (from the given
+        variances when there are any; from the harmonic fit's residual for a window; from local
+        quadratic fits along the span for a mode shape).
+    fit_samples : int
+        Number of samples the position was fitted to (3 for a three-point interpolation).
+    uncertainty : str
+        Where ``position_std`` comes from: ``"variances"`` (propagated from those given) or
+        ``"estimated"`` (from the field's estimated noise and the fit's residual).
 
     Examples
     --------
@@ -72,6 +100,9 @@ class Antinode:
     amplitude_std: float | None
     index: int
     frequency: float | None = None
+    noise_std: float | None = None
+    fit_samples: int = 0
+    uncertainty: str = "variances"
 
     @property
     def loop_length(self) -> float:
@@ -80,16 +111,20 @@ class Antinode:
 
 
 # ----------------------------------------------------------------------------------------------
-# Envelopes
+# Envelopes and noise
 # ----------------------------------------------------------------------------------------------
 
 
-def _dominant_harmonic(window: np.ndarray) -> tuple[np.ndarray, float]:
-    """Complex amplitude per node at the dominant frequency, and that frequency in cycles/sample.
+def _dominant_harmonic(window: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """Complex amplitude per node at the dominant frequency, that frequency in cycles/sample, and
+    the variance of each node's complex amplitude estimated from the fit's residual.
 
     The frequency is the largest peak of the node-summed Hann-windowed power spectrum, refined by
     a parabola through the log power of the three bins around it (near exact for a Hann window);
     the amplitudes come from a least-squares fit of cos, sin and a constant at that frequency.
+    The residual variance s^2 of a node gives its cos and sin coefficients a variance of about
+    2 s^2 / n_t (independent errors); whatever else is in the signal (other modes) counts as noise,
+    which makes it an upper estimate.
     """
     n_t = window.shape[1]
     centred = window - window.mean(axis=1, keepdims=True)
@@ -107,7 +142,9 @@ def _dominant_harmonic(window: np.ndarray) -> tuple[np.ndarray, float]:
     phase = 2 * np.pi * frequency * np.arange(n_t)
     design = np.column_stack([np.cos(phase), np.sin(phase), np.ones(n_t)])
     coefficients, *_ = np.linalg.lstsq(design, window.T, rcond=None)
-    return coefficients[0] - 1j * coefficients[1], frequency
+    residual = window.T - design @ coefficients
+    residual_variance = np.sum(residual**2, axis=0) / max(n_t - 3, 1)
+    return coefficients[0] - 1j * coefficients[1], frequency, 2.0 * residual_variance / n_t
 
 
 def _align_phase(phasors: np.ndarray) -> np.ndarray:
@@ -118,8 +155,109 @@ def _align_phase(phasors: np.ndarray) -> np.ndarray:
     return np.real(phasors * np.exp(-1j * angle))
 
 
+# Median of the chi-square distribution with one degree of freedom: turns a median of squared
+# standardised residuals into a variance.
+_CHI2_1_MEDIAN = 0.45493642311957283
+
+
+def _spatial_noise(x: np.ndarray, y: np.ndarray) -> float:
+    """Noise standard deviation of samples ``y(x)`` along the span (any spacing).
+
+    Each interior sample is compared with the least-squares quartic through it and its three
+    neighbours on each side (a parabola through five samples on short arrays).  The residual at
+    the centre has variance s^2 (1 - leverage) for independent errors of variance s^2, and the
+    median over the span (robust to the few windows at a kink or a support) gives s.  A smooth
+    shape contributes its sixth-order Taylor term: for a sine with 14 samples per loop, 4e-6 of
+    the amplitude (measured); with 3 samples per loop it reaches 4 % (such a field is not
+    resolved well enough to tell its noise from its shape, and the uncertainty says so).
+    """
+    n = x.size
+    if n < 5:
+        return 0.0
+    half, degree = (3, 4) if n >= 7 else (2, 2)
+    centre = np.arange(half, n - half)
+    windows = centre[:, None] + np.arange(-half, half + 1)
+    u = x[windows] - x[centre][:, None]
+    u = u / (u[:, -1] - u[:, 0])[:, None]
+    design = np.stack([u**power for power in range(degree + 1)], axis=2)  # (m, 2 half + 1, d + 1)
+    gram_inv = np.linalg.inv(np.transpose(design, (0, 2, 1)) @ design)
+    coefficients = gram_inv @ (np.transpose(design, (0, 2, 1)) @ y[windows][:, :, None])
+    residual = y[centre] - coefficients[:, 0, 0]  # the polynomial's value at the centre (u = 0)
+    leverage = gram_inv[:, 0, 0]
+    return float(np.sqrt(np.median(residual**2 / (1.0 - leverage)) / _CHI2_1_MEDIAN))
+
+
 # ----------------------------------------------------------------------------------------------
-# Sub-sample interpolation
+# Loops: ends from the zero crossings of the signed shape
+# ----------------------------------------------------------------------------------------------
+
+
+def _zero_crossing(x: np.ndarray, signed: np.ndarray, c: int) -> float:
+    """Zero of the signed shape between samples c and c + 1.
+
+    With equally spaced neighbours, a sinusoid through four samples (its wavenumber from the
+    three-term identity y[m-1] + y[m+1] = 2 cos(k h) y[m], by least squares over the two inner
+    triples) gives the exact zero of a sine; otherwise, or when that identity does not fit,
+    linear interpolation.
+    """
+    y1, y2 = signed[c], signed[c + 1]
+    h = x[c + 1] - x[c]
+    linear = float(x[c] + h * y1 / (y1 - y2))
+    if x.size < 4:
+        return linear
+    first = min(max(c - 1, 0), x.size - 4)  # four samples around the crossing, inside the array
+    if not np.allclose(np.diff(x[first : first + 4]), h, rtol=1e-6):
+        return linear
+    w = signed[first : first + 4]
+    cos_kh = ((w[0] + w[2]) * w[1] + (w[1] + w[3]) * w[2]) / (2 * (w[1] ** 2 + w[2] ** 2))
+    if not 0.0 < cos_kh < 1.0:
+        return linear
+    kh = math.acos(cos_kh)
+    # y1 = -A sin(k s), y2 = A sin(k (h - s)) for the zero at x[c] + s:
+    ks = math.atan(-y1 * math.sin(kh) / (y2 - y1 * cos_kh))  # y1, y2 of opposite signs
+    if not 0.0 <= ks <= kh:
+        return linear
+    return float(x[c] + ks / kh * h)
+
+
+def _line_root(xs: np.ndarray, ys: np.ndarray) -> float:
+    """Zero of the least-squares line through noisy samples around a node, kept within them."""
+    slope, intercept = np.polyfit(xs - xs[0], ys, 1)
+    if slope == 0.0 or slope * (ys[-1] - ys[0]) <= 0:
+        return float(0.5 * (xs[0] + xs[-1]))
+    return float(min(max(xs[0] - intercept / slope, xs[0]), xs[-1]))
+
+
+def _vibration_nodes(x: np.ndarray, signed: np.ndarray, threshold: np.ndarray) -> list[float]:
+    """Positions of the vibration nodes: where the signed shape changes sign beyond the noise.
+
+    Samples with ``|signed| > threshold`` are confidently signed.  Between two consecutive ones
+    of opposite sign lies one node: the single zero crossing there if the samples between change
+    sign once (exact for a sine on an even grid), else (noise makes it cross several times) the
+    root of the least-squares line through them.  Between two of the same sign whose samples in
+    between do cross zero (a loop too small to rise above the noise), one node at the smallest
+    magnitude: the neighbours end there.
+    """
+    confident = np.nonzero(np.abs(signed) > threshold)[0]
+    nodes = []
+    for i, j in zip(confident[:-1], confident[1:], strict=True):
+        segment = signed[i : j + 1]
+        changes = np.nonzero(np.sign(segment[:-1]) * np.sign(segment[1:]) < 0)[0]
+        zeros = np.nonzero(segment == 0.0)[0]
+        if np.sign(signed[i]) != np.sign(signed[j]):
+            if changes.size == 1 and zeros.size == 0:
+                nodes.append(_zero_crossing(x, signed, i + int(changes[0])))
+            elif changes.size == 0 and zeros.size == 1:
+                nodes.append(float(x[i + int(zeros[0])]))
+            else:
+                nodes.append(_line_root(x[i : j + 1], segment))
+        elif changes.size or zeros.size:
+            nodes.append(float(x[i + int(np.argmin(np.abs(segment)))]))
+    return nodes
+
+
+# ----------------------------------------------------------------------------------------------
+# Sub-sample refinement inside a loop
 # ----------------------------------------------------------------------------------------------
 
 
@@ -179,55 +317,157 @@ def _propagate(
     return float(std[0]), float(std[1])
 
 
-def _zero_crossing(x: np.ndarray, signed: np.ndarray, c: int) -> float:
-    """Zero of the signed shape between samples c and c + 1.
+@dataclass(frozen=True)
+class _Fit:
+    position: float
+    amplitude: float
+    position_std: float
+    amplitude_std: float
+    samples: int
+    chi_square: float = 0.0
 
-    With equally spaced neighbours, a sinusoid through four samples (its wavenumber from the
-    three-term identity y[m-1] + y[m+1] = 2 cos(k h) y[m], by least squares over the two inner
-    triples) gives the exact zero of a sine; otherwise, or when that identity does not fit,
-    linear interpolation.
+
+def _three_point(
+    x: np.ndarray, envelope: np.ndarray, variances: np.ndarray, peak: int, method: str
+) -> _Fit:
+    """Interpolation through the maximum and its two neighbours (the sample at the span's ends)."""
+    if peak == 0 or peak == x.size - 1:
+        std = float(np.sqrt(variances[peak]))
+        spacing = float(x[1] - x[0]) if peak == 0 else float(x[-1] - x[-2])
+        return _Fit(float(x[peak]), float(envelope[peak]), spacing / math.sqrt(12.0), std, 1)
+    interpolate = _INTERPOLATORS[method]
+    xs, ys = x[peak - 1 : peak + 2], envelope[peak - 1 : peak + 2]
+    position, amplitude = interpolate(xs, ys)
+    position_std, amplitude_std = _propagate(interpolate, xs, ys, variances[peak - 1 : peak + 2])
+    return _Fit(position, amplitude, position_std, amplitude_std, 3)
+
+
+def _sine_parameters(
+    u: np.ndarray, ys: np.ndarray, k0: float
+) -> tuple[float, float, float] | None:
+    """Least-squares a cos(k u) + b sin(k u) with the wavenumber k free (Gauss-Newton from k0).
+
+    Returns (a, b, k), or None if the iteration leaves [k0 / 3, 3 k0] or does not settle (too few
+    or too noisy samples to pin the wavenumber down).  For samples of a sine it converges to the
+    exact parameters (quadratically: a few iterations).
     """
-    y1, y2 = signed[c], signed[c + 1]
-    h = x[c + 1] - x[c]
-    linear = float(x[c] + h * y1 / (y1 - y2))
-    if x.size < 4:
-        return linear
-    first = min(max(c - 1, 0), x.size - 4)  # four samples around the crossing, inside the array
-    if not np.allclose(np.diff(x[first : first + 4]), h, rtol=1e-6):
-        return linear
-    w = signed[first : first + 4]
-    cos_kh = ((w[0] + w[2]) * w[1] + (w[1] + w[3]) * w[2]) / (2 * (w[1] ** 2 + w[2] ** 2))
-    if not 0.0 < cos_kh < 1.0:
-        return linear
-    kh = math.acos(cos_kh)
-    # y1 = -A sin(k s), y2 = A sin(k (h - s)) for the zero at x[c] + s:
-    ks = math.atan(-y1 * math.sin(kh) / (y2 - y1 * cos_kh))  # y1, y2 of opposite signs
-    if not 0.0 <= ks <= kh:
-        return linear
-    return float(x[c] + ks / kh * h)
+    k = k0
+    design = np.column_stack([np.cos(k * u), np.sin(k * u)])
+    (a, b), *_ = np.linalg.lstsq(design, ys, rcond=None)
+    for _ in range(50):
+        c, s = np.cos(k * u), np.sin(k * u)
+        residual = ys - a * c - b * s
+        jacobian = np.column_stack([c, s, u * (b * c - a * s)])
+        step, *_ = np.linalg.lstsq(jacobian, residual, rcond=None)
+        a, b, k = a + step[0], b + step[1], k + step[2]
+        if not k0 / 3 <= k <= 3 * k0:
+            return None
+        if abs(step[2]) <= 1e-13 * k and abs(step[0]) + abs(step[1]) <= 1e-13 * math.hypot(a, b):
+            return float(a), float(b), float(k)
+    return None
 
 
-def _node_between(
-    x: np.ndarray, envelope: np.ndarray, signed: np.ndarray | None, i: int, j: int
-) -> float:
-    """Position of the vibration node between samples i < j (two antinodes or an end)."""
-    if signed is not None:
-        s = signed[i : j + 1]
-        crossings = np.nonzero(np.sign(s[:-1]) * np.sign(s[1:]) < 0)[0]
-        exact = np.nonzero(s == 0)[0]
-        if crossings.size + exact.size == 1:
-            if exact.size:
-                return float(x[i + exact[0]])
-            return _zero_crossing(x, signed, i + int(crossings[0]))
-    m = i + int(np.argmin(envelope[i : j + 1]))
-    if 0 < m < x.size - 1 and i < m < j:
-        y_left, y_mid, y_right = envelope[m - 1 : m + 2]
-        rise = max(y_left, y_right) - y_mid
-        h = 0.5 * (x[m + 1] - x[m - 1])
-        if rise > 0:
-            # Vertex of a "V" (|sin| near a node is V-shaped, not parabolic).
-            return float(x[m] + h * (y_left - y_right) / (2 * rise))
-    return float(x[m])
+def _sine_fit(
+    xs: np.ndarray,
+    ys: np.ndarray,
+    variances: np.ndarray,
+    k0: float,
+    centre: float,
+    inflate: bool,
+) -> _Fit | None:
+    """Fit of a sinusoidal loop; the peak is at centre + atan2(b, a) / k, amplitude hypot(a, b).
+
+    Standard deviations: the sandwich covariance of the least squares at the solution (Jacobian
+    in a, b, k) with the given sample variances, propagated to first order.  With ``inflate``
+    (variances estimated, not given) the variances are raised to the fit's own residual variance
+    when that is larger: a loop that is not a sine (next to a point load) is less certain.
+    """
+    u = xs - centre
+    parameters = _sine_parameters(u, ys, k0) if xs.size >= 4 else None
+    if parameters is None:  # the wavenumber from the loop's length
+        design = np.column_stack([np.cos(k0 * u), np.sin(k0 * u)])
+        (a, b), *_ = np.linalg.lstsq(design, ys, rcond=None)
+        k, free = k0, False
+    else:
+        (a, b, k), free = parameters, True
+    amplitude = math.hypot(a, b)
+    if amplitude == 0.0:
+        return None
+    phase = math.atan2(b, a)
+    position = centre + phase / k
+    c, s = np.cos(k * u), np.sin(k * u)
+    columns = [c, s] + ([u * (b * c - a * s)] if free else [])
+    jacobian = np.column_stack(columns)
+    residual = ys - a * c - b * s
+    chi_square = float(np.sum(residual**2 / np.maximum(variances, np.finfo(float).tiny)))
+    if inflate and xs.size > jacobian.shape[1]:
+        misfit = float(residual @ residual) / (xs.size - jacobian.shape[1])
+        variances = np.maximum(variances, misfit)
+    solve = np.linalg.pinv(jacobian)  # (p, n): parameter changes = solve @ sample changes
+    covariance = (solve * variances) @ solve.T
+    grad_position = np.array([-b, a] + ([-phase / k] if free else [])) / np.array(
+        [k * amplitude**2, k * amplitude**2] + ([k] if free else [])
+    )
+    grad_amplitude = np.array([a, b] + ([0.0] if free else [])) / amplitude
+    return _Fit(
+        float(position),
+        amplitude,
+        float(np.sqrt(max(grad_position @ covariance @ grad_position, 0.0))),
+        float(np.sqrt(max(grad_amplitude @ covariance @ grad_amplitude, 0.0))),
+        int(xs.size),
+        chi_square,
+    )
+
+
+def _consistent_with_noise(fit: _Fit) -> bool:
+    """Whether a fit's residual is what the noise alone would leave (chi-square within 3 sigma)."""
+    dof = fit.samples - 3
+    return dof > 0 and fit.chi_square <= dof + 3.0 * math.sqrt(2.0 * dof)
+
+
+def _refine(
+    x: np.ndarray,
+    envelope: np.ndarray,
+    variances: np.ndarray,
+    inside: np.ndarray,
+    peak: int,
+    loop: tuple[float, float],
+    method: str,
+    inflate: bool,
+) -> _Fit:
+    """Position and amplitude of the maximum of one loop, with standard deviations.
+
+    The sine fit starts with the samples above half the loop's maximum and narrows to those above
+    0.7, 0.85 and 0.95 of it until its residual is consistent with the noise: a loop next to a
+    point load or a clamp is a sine plus a term that decays away from there (over 1 / kappa, a
+    few tenths of a metre on the lab span), which a wide fit would average into a biased peak.
+    """
+    if method == "sine":
+        length = loop[1] - loop[0]
+        fits: list[_Fit] = []
+        for level in _FIT_LEVELS:
+            selected = inside[envelope[inside] >= level * envelope[peak]]
+            if selected.size < 3 or length <= 0 or (fits and selected.size < 4):
+                break
+            fit = _sine_fit(
+                x[selected], envelope[selected], variances[selected], np.pi / length, x[peak],
+                inflate,
+            )
+            if fit is None or not loop[0] <= fit.position <= loop[1]:
+                break
+            fits.append(fit)
+        if fits:
+            chosen = next((i for i, fit in enumerate(fits) if _consistent_with_noise(fit)),
+                          len(fits) - 1)
+            fit = fits[chosen]
+            if inflate and chosen + 1 < len(fits):
+                # Estimated uncertainty: add the shift to the next narrower fit, a measure of the
+                # bias left by a loop that is not quite a sine (and of the noise: it grows).
+                shift = abs(fits[chosen + 1].position - fit.position)
+                fit = replace(fit, position_std=math.hypot(fit.position_std, shift))
+            return fit
+        method = "cosine"
+    return _three_point(x, envelope, variances, peak, method)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -247,32 +487,42 @@ def locate_antinodes(
 ) -> list[Antinode]:
     """Find every antinode of a displacement field along the span.
 
+    The loops come first, from the field itself: their ends are the vibration nodes, the zero
+    crossings of the phase-aligned signed shape (beyond the field's noise), so a small loop
+    between two large ones keeps its own ends and its neighbours keep theirs.  Each loop's
+    antinode is then fitted inside that loop.
+
     Parameters
     ----------
     field : array_like, shape (n_nodes, n_t) or (n_nodes,)
         A window of displacements (rows = positions ``x``, columns = time), or one mode shape,
         real or complex.  Rows that are identically zero (pinned supports) are fine.
     x : array_like, shape (n_nodes,)
-        Positions of the rows, m, strictly increasing.
+        Positions of the rows, m, strictly increasing; any spacing (graded meshes are fine).
     envelope : {"harmonic", "rms", "peak"}
         Amplitude envelope of a window: amplitude of the dominant harmonic (default), RMS times
         sqrt(2), or the largest absolute value.  Ignored for a mode shape (its magnitude is used).
+        The loop ends always come from the dominant harmonic's signed shape.
     variances : array_like, shape like ``field`` or (n_nodes,), optional
         Error variances of the field's entries (e.g. a Kalman filter's ``Estimate.variances`` for
         the displacement states), m^2.  For a window, the variance of each node's envelope is
         taken as ``2 * mean(variances) / n_t``, the variance of a sine amplitude fitted to ``n_t``
         samples with independent errors.  Estimation errors are correlated in time and between
-        nodes, so the resulting standard deviations are optimistic lower bounds.
+        nodes, so the resulting standard deviations are optimistic lower bounds.  Without
+        variances the noise is estimated from the field: from the residual of the harmonic fit
+        at each node (window) or from local parabolas along the span (mode shape).
     interpolation : {"sine", "cosine", "parabolic"}
-        Sub-sample refinement of each maximum.  ``"sine"`` (default): least-squares fit of a sine
-        with the loop's wavenumber over the middle 60 % of the loop (exact for a sinusoidal loop;
-        robust to noise, as it uses every sample there; falls back to ``"cosine"`` for loops of
-        fewer than 3 samples).  ``"cosine"``: through the three samples around the maximum, exact
-        for a sinusoid, needs equal spacing there (else falls back to the parabola).
-        ``"parabolic"``: the parabola through those three samples.
+        Sub-sample refinement of each maximum.  ``"sine"`` (default): least-squares fit of
+        ``a cos(k u) + b sin(k u)``, wavenumber ``k`` included, over the loop's samples above
+        half its maximum (exact for a sinusoidal loop of any length; robust to noise, as it uses
+        every sample there; falls back to ``"cosine"`` for fewer than 3 samples).  ``"cosine"``:
+        through the three samples around the maximum, exact for a sinusoid, needs equal spacing
+        there (else falls back to the parabola).  ``"parabolic"``: the parabola through them.
     min_prominence : float
-        Smallest prominence of a maximum, as a fraction of the largest envelope value, for it to
-        count as an antinode (in (0, 1]); it rejects ripples from noise.
+        Smallest amplitude of a loop, as a fraction of the largest envelope value, for its
+        antinode to be reported (in (0, 1]).  Smaller loops are still loops: they bound their
+        neighbours, they are just not listed.  Nor is a loop whose largest sample is the first
+        or last one (its maximum lies beyond the positions given).
     dt : float, optional
         Sampling interval of the window, s, to report the dominant frequency in Hz.
 
@@ -325,116 +575,68 @@ def locate_antinodes(
             raise InputError(
                 f"The 'field' parameter must have at least 4 time samples. Got {data.shape[1]}."
             )
-        signed, envelope_values, frequency = _window_envelope(data, envelope_kind, dt)
+        phasors, cycles_per_sample, phasor_variance = _dominant_harmonic(data)
+        frequency = cycles_per_sample / dt if dt is not None else None
+        signed = _align_phase(phasors)
+        envelope_values = _window_envelope(data, envelope_kind, phasors)
+        noise_variance = phasor_variance
     else:
         signed = _align_phase(data)
         envelope_values = np.abs(data)
+        noise_variance = np.full(n_nodes, _spatial_noise(positions, signed) ** 2)
 
-    node_variances = None
-    if variances is not None:
-        node_variances = _node_variances(variances, data.shape)
+    given = variances is not None
+    if given:
+        noise_variance = _node_variances(variances, data.shape)
 
     peak_value = float(np.max(envelope_values))
     if peak_value == 0.0:
         return []
-    peaks, _ = find_peaks(envelope_values, prominence=min_prominence * peak_value)
+    scale = float(np.max(np.abs(signed)))
+    threshold = np.maximum(_NOISE_SIGMAS * np.sqrt(noise_variance), _ROUND_OFF * scale)
+    # Loops from the nodes alone; if the signed shape is zero (a window whose dominant harmonic
+    # vanishes), the envelope's span is one loop.
+    bounds = [float(positions[0]), *_vibration_nodes(positions, signed, threshold),
+              float(positions[-1])]
     antinodes = []
-    bounds = [0] + [int(p) for p in peaks] + [n_nodes - 1]
-    for n, peak in enumerate(peaks):
-        loop_start = _node_between(positions, envelope_values, signed, bounds[n], peak)
-        loop_end = _node_between(positions, envelope_values, signed, peak, bounds[n + 2])
-        position, amplitude, position_std, amplitude_std = _refine_peak(
-            positions, envelope_values, node_variances, int(peak), loop_start, loop_end,
-            interpolation,
+    for loop_start, loop_end in zip(bounds[:-1], bounds[1:], strict=True):
+        inside = np.nonzero((positions >= loop_start) & (positions <= loop_end))[0]
+        if inside.size == 0:
+            continue
+        peak = int(inside[np.argmax(envelope_values[inside])])
+        if envelope_values[peak] < min_prominence * peak_value or envelope_values[peak] == 0.0:
+            continue
+        if peak in (0, n_nodes - 1):  # the loop's maximum lies beyond the sampled positions
+            continue
+        fit = _refine(
+            positions, envelope_values, noise_variance, inside, peak, (loop_start, loop_end),
+            interpolation, inflate=not given,
         )
         antinodes.append(
             Antinode(
-                position=position,
-                amplitude=amplitude,
+                position=fit.position,
+                amplitude=fit.amplitude,
                 loop_start=loop_start,
                 loop_end=loop_end,
-                position_std=position_std,
-                amplitude_std=amplitude_std,
-                index=int(peak),
+                position_std=fit.position_std,
+                amplitude_std=fit.amplitude_std,
+                index=peak,
                 frequency=frequency,
+                noise_std=float(np.sqrt(noise_variance[peak])),
+                fit_samples=fit.samples,
+                uncertainty="variances" if given else "estimated",
             )
         )
     return antinodes
 
 
-# Fraction of the loop length left out at each end by the sine fit: near the nodes the envelope
-# is small (poor signal to noise) and a real conductor's loop next to a support departs from a sine.
-_FIT_MARGIN = 0.2
-
-
-def _refine_peak(
-    x: np.ndarray,
-    envelope: np.ndarray,
-    variances: np.ndarray | None,
-    peak: int,
-    loop_start: float,
-    loop_end: float,
-    method: str,
-) -> tuple[float, float, float | None, float | None]:
-    """Sub-sample position and amplitude of a maximum, with standard deviations if variances."""
-    length = loop_end - loop_start
-    inside = np.nonzero(
-        (x >= loop_start + _FIT_MARGIN * length) & (x <= loop_end - _FIT_MARGIN * length)
-    )[0]
-    if method == "sine" and inside.size >= 3 and length > 0:
-        return _sine_fit(x[inside], envelope[inside], None if variances is None else
-                         variances[inside], np.pi / length, x[peak])
-    interpolate = _INTERPOLATORS["cosine" if method == "sine" else method]
-    xs, ys = x[peak - 1 : peak + 2], envelope[peak - 1 : peak + 2]
-    position, amplitude = interpolate(xs, ys)
-    if variances is None:
-        return position, amplitude, None, None
-    position_std, amplitude_std = _propagate(interpolate, xs, ys, variances[peak - 1 : peak + 2])
-    return position, amplitude, position_std, amplitude_std
-
-
-def _sine_fit(
-    xs: np.ndarray, ys: np.ndarray, variances: np.ndarray | None, k: float, centre: float
-) -> tuple[float, float, float | None, float | None]:
-    """Least-squares fit of a cos(k u) + b sin(k u), u = x - centre, over the middle of a loop.
-
-    The wavenumber comes from the loop length (pi / loop length).  The peak is at
-    centre + atan2(b, a) / k with amplitude hypot(a, b): exact for a sinusoidal loop, and with
-    noise it averages over all the samples of the loop's middle instead of three.  Standard
-    deviations: the sandwich covariance of the unweighted least squares, propagated to first
-    order.
-    """
-    u = k * (xs - centre)
-    design = np.column_stack([np.cos(u), np.sin(u)])
-    (a, b), *_ = np.linalg.lstsq(design, ys, rcond=None)
-    amplitude = math.hypot(a, b)
-    position = float(centre + math.atan2(b, a) / k)
-    if variances is None:
-        return position, amplitude, None, None
-    gram = design.T @ design
-    solve = np.linalg.solve(gram, design.T)  # (2, n): coefficients = solve @ ys
-    covariance = (solve * variances) @ solve.T
-    grad_position = np.array([-b, a]) / (k * amplitude**2)
-    grad_amplitude = np.array([a, b]) / amplitude
-    return (
-        position,
-        amplitude,
-        float(np.sqrt(grad_position @ covariance @ grad_position)),
-        float(np.sqrt(grad_amplitude @ covariance @ grad_amplitude)),
-    )
-
-
-def _window_envelope(
-    window: np.ndarray, kind: str, dt: float | None
-) -> tuple[np.ndarray | None, np.ndarray, float | None]:
+def _window_envelope(window: np.ndarray, kind: str, phasors: np.ndarray) -> np.ndarray:
     if kind == "harmonic":
-        phasors, cycles_per_sample = _dominant_harmonic(window)
-        frequency = cycles_per_sample / dt if dt is not None else None
-        return _align_phase(phasors), np.abs(phasors), frequency
-    centred = window - window.mean(axis=1, keepdims=True)
+        return np.abs(phasors)
     if kind == "rms":
-        return None, np.sqrt(2.0) * np.sqrt(np.mean(centred**2, axis=1)), None
-    return None, np.max(np.abs(window), axis=1), None
+        centred = window - window.mean(axis=1, keepdims=True)
+        return np.sqrt(2.0) * np.sqrt(np.mean(centred**2, axis=1))
+    return np.max(np.abs(window), axis=1)
 
 
 def _node_variances(variances: object, shape: tuple[int, ...]) -> np.ndarray:

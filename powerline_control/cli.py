@@ -1,391 +1,952 @@
-"""The ``powerline-control`` command.
+"""The powerline-control command: run scenario studies of an overhead line from the shell.
 
-``powerline-control run [SCENARIO.toml] [--out DIR]`` runs the main job on a scenario (the
-built-in default when none is given): model, simulation, identification, sensor placement,
-estimation, antinode, motion plan and the closed loop, printing a summary and, with ``--out``,
-writing figures, an HTML report, the identified model and the numbers as JSON.
-``powerline-control scenario`` prints the default scenario as TOML to start a file from.
+Verbs (``powerline-control VERB --help`` for each)::
+
+    demo         the paper's lab span end to end; report in ./powerline-demo/ (< 1 min)
+    run          the whole chain on a scenario (file or shipped name, e.g. drake-300m)
+    simulate     model and simulated sensor data
+    identify     ... + DMD identification (Tikhonov-regularised)
+    sensors      ... + optimal sensor layout against baselines
+    estimate     ... + Kalman estimate of the whole span on held-out data
+    plan         ... + antinodes and the robot's minimum-time move
+    closed-loop  the robot driven to the antinode in closed loop, against it parked
+    severity     aeolian severity by the energy balance (amplitude, clamp strain)
+    study        a grid of scenario variants (--vary KEY=V1,V2 ...), a table of results
+    report       run a scenario and write only its HTML report
+    scenario     list the shipped scenarios, or print one as a commented TOML template
+
+This module imports only the standard library at import time: ``--help`` and ``scenario`` stay
+fast, and numpy, SciPy, python-control, cvxpy, CasADi and matplotlib load inside the verbs. The
+numerical work runs under one BLAS thread (threadpoolctl, in the verb's scope only): its matrices
+are small, and two contending threads on a 2-core machine made ``run`` 2.5x slower.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import functools
 import json
+import os
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
-from . import __version__, plotting
-from .antinode import locate_antinodes, nearest_antinode
-from .closed_loop import run_closed_loop
-from .config import Scenario, load_scenario, scenario_to_toml
 from .errors import InputError, PowerlineControlError
-from .estimate import KalmanFilter, estimation_accuracy
-from .fem import MDR
-from .identify import fit_dmd, select_alpha
-from .io import save_model
-from .plan import RobotLimits, plan_motion
-from .report import write_report
-from .sensors import select_sensors
-from .simulate import simulate
 
-__all__ = ["main", "run_scenario"]
+__all__ = ["main", "run_scenario", "EXIT_OK", "EXIT_NUMERICAL", "EXIT_USAGE", "EXIT_INTERRUPTED"]
+
+#: Exit status: success.
+EXIT_OK = 0
+#: Exit status: numerical trouble (unstable or singular model, infeasible plan, solver failure).
+EXIT_NUMERICAL = 1
+#: Exit status: bad input or usage (scenario, arguments, output folder).
+EXIT_USAGE = 2
+#: Exit status: interrupted with Ctrl-C (128 + SIGINT).
+EXIT_INTERRUPTED = 130
 
 #: Fraction of the simulated record used for identification; the rest tests the estimator.
 TRAIN_FRACTION = 0.6
+#: The file in an output folder that lists what this command wrote there (so a re-run may
+#: replace those files and nothing else).
+MANIFEST = ".powerline-control.json"
+
+_UNITS = ("Units: SI throughout; positions in m from the left support, frequencies in Hz, times "
+          "in s, displacements reported in mm, masses in kg, speeds in m/s.")
+_EXIT_CODES = ("Exit codes: 0 success; 1 numerical trouble (unstable or singular model, "
+               "infeasible plan, solver failure); 2 bad input or usage (scenario file, arguments, "
+               "--out folder); 130 interrupted (Ctrl-C).")
+
+
+# ----------------------------------------------------------------------------- console output
+
+class _Console:
+    """Where the command's text goes: summary to stdout, progress and messages to stderr."""
+
+    def __init__(self, *, quiet: bool = False, as_json: bool = False, debug: bool = False):
+        self.quiet = quiet
+        self.as_json = as_json
+        self.debug = debug
+
+    def out(self, line: str = "") -> None:
+        """A summary line (suppressed by --quiet and --json)."""
+        if not (self.quiet or self.as_json):
+            print(line, flush=True)
+
+    def note(self, line: str) -> None:
+        """A message on stderr (suppressed by --quiet)."""
+        if not self.quiet:
+            print(line, file=sys.stderr, flush=True)
+
+
+class _Progress:
+    """Stage progress on stderr: '[2/6] simulating ...', and the elapsed time while it works.
+
+    On a terminal a tqdm bar shows the current stage and a ticking clock; otherwise (a log, a
+    pipe) each stage is one line and a long stage adds a 'still ...' line every 15 s.
+    """
+
+    def __init__(self, console: _Console, n_stages: int):
+        self.console = console
+        self.n_stages = n_stages
+        self.done = 0
+        self.bar = None
+        self.what = ""
+        self.started = time.perf_counter()
+        self._stop = threading.Event()
+        self._thread = None
+        self.enabled = not console.quiet
+
+    def __enter__(self):
+        if not self.enabled:
+            return self
+        if sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.n_stages, file=sys.stderr, unit="stage", leave=False,
+                            bar_format="{n_fmt}/{total_fmt} stages [{elapsed}] {desc}",
+                            dynamic_ncols=True, mininterval=0.5)
+        # The longest stages run inside one library call: a thread keeps the clock ticking so a
+        # user sees the command is alive.
+        self._thread = threading.Thread(target=self._tick, daemon=True)
+        self._thread.start()
+        return self
+
+    def _tick(self) -> None:
+        interval = 1.0 if self.bar is not None else 15.0
+        while not self._stop.wait(interval):
+            with contextlib.suppress(Exception):
+                if self.bar is not None:
+                    self.bar.refresh()
+                elif self.what and time.perf_counter() - self.started >= interval:
+                    elapsed = time.perf_counter() - self.started
+                    print(f"      ... still {self.what} ({elapsed:.0f} s)", file=sys.stderr,
+                          flush=True)
+
+    def stage(self, what: str) -> None:
+        """Start the next stage, saying what it does."""
+        if not self.enabled:
+            return
+        self.done += 1
+        self.what = what
+        self.started = time.perf_counter()
+        line = f"[{self.done}/{self.n_stages}] {what}"
+        if self.bar is not None:
+            if self.done > 1:
+                self.bar.update(1)
+            self.bar.write(line, file=sys.stderr)
+            self.bar.set_description_str(what[:60])
+        else:
+            print(line, file=sys.stderr, flush=True)
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        if self.bar is not None:
+            self.bar.close()
+        return False
+
+
+# ----------------------------------------------------------------------------- the report
+
+@dataclass
+class _Figure:
+    name: str
+    draw: Callable
+    caption: str
 
 
 @dataclass
 class _Report:
-    """Collects the printed lines, the report sections, their figures and the headline numbers.
+    """Sections of the printed summary and of the HTML report, and the headline numbers.
 
     A stage hands each figure over as a function that draws it, so figures cost nothing unless
     an output folder asks for them.
     """
 
-    echo: Callable[[str], object]
+    console: _Console
     sections: list = field(default_factory=list)
-    figures: dict = field(default_factory=dict)
     numbers: dict = field(default_factory=dict)
 
-    def section(self, title: str, rows: Sequence[tuple[str, str]], figures: dict | None = None):
-        self.echo(title)
-        for label, value in rows:
-            self.echo(f"  {label:<40} {value}")
-        self.figures.update(figures or {})
-        self.sections.append({"title": title, "rows": rows, "figures": list(figures or {})})
+    def section(self, title: str, rows: Sequence[tuple], *, intro: str = "",
+                figures: Sequence[_Figure] = (), notes: Sequence[str] = ()) -> None:
+        """Print a section and keep it for the report.
+
+        ``rows`` are (label, value) or (label, value, explanation) tuples.
+        """
+        self.console.out(title)
+        rows = [tuple(row) + ("",) * (3 - len(row)) for row in rows]
+        for label, value, _ in rows:
+            self.console.out(f"  {label:<42} {value}")
+        self.sections.append({"title": title, "intro": intro, "rows": rows,
+                              "figures": list(figures), "notes": list(notes)})
 
 
 def _mm(value: float) -> str:
     return f"{1e3 * value:.4g} mm"
 
 
-def _stage_model(scenario: Scenario, report: _Report):
-    span = scenario.span.build()
-    model = scenario.model.build(span)
-    frequencies = model.natural_frequencies(min(5, model.n_dofs))
-    cond = span.conductor
-    report.section(
-        "Span and model",
-        [
-            ("length, tension", f"{span.length:g} m, {span.tension:g} N"),
-            (
-                "conductor",
-                f"{cond.name}: m = {cond.mass_per_length:.4g} kg/m, EI = {cond.ei:g} N m^2, "
-                f"d = {1e3 * cond.diameter:g} mm",
-            ),
-            (
-                "model",
-                f"{model.n_elements} elements, {model.n_nodes} nodes, {model.n_dofs} DOFs, "
-                f"supports {model.bc[0]}/{model.bc[1]}",
-            ),
-            ("first natural frequencies", ", ".join(f"{f:.3f}" for f in frequencies) + " Hz"),
-        ],
-    )
-    report.numbers.update(n_nodes=model.n_nodes, frequencies_hz=frequencies.tolist())
-    return span, model
+def _summarise_positions(positions: Sequence[float], unit: str = "m", limit: int = 8) -> str:
+    """Positions in words: all of them when few, else count, range and typical spacing."""
+    import numpy as np
+
+    values = np.sort(np.asarray(positions, dtype=float))
+    if values.size <= limit:
+        return ", ".join(f"{v:.3g}" for v in values) + f" {unit}"
+    spacing = float(np.median(np.diff(values)))
+    return (f"{values.size} positions from {values[0]:.3g} to {values[-1]:.3g} {unit}, "
+            f"typically {spacing:.3g} {unit} apart")
 
 
-def _stage_data(scenario: Scenario, model, report: _Report):
-    sim = scenario.simulation
-    force = scenario.forcing.build()
-    start = time.perf_counter()
-    snap = simulate(
-        model,
-        force,
-        duration=sim.duration,
-        dt=sim.dt,
-        noise_fraction=sim.noise_fraction,
-        seed=sim.seed,
-    )
-    elapsed = time.perf_counter() - start
-    envelope = np.abs(snap.true_displacement[:, -snap.t.size // 4 :]).max(axis=1)
-    report.section(
-        "Simulated data",
-        [
-            ("load", repr(force)),
-            (
-                "samples",
-                f"{snap.t.size} at dt = {snap.dt:g} s ({snap.n_modes} modes kept, {elapsed:.2f} s)",
-            ),
-            (
-                "RMS / peak displacement",
-                f"{_mm(np.sqrt(np.mean(snap.true_displacement**2)))} / {_mm(envelope.max())}",
-            ),
-            ("sensor noise std", _mm(snap.noise_std)),
-        ],
-    )
-    return force, snap
+# ----------------------------------------------------------------------------- the stages
+
+class _Study:
+    """The chain of one scenario, stage by stage; each verb runs the stages it needs."""
+
+    def __init__(self, scenario, report: _Report, progress: _Progress):
+        self.scenario = scenario
+        self.report = report
+        self.progress = progress
+        self.span = self.model = self.force = self.snap = None
+        self.design = None
+        self.estimates = {}
+        self.closed_loop = None
+
+    # -- model
+    def build_model(self):
+        import numpy as np
+
+        self.progress.stage("building the finite-element model")
+        sc = self.scenario
+        self.span = span = sc.span.build()
+        self.model = model = sc.model.build(span)
+        self.force = sc.forcing.build()
+        frequencies = model.natural_frequencies(min(5, model.n_dofs))
+        x = np.asarray(model.node_positions)
+        h = np.diff(x)
+        cond = span.conductor
+        mesh = (f"{model.n_elements} Hermite cubic beam elements of {h.min():.3g} m"
+                if np.ptp(h) < 1e-9 * h.max() else
+                f"{model.n_elements} Hermite cubic beam elements, {h.min():.3g}-{h.max():.3g} m "
+                "long (graded toward the supports)")
+        wave_speed = float(np.sqrt(span.tension / cond.mass_per_length))
+        self.report.section(
+            "Span and model",
+            [
+                ("span", f"{span.length:g} m between supports, tension {span.tension:.4g} N",
+                 "The paper's laboratory span (Table 1)" if sc.span.preset == "paper_lab" else
+                 f"{sc.span.rts_fraction:.0%} of the conductor's rated tensile strength"),
+                ("conductor", f"{cond.name}: {cond.mass_per_length:.4g} kg/m, EI "
+                 f"{cond.ei:g} N m^2, diameter {1e3 * cond.diameter:g} mm"),
+                ("wave speed sqrt(T/m)", f"{wave_speed:.4g} m/s"),
+                ("model", f"{mesh}; {model.n_nodes} nodes, {model.n_dofs} degrees of freedom; "
+                 f"{model.bc[0]} / {model.bc[1]} supports",
+                 "A Galerkin model of the taut Euler-Bernoulli line: bending stiffness EI plus "
+                 "the tension's geometric stiffness."),
+                ("first natural frequencies", ", ".join(f"{f:.4g}" for f in frequencies) + " Hz"),
+                ("load", sc.forcing.describe(span)),
+            ],
+        )
+        self.report.numbers.update(
+            scenario=sc.name, n_nodes=int(model.n_nodes), n_elements=int(model.n_elements),
+            frequencies_hz=[float(f) for f in frequencies],
+            load_frequency_hz=float(sc.forcing.load_frequency(span)))
+
+    # -- data
+    def simulate(self):
+        import numpy as np
+
+        from .simulate import simulate
+
+        sim = self.scenario.simulation
+        self.progress.stage(f"simulating {sim.duration:g} s of motion at dt = {sim.dt:g} s")
+        start = time.perf_counter()
+        snap = simulate(self.model, self.force, duration=sim.duration, dt=sim.dt,
+                        noise_fraction=sim.noise_fraction, seed=sim.seed)
+        elapsed = time.perf_counter() - start
+        self.snap = snap
+        self.n_train = int(TRAIN_FRACTION * snap.t.size)
+        tail = snap.true_displacement[:, -snap.t.size // 4:]
+        self.report.section(
+            "Simulated data",
+            [
+                ("record", f"{snap.t.size} samples at dt = {snap.dt:g} s ({sim.duration:g} s); "
+                 f"first {TRAIN_FRACTION:.0%} identify the model, the rest test it"),
+                ("modes kept", f"{snap.n_modes} of {self.model.n_dofs}"
+                 if hasattr(snap, "n_modes") else "-"),
+                ("RMS / peak displacement (last quarter)",
+                 f"{_mm(np.sqrt(np.mean(tail**2)))} / {_mm(np.abs(tail).max())}"),
+                ("sensor noise std", f"{_mm(snap.noise_std)} "
+                 f"({sim.noise_fraction:.1%} of the RMS displacement)"),
+                ("simulation time", f"{elapsed:.2f} s"),
+            ],
+        )
+
+    # -- identification, sensors, filter: the one place with recipe decisions
+    def design_estimator(self, *, choose_sensors: bool = True):
+        """Identify the model, choose the sensors and build the filter (the package's recipe).
+
+        Every recipe decision (delays, rank, alpha, criterion, measurement variance) lives here
+        until ``powerline_control.design_estimator`` takes it over.
+        """
+        self.progress.stage("identifying the DMD model (choosing alpha on held-out data)")
+        self.design = _design_estimator(self.scenario, self.snap, self.model, self.n_train,
+                                        self.progress, choose_sensors=choose_sensors)
+        self._report_identification()
+        if choose_sensors:
+            self._report_sensors()
+
+    def _report_identification(self):
+        d = self.design
+        rows = [
+            ("recipe", d.recipe),
+            ("spectral radius / unstable eigenvalues",
+             f"{d.dmd.spectral_radius:.6f} / {d.n_unstable}",
+             "Largest |eigenvalue| of the identified one-step map. Below 1 the model is stable: "
+             "a Kalman filter and python-control's dlqe accept it."),
+            ("plain DMD (alpha = 0)", f"spectral radius {d.plain.spectral_radius:.6f}"
+             + (" (ill-conditioned: it inverts round-off)" if d.plain_ill else ""),
+             "The unregularised fit (the paper's eq. 11), for comparison."),
+        ]
+        self.report.section(
+            "Identification (DMD with Tikhonov regularisation)", rows,
+            intro="Dynamic Mode Decomposition fits a linear one-step map to the training part "
+            "of the record; Tikhonov regularisation (alpha) pulls its eigenvalues inside the "
+            "unit circle.",
+            figures=[_Figure("eigenvalues", d.eigenvalue_figure,
+                             "Eigenvalues of the identified map before (plain DMD, alpha = 0) and "
+                             "after regularisation, with the unit circle. Look for points outside "
+                             "the circle: those modes grow without bound; after regularisation "
+                             "all should lie on or inside it.")])
+        self.report.numbers.update(alpha=float(d.dmd.alpha),
+                                   spectral_radius=float(d.dmd.spectral_radius))
+
+    def _report_sensors(self):
+        d = self.design
+        x = self.snap.x
+        rows = [("sensors", _summarise_positions([x[i] for i in d.sensors]) +
+                 f" (nodes {', '.join(str(int(i)) for i in d.sensors)})", d.how)]
+        if d.certificate_text:
+            rows.append(("optimality certificate", d.certificate_text,
+                         "The relaxation gives a bound no layout can beat; the gap says how far "
+                         "the chosen layout can be from the best possible one, at most."))
+        figures = []
+        if d.count_curve is not None:
+            figures.append(_Figure("sensor_count", d.count_figure,
+                                   "How many sensors: the predicted steady-state estimation "
+                                   "error against the number of sensors, each count optimised. "
+                                   "Look for where the curve flattens: more sensors than that "
+                                   "buy little."))
+        for name, note in d.layout_notes.items():
+            rows.append((f"baseline: {name}", _summarise_positions(
+                [x[i] for i in d.layouts[name]]), note))
+        self.report.section("Sensor placement", rows, figures=figures)
+        self.report.numbers.update(sensors=[int(i) for i in d.sensors],
+                                   sensor_positions_m=[float(x[i]) for i in d.sensors])
+
+    # -- estimation
+    def estimate(self):
+        import numpy as np
+
+        self.progress.stage("Kalman estimation of the whole span on held-out data")
+        d = self.design
+        snap = self.snap
+        rows = []
+        for name, nodes in d.layouts.items():
+            self.estimates[name] = d.run_filter(nodes, snap, self.n_train)
+        chosen = self.estimates["chosen"][1]
+        explanation = ("RMS over the nodes without a sensor of (estimate - truth), divided by "
+                       "the RMS displacement over the span, on data the model never saw.")
+        for name, (_, accuracy) in self.estimates.items():
+            rows.append((f"error at unmeasured nodes: {name}",
+                         f"{100 * accuracy.relative_rms_error_unmeasured:.3g} % of RMS "
+                         "displacement", explanation if name == "chosen" else
+                         d.layout_notes.get(name, "")))
+        truth = snap.true_displacement[:, self.n_train:]
+        along = {name: np.sqrt(np.mean((est.field - truth) ** 2, axis=1))
+                 / np.sqrt(np.mean(truth**2)) for name, (est, _) in self.estimates.items()}
+        errors = {name: 100 * acc.relative_rms_error_unmeasured
+                  for name, (_, acc) in self.estimates.items()}
+        positions = {name: [snap.x[i] for i in nodes] for name, nodes in d.layouts.items()}
+        self.report.section(
+            "Estimation (Kalman filter on held-out data)", rows,
+            intro="A steady-state Kalman filter on the identified model reconstructs the "
+            "displacement of every node from the few measured ones.",
+            figures=[
+                _Figure("estimate", functools.partial(_estimate_figure, snap, self.n_train,
+                                                      self.estimates["chosen"][0], d.sensors),
+                        "Estimate (dashed) against the true displacement (solid) at three nodes "
+                        "without a sensor, on held-out data. Look for the dashed line sitting "
+                        "on the solid one after the first few periods."),
+                _Figure("error_along_span", functools.partial(_error_figure, snap.x, along,
+                                                              d.sensors),
+                        "RMS estimation error at every node, as a fraction of the RMS "
+                        "displacement over the span (%), for each layout; sensor positions "
+                        "marked. Look for where each layout loses track of the line."),
+                _Figure("layouts", functools.partial(_layout_figure, errors, positions,
+                                                     float(snap.x[-1])),
+                        "Layout against baselines. Left: RMS error at the unmeasured nodes (% "
+                        "of RMS displacement) of the chosen layout and of the obvious ones. "
+                        "Right: where each layout puts its sensors along the span (m). Look "
+                        "for the chosen layout's bar being the lowest."),
+            ])
+        self.report.numbers.update(
+            error_unmeasured=float(chosen.relative_rms_error_unmeasured),
+            error_unmeasured_baselines={name: float(acc.relative_rms_error_unmeasured)
+                                        for name, (_, acc) in self.estimates.items()})
+
+    # -- antinodes and plan
+    def plan(self):
+        import numpy as np
+
+        from .antinode import locate_antinodes, nearest_antinode
+        from .plan import RobotLimits, plan_motion
+
+        self.progress.stage("locating antinodes and planning the robot's move")
+        snap = self.snap
+        estimate = self.estimates["chosen"][0]
+        window = slice(-min(500, estimate.field.shape[1]), None)
+        estimated = locate_antinodes(estimate.field[:, window], snap.x, dt=snap.dt)
+        true = locate_antinodes(snap.true_displacement[:, self.n_train:][:, window], snap.x,
+                                dt=snap.dt)
+        robot = self.scenario.robot
+        target = nearest_antinode(estimated, robot.start)
+        truth = nearest_antinode(true, target.position)
+        limits = RobotLimits(v_max=robot.v_max, a_max=robot.a_max)
+        plan = plan_motion(robot.start, target.position, limits, span_length=self.span.length)
+        self.plan_result = plan
+        envelope = np.abs(snap.true_displacement[:, self.n_train:]).max(axis=1)
+        self.envelope = envelope
+        self.antinodes = [a.position for a in estimated]
+        self.report.section(
+            "Antinodes and motion plan",
+            [
+                ("antinodes (estimated field)", _summarise_positions(self.antinodes)),
+                ("nearest to the robot", f"{target.position:.4g} m (true field: "
+                 f"{truth.position:.4g} m, {100 * abs(target.position - truth.position) / truth.loop_length:.2g} "  # noqa: E501
+                 "% of a loop length apart)",
+                 "Where the estimated vibration is largest near the robot's start, checked "
+                 "against the true field."),
+                ("minimum-time move", f"{robot.start:g} m -> {target.position:.4g} m in "
+                 f"{plan.duration:.3g} s (v_max {robot.v_max:g} m/s, a_max "
+                 f"{robot.a_max:g} m/s^2)"),
+            ],
+            figures=[
+                _Figure("envelope", functools.partial(
+                    _envelope_figure, snap.x, envelope, self.antinodes,
+                    [snap.x[i] for i in self.design.sensors]),
+                    "Vibration amplitude along the span (mm, largest |y| over the held-out "
+                    "record) with the estimated antinodes and the sensors. Look for the "
+                    "antinode marks on the envelope's peaks."),
+                _Figure("robot_path", functools.partial(
+                    _path_figure, snap.x, envelope, plan.t, plan.position, target.position,
+                    None),
+                    "The robot's planned path (position against time, bottom) under the "
+                    "amplitude envelope (top), zoomed to where it travels. Look for the path "
+                    "ending under an envelope peak."),
+            ])
+        self.report.numbers.update(antinode=float(target.position),
+                                   true_antinode=float(truth.position),
+                                   n_antinodes=len(self.antinodes),
+                                   move_duration=float(plan.duration))
+
+    # -- closed loop
+    def run_closed_loop(self, sensors=None):
+        import numpy as np
+
+        from .closed_loop import run_closed_loop
+        from .plan import RobotLimits
+
+        sc = self.scenario
+        robot_cfg = sc.robot
+        if robot_cfg.closed_loop <= 0:
+            return
+        self.progress.stage(f"closed loop: {robot_cfg.closed_loop:g} s of the robot chasing "
+                            "the antinode, and the same run parked")
+        load_frequency = sc.forcing.load_frequency(self.span)
+        robot, tuning_text = _tuned_robot(sc, self.model, load_frequency)
+        if sensors is None:
+            sensors = _default_closed_loop_sensors(sc, self.model)
+        calibration = min(2.0, robot_cfg.closed_loop / 3)
+        result = run_closed_loop(
+            self.span, self.force, robot, RobotLimits(robot_cfg.v_max, robot_cfg.a_max),
+            sensors=list(sensors), n_elements=self.model.n_elements, bc=self.model.bc,
+            duration=robot_cfg.closed_loop, calibration=calibration, dt=sc.simulation.dt,
+            noise_fraction=sc.simulation.noise_fraction, seed=sc.simulation.seed)
+        self.closed_loop = result
+        final = float(result.robot_position[-1])
+        reduction = float(result.vibration_reduction)
+        rtf = float(result.real_time_factor)
+        rows = [
+            ("robot", f"body {robot.body_mass:g} kg + absorber {robot.suspended_mass:g} kg, "
+             f"{tuning_text}; starts at {robot.position:g} m"),
+            ("where it ended", f"{final:.4g} m",
+             "The robot stops where the estimated excited shape of the line is largest near it "
+             "(an antinode), because its absorber dissipates most there; the last target was "
+             f"{float(np.nanmean(result.target[-10:])):.4g} m."),
+            ("RMS displacement, settled window",
+             f"{_mm(result.rms_closed_loop)} moving vs {_mm(result.rms_baseline)} parked at "
+             "its start"),
+            ("vibration reduction", f"{reduction:.2f}x",
+             "RMS displacement over the span with the robot parked where it started, divided by "
+             "the same with the robot moving (> 1: moving helps)."),
+            ("planner steps", f"{len(result.statuses)} ({result.statuses.count('safe_stop')} "
+             "safe stops)"),
+            ("real-time factor", f"{rtf:.2f}",
+             "Simulated seconds per second of computing: above 1 the loop runs faster than "
+             "the line moves, as a controller on the robot must."),
+        ]
+        self.report.section(
+            "Closed loop (robot driven to the estimated antinode)", rows,
+            figures=[
+                _Figure("closed_loop", functools.partial(_closed_loop_figure, result),
+                        "Top: the robot's position and its antinode target against time (the "
+                        "grey line ends the calibration, robot parked). Bottom: RMS displacement "
+                        "over the span, robot moving against parked (mm). Look for the moving "
+                        "curve falling below the parked one once the robot arrives."),
+                _Figure("closed_loop_path", functools.partial(
+                    _path_figure, result.x,
+                    np.abs(result.baseline_displacement[:, result.t.size // 2:]).max(axis=1),
+                    result.t, result.robot_position, None, result.target),
+                    "The robot's path in the closed loop (bottom) under the amplitude envelope "
+                    "of the line with the robot parked (top). Look for the path settling under "
+                    "an envelope peak."),
+            ])
+        self.report.numbers.update(vibration_reduction=reduction, final_robot_position=final,
+                                   real_time_factor=rtf)
+
+    # -- severity
+    def severity(self):
+        import numpy as np
+
+        import powerline_control as plc
+
+        sev_cfg = self.scenario.severity
+        self.progress.stage("aeolian severity by the energy balance method")
+        if not hasattr(plc, "aeolian_severity"):
+            raise InputError("The severity study needs powerline_control.aeolian_severity, "
+                             "which this installation does not have.")
+        speeds = np.asarray(sev_cfg.wind_speeds, dtype=float)
+        results = [plc.aeolian_severity(self.span, wind_speeds=speeds)]
+        robot_text = ""
+        if hasattr(plc, "AtAntinode"):
+            robot, _ = _tuned_robot(self.scenario, self.model,
+                                    self.scenario.forcing.load_frequency(self.span))
+            results.append(plc.aeolian_severity(self.span, wind_speeds=speeds,
+                                                dampers=[plc.AtAntinode(robot)]))
+            robot_text = " With the robot: its absorber parked at the antinode of each wind speed."
+        bare = results[0]
+        rows = []
+        for i, speed in enumerate(bare.wind_speed):
+            text = (f"{bare.frequency[i]:.3g} Hz, loops {bare.loop_length[i]:.3g} m; antinode "
+                    f"amplitude {_mm(bare.amplitude[i])}, clamp strain "
+                    f"{1e6 * bare.strain_pp[i]:.3g} µε peak-to-peak")
+            if len(results) > 1:
+                robot_result = results[1]
+                text += (f"; with the robot {_mm(robot_result.amplitude[i])}, "
+                         f"{1e6 * robot_result.strain_pp[i]:.3g} µε")
+            rows.append((f"wind {speed:g} m/s", text))
+        figures = []
+        if hasattr(_plotting(), "plot_severity"):
+            figures.append(_Figure("severity", functools.partial(_severity_figure, results),
+                                   "Antinode amplitude (mm, zero to peak) and peak-to-peak "
+                                   "bending strain at the clamp (µε) against wind speed (m/s), "
+                                   "from the energy balance, without dampers and with the robot. "
+                                   "Look for strains above the endurance line: those winds "
+                                   "fatigue the conductor."))
+        self.report.section(
+            "Aeolian severity (energy balance)", rows,
+            intro="For each wind speed the steady antinode amplitude is where the wind's power "
+            "input equals the power the conductor's self-damping (and any damper) dissipates; "
+            "the clamp strain follows from it (Poffenberger-Swart)." + robot_text,
+            figures=figures,
+            notes=["150 µε peak-to-peak is the endurance limit commonly used for ACSR "
+                   "conductors (CIGRE / EPRI)."])
+        self.report.numbers.update(severity=[
+            {"wind_speed": float(bare.wind_speed[i]), "frequency_hz": float(bare.frequency[i]),
+             "amplitude_m": float(bare.amplitude[i]), "loop_length_m": float(bare.loop_length[i]),
+             "strain_pp": float(bare.strain_pp[i])} for i in range(bare.wind_speed.size)])
 
 
-def _stage_identify(scenario: Scenario, snap, report: _Report):
+@dataclass
+class _Design:
+    """What the estimator recipe produced, and how to report it."""
+
+    dmd: object
+    plain: object
+    plain_ill: bool
+    paper: object
+    n_unstable: int
+    recipe: str
+    sensors: list
+    how: str
+    certificate_text: str
+    noise_var: float
+    layouts: dict
+    layout_notes: dict
+    count_curve: object = None
+
+    def run_filter(self, nodes, snap, n_train):
+        from .estimate import KalmanFilter, estimation_accuracy
+
+        held_out = slice(n_train, None)
+        kf = KalmanFilter(self.dmd.to_statespace(measured=list(nodes)),
+                          Q=self.dmd.residual_covariance, R=self.noise_var, steady_state=True,
+                          field_map=self.dmd.field_map)
+        estimate = kf.filter(snap.displacement[list(nodes), held_out])
+        accuracy = estimation_accuracy(estimate.field, snap.true_displacement[:, held_out],
+                                       measured=list(nodes),
+                                       discard=min(200, (snap.t.size - n_train) // 4))
+        return estimate, accuracy
+
+    def eigenvalue_figure(self):
+        return _plotting().plot_eigenvalues(
+            {"plain DMD (alpha = 0)": self.plain.eigenvalues,
+             f"regularised (alpha = {self.dmd.alpha:.2g})": self.dmd.eigenvalues})
+
+    def count_figure(self):
+        return _plotting().plot_sensor_count(*self.count_curve())
+
+
+def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_sensors=True):
+    """The estimator recipe: DMD (alpha by held-out error), sensor choice, noise model.
+
+    The one place with recipe decisions in the command (to be replaced by
+    ``powerline_control.design_estimator`` when it lands).
+    """
+    import numpy as np
+
+    from .identify import fit_dmd, select_alpha
+    from .sensors import select_sensors
+
     cfg = scenario.identification
-    n_train = int(TRAIN_FRACTION * snap.t.size)
     train = snap.displacement[:, :n_train]
     if cfg.alpha == "auto":
         curve = select_alpha(train, snap.dt, delays=cfg.delays, rank=cfg.rank)
-        alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None else curve.best_alpha
-        dmd = fit_dmd(
-            train,
-            snap.dt,
-            alpha=alpha,
-            delays=cfg.delays,
-            rank=cfg.rank,
-            alpha_mode=curve.alpha_mode,
-        )
-        chosen = f"{alpha:.3g} ({curve.alpha_mode}; = {dmd.alpha:.3g} absolute), by held-out error"
+        alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None \
+            else curve.best_alpha
+        dmd = fit_dmd(train, snap.dt, alpha=alpha, delays=cfg.delays, rank=cfg.rank,
+                      alpha_mode=curve.alpha_mode)
+        chosen = (f"alpha {alpha:.3g} ({curve.alpha_mode}; {dmd.alpha:.3g} absolute), chosen by "
+                  "held-out prediction error")
     else:
         dmd = fit_dmd(train, snap.dt, alpha=float(cfg.alpha), delays=cfg.delays, rank=cfg.rank)
-        chosen = f"{dmd.alpha:.3g} (absolute, from the scenario)"
+        chosen = f"alpha {dmd.alpha:.3g} (absolute, from the scenario)"
+    recipe = (f"{cfg.delays} time delay(s), rank {cfg.rank or 'full'}, {chosen}; trained on the "
+              f"first {n_train} samples")
     paper = fit_dmd(train, snap.dt, alpha=0.1, delays=1)
     with warnings.catch_warnings(record=True) as caught:
         # On noise-free data plain DMD inverts round-off and says so; here that is the point.
         warnings.simplefilter("always")
         plain = fit_dmd(train, snap.dt, alpha=0.0, delays=1)
-    plain_note = " (ill-conditioned: it inverts round-off)" if caught else ""
-    report.section(
-        "Identification (DMD)",
-        [
-            ("this run", f"delays = {cfg.delays}, rank = {cfg.rank or 'full'}, alpha = {chosen}"),
-            (
-                "spectral radius / unstable eigenvalues",
-                f"{dmd.spectral_radius:.6f} / {dmd.stability_report(warn=False).n_unstable}",
-            ),
-            ("paper recipe (delays 1, alpha 0.1)", f"spectral radius {paper.spectral_radius:.6f}"),
-            ("plain DMD (alpha 0)", f"spectral radius {plain.spectral_radius:.6f}{plain_note}"),
-        ],
-        figures={
-            "eigenvalues.png": lambda: plotting.plot_eigenvalues(
-                {"this run": dmd.eigenvalues, "paper recipe": paper.eigenvalues}
-            )
-        },
-    )
-    report.numbers.update(alpha=dmd.alpha, spectral_radius=dmd.spectral_radius)
-    return dmd, n_train
-
-
-def _stage_estimate(scenario: Scenario, dmd, snap, n_train: int, report: _Report):
     # Noise-free data still needs a measurement variance for a well-posed Riccati equation:
     # assume sensors resolve 0.01 % of the RMS motion.
     rms = float(np.sqrt(np.mean(snap.true_displacement**2)))
     noise_var = max(snap.noise_std**2, (1e-4 * rms) ** 2)
-    candidates = dmd.to_statespace(measured=list(range(snap.x.size)))
-    if scenario.estimation.sensors is not None:
-        sensors = list(scenario.estimation.sensors)
-        if max(sensors) >= snap.x.size:
-            raise InputError(
-                f"estimation.sensors names node {max(sensors)}, but the model has "
-                f"{snap.x.size} nodes (0..{snap.x.size - 1})."
-            )
-        how = "from the scenario"
+    x = np.asarray(snap.x)
+    n_nodes = x.size
+    est = scenario.estimation
+    certificate = ""
+    count_curve = None
+    k = est.n_sensors
+    if est.sensors is not None:
+        sensors = sorted(int(i) for i in est.sensors)
+        how = "from the scenario (node indices)"
+    elif est.sensor_positions is not None:
+        sensors = sorted({int(np.argmin(np.abs(x - p))) for p in est.sensor_positions})
+        how = "from the scenario (positions, nearest nodes)"
+    elif not choose_sensors:
+        sensors = list(np.linspace(0, n_nodes - 1, k + 2).round().astype(int)[1:-1])
+        how = "evenly spaced (no optimisation in this verb)"
     else:
+        progress.stage(f"choosing {k} sensor positions (Kalman criterion, convex relaxation)")
+        candidates = dmd.to_statespace(measured=list(range(n_nodes)))
         # The supports never move: a sensor there would measure only noise.
-        half_element = 0.5 * (snap.x[1] - snap.x[0])
-        supports = [(0.0, half_element), (snap.x[-1] - half_element, snap.x[-1])]
-        selection = select_sensors(
-            candidates,
-            k=scenario.estimation.n_sensors,
-            criterion="kalman",
-            Q=dmd.residual_covariance,
-            R=noise_var,
-            positions=snap.x,
-            forbidden=supports,
-        )
-        sensors = list(selection.nodes)
-        how = (
-            f"optimised (Kalman criterion; {selection.certificate} certificate: at most "
-            f"{100 * selection.gap:.2g} % from the best possible layout)"
-        )
-    held_out = slice(n_train, None)
-    results = {}
-    layouts = {"chosen": sensors, "paper (first 13 nodes)": list(range(min(13, snap.x.size)))}
-    for name, nodes in layouts.items():
-        kf = KalmanFilter(
-            dmd.to_statespace(measured=nodes),
-            Q=dmd.residual_covariance,
-            R=noise_var,
-            steady_state=True,
-            field_map=dmd.field_map,
-        )
-        estimate = kf.filter(snap.displacement[nodes, held_out])
-        accuracy = estimation_accuracy(
-            estimate.field, snap.true_displacement[:, held_out], measured=nodes, discard=200
-        )
-        results[name] = (estimate, accuracy)
-    chosen_accuracy = results["chosen"][1]
-    paper_accuracy = results["paper (first 13 nodes)"][1]
-    report.section(
-        "Estimation (Kalman filter on held-out data)",
-        [
-            (
-                "sensors",
-                f"nodes {sensors} at x = {', '.join(f'{snap.x[i]:.2f}' for i in sensors)} m, {how}",
-            ),
-            (
-                "RMS error, unmeasured nodes (chosen)",
-                f"{100 * chosen_accuracy.relative_rms_error_unmeasured:.3g} % of RMS displacement",
-            ),
-            (
-                "RMS error, unmeasured nodes (paper's 13)",
-                f"{100 * paper_accuracy.relative_rms_error_unmeasured:.3g} % of RMS displacement",
-            ),
-        ],
-        figures={"estimate.png": lambda: _estimate_figure(snap, n_train, results, sensors)},
-    )
-    report.numbers.update(
-        sensors=sensors,
-        error_unmeasured=chosen_accuracy.relative_rms_error_unmeasured,
-        error_unmeasured_paper_layout=paper_accuracy.relative_rms_error_unmeasured,
-    )
-    return sensors, results["chosen"][0]
+        half = 0.5 * float(min(x[1] - x[0], x[-1] - x[-2]))
+        supports = [(0.0, half), (x[-1] - half, x[-1])]
+        selection = select_sensors(candidates, k=k, criterion="kalman",
+                                   Q=dmd.residual_covariance, R=noise_var, positions=x,
+                                   forbidden=supports)
+        sensors = [int(i) for i in selection.nodes]
+        how = "optimised (steady-state Kalman criterion)"
+        if selection.certificate == "exhaustive" or selection.gap == 0:
+            certificate = (f"{selection.certificate}: proved the best of all layouts of {k} "
+                           "sensors")
+        else:
+            certificate = (f"{selection.certificate}: the chosen layout's criterion is at most "
+                           f"{100 * selection.gap:.2g} % above the best possible layout of {k} "
+                           "sensors")
+        if n_nodes <= 201:
+            # Several more selections: computed only if the report draws the figure.
+            count_curve = functools.partial(_sensor_count_curve, candidates, dmd, noise_var, x,
+                                            supports, k)
+    layouts = {"chosen": sensors}
+    notes = {}
+    spread = list(np.linspace(0, n_nodes - 1, len(sensors) + 2).round().astype(int)[1:-1])
+    if spread != sensors:
+        layouts[f"evenly spaced ({len(sensors)})"] = spread
+        notes[f"evenly spaced ({len(sensors)})"] = "The same number of sensors, evenly spaced."
+    # The paper measured its first 10 states on 20 elements and its first 13 on 100 (Figs.
+    # 7-8); node 0 sits on the support, so the first measured node is node 1.
+    n_first = 10 if n_nodes == 21 else 13
+    first = list(range(1, min(n_first, n_nodes - 2) + 1))
+    covered = x[first[-1]]
+    name = f"paper: first {len(first)} nodes"
+    layouts[name] = first
+    notes[name] = (f"The paper's layout (its first {n_first} states) covers only x <= "
+                   f"{covered:.3g} m, {100 * covered / x[-1]:.2g} % of this {x[-1]:g} m span, "
+                   f"with {len(first)} sensors instead of {len(sensors)}.")
+    design = _Design(dmd=dmd, plain=plain, plain_ill=bool(caught), paper=paper,
+                     n_unstable=int(dmd.stability_report(warn=False).n_unstable), recipe=recipe,
+                     sensors=sensors, how=how, certificate_text=certificate,
+                     noise_var=noise_var, layouts=layouts, layout_notes=notes,
+                     count_curve=count_curve)
+    return design
 
 
-def _estimate_figure(snap, n_train: int, results: dict, sensors: list):
-    """Estimate against truth at three unmeasured nodes (the paper's Figs. 7-8)."""
+def _sensor_count_curve(candidates, dmd, noise_var, x, supports, k):
+    """Predicted estimation error against the number of sensors (each count optimised)."""
+    from .sensors import sensor_count_study
+
+    counts = list(range(1, k + 3))
+    study = sensor_count_study(candidates, counts, Q=dmd.residual_covariance, R=noise_var,
+                               positions=x, forbidden=supports, n_steps=500)
+    return (list(study.k), [float(v) for v in study.rms_error],
+            [float(v) for v in study.simulated_rms_error])
+
+
+def _tuned_robot(scenario, model, load_frequency: float):
+    """The robot with its absorber tuned to the load's frequency; and the tuning in words."""
+    import numpy as np
+
+    import powerline_control as plc
+
+    cfg = scenario.robot
+    frequencies = np.asarray(model.natural_frequencies(min(400, model.n_dofs)))
+    mode = int(np.argmin(np.abs(frequencies - load_frequency))) + 1
+    if hasattr(plc, "tune_damper"):
+        mdr = plc.tune_damper(model, mode, cfg.start, cfg.suspended_mass,
+                              body_mass=cfg.body_mass)
+        return mdr, (f"absorber tuned (Den Hartog) to mode {mode} "
+                     f"({frequencies[mode - 1]:.4g} Hz), the mode nearest the load's "
+                     f"{load_frequency:.4g} Hz")
+    mdr = plc.MDR.tuned(cfg.start, cfg.body_mass, cfg.suspended_mass, load_frequency,
+                        cfg.damping_ratio)
+    return mdr, (f"absorber tuned to the load's {load_frequency:.4g} Hz (damping ratio "
+                 f"{cfg.damping_ratio:g})")
+
+
+def _default_closed_loop_sensors(scenario, model):
+    import numpy as np
+
+    x = np.asarray(model.node_positions)
+    est = scenario.estimation
+    if est.sensors is not None:
+        return list(est.sensors)
+    if est.sensor_positions is not None:
+        return sorted({int(np.argmin(np.abs(x - p))) for p in est.sensor_positions})
+    return list(np.linspace(0, x.size - 1, est.n_sensors + 2).round().astype(int)[1:-1])
+
+
+# ----------------------------------------------------------------------------- figures
+
+def _plotting():
+    from . import plotting
+
+    return plotting
+
+
+def _estimate_figure(snap, n_train, estimate, sensors):
+    import numpy as np
+
     spread = np.linspace(0, snap.x.size - 1, 5).astype(int)[1:-1]
-    unmeasured = [i for i in spread if i not in sensors] or [snap.x.size // 2]
+    unmeasured = [int(i) for i in spread if i not in sensors] or [snap.x.size // 2]
     held_out = slice(n_train, None)
-    return plotting.plot_estimate(
-        snap.t[held_out],
-        snap.true_displacement[:, held_out],
-        results["chosen"][0].field,
-        unmeasured,
-        snap.x,
-    )
+    t = snap.t[held_out]
+    # Show at most the last 40 periods of the response so the curves stay readable.
+    return _plotting().plot_estimate(t, snap.true_displacement[:, held_out], estimate.field,
+                                     unmeasured, snap.x)
 
 
-def _stage_antinode_and_plan(
-    scenario: Scenario, span, snap, estimate, n_train, sensors, report: _Report
-):
-    window = slice(-min(500, estimate.field.shape[1]), None)
-    estimated = locate_antinodes(estimate.field[:, window], snap.x, dt=snap.dt)
-    true = locate_antinodes(snap.true_displacement[:, n_train:][:, window], snap.x, dt=snap.dt)
-    robot = scenario.robot
-    target = nearest_antinode(estimated, robot.start)
-    truth = nearest_antinode(true, target.position)
-    limits = RobotLimits(v_max=robot.v_max, a_max=robot.a_max)
-    plan = plan_motion(robot.start, target.position, limits, span_length=span.length)
-    report.section(
-        "Antinode and motion plan",
-        [
-            ("antinodes (estimate)", ", ".join(f"{a.position:.3f}" for a in estimated) + " m"),
-            (
-                "nearest to the robot",
-                f"{target.position:.3f} m (true field: {truth.position:.3f} m, "
-                f"{100 * abs(target.position - truth.position) / truth.loop_length:.2g}"
-                " % of the loop)",
-            ),
-            (
-                "minimum-time move",
-                f"{robot.start:g} m -> {target.position:.3f} m in "
-                f"{plan.duration:.3f} s (v_max {robot.v_max:g} m/s, "
-                f"a_max {robot.a_max:g} m/s^2)",
-            ),
-        ],
-        figures={
-            "envelope.png": lambda: plotting.plot_envelope(
-                snap.x,
-                {"true amplitude": np.abs(snap.true_displacement[:, n_train:]).max(axis=1)},
-                {
-                    "estimated antinodes": [a.position for a in estimated],
-                    "sensors": [snap.x[i] for i in sensors],
-                },
-            )
-        },
-    )
-    report.numbers.update(
-        antinode=target.position, true_antinode=truth.position, move_duration=plan.duration
-    )
+def _error_figure(x, along, sensors):
+    return _plotting().plot_error_along_span(x, along, [x[i] for i in sensors])
 
 
-def _stage_closed_loop(scenario: Scenario, span, model, force, report: _Report, sensors):
-    robot_cfg = scenario.robot
-    if robot_cfg.closed_loop <= 0:
-        return
-    load_frequency = getattr(force, "frequency", None) or model.natural_frequencies(1)[0]
-    frequencies = model.natural_frequencies(min(20, model.n_dofs))
-    tuned = float(frequencies[np.argmin(np.abs(frequencies - load_frequency))])
-    robot = MDR.tuned(
-        robot_cfg.start,
-        robot_cfg.body_mass,
-        robot_cfg.suspended_mass,
-        tuned,
-        robot_cfg.damping_ratio,
-    )
-    calibration = min(2.0, robot_cfg.closed_loop / 3)
-    result = run_closed_loop(
-        span,
-        force,
-        robot,
-        RobotLimits(robot_cfg.v_max, robot_cfg.a_max),
-        sensors=sensors,
-        n_elements=model.n_elements,
-        bc=model.bc,
-        duration=robot_cfg.closed_loop,
-        calibration=calibration,
-        dt=scenario.simulation.dt,
-        noise_fraction=scenario.simulation.noise_fraction,
-        seed=scenario.simulation.seed,
-    )
-    report.section(
-        "Closed loop (robot driven to the estimated antinode)",
-        [
-            (
-                "robot",
-                f"body {robot.body_mass:g} kg + absorber {robot.suspended_mass:g} kg tuned to "
-                f"{tuned:.2f} Hz, starts at {robot.position:g} m",
-            ),
-            ("final position", f"{result.robot_position[-1]:.3f} m"),
-            (
-                "RMS displacement, last quarter",
-                f"{_mm(result.rms_closed_loop)} moving vs {_mm(result.rms_baseline)} parked",
-            ),
-            ("vibration reduction", f"{result.vibration_reduction:.2f}x"),
-            (
-                "planner steps",
-                f"{len(result.statuses)} ({result.statuses.count('safe_stop')} safe stops)",
-            ),
-            ("real-time factor", f"{result.real_time_factor:.2f}"),
-        ],
-        figures={"closed_loop.png": lambda: plotting.plot_closed_loop(result)},
-    )
-    report.numbers.update(
-        vibration_reduction=result.vibration_reduction,
-        final_robot_position=float(result.robot_position[-1]),
-    )
+def _envelope_figure(x, envelope, antinodes, sensors):
+    return _plotting().plot_envelope(x, {"true amplitude": envelope},
+                                     {"estimated antinodes": antinodes, "sensors": sensors})
 
 
-def _write_outputs(out: Path, scenario: Scenario, report: _Report, dmd) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "scenario.toml").write_text(scenario_to_toml(scenario))
-    save_model(out / "dmd_model.npz", dmd)
-    for name, draw in report.figures.items():
-        draw().savefig(out / name, dpi=110)
-    write_report(out / "report.html", "powerline_control run", report.sections, __version__)
-    (out / "summary.json").write_text(json.dumps(report.numbers, indent=2, default=float))
+def _path_figure(x, envelope, t, position, target, target_series):
+    return _plotting().plot_robot_path(x, envelope, t, position, target=target,
+                                       target_series=target_series)
 
 
-def run_scenario(scenario: Scenario, out: Path | None = None, echo=print) -> dict:
-    """Run the main job on ``scenario`` and return its headline numbers.
+def _closed_loop_figure(result):
+    return _plotting().plot_closed_loop(result)
+
+
+def _layout_figure(errors, positions, span_length):
+    return _plotting().plot_layouts(errors, positions, span_length)
+
+
+def _severity_figure(result):
+    drawn = _plotting().plot_severity(result)
+    return drawn if hasattr(drawn, "savefig") else drawn.figure
+
+
+# ----------------------------------------------------------------------------- outputs
+
+class _Output:
+    """An output folder checked before the run; it never overwrites files it did not write."""
+
+    def __init__(self, path: Path | None, *, force: bool = False):
+        self.path = path
+        self.written: list[str] = []
+        if path is None:
+            return
+        if path.exists() and not path.is_dir():
+            raise InputError(f"--out {str(path)!r} is a file, not a folder. Give a folder "
+                             "(it is created if missing).")
+        if path.is_dir():
+            ours = self._manifest()
+            others = sorted(p.name for p in path.iterdir()
+                            if p.name != MANIFEST and p.name not in ours)
+            if others and not force:
+                shown = ", ".join(others[:5]) + (", ..." if len(others) > 5 else "")
+                raise InputError(
+                    f"--out {str(path)!r} already holds files this command did not write "
+                    f"({shown}). Give an empty or new folder, or add --force to write into it "
+                    "anyway (files of the same name are replaced).")
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+            probe = path / ".powerline-control-write-test"
+            probe.write_text("")
+            probe.unlink()
+        except OSError as exc:
+            raise InputError(f"--out {str(path)!r} is not a writable folder: "
+                             f"{exc.strerror or exc}.") from None
+
+    def _manifest(self) -> set[str]:
+        try:
+            return set(json.loads((self.path / MANIFEST).read_text())["files"])
+        except (OSError, ValueError, KeyError, TypeError):
+            return set()
+
+    def file(self, name: str) -> Path:
+        """The path of an output file, recorded in the manifest."""
+        self.written.append(name)
+        (self.path / MANIFEST).write_text(json.dumps(
+            {"written_by": "powerline-control", "files": sorted(set(self.written)
+                                                                | self._manifest())}))
+        return self.path / name
+
+
+def _write_outputs(out: _Output, study: _Study, report: _Report, *, full: bool = True) -> list:
+    from . import __version__
+    from .config import scenario_to_toml
+    from .report import write_report
+
+    scenario = study.scenario
+    if full:
+        out.file("scenario.toml").write_text(scenario_to_toml(scenario))
+        if study.design is not None:
+            from .io import save_model
+
+            save_model(out.file("dmd_model.npz"), study.design.dmd)
+        out.file("summary.json").write_text(json.dumps(report.numbers, indent=2, default=float))
+    sections = []
+    for section in report.sections:
+        figures = []
+        for figure in section["figures"]:
+            fig = figure.draw()
+            figures.append({"name": figure.name, "figure": fig, "caption": figure.caption})
+        sections.append({**section, "figures": figures})
+    write_report(out.file("report.html"), f"powerline_control: {scenario.name}", sections,
+                 __version__, scenario_name=scenario.name,
+                 scenario_description=scenario.scenario.description)
+    return out.written
+
+
+# ----------------------------------------------------------------------------- verbs
+
+_STAGES = {
+    "simulate": ("model", "simulate"),
+    "identify": ("model", "simulate", "identify"),
+    "sensors": ("model", "simulate", "identify", "sensors"),
+    "estimate": ("model", "simulate", "identify", "sensors", "estimate"),
+    "plan": ("model", "simulate", "identify", "sensors", "estimate", "plan"),
+    "closed-loop": ("model", "closed_loop"),
+    "severity": ("model", "severity"),
+    "run": ("model", "simulate", "identify", "sensors", "estimate", "plan", "closed_loop",
+            "severity"),
+}
+
+
+def _run_stages(study: _Study, stages: Sequence[str]) -> None:
+    sc = study.scenario
+    for stage in stages:
+        if stage == "model":
+            study.build_model()
+        elif stage == "simulate":
+            study.simulate()
+        elif stage == "identify":
+            study.design_estimator(choose_sensors="sensors" in stages)
+        elif stage == "estimate":
+            study.estimate()
+        elif stage == "plan":
+            study.plan()
+        elif stage == "closed_loop":
+            sensors = study.design.sensors if study.design is not None else None
+            study.run_closed_loop(sensors)
+        elif stage == "severity" and (sc.severity.enabled or stages == _STAGES["severity"]):
+            study.severity()
+
+
+def _count_stages(scenario, stages: Sequence[str]) -> int:
+    n = 0
+    for stage in stages:
+        if stage == "sensors":
+            chosen = scenario.estimation.sensors is not None or \
+                scenario.estimation.sensor_positions is not None
+            n += 0 if chosen else 1
+        elif stage == "closed_loop":
+            n += scenario.robot.closed_loop > 0
+        elif stage == "severity":
+            n += scenario.severity.enabled or stages == _STAGES["severity"]
+        else:
+            n += 1
+    return n
+
+
+def run_scenario(scenario, out: Path | None = None, echo=print, *, stages=None,
+                 force: bool = False, quiet: bool = True) -> dict:
+    """Run the chain on ``scenario`` and return its headline numbers.
 
     Stages: model -> simulation -> identification (DMD, alpha chosen on held-out data) ->
     sensor placement (or the scenario's sensors) -> Kalman estimation on held-out data, against
-    the paper's first-13-nodes layout -> antinode and minimum-time move -> closed loop.
+    the obvious layouts -> antinodes and minimum-time move -> closed loop -> severity (when the
+    scenario enables it).
 
     Parameters
     ----------
     scenario : Scenario
         The study (see :func:`~powerline_control.config.load_scenario`).
     out : Path or None
-        Folder for figures, ``report.html``, ``summary.json``, the DMD model and the scenario;
-        None writes nothing.
+        Folder for ``report.html`` (self-contained), ``summary.json``, the DMD model and the
+        scenario; None writes nothing. It must be new, empty, or hold only files this command
+        wrote (``force`` overrides).
     echo : callable
-        Where the printed summary goes (``print`` by default).
+        Where the printed summary goes (``print`` by default); None prints nothing.
+    stages : sequence of str or None
+        The stages to run (default: all of ``run``).
+    force : bool
+        Write into a folder that holds other files.
+    quiet : bool
+        No progress bar (the default when called from Python).
 
     Returns
     -------
@@ -397,35 +958,299 @@ def run_scenario(scenario: Scenario, out: Path | None = None, echo=print) -> dic
     >>> from powerline_control.config import load_scenario
     >>> small = load_scenario(text="[model]\\nn_elements = 20\\n[simulation]\\nduration = 2.0\\n"
     ...                            "[robot]\\nclosed_loop = 0")
-    >>> run_scenario(small, echo=lambda line: None)["n_nodes"]
+    >>> run_scenario(small, echo=None)["n_nodes"]
     21
     """
-    report = _Report(echo)
-    span, model = _stage_model(scenario, report)
-    force, snap = _stage_data(scenario, model, report)
-    dmd, n_train = _stage_identify(scenario, snap, report)
-    sensors, estimate = _stage_estimate(scenario, dmd, snap, n_train, report)
-    _stage_antinode_and_plan(scenario, span, snap, estimate, n_train, sensors, report)
-    _stage_closed_loop(scenario, span, model, force, report, sensors)
-    if out is not None:
-        _write_outputs(out, scenario, report, dmd)
-        echo(f"Results written to {out}/ (report.html, summary.json, figures, dmd_model.npz)")
+    console = _Console(quiet=quiet)
+    if echo is not None and echo is not print:
+        console.out = echo
+    elif echo is None:
+        console.out = lambda line="": None
+    output = _Output(out, force=force)
+    stages = tuple(stages or _STAGES["run"])
+    report = _Report(console)
+    with _Progress(console, _count_stages(scenario, stages) + (out is not None)) as progress:
+        study = _Study(scenario, report, progress)
+        _run_stages(study, stages)
+        if out is not None:
+            progress.stage("drawing the figures and writing the report")
+            _write_outputs(output, study, report)
     return report.numbers
 
 
+def _load(console, name_or_path):
+    from .config import load_scenario
+
+    return load_scenario(name_or_path)
+
+
+@contextlib.contextmanager
+def _numerics():
+    """Import the numerical stack, then limit BLAS to one thread for the verb's scope."""
+    import numpy  # noqa: F401  (load BLAS before limiting it)
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import threadpool_limits
+
+    from . import closed_loop  # noqa: F401  (loads control, cvxpy, casadi: all BLAS users)
+
+    with threadpool_limits(limits=1):
+        yield
+
+
+def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
+    scenario = _load(console, args.scenario)
+    output = _Output(args.out, force=args.force) if getattr(args, "out", None) else None
+    stages = _STAGES[args.command]
+    report = _Report(console)
+    start = time.perf_counter()
+    n_stages = _count_stages(scenario, stages) + (output is not None)
+    with _numerics(), _Progress(console, n_stages) as progress:
+        study = _Study(scenario, report, progress)
+        _run_stages(study, stages)
+        written = []
+        if output is not None:
+            progress.stage("drawing the figures and writing the report")
+            written = _write_outputs(output, study, report, full=full)
+    report.numbers["elapsed_s"] = round(time.perf_counter() - start, 2)
+    _finish(console, report.numbers, output, written)
+    return EXIT_OK
+
+
+def _finish(console, numbers, output, written):
+    if console.as_json:
+        if output is not None:
+            numbers = {**numbers, "out": str(output.path), "files": sorted(set(written))}
+        print(json.dumps(numbers, indent=2, default=float))
+        return
+    if output is not None:
+        console.out(f"Results written to {output.path}/ ({', '.join(sorted(set(written)))})")
+    if console.quiet:
+        headline = {k: numbers[k] for k in ("vibration_reduction", "error_unmeasured")
+                    if k in numbers}
+        print("Done." + "".join(f" {k} = {v:.3g}" for k, v in headline.items()))
+    else:
+        console.out(f"Done in {numbers.get('elapsed_s', 0):.1f} s.")
+
+
+def _verb_demo(args, console: _Console) -> int:
+    args.scenario = "paper-lab-20"
+    args.command = "run"
+    args.out = args.out or Path("powerline-demo")
+    console.note(f"Demo: the paper's lab span end to end; report: {args.out}/report.html")
+    return _verb_stages(args, console)
+
+
+def _verb_report(args, console: _Console) -> int:
+    args.command = "run"
+    return _verb_stages(args, console, full=False)
+
+
+def _verb_scenario(args, console: _Console) -> int:
+    from .config import load_scenario, scenario_to_toml, shipped_scenarios
+
+    if args.name is None:
+        shipped = shipped_scenarios()
+        if console.as_json:
+            print(json.dumps(shipped, indent=2))
+            return EXIT_OK
+        print("Shipped scenarios (run one with: powerline-control run NAME; print it as a "
+              "template with: powerline-control scenario NAME):")
+        for name, description in shipped.items():
+            print(f"  {name:<16} {description}")
+        return EXIT_OK
+    scenario = load_scenario(args.name)
+    print(scenario_to_toml(scenario), end="")
+    return EXIT_OK
+
+
+def _parse_value(text: str):
+    import tomllib
+
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _study_point(scenario_text: str, **overrides) -> dict:
+    """One point of a ``study``: the scenario with ``overrides`` (dotted keys), estimation only."""
+    from .config import load_scenario
+
+    scenario = load_scenario(text=_override_toml(scenario_text, overrides), source="study")
+    console = _Console(quiet=True)
+    report = _Report(console)
+    console.out = lambda line="": None
+    with _numerics(), _Progress(console, 1) as progress:
+        study = _Study(scenario, report, progress)
+        _run_stages(study, _STAGES["estimate"])
+    numbers = report.numbers
+    return {"error_unmeasured": numbers["error_unmeasured"],
+            "spectral_radius": numbers["spectral_radius"],
+            "sensors": " ".join(str(i) for i in numbers.get("sensors", []))}
+
+
+def _override_toml(text: str, overrides: dict) -> str:
+    import tomllib
+
+    from .config import _toml_value
+
+    data = tomllib.loads(text)
+    for key, value in overrides.items():
+        section, _, name = key.partition(".")
+        data.setdefault(section, {})[name] = value
+    lines = []
+    for section, table in data.items():
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _verb_study(args, console: _Console) -> int:
+    from .config import _resolve, load_scenario
+
+    text, source = _resolve(args.scenario) if args.scenario else ("", "<default>")
+    axes = {}
+    for item in args.vary or ():
+        key, sep, values = item.partition("=")
+        if not sep or "." not in key or not values:
+            raise InputError(f"--vary {item!r} must look like SECTION.KEY=V1,V2 (e.g. "
+                             "estimation.n_sensors=2,3,4).")
+        axes[key.strip()] = [_parse_value(v.strip()) for v in values.split(",")]
+    if not axes:
+        raise InputError("study needs at least one --vary SECTION.KEY=V1,V2 option.")
+    from .studies import parameter_grid, run_study
+
+    grid = parameter_grid(**axes)
+    for point in grid:  # every variant is validated before anything runs
+        load_scenario(text=_override_toml(text, point), source=f"{source} with {point}")
+    output = _Output(args.out, force=args.force) if args.out else None
+    func = functools.partial(_study_point, text)
+    console.note(f"Study: {len(grid)} variants of {source}")
+    with _numerics():
+        if args.workers > 1:
+            from concurrent.futures import ProcessPoolExecutor
+
+            with ProcessPoolExecutor(args.workers) as pool:
+                result = run_study(func, grid, pool)
+        else:
+            from tqdm import tqdm
+
+            from .studies import StudyResult
+
+            results = [func(**point) for point in tqdm(grid, file=sys.stderr, desc="variants",
+                                                       disable=console.quiet)]
+            result = StudyResult(tuple(grid), tuple(results))
+    rows = result.rows()
+    written = []
+    if output is not None:
+        result.to_csv(output.file("study.csv"))
+        output.file("study.json").write_text(json.dumps(rows, indent=2, default=float))
+        written = output.written
+    if console.as_json:
+        print(json.dumps(rows, indent=2, default=float))
+    else:
+        keys = list(rows[0])
+        console.out("  ".join(f"{k:>22}" for k in keys))
+        for row in rows:
+            console.out("  ".join(f"{row[k]:>22.4g}" if isinstance(row[k], float)
+                                  else f"{row[k]!s:>22}" for k in keys))
+        if written:
+            console.out(f"Results written to {output.path}/ ({', '.join(written)})")
+    return EXIT_OK
+
+
+# ----------------------------------------------------------------------------- parser
+
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    """Keeps the verb list's layout; the epilog paragraphs are wrapped by :func:`_epilog`."""
+
+
+def _epilog(*paragraphs: str) -> str:
+    import shutil
+    import textwrap
+
+    width = min(shutil.get_terminal_size((100, 24)).columns, 100) - 2
+    return "\n".join(textwrap.fill(p, width=width) for p in paragraphs)
+
+
+def _common(parser: argparse.ArgumentParser, suppress: bool) -> None:
+    default = argparse.SUPPRESS if suppress else False
+    group = parser.add_argument_group("output options")
+    group.add_argument("--json", action="store_true", default=default,
+                       help="print the results as one JSON object on stdout")
+    group.add_argument("-q", "--quiet", action="store_true", default=default,
+                       help="no progress or summary, only errors and the final line")
+    group.add_argument("--debug", action="store_true", default=default,
+                       help="show full tracebacks and every library warning")
+
+
 def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="powerline-control", description=__doc__.split("\n")[0])
-    commands = parser.add_subparsers(dest="command", required=True)
-    run = commands.add_parser("run", help="run the main job on a scenario")
-    run.add_argument(
-        "scenario",
-        nargs="?",
-        type=Path,
-        help="TOML scenario file (default: the built-in paper lab scenario)",
-    )
-    run.add_argument("--out", type=Path, default=None, help="folder for results and figures")
-    commands.add_parser("scenario", help="print the default scenario as TOML")
+    from . import __version__
+
+    doc = __doc__.split("\n\n")
+    parser = argparse.ArgumentParser(
+        prog="powerline-control", formatter_class=_Formatter,
+        description="Vibration of overhead power lines: model, simulate, identify (DMD), "
+        "place sensors, estimate (Kalman), plan and run a mobile damping robot.",
+        epilog=_epilog(_UNITS, _EXIT_CODES, "Scenario keys: docs/scenarios.md, or "
+                       "'powerline-control scenario NAME' for a commented template."))
+    parser.add_argument("--version", action="version", version=f"powerline-control {__version__}")
+    _common(parser, suppress=False)
+    verbs = parser.add_subparsers(dest="command", metavar="VERB", title="verbs",
+                                  description=doc[1].split("::")[-1] if len(doc) > 1 else None)
+    verbs.required = True
+
+    def verb(name, help_text, *, scenario=True, out=True, out_required=False):
+        sub = verbs.add_parser(name, help=help_text, description=help_text[0].upper()
+                               + help_text[1:] + ".", epilog=_epilog(_UNITS, _EXIT_CODES),
+                               formatter_class=_Formatter)
+        if scenario:
+            sub.add_argument("scenario", nargs="?", default=None,
+                             help="a scenario TOML file, or the name of a shipped scenario "
+                             "(list them with 'powerline-control scenario'); default: the "
+                             "built-in scenario (the paper's lab span, 100 elements)")
+        if out:
+            sub.add_argument("--out", type=Path, default=None, required=out_required, metavar="DIR",
+                             help="folder for the results (created if missing; must be empty "
+                             "or hold only this command's files)")
+            sub.add_argument("--force", action="store_true",
+                             help="write into an --out folder that holds other files")
+        _common(sub, suppress=True)
+        return sub
+
+    demo = verb("demo", "the paper's lab span end to end, report in ./powerline-demo/",
+                scenario=False)
+    demo.set_defaults(out=None)
+    verb("run", "the whole chain on a scenario: model, data, DMD, sensors, Kalman "
+         "estimate, antinodes, plan, closed loop")
+    verb("simulate", "build the model and simulate the sensor data (displacements in mm)")
+    verb("identify", "simulate, then identify a DMD model (eigenvalues, spectral radius)")
+    verb("sensors", "identify, then choose the sensor positions (m) against baselines")
+    verb("estimate", "choose sensors, then estimate the whole span with a Kalman filter")
+    verb("plan", "estimate, then locate the antinodes (m) and plan the robot's move (s)")
+    verb("closed-loop", "the robot driven to the antinode in closed loop, against parked")
+    verb("severity", "aeolian severity: antinode amplitude (mm) and clamp strain against wind "
+         "speed (m/s)")
+    study = verb("study", "run variants of a scenario over a grid of keys; a table of results")
+    study.add_argument("--vary", action="append", metavar="SECTION.KEY=V1,V2",
+                       help="a scenario key and its values (repeat for a grid)")
+    study.add_argument("--workers", type=int, default=1,
+                       help="processes to run the variants on (default 1: serial)")
+    verb("report", "run a scenario and write only its self-contained report.html",
+         out_required=True)
+    scen = verb("scenario", "list the shipped scenarios, or print one (or a file) as a "
+                "commented TOML template", scenario=False, out=False)
+    scen.add_argument("name", nargs="?", default=None,
+                      help="a shipped scenario name or a TOML file")
     return parser
+
+
+_VERBS = {"demo": _verb_demo, "report": _verb_report, "scenario": _verb_scenario,
+          "study": _verb_study}
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"powerline-control: warning: {category.__name__}: {message}", file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -439,27 +1264,49 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        0 on success, 2 on bad input or a reported numerical failure.
+        0 on success, 1 on numerical trouble, 2 on bad input or usage, 130 on Ctrl-C.
 
     Examples
     --------
     >>> main(["scenario"])  # doctest: +ELLIPSIS
-    # powerline_control scenario ...
+    Shipped scenarios ...
     0
     """
-    args = _build_parser().parse_args(argv)
-    if args.command == "scenario":
-        print(scenario_to_toml(load_scenario()), end="")
-        return 0
+    parser = _build_parser()
     try:
-        scenario = load_scenario(args.scenario)
-        start = time.perf_counter()
-        run_scenario(scenario, out=args.out)
-        print(f"Done in {time.perf_counter() - start:.1f} s.")
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help / --version (0) or a usage error (2)
+        return int(exc.code or 0)
+    for name in ("json", "quiet", "debug"):
+        if not hasattr(args, name):
+            setattr(args, name, False)
+    console = _Console(quiet=args.quiet, as_json=args.json, debug=args.debug)
+    handler = _VERBS.get(args.command, _verb_stages)
+    try:
+        with warnings.catch_warnings():
+            if not args.debug:
+                warnings.showwarning = _show_warning
+                warnings.simplefilter("once")
+            return handler(args, console)
+    except KeyboardInterrupt:
+        print("powerline-control: interrupted (Ctrl-C); stopped.", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except PowerlineControlError as exc:
-        print(f"powerline-control: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+        if args.debug:
+            import traceback
+
+            traceback.print_exc()
+        message = " ".join(str(exc).split())
+        code = EXIT_USAGE if isinstance(exc, InputError | ValueError) else EXIT_NUMERICAL
+        kind = "error" if code == EXIT_USAGE else "numerical trouble"
+        print(f"powerline-control: {kind}: {message}", file=sys.stderr)
+        if args.json:
+            print(json.dumps({"error": message, "exit_code": code}))
+        return code
+    except BrokenPipeError:  # e.g. piped into head
+        with contextlib.suppress(OSError):
+            sys.stdout = open(os.devnull, "w")  # noqa: SIM115
+        return EXIT_OK
 
 
 if __name__ == "__main__":  # pragma: no cover

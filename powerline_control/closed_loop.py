@@ -1,42 +1,116 @@
-"""The whole chain in closed loop: sensors -> Kalman estimate -> antinode -> MPC -> robot moves.
+"""The whole chain in closed loop: sensors -> Kalman estimate -> target -> motion -> robot moves.
 
-The span is simulated with the damping robot attached at its current position; the robot's
-position is a slowly varying parameter (its speed is < 2 % of the wave speed, so the convective
-moving-mass terms are neglected, as in the domain notes). Each control period:
+The plant
+---------
+The line is simulated in the modal coordinates of the *bare* line (its lowest ``r`` modes, plus
+the quasi-static residual of the dropped modes for the loads), and the robot is coupled to them
+through the shape functions at its current position: with ``n = Phi^T N(x_r)`` (the bare modes'
+displacements at the robot, ``model.shape_vector(x)`` restricted to the modal basis)
 
-1. the span (with the robot where it is) is propagated exactly over the period, from the state
-   the previous period left (:func:`~powerline_control.simulate.simulate` with ``initial_state``),
-   and the sensors read it with noise;
-2. a Kalman filter on a DMD model identified during an initial calibration window (robot parked)
-   estimates the whole field from the few sensors;
-3. the antinode nearest the robot is located in the last window of estimates;
-4. the receding-horizon planner steps the robot toward it within its limits.
+    (I + m_b n n^T) q'' + (Z + c n n^T) q' + (Omega^2 + k n n^T) q - n (k y + c y') = Phi^T f(t)
+    m_a y'' + c (y' - n^T q') + k (y - n^T q) = 0
 
-The result compares the line's vibration with the robot parked where it started: the line
-vibrates less when the robot sits at the antinode.
+(``Z`` the line's own modal damping; ``y`` the absorber's displacement). A move changes only the
+rank-one terms: rebuilding the matrices costs O(r^2) and their exact discretisation an
+``expm`` of a (4r + 2)-square matrix, against an eigen-solve of the whole mesh before. Each block
+of samples is integrated exactly for loads linear between samples (first-order hold): with no
+damping and a still robot the discrete map is the exact flow, so the mechanical energy is
+conserved to round-off. The robot's position is a slowly varying parameter (its speed is < 2 % of
+the wave speed, so the convective moving-mass terms are neglected, as in the domain notes) held
+at its mid-block value over blocks of ``plant_period``.
+
+The policy (docs/closed_loop.md)
+--------------------------------
+Chasing the antinode of the field the robot is damping is unstable: the damped loop's maximum
+moves away from the robot. Here the robot targets the antinode of the *robot-free* excited shape:
+from the estimated field's phasor ``W`` at the dominant frequency and the robot's own measured
+motion ``W_r``, the robot's reaction is removed with the bare line's receptance,
+
+    W_bare(x) = W(x) - H(x, x_r; omega) D_r(omega) W_r,
+    D_r = omega^2 m_b + omega^2 m_a (k + i omega c) / (k + i omega c - omega^2 m_a),
+
+which in steady state does not depend on where the robot is. The target is chosen once (the
+largest antinode within 3/4 of a loop of the robot), refined once after the robot has settled
+there (only inside a gate of a quarter loop around that first choice: the gate is anchored, it
+does not move with the goal), and chosen anew only when the dominant frequency changes (a wind
+change). The motion law is the closed-form time-optimal approach of a double integrator (or the
+MPC planner on request).
 """
 
 from __future__ import annotations
 
-import dataclasses
+import numbers
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg
+import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
-from ._validation import check_indices, check_int, check_real, check_rng
-from .antinode import locate_antinodes, nearest_antinode
-from .errors import InputError, PowerlineControlError
+from ._validation import check_indices, check_int, check_real, check_rng, read_only
+from .errors import InputError
 from .estimate import KalmanFilter
 from .fem import MDR, LineModel
 from .identify import fit_dmd, select_alpha
 from .line import Span
 from .plan import MotionPlanner, RobotLimits
-from .simulate import simulate
 
-__all__ = ["ClosedLoopResult", "run_closed_loop"]
+__all__ = ["ClosedLoopResult", "Comparison", "run_closed_loop"]
+
+GRAVITY = 9.81
+# A robot heavier than this fraction of the span's own mass is no longer a small attachment: the
+# slowly-varying-parameter plant and the single-mode tuning are not credible beyond it.
+MAX_ROBOT_MASS_RATIO = 0.25
+# Static slope of the line under the robot's weight, W / (2 T) at midspan: beyond 0.05 rad the
+# small-slope (linear taut-string) model of the line is not valid.
+MAX_STATIC_SLOPE = 0.05
+# The policy: a window whose two halves give excited shapes differing by more than this (relative)
+# still beats with a decaying mode; wait up to MAX_WAIT s for a steady one. At most MAX_CHOICES
+# loops are tried per excitation before the choice is final.
+UNSTEADY_LIMIT = 0.25
+MAX_WAIT = 3.0
+MAX_CHOICES = 3
+# Local minima of the predicted RMS within this fraction of the lowest count as equally good:
+# the robot takes the nearest (equal loops of a resonant mode need no long trip).
+NEAR_OPTIMAL = 0.03
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """The line's vibration over the settled window for one robot placement.
+
+    Attributes
+    ----------
+    name : str
+        ``"no_robot"``, ``"near_clamp"``, ``"start"`` (parked where the closed loop started),
+        ``"best"`` (parked at the best position of the steady-state scan) or ``"closed_loop"``.
+    position : float
+        Where the robot was parked, m (NaN without a robot; the final position for the loop).
+    rms : float
+        RMS displacement over the span (length-weighted) and the settled window, m.
+    peak : float
+        Largest absolute displacement over the span and the window, m.
+    damper_power : float
+        Mean power dissipated in the robot's damper over the window, W.
+    envelope : ndarray, shape (n_nodes,)
+        Largest absolute displacement at each node over the window, m.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c = Comparison("start", 1.2, 1e-3, 2e-3, 0.0, np.zeros(3))
+    >>> c.name, c.rms
+    ('start', 0.001)
+    """
+
+    name: str
+    position: float
+    rms: float
+    peak: float
+    damper_power: float
+    envelope: np.ndarray = field(repr=False)
 
 
 @dataclass(frozen=True)
@@ -54,30 +128,65 @@ class ClosedLoopResult:
     baseline_displacement : ndarray, shape (n_nodes, n_t)
         True displacement with the robot parked at its start for the whole run.
     estimated_field : ndarray, shape (n_nodes, n_t)
-        The Kalman filter's estimate of the field (NaN during calibration).
+        The Kalman filter's estimate of the field (the calibration record filtered first).
     robot_position, robot_velocity : ndarray, shape (n_t,)
         Robot state, m and m/s.
     target : ndarray, shape (n_t,)
-        Antinode the robot was steering to (NaN before the first estimate).
+        Where the robot was steering to (NaN before the first target).
     sensors : tuple of int
         Measured node indices.
     calibration_time : float
         Length of the initial window (robot parked) used to identify the estimator's model, s.
     statuses : tuple of str
-        Planner status of every control step ("optimal", "safe_stop", ...).
+        Motion status of every control step ("closed_form", "blocked", or the MPC's status).
     wall_time : float
         Wall-clock time of the loop (after calibration), s.
+    settled_window : (float, float)
+        Time window (s) over which every metric is computed: from ``settle_margin`` after the robot
+        last arrived (stayed within 1 % of a loop of its final position) to the end of the run.
+    settled : bool
+        False when the robot never stayed put long enough (the window is then the last second).
+    comparisons : tuple of Comparison
+        no robot, parked near a clamp, parked at the start, parked at the best position, and
+        the closed loop, over the same settled window.
+    scan_positions, scan_rms : ndarray
+        The steady-state scan: RMS displacement over the span (m) with the robot parked at each
+        position, for the last harmonic load (empty when the load is not harmonic).
+    best_position : float
+        Minimiser of the scan, m (NaN without a harmonic load).
+    loop_length : float
+        Half-wavelength of the bare line at the final dominant frequency, m.
+    frequency : ndarray, shape (n_steps,)
+        Dominant frequency the controller measured at each control step, Hz.
+    retarget_times, settle_times : tuple of float
+        When the controller chose a new target (s), and how long the robot then took to arrive
+        and stay within 1 % of a loop (s; NaN if it did not).
+    innovation_ratio : ndarray, shape (n_steps,)
+        RMS one-step prediction error of the sensors over the last window, relative to its value
+        on the calibration record: the estimator's model is taken as valid below 3.
+    damper_power : ndarray, shape (n_t,)
+        Power dissipated in the robot's damper, W.
+    predictions : tuple of (float, ndarray, ndarray, ndarray)
+        At each target choice and confirmation: the time (s), the positions and the steady-state
+        RMS (m) the controller predicted for the robot parked there, and the robot-free excited
+        shape (complex amplitude at every node, m) it predicted from.
+    timings : dict
+        Wall-clock seconds spent in: setup (modes, calibration, identification), plant (sample
+        stepping and sensing), plant update (re-discretising after a move), filter (Kalman
+        steps), policy and motion, comparisons (parked runs and the steady-state scan); and
+        "loop cpu", the process time of the loop (less sensitive to the machine's load).
 
     Examples
     --------
     >>> import powerline_control as plc
+    >>> robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
     >>> result = run_closed_loop(plc.Span.paper_lab(), plc.HarmonicForce(1.0, 24.0, 0.5),
-    ...                          plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1), n_elements=20,
-    ...                          sensors=[4, 9, 15], duration=2.0, calibration=1.0)
+    ...                          robot, n_elements=20, sensors=[4, 9, 15], duration=2.0,
+    ...                          calibration=1.0)
     >>> result.displacement.shape, len(result.statuses)      # 20 control steps of 50 ms
     ((21, 2001), 20)
-    >>> print(f"{result.rms_baseline / result.rms_closed_loop:.1f}")   # doctest: +SKIP
-    1.3
+    >>> [c.name for c in result.comparisons]
+    ['no_robot', 'near_clamp', 'start', 'best', 'closed_loop']
     """
 
     t: np.ndarray
@@ -92,19 +201,45 @@ class ClosedLoopResult:
     calibration_time: float
     statuses: tuple
     wall_time: float = field(repr=False)
+    settled_window: tuple = (0.0, 0.0)
+    settled: bool = False
+    comparisons: tuple = ()
+    scan_positions: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    scan_rms: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    best_position: float = float("nan")
+    loop_length: float = float("nan")
+    frequency: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    retarget_times: tuple = ()
+    settle_times: tuple = ()
+    innovation_ratio: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    damper_power: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    predictions: tuple = field(default=(), repr=False)
+    timings: dict = field(default_factory=dict, repr=False)
 
-    def _final_window(self, fraction: float = 0.25) -> slice:
-        return slice(int(self.t.size * (1 - fraction)), None)
+    def comparison(self, name: str) -> Comparison:
+        """The comparison called ``name`` (see :attr:`comparisons`)."""
+        for item in self.comparisons:
+            if item.name == name:
+                return item
+        raise InputError(
+            f"The 'name' parameter must be one of {[c.name for c in self.comparisons]}. "
+            f"Got {name!r}."
+        )
+
+    @property
+    def window_mask(self) -> np.ndarray:
+        """Boolean mask of the samples in :attr:`settled_window`."""
+        return (self.t >= self.settled_window[0]) & (self.t <= self.settled_window[1])
 
     @property
     def rms_closed_loop(self) -> float:
-        """RMS displacement over the span in the last quarter of the run, m."""
-        return float(np.sqrt(np.mean(self.displacement[:, self._final_window()] ** 2)))
+        """RMS displacement over the span in the settled window, m."""
+        return self.comparison("closed_loop").rms
 
     @property
     def rms_baseline(self) -> float:
         """The same with the robot parked at its start, m."""
-        return float(np.sqrt(np.mean(self.baseline_displacement[:, self._final_window()] ** 2)))
+        return self.comparison("start").rms
 
     @property
     def vibration_reduction(self) -> float:
@@ -116,66 +251,435 @@ class ClosedLoopResult:
         """Simulated loop time over its wall-clock time (> 1: faster than real time)."""
         return (self.t[-1] - self.calibration_time) / self.wall_time
 
-
-class _ModelCache:
-    """LineModels with the robot at positions rounded to ``resolution`` (modes reused)."""
-
-    def __init__(self, span: Span, n_elements: int, bc: object, robot: MDR, resolution: float):
-        self._args = (span, n_elements, bc)
-        self._robot = robot
-        self._resolution = resolution
-        self._models: dict[int, LineModel] = {}
-
-    def at(self, position: float) -> LineModel:
-        key = int(round(position / self._resolution))
-        if key not in self._models:
-            span, n_elements, bc = self._args
-            robot = dataclasses.replace(self._robot, position=key * self._resolution)
-            self._models[key] = LineModel(span, n_elements, bc, mdr=robot)
-        return self._models[key]
+    def summary(self) -> str:
+        """A few lines: the settled window and every comparison."""
+        lines = [
+            f"settled window {self.settled_window[0]:.2f}-{self.settled_window[1]:.2f} s"
+            + ("" if self.settled else " (robot did not settle)"),
+        ]
+        for c in self.comparisons:
+            lines.append(
+                f"{c.name:12s} x = {c.position:7.3f} m  rms {1e3 * c.rms:8.4f} mm  "
+                f"peak {1e3 * c.peak:8.4f} mm  damper {1e3 * c.damper_power:8.4f} mW"
+            )
+        return "\n".join(lines)
 
 
-def _calibrated_filter(
-    snap, sensors: Sequence[int], delays: int, noise_var: float
-) -> tuple[KalmanFilter, np.ndarray]:
-    """Steady-state Kalman filter on a DMD model of the calibration window (alpha from data)."""
-    curve = select_alpha(snap.displacement, snap.dt, delays=delays)
-    alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None else curve.best_alpha
-    dmd = fit_dmd(
-        snap.displacement, snap.dt, alpha=alpha, delays=delays, alpha_mode=curve.alpha_mode
+# ---------------------------------------------------------------------------------- the plant
+class _ModalPlant:
+    """The bare line's lowest modes with the robot coupled at its position (see module doc)."""
+
+    def __init__(self, model: LineModel, robot: MDR | None, n_modes: int, dt: float):
+        basis = model.modes(n_modes)
+        self.model, self.dt = model, dt
+        active = robot is not None and (robot.body_mass > 0 or robot.has_absorber)
+        self.robot = robot if active else None
+        self.shapes = np.asarray(basis.shapes)
+        self.omega2 = np.asarray(basis.omega) ** 2
+        self.line_damping = np.asarray(basis.damping)
+        self.nodal = model.displacement_map() @ self.shapes  # (n_nodes, r)
+        self.r = basis.n_modes
+        self.absorber = self.robot is not None and self.robot.has_absorber
+        self.n_q = self.r + (1 if self.absorber else 0)
+        self._cache: dict[float, tuple] = {}
+
+    def coupling(self, x: float) -> np.ndarray:
+        """The bare modes' displacements at x (shape functions restricted to the basis)."""
+        return self.shapes.T @ self.model.shape_vector(x)
+
+    def matrices(self, x: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """M, C, K over (q, y): O(r^2) rank-one updates of the bare line's diagonal ones."""
+        r, nq = self.r, self.n_q
+        mass, damp, stiff = np.eye(nq), np.zeros((nq, nq)), np.zeros((nq, nq))
+        stiff[:r, :r] = np.diag(self.omega2)
+        damp[:r, :r] = self.line_damping
+        if self.robot is None or x is None:
+            return mass, damp, stiff
+        n = self.coupling(x)
+        robot = self.robot
+        mass[:r, :r] += robot.body_mass * np.outer(n, n)
+        if self.absorber:
+            coupling = np.zeros(nq)
+            coupling[:r], coupling[r] = n, -1.0
+            stiff += robot.stiffness * np.outer(coupling, coupling)
+            damp += robot.damping * np.outer(coupling, coupling)
+            mass[r, r] = robot.suspended_mass
+        return mass, damp, stiff
+
+    def discretise(self, x: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Exact first-order-hold map z' = Phi z + G0 p_k + G1 p_{k+1} over one sample."""
+        key = None if x is None else round(float(x), 6)
+        if key in self._cache:
+            return self._cache[key]
+        mass, damp, stiff = self.matrices(x)
+        nq, r = self.n_q, self.r
+        inverse_mass = np.linalg.inv(mass)  # block-diagonal, rank-one off I: well conditioned
+        n_z = 2 * nq
+        aug = np.zeros((n_z + 2 * r, n_z + 2 * r))
+        aug[:nq, nq:n_z] = np.eye(nq)
+        aug[nq:n_z, :nq] = -inverse_mass @ stiff
+        aug[nq:n_z, nq:n_z] = -inverse_mass @ damp
+        aug[nq:n_z, n_z : n_z + r] = inverse_mass[:, :r]
+        aug *= self.dt
+        aug[n_z : n_z + r, n_z + r :] = np.eye(r)
+        e = scipy.linalg.expm(aug)
+        phi = e[:n_z, :n_z]
+        f1, f2 = e[:n_z, n_z : n_z + r], e[:n_z, n_z + r :]
+        result = (phi, f1 - f2, f2)
+        if len(self._cache) > 4096:
+            self._cache.clear()
+        self._cache[key] = result
+        return result
+
+    def energy(self, z: np.ndarray, x: float | None) -> float:
+        """Kinetic plus potential energy of state z = (q, y, q', y'), J."""
+        mass, _, stiff = self.matrices(x)
+        q, v = z[: self.n_q], z[self.n_q :]
+        return float(0.5 * v @ mass @ v + 0.5 * q @ stiff @ q)
+
+    def steady_state(self, x: float | None, omega: float, modal_force: np.ndarray) -> np.ndarray:
+        """Complex modal amplitudes (q, y) under the harmonic modal force amplitude."""
+        mass, damp, stiff = self.matrices(x)
+        rhs = np.zeros(self.n_q, dtype=complex)
+        rhs[: self.r] = modal_force
+        return np.linalg.solve(stiff - omega**2 * mass + 1j * omega * damp, rhs)
+
+    def receptance(self, x: float, omega: float) -> np.ndarray:
+        """Bare line's displacement at every node per unit harmonic force at x (modal sum)."""
+        n = self.coupling(x)
+        dynamic = np.diag(self.omega2 - omega**2) + 1j * omega * self.line_damping
+        return self.nodal @ np.linalg.solve(dynamic, n)
+
+
+def _robot_dynamic_stiffness(robot: MDR, omega: float) -> complex:
+    """D_r: the robot's force on the line per unit line displacement at omega (body + absorber)."""
+    value = omega**2 * robot.body_mass
+    if robot.has_absorber:
+        spring = robot.stiffness + 1j * omega * robot.damping
+        value = value + omega**2 * robot.suspended_mass * spring / (
+            spring - omega**2 * robot.suspended_mass
+        )
+    return complex(value)
+
+
+def _run_parked(plant, x, modal_force, n_t, z0=None):
+    """States (n_t, 2 n_q) of the plant with the robot parked at x (None: no robot)."""
+    phi, g0, g1 = plant.discretise(x)
+    states = np.empty((n_t, phi.shape[0]))
+    z = np.zeros(phi.shape[0]) if z0 is None else z0
+    states[0] = z
+    drive = modal_force[:-1] @ g0.T + modal_force[1:] @ g1.T
+    for k in range(n_t - 1):
+        z = phi @ z + drive[k]
+        states[k + 1] = z
+    return states
+
+
+# ---------------------------------------------------------------------------------- the loads
+def _is_schedule(force: object) -> bool:
+    return (
+        isinstance(force, list | tuple)
+        and len(force) > 0
+        and all(
+            isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], numbers.Real)
+            for item in force
+        )
     )
+
+
+def _segments(force: object, duration: float) -> list[tuple[float, list]]:
+    """[(start_time, [loads])]: a single load, a list of loads, or a (time, load) schedule."""
+    if force is None:
+        raise InputError("The 'force' parameter must be a load or a schedule. Got None.")
+    raw = list(force) if _is_schedule(force) else [(0.0, force)]
+    segments = []
+    previous = -np.inf
+    for start, loads in raw:
+        start = check_real("force schedule time", start, low=0.0, low_inclusive=True)
+        if start <= previous or start >= duration:
+            raise InputError(
+                "The times of the 'force' schedule must increase from 0 and lie inside the run "
+                f"(duration {duration:g} s). Got {[s for s, _ in raw]}."
+            )
+        previous = start
+        items = list(loads) if isinstance(loads, list | tuple) else [loads]
+        for item in items:
+            if not (hasattr(item, "bind") or all(
+                hasattr(item, n) for n in ("values", "load_vector", "position")
+            )):
+                raise InputError(
+                    "The 'force' parameter must hold loads (HarmonicForce, AeolianForce, ...). "
+                    f"Got {type(item).__name__}."
+                )
+        segments.append((start, items))
+    if segments[0][0] != 0.0:
+        raise InputError("The 'force' schedule must start at time 0.")
+    return segments
+
+
+def _load_histories(model, plant, segments, t):
+    """Modal force (n_t, r), nodal quasi-static residual (n_nodes, n_t), last harmonic load."""
+    modal = np.zeros((t.size, plant.r))
+    residual = np.zeros((model.n_nodes, t.size))
+    stiffness = model.stiffness_matrix.tocsc()
+    solve = spla.factorized(stiffness)
+    harmonic = None
+    bounds = [s for s, _ in segments] + [np.inf]
+    for (start, loads), end in zip(segments, bounds[1:], strict=True):
+        mask = (t >= start - 1e-12) & (t < end - 1e-12)
+        bound_loads = [f.bind(model) if hasattr(f, "bind") else f for f in loads]
+        harmonic_parts = []
+        for load in bound_loads:
+            if load.position is not None:
+                check_real("force position", load.position, low=0.0, low_inclusive=True,
+                           high=model.span.length)
+            vector = np.asarray(load.load_vector(model), dtype=float)
+            values = np.asarray(load.values(t[mask]), dtype=float)
+            g = plant.shapes.T @ vector
+            static = model.displacement_map() @ (
+                solve(vector) - plant.shapes @ (g / plant.omega2)
+            )
+            modal[mask] += np.outer(values, g)
+            residual[:, mask] += np.outer(static, values)
+            harmonic_parts.append((load, g, static))
+        if all(hasattr(load, "frequency") for load, _, _ in harmonic_parts):
+            frequencies = {round(float(load.frequency), 9) for load, _, _ in harmonic_parts}
+            if len(frequencies) == 1:
+                harmonic = (float(harmonic_parts[0][0].frequency), harmonic_parts)
+            else:
+                harmonic = None
+        else:
+            harmonic = None
+    return modal, residual, harmonic
+
+
+def _phasor_of(load, frequency: float) -> complex:
+    """A: values(t) = Re(A exp(i 2 pi f t)), fitted on one period (exact for a sine)."""
+    tau = np.linspace(0.0, 1.0 / frequency, 64, endpoint=False)
+    values = np.asarray(load.values(tau), dtype=float)
+    w = 2 * np.pi * frequency
+    return complex(2 * np.mean(values * np.cos(w * tau)), -2 * np.mean(values * np.sin(w * tau)))
+
+
+# ---------------------------------------------------------------------------------- the policy
+def _dominant_frequency(signals: np.ndarray, dt: float) -> float:
+    """Frequency of the largest spectral peak of (n_signals, n_t), Hann window, interpolated."""
+    n = signals.shape[1]
+    window = np.hanning(n)
+    n_fft = max(2 * n, 1024)  # Hann + log-parabola: bias ~1 % of a bin for a pure tone
+    power = np.sum(
+        np.abs(np.fft.rfft((signals - signals.mean(axis=1, keepdims=True)) * window, n_fft))
+        ** 2,
+        axis=0,
+    )
+    power[0] = 0.0
+    k = int(np.argmax(power))
+    if 0 < k < power.size - 1:
+        a, b, c = np.log(power[k - 1 : k + 2] + 1e-300)
+        denom = a - 2 * b + c
+        k = k + (0.5 * (a - c) / denom if denom < 0 else 0.0)
+    return float(k / (n_fft * dt))
+
+
+def _fit_phasor(signals: np.ndarray, t: np.ndarray, frequency: float) -> np.ndarray:
+    """Least-squares A per row: signal ~ Re(A exp(i omega t)) + constant."""
+    w = 2 * np.pi * frequency
+    basis = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones_like(t)])
+    coef, *_ = np.linalg.lstsq(basis, signals.T, rcond=None)
+    return coef[0] - 1j * coef[1]
+
+
+def _antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float, float]]:
+    """(position, amplitude, loop length) of each local maximum of |shape| along the span."""
+    amplitude = np.abs(shape)
+    found = []
+    minima = [0] + [j for j in range(1, x.size - 1)
+                    if amplitude[j] <= amplitude[j - 1] and amplitude[j] <= amplitude[j + 1]]
+    minima.append(x.size - 1)
+    for j in range(1, x.size - 1):
+        if amplitude[j] > amplitude[j - 1] and amplitude[j] >= amplitude[j + 1]:
+            # Parabola through the three samples (non-uniform nodes allowed).
+            xs, ys = x[j - 1 : j + 2], amplitude[j - 1 : j + 2]
+            a, b, c = np.polyfit(xs - x[j], ys, 2)
+            offset = -b / (2 * a) if a < 0 else 0.0
+            offset = float(np.clip(offset, xs[0] - x[j], xs[2] - x[j]))
+            left = max(m for m in minima if m <= j)
+            right = min(m for m in minima if m >= j)
+            found.append((float(x[j] + offset), float(c - b**2 / (4 * a) if a < 0 else ys[1]),
+                          float(x[right] - x[left])))
+    return found
+
+
+def _kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
+    """Robot-free excited shape at every node from the sensors' and the robot's phasors.
+
+    The robot's reaction ``D_r W_r`` is removed from every measurement with the bare line's
+    receptance; the robot-free shape is then the posterior mean of a Gaussian prior over the bare
+    modal amplitudes with variance ``1 / |omega_n^2 - omega^2 + i omega z_n|^2`` (what a load
+    spread evenly over the modes would drive): near a resonance it is that mode, fitted; between
+    two, the mix the few measurements support.
+    """
+    n_r = plant.coupling(x_r)
+    dynamic = np.diag(plant.omega2 - omega**2) + 1j * omega * plant.line_damping
+    rows = np.vstack([sensor_rows, n_r])  # (p + 1, r)
+    values = np.append(sensed, at_robot)
+    reaction = _robot_dynamic_stiffness(robot, omega) * at_robot
+    values = values - rows @ np.linalg.solve(dynamic, n_r) * reaction
+    # A floor of 0.1 % damping keeps the prior finite on an undamped line at resonance.
+    floor = 2e-3 * np.sqrt(plant.omega2) * omega
+    variance = 1.0 / (np.abs(plant.omega2 - omega**2) ** 2 + floor**2)
+    gram = (rows * variance) @ rows.T
+    gram = gram + 1e-6 * np.trace(gram) / gram.shape[0] * np.eye(gram.shape[0])
+    return (plant.nodal * variance) @ (rows.T @ np.linalg.solve(gram, values))
+
+
+def _predicted_rms(bare_shape, plant, robot, omega, positions, weights):
+    """RMS over the span, in steady state, with the robot parked at each of ``positions``.
+
+    With one point attachment the parked field follows from the robot-free one exactly:
+    ``W_p = W_bare + H(., p) D_r W_p(p)`` and ``W_p(p) = W_bare(p) / (1 - H(p, p) D_r)``,
+    so only the bare line's receptance is needed (no modal force is inverted from the estimate).
+    """
+    reaction = _robot_dynamic_stiffness(robot, omega)
+    out = np.empty(len(positions))
+    for i, p in enumerate(positions):
+        h = plant.receptance(p, omega)
+        n = plant.coupling(p)
+        at_robot = complex(n @ np.linalg.solve(
+            np.diag(plant.omega2 - omega**2) + 1j * omega * plant.line_damping, n))
+        w_bare_p = complex(np.interp(p, plant.model.node_positions, bare_shape.real)
+                           + 1j * np.interp(p, plant.model.node_positions, bare_shape.imag))
+        shape = bare_shape + h * reaction * w_bare_p / (1 - at_robot * reaction)
+        out[i] = np.sqrt(0.5 * weights @ np.abs(shape) ** 2)
+    return out
+
+
+def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high):
+    """The predicted best parked position: among the local minima of the predicted RMS within
+    NEAR_OPTIMAL of the lowest, the one nearest the robot.
+
+    Returns (position, loop length, grid, predicted RMS on the grid), or None without a loop.
+    """
+    x = plant.model.node_positions
+    antinodes = _antinodes_of(bare_shape, x)
+    if not antinodes:
+        return None
+    grid = np.linspace(low, high, max(4 * x.size, 200))
+    predicted = _predicted_rms(bare_shape, plant, robot, omega, grid, weights)
+    minima = [i for i in range(grid.size)
+              if (i == 0 or predicted[i] <= predicted[i - 1])
+              and (i == grid.size - 1 or predicted[i] <= predicted[i + 1])]
+    good = [i for i in minima if predicted[i] <= (1 + NEAR_OPTIMAL) * predicted.min()]
+    pick = min(good, key=lambda i: abs(grid[i] - robot_position))
+    if 0 < pick < grid.size - 1:
+        # Parabola through the grid minimum and its neighbours (uniform grid).
+        a, b, c = predicted[pick - 1 : pick + 2]
+        denom = a - 2 * b + c
+        offset = 0.5 * (a - c) / denom if denom > 0 else 0.0
+        position = float(grid[pick] + offset * (grid[1] - grid[0]))
+    else:
+        position = float(grid[pick])
+    loop = min(antinodes, key=lambda a: abs(a[0] - position))[2]
+    return position, loop, read_only(grid), read_only(predicted)
+
+
+def _half_wavelength(span: Span, frequency: float) -> float:
+    """Loop length at f: pi / k with m omega^2 = EI k^4 + T k^2 (taut beam)."""
+    cond = span.conductor
+    omega2 = (2 * np.pi * frequency) ** 2
+    t, ei, m = span.tension, cond.ei, cond.mass_per_length
+    k2 = (-t + np.sqrt(t**2 + 4 * ei * m * omega2)) / (2 * ei) if ei > 0 else m * omega2 / t
+    return float(np.pi / np.sqrt(k2))
+
+
+def _time_optimal_accel(position, velocity, goal, limits: RobotLimits, period: float) -> float:
+    """Closed-form time-optimal approach of a double integrator, one constant-accel period.
+
+    The velocity wanted is the largest that can still stop at the goal with the braking the
+    limits allow, corrected for the discrete period (sqrt law with a half-period offset); the
+    acceleration reaches it as fast as allowed.
+    """
+    error = goal - position
+    a, v_max = limits.a_max, limits.v_max
+    half = 0.5 * a * period
+    v_stop = -half + np.sqrt(half**2 + 2 * a * abs(error))
+    wanted = np.sign(error) * min(v_max, v_stop, abs(error) / period)
+    return float(np.clip((wanted - velocity) / period, -a, a))
+
+
+def _free_interval(position, obstacles, span_length, margin):
+    low, high = margin, span_length - margin
+    for left, right in obstacles:
+        if right <= position:
+            low = max(low, right + margin)
+        elif left >= position:
+            high = min(high, left - margin)
+    return low, high
+
+
+def _arrival_index(position: np.ndarray, start: int, tolerance: float) -> int | None:
+    """First index >= start after which the position stays within tolerance of its last value."""
+    outside = np.flatnonzero(np.abs(position[start:] - position[-1]) > tolerance)
+    if outside.size == 0:
+        return start
+    index = start + int(outside[-1]) + 1
+    return index if index < position.size else None
+
+
+def _trapezoid_weights(x: np.ndarray) -> np.ndarray:
+    w = np.zeros_like(x)
+    w[1:] += 0.5 * np.diff(x)
+    w[:-1] += 0.5 * np.diff(x)
+    return w / w.sum()
+
+
+# ---------------------------------------------------------------------------------- validation
+def _check_robot(span: Span, robot: MDR) -> None:
+    if robot.position > span.length:
+        raise InputError(
+            f"The 'robot.position' parameter must lie on the span [0, {span.length:g}] m. "
+            f"Got {robot.position:g}."
+        )
+    total = robot.body_mass + robot.suspended_mass
+    span_mass = span.conductor.mass_per_length * span.length
+    if total > MAX_ROBOT_MASS_RATIO * span_mass:
+        raise InputError(
+            f"The 'robot' is too heavy for this span: {total:g} kg against a span mass of "
+            f"{span_mass:.3g} kg (allowed: at most {MAX_ROBOT_MASS_RATIO:g} of it, beyond which "
+            "the robot is not a small attachment of the line)."
+        )
+    slope = GRAVITY * total / (2 * span.tension)
+    if slope > MAX_STATIC_SLOPE:
+        raise InputError(
+            f"The 'robot' is too heavy for the tension: its weight {GRAVITY * total:.3g} N "
+            f"bends the line by {slope:.3g} rad at midspan (W / 2T; allowed "
+            f"<= {MAX_STATIC_SLOPE:g}, the small-slope limit of the linear line model)."
+        )
+
+
+def _check_multiple(name: str, value: float, dt: float) -> int:
+    steps = int(round(value / dt))
+    if steps < 1 or abs(steps * dt - value) > 1e-9 * max(1.0, value):
+        raise InputError(
+            f"The '{name}' parameter ({value:g} s) must be a positive multiple of dt ({dt:g} s)."
+        )
+    return steps
+
+
+def _calibrated_filter(record, dt, sensors, delays, noise_var):
+    """Steady-state Kalman filter on a DMD model of the calibration record (alpha from data)."""
+    curve = select_alpha(record, dt, delays=delays)
+    alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None else curve.best_alpha
+    dmd = fit_dmd(record, dt, alpha=alpha, delays=delays, alpha_mode=curve.alpha_mode)
     sys = dmd.to_statespace(measured=list(sensors))
     kf = KalmanFilter(
         sys, Q=dmd.residual_covariance, R=noise_var, steady_state=True, field_map=dmd.field_map
     )
-    return kf, dmd.field_map
+    return kf, np.asarray(dmd.field_map), np.asarray(sys.C) @ np.asarray(sys.A)
 
 
-def _next_goal(
-    window: np.ndarray, x: np.ndarray, dt: float, robot: float, previous: float
-) -> float:
-    """The antinode to steer to: first the one nearest the robot, then only small corrections.
-
-    Once the robot damps its loop, that loop's motion is small, the model (identified with the
-    robot parked) fits it less well, and the estimated pattern wanders; jumping to another loop
-    would throw the approach away. So after the first choice the goal accepts only an antinode
-    within a quarter loop of it (a gate), and otherwise stays.
-    """
-    try:
-        antinodes = locate_antinodes(window, x, dt=dt)
-    except PowerlineControlError:
-        antinodes = []
-    if np.isnan(previous):
-        return nearest_antinode(antinodes, robot).position if antinodes else robot
-    gated = [a for a in antinodes if abs(a.position - previous) < 0.25 * a.loop_length]
-    return (
-        min(gated, key=lambda a: abs(a.position - previous)).position if gated else float(previous)
-    )
-
-
-# Thousands of small (n ~ 100-400) products per simulated second: one BLAS thread is several
-# times faster than two contending ones on a shared 2-core machine (measured: real-time factor
-# 0.18 with the default threads, 0.69 with one). The limit applies inside this call only.
+# Thousands of small products per simulated second: one BLAS thread is several times faster than
+# two contending ones on a shared 2-core machine. The limit applies inside this call only.
 @threadpool_limits.wrap(limits=1, user_api="blas")
 def run_closed_loop(
     span: Span,
@@ -186,15 +690,23 @@ def run_closed_loop(
     sensors: Sequence[int],
     n_elements: int = 100,
     bc: object = "pinned",
+    damping: object = None,
     duration: float = 10.0,
     calibration: float = 2.0,
     dt: float = 1e-3,
     control_period: float = 0.05,
+    plant_period: float = 0.01,
     noise_fraction: float = 0.01,
     delays: int = 2,
-    antinode_window: float = 0.25,
+    antinode_window: float = 1.0,
+    frequency_window: float = 2.0,
+    retarget_threshold: float = 0.05,
+    settle_margin: float = 1.0,
+    n_modes: int | None = None,
+    clamp_distance: float | None = None,
     obstacles: Sequence[tuple[float, float]] = (),
-    planner_time_budget: float = 1.0,
+    motion: str = "closed_form",
+    planner_time_budget: float | None = 1.0,
     seed: int | np.random.Generator | None = 0,
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
@@ -203,18 +715,21 @@ def run_closed_loop(
     ----------
     span : Span
         The span.
-    force : load
-        The excitation (e.g. :class:`~powerline_control.excitation.HarmonicForce`).
+    force : load, list of loads, or list of (start_time, load)
+        The excitation (e.g. :class:`~powerline_control.excitation.HarmonicForce`); a schedule
+        ``[(0.0, load_a), (8.0, load_b)]`` switches loads at the given times (a wind change).
     robot : MDR
         The robot; ``robot.position`` is where it starts (and stays parked in the baseline).
     limits : RobotLimits or None
         Speed and acceleration limits (default v_max = 0.5 m/s, a_max = 1 m/s^2).
     sensors : sequence of int
-        Measured node indices.
+        Measured node indices (not at a pinned support, where the line never moves).
     n_elements : int
-        Elements of the FE model that plays the real line.
+        Elements of the FE model whose modes play the real line.
     bc : str or (str, str)
         Supports.
+    damping : None, ModalDamping or RayleighDamping
+        The line's own damping (none by default, as in the paper).
     duration : float
         Total simulated time, s, calibration included.
     calibration : float
@@ -222,18 +737,37 @@ def run_closed_loop(
     dt : float
         Sample interval, s.
     control_period : float
-        Interval between planner steps, s (a multiple of ``dt``).
+        Interval between control steps, s (a multiple of ``dt``).
+    plant_period : float
+        Interval over which the plant holds the robot's (mid-block) position, s (a multiple of
+        ``dt``).
     noise_fraction : float
-        Sensor noise as a fraction of the RMS displacement of the calibration window.
+        Sensor noise as a fraction of the RMS displacement of the calibration window (0: none;
+        the filter then assumes a 1e-4 floor so that its Riccati equation stays regular).
     delays : int
         Time delays of the DMD model (2 makes the displacement model exact for a linear line).
     antinode_window : float
-        Length of the estimate window the antinode is located in, s.
+        Length of the window the excited shape is fitted on, s.
+    frequency_window : float
+        Length of the window the dominant frequency is measured on, s (its resolution is about
+        1 / window: long enough to tell the load from the beating of a decaying mode).
+    retarget_threshold : float
+        Relative change of the dominant frequency that, held for ``antinode_window`` (and at
+        least 1 s), makes the robot choose a new target (a wind change).
+    settle_margin : float
+        Time after the robot's arrival before the settled window starts, s.
+    n_modes : int or None
+        Bare-line modes of the plant; None keeps those below 8x the highest load frequency (at
+        least 12; all of a small model).
+    clamp_distance : float or None
+        Where the "near clamp" comparison parks the robot, m from the left support; default
+        min(0.05 L, 1.5 m), where fixed dampers sit.
     obstacles : sequence of (left, right)
         Intervals the robot may not enter or cross, m.
-    planner_time_budget : float
-        Wall-clock budget of one planner step, s. The default is generous because this is a
-        simulation: a real-time budget (tens of ms) would make results depend on machine load.
+    motion : {"closed_form", "mpc"}
+        Motion law: the closed-form time-optimal approach, or the receding-horizon planner.
+    planner_time_budget : float or None
+        Wall-clock budget of one MPC step, s (``motion="mpc"`` only).
     seed : int, Generator or None
         Sensor noise.
 
@@ -244,7 +778,10 @@ def run_closed_loop(
     Raises
     ------
     InputError
-        For invalid arguments (e.g. sensors outside the model, a calibration longer than the run).
+        For invalid arguments: sensors outside the model or at a support, a calibration longer
+        than the run, periods that are not multiples of ``dt``, a robot off the span, inside an
+        obstacle, or heavier than the line can carry (more than 25 % of the span's mass, or a
+        static slope W / 2T above 0.05 rad).
     PowerlineControlError
         From the stages (identification, estimation, planning) when they report trouble.
 
@@ -259,6 +796,7 @@ def run_closed_loop(
             f"The 'robot' parameter must be an MDR (its position is the start). "
             f"Got {type(robot).__name__}."
         )
+    _check_robot(span, robot)
     limits = limits or RobotLimits(v_max=0.5, a_max=1.0)
     if not isinstance(limits, RobotLimits):
         raise InputError(
@@ -270,99 +808,382 @@ def run_closed_loop(
     )
     dt = check_real("dt", dt, low=0.0)
     control_period = check_real("control_period", control_period, low=0.0)
-    steps_per_period = int(round(control_period / dt))
-    if steps_per_period < 1 or abs(steps_per_period * dt - control_period) > 1e-9:
-        raise InputError(
-            f"The 'control_period' parameter ({control_period:g} s) must be a "
-            f"positive multiple of dt ({dt:g} s)."
-        )
-    n_elements = check_int("n_elements", n_elements, low=1)
+    plant_period = check_real("plant_period", plant_period, low=0.0)
+    steps_per_period = _check_multiple("control_period", control_period, dt)
+    plant_steps = _check_multiple("plant_period", plant_period, dt)
+    n_cal = _check_multiple("calibration", calibration, dt) + 1
+    noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True)
+    antinode_window = check_real("antinode_window", antinode_window, low=0.0)
+    frequency_window = check_real("frequency_window", frequency_window, low=0.0)
+    retarget_threshold = check_real("retarget_threshold", retarget_threshold, low=0.0)
+    settle_margin = check_real("settle_margin", settle_margin, low=0.0, low_inclusive=True)
+    delays = check_int("delays", delays, low=1)
+    if motion not in ("closed_form", "mpc"):
+        raise InputError(f"The 'motion' parameter must be 'closed_form' or 'mpc'. Got {motion!r}.")
+    n_elements = check_int("n_elements", n_elements, low=2)
     sensors = tuple(check_indices("sensors", sensors, n_elements + 1).tolist())
+    if len(set(sensors)) != len(sensors):
+        raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
+    obstacles = [
+        (check_real("obstacles", a), check_real("obstacles", b)) for a, b in obstacles
+    ]
+    for left, right in obstacles:
+        if not left < right:
+            raise InputError(f"Each of 'obstacles' must be (left, right), left < right. Got "
+                             f"{(left, right)}.")
+        if left <= robot.position <= right:
+            raise InputError(
+                f"The 'robot.position' ({robot.position:g} m) lies inside the obstacle "
+                f"{(left, right)}."
+            )
     rng = check_rng(seed)
-    # The physics sees the robot's position rounded to 1 cm (0.3 % of the lab span, far below a
-    # loop length): each new position costs an eigen-solve, and 1 cm moves nothing measurable.
-    models = _ModelCache(span, n_elements, bc, robot, resolution=1e-2)
+    segments = _segments(force, duration)
 
-    parked = models.at(robot.position)
-    baseline = simulate(parked, force, duration=duration, dt=dt)
-    calib = simulate(
-        parked, force, duration=calibration, dt=dt, noise_fraction=noise_fraction, seed=rng
+    setup_start = time.perf_counter()
+    bare = LineModel(span, n_elements, bc, damping=damping)
+    fixed_nodes = [j for j in sensors if bare.displacement_map()[[j]].nnz == 0]
+    if fixed_nodes:
+        raise InputError(
+            f"The 'sensors' parameter names support node(s) {fixed_nodes}, where the line does "
+            "not move: the estimator's model has no displacement there."
+        )
+    clamp_distance = (
+        min(0.05 * span.length, 1.5)
+        if clamp_distance is None
+        else check_real("clamp_distance", clamp_distance, low=0.0, high=span.length)
     )
-    noise_std = calib.noise_std
-    kf, field_map = _calibrated_filter(calib, sensors, delays, noise_std**2)
-    # Warm the filter on the calibration record so the loop starts from a converged estimate.
-    warm = kf.filter(calib.displacement[list(sensors)], update_state=True)
+    t = dt * np.arange(_check_multiple("duration", duration, dt) + 1)
+    n_t = t.size
+    top_frequency = max(
+        (float(f.frequency) for _, loads in segments for f in loads if hasattr(f, "frequency")),
+        default=0.5 / dt / 4,
+    )
+    if n_modes is None:
+        below = int(np.count_nonzero(span.pinned_frequencies(bare.n_dofs) <= 8 * top_frequency))
+        n_modes = int(min(bare.n_dofs, max(12, below + 2)))
+    else:
+        n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
+    plant = _ModalPlant(bare, robot, n_modes, dt)
+    free_plant = _ModalPlant(bare, None, n_modes, dt)
+    modal_force, residual, harmonic = _load_histories(bare, plant, segments, t)
+    nodal = plant.nodal
+    weights = _trapezoid_weights(bare.node_positions)
+    sensor_list = list(sensors)
 
-    n_t = baseline.t.size
-    n_cal = calib.t.size
-    displacement = np.empty_like(baseline.true_displacement)
-    displacement[:, :n_cal] = calib.true_displacement
-    estimated = np.full_like(displacement, np.nan)
-    estimated[:, :n_cal] = warm.field
+    # ---- calibration: robot parked at its start
+    start_states = _run_parked(plant, robot.position, modal_force, n_t)
+    r, nq = plant.r, plant.n_q
+    calib_true = nodal @ start_states[:n_cal, :r].T + residual[:, :n_cal]
+    calib_rms = float(np.sqrt(np.mean(calib_true**2)))
+    noise_std = noise_fraction * calib_rms
+    calib_noisy = calib_true + noise_std * rng.standard_normal(calib_true.shape)
+    filter_var = max(noise_std, 1e-4 * calib_rms) ** 2
+    kf, field_map, predict_sensors = _calibrated_filter(
+        calib_noisy, dt, sensor_list, delays, filter_var
+    )
+    states = np.empty((n_t, field_map.shape[1]))
+    warm = kf.filter(calib_noisy[sensor_list], update_state=True)
+    states[:n_cal] = np.asarray(warm.states).T
+    innovation_cal = calib_noisy[sensor_list, 2:] - predict_sensors @ states[1 : n_cal - 1].T
+    calib_innovation = float(np.sqrt(np.mean(innovation_cal**2)))
+    innovation_power = np.zeros(n_t)
+    innovation_power[2:n_cal] = np.mean(innovation_cal**2, axis=0)
+
+    # ---- the loop
+    z_hist = np.empty((n_t, 2 * nq))
+    z_hist[:n_cal] = start_states[:n_cal]
     position = np.full(n_t, robot.position)
     velocity = np.zeros(n_t)
     target = np.full(n_t, np.nan)
-    # The planner's horizon must outlast a full stop from top speed; twice that leaves room.
-    braking = limits.v_max / limits.a_max
-    horizon = max(40, int(np.ceil(2 * braking / control_period)))
-    planner = MotionPlanner(
-        limits,
-        dt=control_period,
-        horizon=horizon,
-        span_length=span.length,
-        obstacles=obstacles,
-        time_budget=planner_time_budget,
+    robot_measured = np.zeros(n_t)
+    n_cal_coupling = plant.coupling(robot.position)
+    robot_measured[:n_cal] = start_states[:n_cal, :r] @ n_cal_coupling + noise_std * (
+        rng.standard_normal(n_cal)
     )
-    statuses = []
-    state, x_r, v_r = calib.final_state, robot.position, 0.0
+    measured = np.zeros((len(sensor_list), n_t))
+    measured[:, :n_cal] = calib_noisy[sensor_list]
     window = max(int(round(antinode_window / dt)), 2 * steps_per_period)
-    start = time.perf_counter()
+    frequency_samples = max(int(round(frequency_window / dt)), 2 * steps_per_period)
+    statuses, frequencies, innovation_ratio = [], [], []
+    retarget_times, target_starts, predictions = [], [], []
+    planner = None
+    if motion == "mpc":
+        braking = limits.v_max / limits.a_max
+        planner = MotionPlanner(
+            limits, dt=control_period, horizon=max(40, int(np.ceil(2 * braking / control_period))),
+            span_length=span.length, obstacles=obstacles,
+            **({} if planner_time_budget is None else {"time_budget": planner_time_budget}),
+        )
+    goal, anchor, loop = np.nan, np.nan, np.nan
+    anchor_frequency, pending_since, still_since = np.nan, None, None
+    choices, confirmed = 0, False
+    x_r, v_r = robot.position, 0.0
+    steer = x_r
+    z = start_states[n_cal - 1].copy()
+    margin = 0.02 * span.length
+
+    sensor_rows = nodal[sensor_list]
+
+    def bare_shape(lo: int, end: int, frequency: float) -> np.ndarray:
+        """The robot-free excited shape from the sensors' and the robot's own phasors."""
+        tt = t[lo : end + 1]
+        sensed = _fit_phasor(measured[:, lo : end + 1], tt, frequency)
+        at_robot = _fit_phasor(robot_measured[None, lo : end + 1], tt, frequency)[0]
+        return _kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot,
+                             2 * np.pi * frequency)
+
+    def excited_shape(end: int, frequency: float) -> tuple[np.ndarray, float]:
+        """W_bare over the last window (estimate phasor minus the robot's own reaction), and
+        how unsteady it is: the relative difference of the shapes fitted on its two halves."""
+        lo = max(end + 1 - window, 0)
+        mid = (lo + end) // 2
+        first, second = bare_shape(lo, mid, frequency), bare_shape(mid, end, frequency)
+        scale = np.linalg.norm(first) + np.linalg.norm(second)
+        unsteady = 2 * float(np.linalg.norm(first - second)) / max(scale, 1e-300)
+        return bare_shape(lo, end, frequency), unsteady
+
+    timings = {"setup": time.perf_counter() - setup_start, "plant": 0.0, "plant update": 0.0,
+               "filter": 0.0}
+    wall_start, cpu_start = time.perf_counter(), time.process_time()
     k = n_cal - 1
     while k < n_t - 1:
         end = min(k + steps_per_period, n_t - 1)
-        segment = simulate(
-            models.at(x_r),
-            force,
-            duration=(end - k) * dt,
-            dt=dt,
-            start_time=baseline.t[k],
-            initial_state=state,
+        lo = max(k + 1 - window, 0)
+        frequency = _dominant_frequency(measured[:, max(k + 1 - frequency_samples, 0) : k + 1], dt)
+        frequencies.append(frequency)
+        innovation_ratio.append(
+            float(np.sqrt(np.mean(innovation_power[lo + 1 : k + 1])))
+            / max(calib_innovation, 1e-300)
         )
-        state = segment.final_state
-        noisy = segment.true_displacement[:, 1:] + noise_std * rng.standard_normal(
-            (displacement.shape[0], end - k)
+        robot_still = abs(v_r) < 1e-3 and abs(x_r - steer) < 1e-3
+        still_since = (still_since if still_since is not None else t[k]) if robot_still else None
+        changed = (
+            not np.isnan(anchor_frequency)
+            and abs(frequency - anchor_frequency) > retarget_threshold * anchor_frequency
         )
-        displacement[:, k + 1 : end + 1] = segment.true_displacement[:, 1:]
-        for j in range(end - k):
-            kf.step(noisy[list(sensors), j])
-            estimated[:, k + 1 + j] = field_map @ kf.state
-        recent = estimated[:, max(end + 1 - window, 0) : end + 1]
-        goal = _next_goal(recent, baseline.x, dt, x_r, target[k])
-        step = planner.step((x_r, v_r), goal)
-        statuses.append(step.status)
-        # The actuator saturates: the solver meets the limits only to its tolerance (~1e-8).
+        if changed and pending_since is None:
+            pending_since = t[k]
+        elif not changed:
+            pending_since = None
+        window_time = window * dt
+        retarget = np.isnan(goal) or (
+            pending_since is not None
+            and t[k] - pending_since >= max(window_time, 1.0)
+            and robot_still
+        )
+        confirm = (
+            not retarget
+            and not confirmed
+            and still_since is not None
+            and t[k] - still_since >= max(window_time, settle_margin)
+        )
+        if retarget or confirm:
+            shape, unsteady = excited_shape(k, frequency)
+            since = pending_since if retarget else still_since
+            waited = t[k] - since if since is not None else 0.0
+            # A window that still beats with a decaying mode misleads the prediction: wait (up to
+            # MAX_WAIT s) for a steady one, except for the very first target.
+            if unsteady > UNSTEADY_LIMIT and waited < MAX_WAIT and not np.isnan(goal):
+                retarget = confirm = False
+        if retarget or confirm:
+            low, high = _free_interval(x_r, obstacles, span.length, margin)
+            omega_now = 2 * np.pi * frequency
+            choice = _choose_target(shape, plant, robot, omega_now, weights, x_r, low, high)
+            if choice is not None:
+                position_choice, loop_choice, grid, predicted = choice
+                predictions.append((float(t[k]), grid, predicted, read_only(shape)))
+                if retarget:
+                    anchor, loop, goal = position_choice, loop_choice, position_choice
+                    anchor_frequency, pending_since = frequency, None
+                    choices, confirmed = 1, False
+                    retarget_times.append(float(t[k]))
+                    target_starts.append(k)
+                elif abs(position_choice - anchor) <= 0.25 * loop:
+                    # The same minimum, better estimated from a steady window: accept it (the
+                    # gate is anchored to the choice, it never moves with the goal) and stop.
+                    goal, confirmed = position_choice, True
+                elif choices < MAX_CHOICES:
+                    # Another loop: the first choice came from a beating window. Go there.
+                    anchor, loop, goal = position_choice, loop_choice, position_choice
+                    choices += 1
+                else:
+                    confirmed = True
+        low, high = _free_interval(x_r, obstacles, span.length, margin)
+        steer = float(np.clip(goal, low, high)) if not np.isnan(goal) else x_r
         period = (end - k) * dt
-        accel = float(np.clip(step.acceleration, -limits.a_max, limits.a_max))
+        if planner is not None:
+            step = planner.step((x_r, v_r), steer)
+            accel, status = float(step.acceleration), step.status
+        else:
+            accel = _time_optimal_accel(x_r, v_r, steer, limits, period)
+            status = "closed_form" if steer == goal or np.isnan(goal) else "blocked"
+        statuses.append(status)
+        # The actuator saturates: limits hold at every sample.
+        accel = float(np.clip(accel, -limits.a_max, limits.a_max))
         accel = float(np.clip(accel, (-limits.v_max - v_r) / period, (limits.v_max - v_r) / period))
-        # Integrate the commanded constant acceleration over the period, sample by sample.
         tau = dt * np.arange(1, end - k + 1)
         position[k + 1 : end + 1] = x_r + v_r * tau + 0.5 * accel * tau**2
         velocity[k + 1 : end + 1] = v_r + accel * tau
         target[k + 1 : end + 1] = goal
+        # The plant over the period, in blocks holding the robot's mid-block position.
+        j = k
+        while j < end:
+            block_end = min(j + plant_steps, end)
+            x_mid = 0.5 * (position[j] + position[block_end])
+            tic = time.perf_counter()
+            phi, g0, g1 = plant.discretise(x_mid)
+            n_mid = plant.coupling(x_mid)
+            timings["plant update"] += time.perf_counter() - tic
+            tic = time.perf_counter()
+            for i in range(j, block_end):
+                z = phi @ z + g0 @ modal_force[i] + g1 @ modal_force[i + 1]
+                z_hist[i + 1] = z
+            block = z_hist[j + 1 : block_end + 1, :r]
+            y_block = block @ sensor_rows.T + residual[sensor_list, j + 1 : block_end + 1].T
+            robot_block = block @ n_mid
+            if noise_std:
+                y_block = y_block + noise_std * rng.standard_normal(y_block.shape)
+                robot_block = robot_block + noise_std * rng.standard_normal(robot_block.shape)
+            measured[:, j + 1 : block_end + 1] = y_block.T
+            robot_measured[j + 1 : block_end + 1] = robot_block
+            tac = time.perf_counter()
+            for i in range(j, block_end):
+                states[i + 1] = kf.step(y_block[i - j])
+            predicted = states[j:block_end] @ predict_sensors.T
+            innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
+            timings["plant"] += tac - tic
+            timings["filter"] += time.perf_counter() - tac
+            j = block_end
         x_r, v_r = float(position[end]), float(velocity[end])
         k = end
-    wall = time.perf_counter() - start
+    wall = time.perf_counter() - wall_start
+    timings["loop cpu"] = time.process_time() - cpu_start
+    timings["policy and motion"] = wall - timings["plant"] - timings["plant update"] - timings[
+        "filter"]
+    after_start = time.perf_counter()
+
+    # ---- what happened, over a settled window
+    displacement = nodal @ z_hist[:, :r].T + residual
+    final_frequency = frequencies[-1] if frequencies else float("nan")
+    loop_length = _half_wavelength(span, final_frequency) if frequencies else float("nan")
+    tolerance = 0.01 * loop_length
+    settle_times = []
+    bounds = target_starts[1:] + [n_t - 1]
+    for begin, stop in zip(target_starts, bounds, strict=True):
+        arrival = _arrival_index(position[: stop + 1], begin, tolerance)
+        settle_times.append(float(t[arrival] - t[begin]) if arrival is not None else float("nan"))
+    last_begin = target_starts[-1] if target_starts else n_cal - 1
+    arrival = _arrival_index(position, last_begin, tolerance)
+    window_start = t[arrival] + settle_margin if arrival is not None else np.inf
+    settled = bool(window_start <= t[-1] - 1.0)
+    if not settled:
+        window_start = max(t[-1] - 1.0, 0.0)
+    mask = t >= window_start - 1e-12
+    settled_window = (float(t[mask][0]), float(t[-1]))
+
+    def relative_velocity(states_hist, x_hist):
+        if not plant.absorber:
+            return np.zeros(states_hist.shape[0])
+        if np.ndim(x_hist) == 0:
+            line_velocity = states_hist[:, nq : nq + r] @ plant.coupling(float(x_hist))
+        else:
+            coupling = np.stack([plant.coupling(float(x)) for x in x_hist])
+            line_velocity = np.einsum("ij,ij->i", states_hist[:, nq : nq + r], coupling)
+        return line_velocity - states_hist[:, nq + r]
+
+    def metrics(name, pos, states_hist, used_plant, power):
+        field_window = (
+            used_plant.nodal @ states_hist[mask][:, : used_plant.r].T + residual[:, mask]
+        )
+        rms = float(np.sqrt(np.mean(weights @ field_window**2)))
+        envelope = np.max(np.abs(field_window), axis=1)
+        return Comparison(name, float(pos), rms, float(envelope.max()),
+                          float(np.mean(power[mask])) if power.size else 0.0,
+                          read_only(envelope))
+
+    damping_coefficient = robot.damping if robot.has_absorber else 0.0
+    loop_positions = position.copy()
+    if plant.absorber:
+        coupled = np.stack([plant.coupling(float(x)) for x in loop_positions[mask]])
+        full_rel = np.zeros(n_t)
+        full_rel[mask] = (
+            np.einsum("ij,ij->i", z_hist[mask][:, nq : nq + r], coupled) - z_hist[mask, nq + r]
+        )
+        # Outside the window (figures only): the robot's velocity coupling at each sample.
+        full_rel[~mask] = relative_velocity(z_hist[~mask], loop_positions[~mask])
+    else:
+        full_rel = np.zeros(n_t)
+    loop_power = damping_coefficient * full_rel**2
+
+    scan_positions, scan_rms, best_position = np.zeros(0), np.zeros(0), float("nan")
+    if harmonic is not None:
+        scan_frequency, parts = harmonic
+        omega = 2 * np.pi * scan_frequency
+        modal_amplitude = sum(g * _phasor_of(load, scan_frequency) for load, g, _ in parts)
+        static_amplitude = sum(s * _phasor_of(load, scan_frequency) for load, _, s in parts)
+
+        def steady_rms(x):
+            amplitude = plant.steady_state(x, omega, modal_amplitude)
+            shape = nodal @ amplitude[:r] + static_amplitude
+            return float(np.sqrt(0.5 * weights @ np.abs(shape) ** 2))
+
+        coarse = np.linspace(0.0, span.length, 4 * n_elements + 1)[1:-1]
+        coarse_rms = np.array([steady_rms(x) for x in coarse])
+        i = int(np.argmin(coarse_rms))
+        step = coarse[1] - coarse[0]
+        fine = np.linspace(max(coarse[i] - 2 * step, 1e-9),
+                           min(coarse[i] + 2 * step, span.length - 1e-9), 41)
+        fine_rms = np.array([steady_rms(x) for x in fine])
+        scan_positions = np.concatenate([coarse, fine])
+        order = np.argsort(scan_positions)
+        scan_rms = np.concatenate([coarse_rms, fine_rms])[order]
+        scan_positions = scan_positions[order]
+        best_position = float(fine[int(np.argmin(fine_rms))])
+
+    def parked(name, x_park):
+        if x_park is None:
+            hist = _run_parked(free_plant, None, modal_force, n_t)
+            return metrics(name, np.nan, hist, free_plant, np.zeros(n_t))
+        hist = _run_parked(plant, x_park, modal_force, n_t)
+        power = damping_coefficient * relative_velocity(hist, x_park) ** 2
+        return metrics(name, x_park, hist, plant, power)
+
+    comparisons = [
+        parked("no_robot", None),
+        parked("near_clamp", clamp_distance),
+        metrics("start", robot.position, start_states, plant,
+                damping_coefficient * relative_velocity(start_states, robot.position) ** 2),
+        parked("best", best_position) if not np.isnan(best_position)
+        else Comparison("best", np.nan, np.nan, np.nan, np.nan, read_only(np.zeros(bare.n_nodes))),
+        metrics("closed_loop", position[-1], z_hist, plant, loop_power),
+    ]
+    baseline = nodal @ start_states[:, :r].T + residual
+    timings["comparisons"] = time.perf_counter() - after_start
     return ClosedLoopResult(
-        t=baseline.t,
-        x=baseline.x,
-        displacement=displacement,
-        baseline_displacement=baseline.true_displacement,
-        estimated_field=estimated,
-        robot_position=position,
-        robot_velocity=velocity,
-        target=target,
+        t=read_only(t),
+        x=read_only(bare.node_positions.copy()),
+        displacement=read_only(displacement),
+        baseline_displacement=read_only(baseline),
+        estimated_field=read_only(field_map @ states.T),
+        robot_position=read_only(position),
+        robot_velocity=read_only(velocity),
+        target=read_only(target),
         sensors=sensors,
-        calibration_time=float(calib.t[-1]),
+        calibration_time=float(t[n_cal - 1]),
         statuses=tuple(statuses),
         wall_time=wall,
+        settled_window=settled_window,
+        settled=settled,
+        comparisons=tuple(comparisons),
+        scan_positions=read_only(scan_positions),
+        scan_rms=read_only(scan_rms),
+        best_position=best_position,
+        loop_length=loop_length,
+        frequency=read_only(np.array(frequencies)),
+        retarget_times=tuple(retarget_times),
+        settle_times=tuple(settle_times),
+        innovation_ratio=read_only(np.array(innovation_ratio)),
+        damper_power=read_only(loop_power),
+        predictions=tuple(predictions),
+        timings=timings,
     )

@@ -76,3 +76,10 @@ class UnstableModelWarning(UserWarning):
 
 class TruncationWarning(UserWarning):
     """A modal truncation or time step cannot resolve the requested excitation."""
+
+
+class UndetectableModeWarning(UserWarning):
+    """A mode on or outside the unit circle is invisible to the sensors: its error grows."""
+
+
+__all__ += ["UndetectableModeWarning"]

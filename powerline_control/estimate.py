@@ -27,6 +27,7 @@ against their chi-square bands).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -35,16 +36,25 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.stats as sstats
 
-from ._validation import check_array, check_int, check_real
-from .errors import EstimationError, InputError
-from .observability import (
-    _check_discrete_system,
-    _check_field_map,
-    _field_variances,
-    _noise_covariance,
-    _posterior_from_predicted,
-    _solve_filter_dare,
+from ._riccati import (
+    describe_modes,
+    field_variances as mapped_variances,
+    filter_gain,
+    posterior_from_predicted,
+    solve_filter_dare,
+    undetectable_modes,
 )
+from ._validation import (
+    check_array,
+    check_covariance,
+    check_discrete_system,
+    check_field_map,
+    check_indices,
+    check_int,
+    check_real,
+    read_only,
+)
+from .errors import EstimationError, InputError, UndetectableModeWarning
 
 __all__ = [
     "Estimate",
@@ -98,14 +108,20 @@ class Estimate:
         Filter-form gain ``(n, p)`` of the last update that used every sensor (the steady-state
         gain once converged).
     converged_at : int or None
-        First sample from which the gain was frozen (its change fell below ``gain_rtol``); ``0``
-        in steady-state mode, ``None`` if it never converged.
+        First sample from which the gain was frozen (the change of the covariance and of the
+        gain stayed below ``gain_rtol``); ``0`` in steady-state mode, ``None`` if it never
+        converged (always ``None`` when ``undetectable_modes`` is not empty).
     dt : float or None
         Sample time of the model (``None`` when the model's timebase is unspecified).
     field : numpy.ndarray or None
         Full field ``field_map @ states``, ``(n_nodes, n_t)``, when the filter has a field map.
     field_variances : numpy.ndarray or None
         Posterior variance of each field value, ``(n_nodes, n_t)``, when the filter has a field map.
+    undetectable_modes : tuple of complex
+        Eigenvalues on or outside the unit circle that the sensors cannot see (empty when the
+        model is detectable). Their variance grows without bound and is reported as it grows.
+
+    All arrays are read-only.
 
     Examples
     --------
@@ -127,12 +143,23 @@ class Estimate:
     dt: float | None
     field: np.ndarray | None = None
     field_variances: np.ndarray | None = None
+    undetectable_modes: tuple[complex, ...] = ()
+
+    def __post_init__(self) -> None:
+        _freeze_arrays(self)
 
     @property
     def t(self) -> np.ndarray:
         """Sample times ``k * dt`` in seconds, ``(n_t,)`` (sample indices without a timebase)."""
         step = 1.0 if self.dt is None else self.dt
         return np.arange(self.states.shape[1]) * step
+
+
+def _freeze_arrays(result: object) -> None:
+    """Mark every ndarray field of a result read-only (no copy: the result owns them)."""
+    for value in vars(result).values():
+        if isinstance(value, np.ndarray):
+            value.setflags(write=False)
 
 
 def _selection_indices(c: np.ndarray) -> np.ndarray | None:
@@ -148,8 +175,9 @@ def _selection_indices(c: np.ndarray) -> np.ndarray | None:
 class _Recursion:
     """The per-sample filter state shared by :meth:`KalmanFilter.step` and ``filter``.
 
-    Holds the estimate, the covariance and, once the gain has converged (or in steady-state
-    mode), the frozen gain with its covariances, so that full samples need no covariance work.
+    Holds the estimate, the covariance and, once the covariance has converged (or in
+    steady-state mode), the frozen gain with its covariances, so that full samples need no
+    covariance work.
     """
 
     def __init__(self, kf: KalmanFilter) -> None:
@@ -162,7 +190,8 @@ class _Recursion:
         self.converged = False
         self.converged_at: int | None = None
         self.batch = None
-        self.settled = 0  # consecutive full samples whose gain changed by <= gain_rtol
+        self.settled = 0  # consecutive full samples whose covariance changed by <= gain_rtol
+        self.last_posterior: np.ndarray | None = None
         if kf.steady_state:
             gain, posterior, predicted = kf._steady_solution()
             self.freeze(gain, posterior, predicted)
@@ -177,14 +206,49 @@ class _Recursion:
         kf = self.kf
         self.converged = True
         self.gain_ss, self.posterior_ss, self.predicted_ss = gain, posterior, predicted
-        s = (
-            predicted[np.ix_(kf._sel, kf._sel)]
-            if kf._sel is not None
-            else kf._C @ predicted @ kf._C.T
-        )
-        s = s + kf._r_eff
-        self.s_factor = sla.cho_factor((s + s.T) / 2, lower=True)
+        if kf._info_form:
+            self.s_factor = None  # NIS through Woodbury with posterior_ss, O(n p)
+        else:
+            s = (
+                predicted[np.ix_(kf._sel, kf._sel)]
+                if kf._sel is not None
+                else kf._C @ predicted @ kf._C.T
+            )
+            s = s + kf._r_eff
+            self.s_factor = sla.cho_factor((s + s.T) / 2, lower=True)
         self.batch = None
+
+    def nis_frozen(self, e: np.ndarray) -> np.ndarray:
+        """``e^T S^-1 e`` per column of ``e`` ``(p, L)`` with the frozen covariance."""
+        kf = self.kf
+        if self.s_factor is not None:
+            whitened = sla.solve_triangular(self.s_factor[0], e, lower=True)
+            return np.einsum("ij,ij->j", whitened, whitened)
+        # Woodbury: S^-1 = R^-1 - R^-1 C P+ C^T R^-1 (P+ the posterior), never a p x p solve.
+        r_inv_e = kf._apply_r_inv(e)
+        w = kf._C.T @ r_inv_e
+        return np.einsum("ij,ij->j", e, r_inv_e) - np.einsum("ij,ij->j", w, self.posterior_ss @ w)
+
+    def check_divergence(self, what: str) -> None:
+        """EstimationError when the covariance or the state stops being finite or explodes."""
+        kf = self.kf
+        with np.errstate(all="ignore"):
+            size = float(np.max(np.abs(self.P))) if self.P.size else 0.0
+        if np.isfinite(size) and size <= kf._diverged and np.all(np.isfinite(self.x)):
+            return
+        unseen = kf._undetectable
+        cause = (
+            f"the modes with eigenvalues {describe_modes(unseen)} lie on or outside the unit "
+            "circle and are not detectable from the sensors"
+            if unseen.size
+            else f"the model has spectral radius {kf._radius:.6g} and {what}"
+        )
+        raise EstimationError(
+            f"The Kalman filter diverged at sample {self.k - 1}: its error covariance reached "
+            f"{size:.3g} (over {kf._diverged:.3g}, 1e100 times its scale): {cause}. The "
+            "estimate has no meaning any more; shorten the dropout, add sensors that see those "
+            "modes, or stabilise the model."
+        )
 
     def advance(self, y: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float, int]:
         """Process one sample; return (innovation, NIS, number of sensors used)."""
@@ -203,26 +267,44 @@ class _Recursion:
         self.u_prev = u
         innovation = np.full(kf._p, np.nan)
         self.k += 1
-        # --- converged gain and every sensor present: a plain linear update
+        # --- converged covariance and every sensor present: a plain linear update
         if self.converged and full:
             e = y - kf._measure(x_pred) - (kf._D @ u if kf._m else 0.0)
             self.x = x_pred + self.gain_ss @ e
             self.P = self.posterior_ss
             innovation[:] = e
-            return innovation, float(e @ sla.cho_solve(self.s_factor, e)), kf._p
+            return innovation, float(self.nis_frozen(e[:, None])[0]), kf._p
         if p_pred is None:
-            if self.converged:
-                p_pred = self.predicted_ss
-            else:
-                p_pred = kf._A @ self.P @ kf._A.T + kf._q_eff
+            # From the current covariance: after a frozen full sample P is the stationary
+            # posterior and this is the stationary prior; during a dropout it grows as it must.
+            p_pred = kf._A @ self.P @ kf._A.T + kf._q_eff
         if not mask.any():
             self.x, self.P = x_pred, (p_pred + p_pred.T) / 2
             self.last_full_gain = None if not kf.steady_state else self.last_full_gain
             if not kf.steady_state:
-                self.converged, self.settled = False, 0
+                self.converged, self.settled, self.last_posterior = False, 0, None
+            self.check_divergence("every measurement is missing (a dropout only predicts)")
             return innovation, float("nan"), 0
-        # --- measurement update with the available sensors, Joseph form
+        # --- measurement update with the available sensors
         index = np.flatnonzero(mask)
+        if kf._info_form:
+            gain, nis, e = self._information_update(p_pred, x_pred, y, u, index, full)
+        else:
+            gain, nis, e = self._joseph_update(p_pred, x_pred, y, u, index)
+        innovation[index] = e
+        self.check_divergence("some sensors are missing")
+        if kf.steady_state:
+            return innovation, nis, index.size
+        if not full:
+            self.converged, self.settled = False, 0
+            self.last_full_gain = self.last_posterior = None
+            return innovation, nis, index.size
+        self._track_convergence(gain)
+        return innovation, nis, index.size
+
+    def _joseph_update(self, p_pred, x_pred, y, u, index):
+        """Covariance form (``p <= n``): gain through a Cholesky of ``S``, Joseph update."""
+        kf = self.kf
         r_used = kf._r_eff[np.ix_(index, index)]
         if kf._sel is not None:
             cols = kf._sel[index]
@@ -237,8 +319,11 @@ class _Recursion:
         if kf._m:
             hx = hx + kf._D[index] @ u
         try:
-            factor = sla.cho_factor((s + s.T) / 2, lower=True)
-        except np.linalg.LinAlgError as exc:
+            with np.errstate(all="ignore"):
+                factor = sla.cho_factor((s + s.T) / 2, lower=True)
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            self.P = p_pred
+            self.check_divergence("the innovation covariance is not finite")
             raise EstimationError(
                 f"The innovation covariance S is singular at sample {self.k - 1}; give every "
                 "sensor a positive noise variance R, or use epsilon > 0."
@@ -252,31 +337,61 @@ class _Recursion:
         mht = m[:, cols] if kf._sel is not None else m @ c.T
         posterior = m - mht @ gain.T + gain @ r_used @ gain.T
         self.P = (posterior + posterior.T) / 2
-        innovation[index] = e
-        nis = float(e @ sla.cho_solve(factor, e))
-        if kf.steady_state:
-            return innovation, nis, index.size
-        if not full:
-            self.converged, self.settled = False, 0
-            self.last_full_gain = None
-            return innovation, nis, index.size
-        previous = self.last_full_gain
-        if (
-            previous is not None
-            and kf.gain_rtol > 0
-            and np.max(np.abs(gain - previous)) <= kf.gain_rtol * np.max(np.abs(gain))
-        ):
-            self.settled += 1
+        return gain, float(e @ sla.cho_solve(factor, e)), e
+
+    def _information_update(self, p_pred, x_pred, y, u, index, full):
+        """Information form (``p > n``): ``P+ = (I + P G)^-1 P``, ``K = P+ C^T R^-1``.
+
+        Every product is ``O(n^3 + n^2 p)``; the ``p x p`` innovation covariance is never formed.
+        """
+        kf = self.kf
+        n = kf._n
+        if full:
+            c, r_inv_c, info = kf._C, kf._r_inv_c, kf._info_full
         else:
-            self.settled = 0
-        # Freeze only after the gain has stayed put for a few samples: the extra covariance
-        # steps shrink what is left of the geometric convergence at almost no cost.
+            c = kf._C[index]
+            r_inv_c = kf._apply_r_inv(c, index)
+            info = c.T @ r_inv_c
+        hx = c @ x_pred
+        if kf._m:
+            hx = hx + kf._D[index] @ u
+        with np.errstate(all="ignore"):
+            posterior = np.linalg.solve(np.eye(n) + p_pred @ info, p_pred)
+        posterior = (posterior + posterior.T) / 2
+        gain = posterior @ r_inv_c.T
+        e = y[index] - hx
+        self.x = x_pred + gain @ e
+        self.P = posterior
+        r_inv_e = kf._apply_r_inv(e[:, None], index)[:, 0]
+        w = c.T @ r_inv_e
+        return gain, float(e @ r_inv_e - w @ posterior @ w), e
+
+    def _track_convergence(self, gain: np.ndarray) -> None:
+        """Freeze the gain once the *covariance* has stopped changing (not only the gain).
+
+        The covariance of a direction the sensors cannot see keeps growing while the gain (zero
+        there) looks settled; the old gain-only test froze a small, wrong covariance. A model
+        with undetectable modes on or outside the unit circle is never frozen.
+        """
+        kf = self.kf
+        previous_gain, previous_p = self.last_full_gain, self.last_posterior
+        rtol = kf.gain_rtol
+        steady = (
+            rtol > 0
+            and not kf._undetectable.size
+            and previous_gain is not None
+            and previous_p is not None
+            and np.max(np.abs(gain - previous_gain)) <= rtol * np.max(np.abs(gain))
+            and np.max(np.abs(self.P - previous_p)) <= rtol * np.max(np.abs(self.P))
+        )
+        self.settled = self.settled + 1 if steady else 0
+        # Freeze only after the covariance has stayed put for a few samples: the extra steps
+        # shrink what is left of the geometric convergence at almost no cost.
         if self.settled >= _CONFIRM_SAMPLES:
             self.freeze(gain, self.P, kf._A @ self.P @ kf._A.T + kf._q_eff)
             if self.converged_at is None:
                 self.converged_at = self.k
-        self.last_full_gain = gain
-        return innovation, nis, index.size
+        self.last_full_gain, self.last_posterior = gain, self.P
 
 
 class KalmanFilter:
@@ -294,7 +409,9 @@ class KalmanFilter:
         Process-noise covariance: a variance for every state, ``(n,)`` variances or an ``(n, n)``
         symmetric positive semidefinite matrix (e.g. ``dmd.residual_covariance``).
     R : float or array_like
-        Measurement-noise covariance: one variance, ``(p,)`` variances or a ``(p, p)`` matrix.
+        Measurement-noise covariance, the package's one rule for ``R``: one variance, ``(p,)``
+        variances or a ``(p, p)`` symmetric matrix; ``R + epsilon I`` must be positive definite
+        (a zero variance needs ``epsilon > 0``, otherwise it is an ``InputError``).
     epsilon : float
         The paper's regulariser ``eps >= 0`` added to ``P`` (eq. 16) and ``S`` (eq. 18), i.e. to
         ``Q`` and ``R``. Default 0.
@@ -309,27 +426,53 @@ class KalmanFilter:
         e.g. the map of a rank-truncated DMD model; the filter runs in the model coordinates and
         lifts only its output (``Estimate.field``).
     gain_rtol : float
-        The time-varying filter stops updating the covariance once two consecutive full-sensor
-        gains differ by at most ``gain_rtol`` times the largest gain entry (default 1e-10: the
-        Riccati recursion of a 100-state model stalls at a round-off floor of about 1e-14 to 1e-11,
-        so a tighter value may never trigger); 0 keeps the textbook recursion throughout.
+        The time-varying filter freezes its gain (and stops updating the covariance) once, for
+        10 consecutive full-sensor samples, both the posterior *covariance* and the gain change
+        by at most ``gain_rtol`` relative to their largest entry (default 1e-10: the Riccati
+        recursion of a 100-state model stalls at a round-off floor of about 1e-14 to 1e-11, so a
+        tighter value may never trigger); 0 keeps the textbook recursion throughout. A model
+        with undetectable modes (see ``undetectable_modes``) is never frozen: the covariance of
+        what the sensors cannot see keeps growing as it truly does.
 
     Attributes
     ----------
+    Q, R : numpy.ndarray
+        The noise covariances as full matrices (read-only: a filter's noise model is fixed at
+        construction; build a new filter to change it).
+    epsilon, gain_rtol : float
+        As given (read-only).
     n_states, n_outputs, n_inputs : int
         Dimensions ``n``, ``p``, ``m`` of the model.
     dt : float or None
         Sample time (``None`` for an unspecified timebase).
     steady_state : bool
         Whether the gain is the constant steady-state one.
+    undetectable_modes : numpy.ndarray
+        Eigenvalues on or outside the unit circle the sensors cannot see (empty if none).
 
     Raises
     ------
     InputError
         If ``sys`` is not a finite discrete-time StateSpace, or a covariance has the wrong
-        shape, is not symmetric positive semidefinite or not finite.
+        shape, is not symmetric positive semidefinite or not finite, or ``R + epsilon I`` is
+        not positive definite.
     EstimationError
-        In steady-state mode, if the Riccati equation has no stabilising solution.
+        In steady-state mode, if the Riccati equation has no stabilising solution. While
+        filtering, if the covariance diverges (an unstable mode the sensors cannot see, or a
+        long dropout on an unstable model) or stops being finite.
+
+    Warns
+    -----
+    UndetectableModeWarning
+        When a time-varying filter's sensors cannot see a mode on or outside the unit circle.
+
+    Notes
+    -----
+    Cost per sample: ``O(n^2 p)`` for the covariance update while it converges (``O(n^3 +
+    n^2 p)`` in the information form used when there are more outputs than states, ``p > n``:
+    ``P+ = (I + P C^T R^-1 C)^-1 P`` and ``K = P+ C^T R^-1``, never a ``p x p`` solve), then
+    ``O(n p)`` per sample once frozen. A reduced model of ``r`` states with ``p`` outputs costs
+    what ``r`` and ``p`` cost, not what the number of nodes costs.
 
     Examples
     --------
@@ -357,55 +500,143 @@ class KalmanFilter:
         field_map: object = None,
         gain_rtol: float = 1e-10,
     ) -> None:
-        sys = _check_discrete_system("sys", sys)
+        sys = check_discrete_system("sys", sys)
         self._A = np.array(sys.A, dtype=float)
         self._B = np.array(sys.B, dtype=float)
         self._C = np.array(sys.C, dtype=float)
         self._D = np.array(sys.D, dtype=float)
-        self.n_states, self.n_outputs, self.n_inputs = sys.nstates, sys.noutputs, sys.ninputs
-        self._n, self._p = self.n_states, self.n_outputs
+        self._dims = (sys.nstates, sys.noutputs, sys.ninputs)
+        self._n, self._p = sys.nstates, sys.noutputs
         # A zero B (an autonomous model built with a dummy input) is skipped entirely.
         has_input = sys.ninputs > 0 and (np.any(self._B) or np.any(self._D))
         self._m = sys.ninputs if has_input else 0
-        self.dt = None if sys.dt is True else float(sys.dt)
+        self._dt = None if sys.dt is True else float(sys.dt)
         if not isinstance(steady_state, bool):
             raise InputError(
                 f"The 'steady_state' parameter must be True or False. Got {steady_state!r}."
             )
-        self.steady_state = steady_state
-        self.epsilon = check_real("epsilon", epsilon, low=0.0, low_inclusive=True)
-        self.gain_rtol = check_real("gain_rtol", gain_rtol, low=0.0, low_inclusive=True)
+        self._steady_state = steady_state
+        self._epsilon = check_real("epsilon", epsilon, low=0.0, low_inclusive=True)
+        self._gain_rtol = check_real("gain_rtol", gain_rtol, low=0.0, low_inclusive=True)
         if self._p == 0:
             raise InputError("The 'sys' parameter must have at least one output (sensor).")
         n, p = self._n, self._p
-        self.Q = _noise_covariance("Q", Q, n)
-        self.R = _noise_covariance("R", R, p)
-        self._q_eff = self.Q + self.epsilon * np.eye(n)
-        self._r_eff = self.R + self.epsilon * np.eye(p)
+        self._Q = read_only(check_covariance("Q", Q, n))
+        self._R = read_only(check_covariance("R", R, p))
+        self._q_eff = self._Q + self._epsilon * np.eye(n)
+        self._r_eff = self._R + self._epsilon * np.eye(p)
+        try:  # the one rule for R: positive definite (here with the paper's epsilon added)
+            np.linalg.cholesky(self._r_eff)
+        except np.linalg.LinAlgError:
+            raise InputError(
+                "The 'R' parameter plus epsilon * I must be positive definite: every sensor "
+                "needs measurement noise (a noise-free sensor makes the innovation covariance "
+                f"singular). Got smallest eigenvalue {np.linalg.eigvalsh(self._r_eff).min():.3g}"
+                f" with epsilon={self._epsilon!r}; give R > 0 or use epsilon > 0."
+            ) from None
         self._x0 = (
             np.zeros(n) if x0 is None else check_array("x0", x0, shape=(n,)).astype(float)
         )
-        if P0 is None:
-            self._P0 = np.eye(n)
-        else:
-            self._P0 = _noise_covariance("P0", P0, n)
-        self._field_map = _check_field_map(field_map, n)
+        self._P0 = np.eye(n) if P0 is None else check_covariance("P0", P0, n)
+        self._field_map = check_field_map(field_map, n)
         self._sel = _selection_indices(self._C)
+        # Information (Woodbury) form when there are more outputs than states: every update
+        # then costs O(n^3 + n^2 p) instead of the O(p^3) of a p x p innovation covariance.
+        self._info_form = p > n and self._sel is None
+        diagonal = not np.any(self._r_eff - np.diag(np.diag(self._r_eff)))
+        self._r_diag = np.diag(self._r_eff).copy() if diagonal else None
+        if self._info_form:
+            self._r_inv_c = self._apply_r_inv(self._C)
+            self._info_full = self._C.T @ self._r_inv_c
+        self._radius = float(np.max(np.abs(np.linalg.eigvals(self._A))))
+        self._undetectable = read_only(undetectable_modes(self._A, self._C))
+        # Divergence: a covariance 1e100 times its natural scale has lost all meaning.
+        scale = max(float(np.max(np.abs(self._P0))), float(np.max(np.abs(self._q_eff))),
+                    float(np.max(np.abs(self._r_eff))), 1e-300)
+        self._diverged = 1e100 * scale
         self._steady: tuple | None = None
         self._steady_batch: dict | bool | None = None
         if steady_state:
             self._steady_solution()  # fail early (EstimationError) if no steady state exists
+        elif self._undetectable.size:
+            warnings.warn(
+                f"The sensors cannot see the modes with eigenvalues "
+                f"{describe_modes(self._undetectable)} (on or outside the unit circle): their "
+                "estimation error grows without bound. The filter keeps propagating their "
+                "covariance honestly (never frozen) and Estimate.undetectable_modes names them.",
+                UndetectableModeWarning,
+                stacklevel=2,
+            )
         self._running = _Recursion(self)
+
+    # ------------------------------------------------------------------ read-only parameters
+
+    @property
+    def Q(self) -> np.ndarray:  # noqa: N802 - the covariance's conventional name
+        """Process-noise covariance ``(n, n)`` given at construction (read-only)."""
+        return self._Q
+
+    @property
+    def R(self) -> np.ndarray:  # noqa: N802 - the covariance's conventional name
+        """Measurement-noise covariance ``(p, p)`` given at construction (read-only)."""
+        return self._R
+
+    @property
+    def epsilon(self) -> float:
+        """The paper's regulariser added to ``Q`` and ``R``."""
+        return self._epsilon
+
+    @property
+    def gain_rtol(self) -> float:
+        """Relative change of the covariance and gain below which the gain is frozen."""
+        return self._gain_rtol
+
+    @property
+    def steady_state(self) -> bool:
+        """Whether the gain is the constant steady-state one."""
+        return self._steady_state
+
+    @property
+    def dt(self) -> float | None:
+        """Sample time (``None`` for an unspecified timebase)."""
+        return self._dt
+
+    @property
+    def n_states(self) -> int:
+        """Model order ``n``."""
+        return self._dims[0]
+
+    @property
+    def n_outputs(self) -> int:
+        """Number of outputs (sensors) ``p``."""
+        return self._dims[1]
+
+    @property
+    def n_inputs(self) -> int:
+        """Number of inputs ``m``."""
+        return self._dims[2]
+
+    @property
+    def undetectable_modes(self) -> np.ndarray:
+        """Eigenvalues on or outside the unit circle that the sensors cannot see (read-only)."""
+        return self._undetectable
+
+    def _apply_r_inv(self, values: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
+        """``R_uu^-1 values`` for the sensors ``index`` (all without), diagonal fast path."""
+        if self._r_diag is not None:
+            r = self._r_diag if index is None else self._r_diag[index]
+            return values / r[:, None]
+        r = self._r_eff if index is None else self._r_eff[np.ix_(index, index)]
+        return sla.cho_solve(sla.cho_factor(r), values)
 
     # ------------------------------------------------------------------ steady state
 
     def _steady_solution(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(filter gain, posterior covariance, predicted covariance) from the DARE, cached."""
         if self._steady is None:
-            predicted = _solve_filter_dare(self._A, self._C, self._q_eff, self._r_eff)
-            s = self._C @ predicted @ self._C.T + self._r_eff
-            gain = sla.cho_solve(sla.cho_factor((s + s.T) / 2), self._C @ predicted).T
-            posterior = _posterior_from_predicted(predicted, self._C, self._r_eff)
+            predicted = solve_filter_dare(self._A, self._C, self._q_eff, self._r_eff)
+            posterior = posterior_from_predicted(predicted, self._C, self._r_eff)
+            gain = filter_gain(predicted, self._C, self._r_eff, posterior)
             self._steady = (gain, posterior, predicted)
         return self._steady
 
@@ -415,12 +646,12 @@ class KalmanFilter:
 
         ``control.dlqe`` returns the predictor-form gain, which equals ``A @ steady_gain``.
         """
-        return self._steady_solution()[0].copy()
+        return read_only(self._steady_solution()[0].copy())
 
     @property
     def steady_covariance(self) -> np.ndarray:
         """Steady-state posterior covariance ``P[k|k]`` from the Riccati equation, ``(n, n)``."""
-        return self._steady_solution()[1].copy()
+        return read_only(self._steady_solution()[1].copy())
 
     def _measure(self, x: np.ndarray) -> np.ndarray:
         return x[self._sel] if self._sel is not None else self._C @ x
@@ -445,7 +676,7 @@ class KalmanFilter:
         if x0 is not None:
             self._x0 = check_array("x0", x0, shape=(self._n,)).astype(float)
         if P0 is not None:
-            self._P0 = _noise_covariance("P0", P0, self._n)
+            self._P0 = check_covariance("P0", P0, self._n)
         self._running = _Recursion(self)
 
     @property
@@ -559,7 +790,7 @@ class KalmanFilter:
         def field_variance_of(cov: np.ndarray) -> np.ndarray:
             nonlocal last_p, last_field_var
             if cov is not last_p:
-                last_p, last_field_var = cov, _field_variances(cov, field_map)
+                last_p, last_field_var = cov, mapped_variances(cov, field_map)
             return last_field_var
 
         run = _Recursion(self)
@@ -570,6 +801,7 @@ class KalmanFilter:
                 end = int(nan_positions[nxt]) if nxt < nan_positions.size else n_t
                 if end - k >= _MIN_BATCH and self._batch_ready(run):
                     self._run_batch(run, y_all, u_all, k, end, states, innovations, nis)
+                    run.P = run.posterior_ss  # every sample of the stretch was a frozen update
                     if variances is not None:
                         variances[:, k:end] = np.diag(run.P)[:, None]
                     if field_variances is not None:
@@ -594,7 +826,7 @@ class KalmanFilter:
             field = field_map @ states
             if variance_constant:
                 field_variances = np.broadcast_to(
-                    _field_variances(run.P, field_map)[:, None], (field.shape[0], n_t)
+                    mapped_variances(run.P, field_map)[:, None], (field.shape[0], n_t)
                 )
         gain = run.last_full_gain if run.last_full_gain is not None else np.full((n, p), np.nan)
         return Estimate(
@@ -609,6 +841,7 @@ class KalmanFilter:
             dt=self.dt,
             field=field,
             field_variances=field_variances,
+            undetectable_modes=tuple(complex(v) for v in self._undetectable),
         )
 
     # ------------------------------------------------------------------ batch recursion
@@ -700,8 +933,7 @@ class KalmanFilter:
             predicted += cache["predict_input"] @ u_prev + self._D @ u
         e = y - predicted
         innovations[:, start:end] = e
-        whitened = sla.solve_triangular(run.s_factor[0], e, lower=True)
-        nis[start:end] = np.einsum("ij,ij->j", whitened, whitened)
+        nis[start:end] = run.nis_frozen(e)
         run.x = block[:, -1].copy()
         if self._m:
             run.u_prev = u[:, -1].copy()
@@ -841,12 +1073,8 @@ def estimation_accuracy(
     unmeasured_error = unmeasured_own = None
     if measured is not None:
         rows = np.zeros(true.shape[0], dtype=bool)
-        index = np.asarray(list(measured), dtype=int)
-        if index.size and (index.min() < 0 or index.max() >= true.shape[0]):
-            raise InputError(
-                f"The 'measured' parameter must hold row indices in [0, {true.shape[0] - 1}]. "
-                f"Got {index.tolist()}."
-            )
+        # Integer row indices only: measured=[0.7] used to be read as row 0.
+        index = check_indices("measured", measured, true.shape[0], allow_empty=True)
         rows[index] = True
         if (~rows).any():
             err_u = float(np.sqrt(np.mean(error[~rows] ** 2)))
@@ -858,7 +1086,7 @@ def estimation_accuracy(
         relative_rms_error_unmeasured=unmeasured_error,
         relative_rms_error_unmeasured_own=unmeasured_own,
         rms_truth=rms_truth,
-        per_signal_rms_error=per_signal,
+        per_signal_rms_error=read_only(per_signal),
         n_samples=int(true.shape[1]),
     )
 
@@ -1005,7 +1233,7 @@ def filter_consistency(
     var = np.asarray(variances)[:, discard:]
     positive = var > 0
     normalised = np.where(positive, error**2 / np.where(positive, var, 1.0), 0.0).mean(axis=1)
-    result["normalised_error"] = normalised
+    result["normalised_error"] = read_only(normalised)
     if covariance is not None and estimate.converged_at is not None:
         start = max(discard, estimate.converged_at)
         if start < n_t:

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import check_array, check_int, check_real
+from ._validation import check_array, check_budget, check_int, check_real
+from .errors import InputError
 from .fem import LineModel
 from .line import Conductor
 
@@ -142,6 +143,12 @@ class AeolianForce:
         check_real("strouhal", self.strouhal, low=0.0, high=1.0)
         check_real("lift_coefficient", self.lift_coefficient, low=0.0)
         check_real("air_density", self.air_density, low=0.0)
+        if not isinstance(self.correlated, bool | np.bool_):
+            # 'no' or 0.0 would be truthy or silently cast: a flag must be a bool.
+            raise InputError(
+                "The 'correlated' parameter must be True or False. Got "
+                f"{self.correlated!r} of type {type(self.correlated).__name__}."
+            )
 
     def frequency_for(self, conductor: Conductor) -> float:
         """Shedding frequency on ``conductor``, Hz."""
@@ -156,13 +163,8 @@ class AeolianForce:
         """The force on a particular span: frequency and load pattern become concrete."""
         cond = model.span.conductor
         frequency = self.frequency_for(cond)
-        omega = 2 * np.pi * frequency
-        if cond.ei > 0:
-            k2 = (-model.span.tension + np.sqrt(model.span.tension**2
-                                                 + 4 * cond.ei * cond.mass_per_length * omega**2))
-            wavenumber = float(np.sqrt(k2 / (2 * cond.ei)))
-        else:
-            wavenumber = omega / model.span.wave_speed
+        # m omega^2 = EI k^4 + T k^2 (Span.wavenumber; the string limit when EI = 0)
+        wavenumber = float(model.span.wavenumber(frequency))
         q = self.lift_per_length(cond)
         if self.correlated:
             load = model.distributed_load(lambda x: q * np.sin(wavenumber * x))
@@ -235,6 +237,11 @@ class RandomForce:
         if t.size == 0:
             return t.copy()
         spacing = 1.0 / (2.5 * self.bandwidth)
+        # The knots run from t = 0 to max(t): refuse before drawing a huge sequence.
+        n_knots_estimate = float(np.max(t)) / spacing + 3
+        check_budget("RandomForce's knot sequence", nbytes=16.0 * n_knots_estimate,
+                     parameter="bandwidth", value=self.bandwidth,
+                     fix="lower the bandwidth or evaluate at earlier times")
         position = np.maximum(t, 0.0) / spacing + 1.0       # knot 0 is a guard before t = 0
         n_knots = int(np.floor(position.max())) + 3
         # A prefix of a Generator's normal stream does not depend on how many are drawn, and

@@ -22,17 +22,148 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
 
-from ._validation import check_array, check_choice, check_int, check_real, read_only
-from .errors import InputError, ModelError
+from ._validation import (
+    check_array,
+    check_budget,
+    check_choice,
+    check_int,
+    check_real,
+    read_only,
+)
+from .errors import InputError, ModelError, TruncationWarning
 from .line import Span
 
-__all__ = ["LineModel", "MDR", "ModalDamping", "RayleighDamping", "ModalBasis"]
+__all__ = ["LineModel", "MDR", "ModalDamping", "RayleighDamping", "ModalBasis", "physics_mesh",
+           "frequency_error_estimate", "accuracy_elements_per_loop", "aeolian_band_top"]
 
 _BOUNDARY_CONDITIONS = ("pinned", "clamped")
 #: Up to this many free DOFs the eigenproblem is solved densely (all modes, exact); above it a
 #: sparse shift-invert Lanczos solve returns the lowest modes only.
 DENSE_EIGEN_LIMIT = 1200
+
+# ---- mesh from physics (docs/model.md, "Mesh from physics")
+#: Leading frequency error of Hermite cubics with consistent mass, measured on the Bloch waves of a
+#: uniform mesh (tests/test_fem.py checks both constants): a bending wave of wavenumber k on
+#: elements of length h has omega_h / omega - 1 = (k h)^4 / 1440, a tension (string) wave
+#: (k h)^6 / 60480. A taut beam mixes them in the ratio of its two stiffness terms.
+BENDING_ERROR_CONSTANT = 1.0 / 1440.0
+TENSION_ERROR_CONSTANT = 1.0 / 60480.0
+#: Default aeolian band: wind 1-7 m/s (laminar wind; domain notes 2.1) at Strouhal 0.185.
+DEFAULT_WIND_SPEEDS = (1.0, 7.0)
+#: Elements per shortest loop of the default mesh for *sampling*: with 4 elements per loop every
+#: antinode lies within loop / 8 of a node, so the nodal snapshots show each loop at >= 92 %
+#: (cos(pi / 8)) of its peak, and antinodes and sensors can be read from nodes.
+SAMPLING_ELEMENTS_PER_LOOP = 4.0
+#: Below 2 elements per loop (4 nodes per wavelength) the nodes alias the loop pattern: a load at
+#: such a frequency is reported as unresolved.
+MIN_ELEMENTS_PER_LOOP = 2.0
+#: Growth ratio of consecutive elements in the graded layer at a clamp.
+GRADING_RATIO = 1.2
+#: How much finer than the shortest loop the clamp's boundary layer is resolved.
+BOUNDARY_LAYER_REFINEMENT = 4.0
+#: Bytes per element of assembly (COO triplets and CSR copies of K and M): for budget checks.
+_ASSEMBLY_BYTES_PER_ELEMENT = 2500
+
+
+def accuracy_elements_per_loop(tolerance: float) -> float:
+    """Elements per loop that keep the frequency error of Hermite cubics below ``tolerance``.
+
+    From the h^4 bending error (the slower of the two): (k h)^4 / 1440 <= tolerance with
+    k h = pi / N gives N = pi / (1440 tolerance)^(1/4); 1.61 elements per loop for 1 %.
+    Tension-dominated (real) spans converge as h^6 and do better than this bound.
+
+    Examples
+    --------
+    >>> round(accuracy_elements_per_loop(0.01), 2)
+    1.61
+    """
+    tol = check_real("frequency_tolerance", tolerance, low=0.0, high=0.1)
+    return float(np.pi / (tol / BENDING_ERROR_CONSTANT) ** 0.25)
+
+
+def frequency_error_estimate(span: Span, frequency: float, element_length: float) -> float:
+    """Estimated relative FE frequency error at ``frequency`` on elements of ``element_length``.
+
+    The stiffness-weighted sum of the bending (k h)^4 / 1440 and tension (k h)^6 / 60480 errors,
+    k from the dispersion relation (a leading-order estimate, accurate for k h below ~2).
+
+    Examples
+    --------
+    >>> span = Span.at_rts_fraction(300.0, "drake", 0.20)
+    >>> print(f"{frequency_error_estimate(span, 20.0, 3.0):.1e}")    # 100 elements
+    9.3e-03
+    """
+    k = span.wavenumber(frequency)
+    kh = k * element_length
+    bend = span.conductor.ei * k**4
+    tens = span.tension * k**2
+    total = bend + tens
+    if total == 0:
+        return 0.0
+    return float((bend * BENDING_ERROR_CONSTANT * kh**4 + tens * TENSION_ERROR_CONSTANT * kh**6)
+                 / total)
+
+
+def aeolian_band_top(span: Span, wind_speeds=DEFAULT_WIND_SPEEDS, strouhal: float = 0.185
+                     ) -> float:
+    """Highest vortex-shedding frequency St V_max / d of the wind band on the span, Hz.
+
+    Examples
+    --------
+    >>> round(aeolian_band_top(Span.at_rts_fraction(300.0, "drake", 0.20)), 2)
+    46.02
+    """
+    return strouhal * max(wind_speeds) / span.conductor.diameter
+
+
+def physics_mesh(span: Span, bc: tuple[str, str], max_frequency: float,
+                 elements_per_loop: float) -> np.ndarray:
+    """Node positions (m) resolving waves up to ``max_frequency`` Hz, graded toward clamps.
+
+    Interior elements are at most ``loop_length(max_frequency) / elements_per_loop`` long. At a
+    clamped support the bending boundary layer ``delta = sqrt(EI / T)`` is resolved like the
+    shortest loop: the first element is ``delta * pi / (4 elements_per_loop)`` long (4x finer
+    in k h for exp(-x / delta) than for sin(k x); :data:`BOUNDARY_LAYER_REFINEMENT`), and sizes
+    grow by :data:`GRADING_RATIO` up to the interior size. Every size scales with
+    1 / elements_per_loop, so refinement keeps the mesh's shape and the error falls at the
+    interior rate.
+
+    Examples
+    --------
+    >>> span = Span.at_rts_fraction(300.0, "drake", 0.20)
+    >>> x = physics_mesh(span, ("clamped", "clamped"), 46.0, 4.0)
+    >>> x.size - 1, round(float(x[1]), 4), round(float(np.diff(x).max()), 3)
+    (871, 0.0078, 0.358)
+    """
+    length = span.length
+    interior = float(span.loop_length(max_frequency)) / elements_per_loop
+    # The clamp's layer exp(-x / delta) is resolved 4x finer than the shortest loop
+    # (k h = pi / (4 N)): measured, coarser first elements let the clamp's error (which converges
+    # pre-asymptotically, ~h^3.3) dominate the low modes; 4x keeps it below the interior's at a
+    # cost of ~8 elements per clamp.
+    first = span.boundary_layer * np.pi / (BOUNDARY_LAYER_REFINEMENT * elements_per_loop)
+    layers = []
+    for side in bc:
+        sizes: list[float] = []
+        if side == "clamped" and first * GRADING_RATIO < interior:
+            size = first
+            while size < interior:
+                sizes.append(size)
+                size *= GRADING_RATIO
+        layers.append(np.array(sizes))
+    graded = sum(float(layer.sum()) for layer in layers)
+    if graded >= 0.5 * length:
+        # A span only a few boundary layers long: uniform elements of the finest size.
+        n = max(2, int(np.ceil(length / min(first, interior))))
+        return np.linspace(0.0, length, n + 1)
+    n_interior = max(1, int(np.ceil((length - graded) / interior)))
+    widths = np.concatenate([layers[0], np.full(n_interior, (length - graded) / n_interior),
+                             layers[1][::-1]])
+    edges = np.concatenate([[0.0], np.cumsum(widths)])
+    edges[-1] = length
+    return edges
 
 
 @dataclass(frozen=True)
@@ -225,8 +356,12 @@ class ModalBasis:
         return self.omega.size
 
 
-def _hermite(xi: np.ndarray, h: float) -> np.ndarray:
-    """Hermite cubic shape functions N1..N4 at local coordinates xi in [0, 1], shape (..., 4)."""
+def _hermite(xi: np.ndarray, h: float | np.ndarray) -> np.ndarray:
+    """Hermite cubic shape functions N1..N4 at local coordinates xi in [0, 1], shape (..., 4).
+
+    ``h`` (element length) broadcasts against ``xi``.
+    """
+    xi, h = np.broadcast_arrays(np.asarray(xi, dtype=float), np.asarray(h, dtype=float))
     return np.stack(
         [
             1 - 3 * xi**2 + 2 * xi**3,
@@ -238,45 +373,35 @@ def _hermite(xi: np.ndarray, h: float) -> np.ndarray:
     )
 
 
-def _element_matrices(h: float, ei: float, tension: float, mass: float):
-    """Stiffness (bending + tension) and consistent mass of one element, DOFs [w1 t1 w2 t2]."""
-    k_bend = (
-        ei
-        / h**3
-        * np.array(
-            [
-                [12, 6 * h, -12, 6 * h],
-                [6 * h, 4 * h**2, -6 * h, 2 * h**2],
-                [-12, -6 * h, 12, -6 * h],
-                [6 * h, 2 * h**2, -6 * h, 4 * h**2],
-            ]
-        )
-    )
-    k_tens = (
-        tension
-        / (30 * h)
-        * np.array(
-            [
-                [36, 3 * h, -36, 3 * h],
-                [3 * h, 4 * h**2, -3 * h, -(h**2)],
-                [-36, -3 * h, 36, -3 * h],
-                [3 * h, -(h**2), -3 * h, 4 * h**2],
-            ]
-        )
-    )
-    m_cons = (
-        mass
-        * h
-        / 420
-        * np.array(
-            [
-                [156, 22 * h, 54, -13 * h],
-                [22 * h, 4 * h**2, 13 * h, -3 * h**2],
-                [54, 13 * h, 156, -22 * h],
-                [-13 * h, -3 * h**2, -22 * h, 4 * h**2],
-            ]
-        )
-    )
+def _element_matrices(h: np.ndarray, ei: float, tension: float, mass: float):
+    """Stiffness (bending + tension) and consistent mass of elements of lengths ``h``.
+
+    DOFs [w1 t1 w2 t2]; returns two arrays of shape (n_elements, 4, 4).
+    """
+    h = np.asarray(h, dtype=float)[:, None, None]
+    one = np.ones_like(h)
+
+    def pattern(rows):
+        return np.block([[entry for entry in row] for row in rows])
+
+    k_bend = ei / h**3 * pattern([
+        [12 * one, 6 * h, -12 * one, 6 * h],
+        [6 * h, 4 * h**2, -6 * h, 2 * h**2],
+        [-12 * one, -6 * h, 12 * one, -6 * h],
+        [6 * h, 2 * h**2, -6 * h, 4 * h**2],
+    ])
+    k_tens = tension / (30 * h) * pattern([
+        [36 * one, 3 * h, -36 * one, 3 * h],
+        [3 * h, 4 * h**2, -3 * h, -(h**2)],
+        [-36 * one, -3 * h, 36 * one, -3 * h],
+        [3 * h, -(h**2), -3 * h, 4 * h**2],
+    ])
+    m_cons = mass * h / 420 * pattern([
+        [156 * one, 22 * h, 54 * one, -13 * h],
+        [22 * h, 4 * h**2, 13 * h, -3 * h**2],
+        [54 * one, 13 * h, 156 * one, -22 * h],
+        [-13 * h, -3 * h**2, -22 * h, 4 * h**2],
+    ])
     return k_bend + k_tens, m_cons
 
 
@@ -302,23 +427,51 @@ class LineModel:
     ----------
     span : Span
         Length, tension and conductor.
-    n_elements : int
-        Number of equal elements (>= 1); nodes sit at x_j = j L / n_elements.
+    n_elements : int or None
+        None (default): the mesh comes from the physics (:func:`physics_mesh`): it resolves the
+        aeolian band of the span (wind ``wind_speeds`` at Strouhal ``strouhal``, or waves up to
+        ``max_frequency``) with ``elements_per_loop`` elements per shortest loop, graded toward
+        clamped supports over the boundary layer sqrt(EI / T); nodes are then NOT uniform. An
+        integer gives that many equal elements.
     bc : {"pinned", "clamped"} or (left, right)
         Support conditions.
     damping : None, ModalDamping or RayleighDamping
         Structural damping; none by default, as in the paper.
     mdr : MDR or None
         The damping robot, attached at any position through the shape functions.
+    max_frequency : float or None
+        Highest frequency (Hz) the mesh must resolve; default: the top of the aeolian band.
+    wind_speeds : (float, float) or None
+        Wind band, m/s (default (1, 7)); sets the band top St V_max / d.
+    strouhal : float or None
+        Strouhal number (default 0.185).
+    elements_per_loop : float or None
+        Elements per shortest loop; default the larger of the accuracy bound
+        (:func:`accuracy_elements_per_loop`, 1.6 for 1 %) and
+        :data:`SAMPLING_ELEMENTS_PER_LOOP` (4).
+    frequency_tolerance : float
+        Relative frequency accuracy the mesh must reach up to the band top (default 0.01).
+    memory_budget : float or None
+        Bytes the assembly may use (default ``_validation.MEMORY_BUDGET_BYTES``).
 
     Attributes
     ----------
     span, n_elements, bc, damping, mdr
         The parameters above (``bc`` as a (left, right) pair).
     node_positions : ndarray, shape (n_nodes,)
-        Node coordinates, m.
+        Node coordinates, m (use these; never j * L / n_elements).
+    element_lengths : ndarray, shape (n_elements,)
+        Length of each element, m.
+    max_frequency : float
+        The band top the mesh was designed for (or checked against), Hz.
     mass_matrix, stiffness_matrix, damper_matrix : scipy.sparse.csr_array
         M, K and the discrete dampers' C (the robot's) over the free DOFs.
+
+    Warns
+    -----
+    TruncationWarning
+        When ``n_elements`` is given together with a band (``max_frequency`` or
+        ``wind_speeds``) that the mesh does not resolve.
 
     Examples
     --------
@@ -328,20 +481,28 @@ class LineModel:
     (21, 40)
     >>> model.natural_frequencies(3).round(2)
     array([ 6.53, 14.39, 24.53])
+    >>> LineModel(Span.at_rts_fraction(300.0, "drake", 0.20)).n_elements    # physics mesh
+    839
     """
 
     def __init__(
         self,
         span: Span,
-        n_elements: int = 100,
+        n_elements: int | None = None,
         bc: object = "pinned",
         damping: ModalDamping | RayleighDamping | None = None,
         mdr: MDR | None = None,
+        *,
+        max_frequency: float | None = None,
+        wind_speeds: tuple[float, float] | None = None,
+        strouhal: float | None = None,
+        elements_per_loop: float | None = None,
+        frequency_tolerance: float = 0.01,
+        memory_budget: float | None = None,
     ):
         if not isinstance(span, Span):
             raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
         self.span = span
-        self.n_elements = check_int("n_elements", n_elements, low=1)
         self.bc = _parse_bc(bc)
         if damping is not None and not isinstance(damping, ModalDamping | RayleighDamping):
             raise InputError(
@@ -349,22 +510,89 @@ class LineModel:
                 f"RayleighDamping. Got {type(damping).__name__}."
             )
         self.damping = damping
+        self.frequency_tolerance = check_real(
+            "frequency_tolerance", frequency_tolerance, low=0.0, high=0.1
+        )
+        band_given = max_frequency is not None or wind_speeds is not None
+        self.max_frequency = self._band_top(max_frequency, wind_speeds, strouhal)
+        if elements_per_loop is None:
+            per_loop = max(accuracy_elements_per_loop(self.frequency_tolerance),
+                           SAMPLING_ELEMENTS_PER_LOOP)
+        else:
+            per_loop = check_real("elements_per_loop", elements_per_loop, low=0.5, high=1e4)
+        if n_elements is None:
+            # Budget first: the mesh is built from the band, so a huge band is refused before
+            # any array of that size exists.
+            estimate = span.length / (float(span.loop_length(self.max_frequency)) / per_loop)
+            check_budget("The physics mesh", nbytes=estimate * _ASSEMBLY_BYTES_PER_ELEMENT,
+                         parameter="max_frequency", value=self.max_frequency,
+                         fix="lower max_frequency or the wind band, or give n_elements",
+                         memory_budget=memory_budget)
+            self.node_positions = read_only(
+                physics_mesh(span, self.bc, self.max_frequency, per_loop))
+            self.n_elements = self.node_positions.size - 1
+        else:
+            self.n_elements = check_int("n_elements", n_elements, low=1)
+            check_budget("Assembling the line model",
+                         nbytes=self.n_elements * _ASSEMBLY_BYTES_PER_ELEMENT,
+                         parameter="n_elements", value=self.n_elements,
+                         fix="use fewer elements (n_elements=None picks what the band needs)",
+                         memory_budget=memory_budget)
+            self.node_positions = read_only(np.linspace(0.0, span.length, self.n_elements + 1))
+        self.element_lengths = read_only(np.diff(self.node_positions))
         if mdr is not None:
             if not isinstance(mdr, MDR):
                 raise InputError(f"The 'mdr' parameter must be an MDR. Got {type(mdr).__name__}.")
             self._check_position("mdr.position", mdr.position)
         self.mdr = mdr
-        self.element_length = span.length / self.n_elements
-        self.node_positions = np.linspace(0.0, span.length, self.n_elements + 1)
         self._n_line_dofs = 2 * (self.n_elements + 1)
         self._free = self._free_dofs()
+        # global DOF -> free index (-1 where a support removes it): O(1) shape rows.
+        self._free_index = np.full(self._n_total, -1, dtype=np.int64)
+        self._free_index[self._free] = np.arange(self._free.size)
         self._modes_cache: dict[int, ModalBasis] = {}
+        self._factor_cache: dict[float, object] = {}
         if self._free.size == 0:
             raise InputError(
                 f"The 'n_elements' parameter must be >= 2 for supports {self.bc}: "
                 f"{self.n_elements} element(s) leave no free degree of freedom."
             )
         self.mass_matrix, self.stiffness_matrix, self.damper_matrix = self._assemble()
+        if n_elements is not None and band_given and not self.resolves(self.max_frequency):
+            needed = LineModel._needed_elements(span, self.max_frequency, per_loop)
+            warnings.warn(
+                f"The mesh of 'n_elements'={self.n_elements} does not resolve the requested band "
+                f"up to {self.max_frequency:.4g} Hz (loop "
+                f"{span.loop_length(self.max_frequency):.3g} m, elements up to "
+                f"{self.element_length:.3g} m; it resolves up to "
+                f"{self.max_resolved_frequency:.4g} Hz). Use about {needed} elements or "
+                "n_elements=None.",
+                TruncationWarning,
+                stacklevel=2,
+            )
+
+    def _band_top(self, max_frequency, wind_speeds, strouhal) -> float:
+        if max_frequency is not None:
+            if wind_speeds is not None or strouhal is not None:
+                raise InputError(
+                    "Give either 'max_frequency' or the wind band ('wind_speeds', 'strouhal'), "
+                    "not both."
+                )
+            return check_real("max_frequency", max_frequency, low=0.0, high=1e6)
+        speeds = DEFAULT_WIND_SPEEDS if wind_speeds is None else wind_speeds
+        if isinstance(speeds, str) or np.ndim(speeds) != 1 or len(speeds) != 2:
+            raise InputError(
+                "The 'wind_speeds' parameter must be a (low, high) pair of wind speeds in m/s. "
+                f"Got {speeds!r}."
+            )
+        low = check_real("wind_speeds[0]", speeds[0], low=0.0)
+        high = check_real("wind_speeds[1]", speeds[1], low=low, low_inclusive=True, high=100.0)
+        st = check_real("strouhal", 0.185 if strouhal is None else strouhal, low=0.0, high=1.0)
+        return aeolian_band_top(self.span, (low, high), st)
+
+    @staticmethod
+    def _needed_elements(span: Span, frequency: float, per_loop: float) -> int:
+        return int(np.ceil(span.length * per_loop / float(span.loop_length(frequency))))
 
     # ------------------------------------------------------------------ sizes and DOF maps
     @property
@@ -378,6 +606,11 @@ class LineModel:
         return self._free.size
 
     @property
+    def element_length(self) -> float:
+        """Length of the longest element, m (all of them on a uniform mesh)."""
+        return float(self.element_lengths.max())
+
+    @property
     def _n_total(self) -> int:
         """All DOFs before supports are applied: the line's plus the absorber's."""
         return self._n_line_dofs + (1 if self.mdr is not None and self.mdr.has_absorber else 0)
@@ -389,13 +622,126 @@ class LineModel:
             fixed.add(2 * node)
             if side == "clamped":
                 fixed.add(2 * node + 1)
-        return np.array([d for d in range(n_total) if d not in fixed])
+        return np.array([d for d in range(n_total) if d not in fixed], dtype=np.int64)
 
     def _check_position(self, name: str, position: object) -> float:
         return check_real(name, position, low=0.0, low_inclusive=True, high=self.span.length)
 
+    # ------------------------------------------------------------------ mesh resolution
+    def frequency_error(self, frequency: float) -> float:
+        """Estimated relative error of the model's frequencies near ``frequency`` Hz.
+
+        :func:`frequency_error_estimate` on the longest element (the interior of a graded mesh).
+
+        Examples
+        --------
+        >>> from powerline_control import Span
+        >>> print(f"{LineModel(Span.paper_lab(), 20).frequency_error(24.5):.0e}")
+        1e-05
+        """
+        f = check_real("frequency", frequency, low=0.0, low_inclusive=True)
+        return frequency_error_estimate(self.span, f, self.element_length)
+
+    def resolves(self, frequency: float) -> bool:
+        """True when the mesh resolves waves at ``frequency`` Hz.
+
+        Resolved means at least :data:`MIN_ELEMENTS_PER_LOOP` elements per loop (so nodes do not
+        alias the loop pattern) and an estimated frequency error within
+        ``frequency_tolerance``.
+
+        Examples
+        --------
+        >>> from powerline_control import Span
+        >>> drake = Span.at_rts_fraction(300.0, "drake", 0.20)
+        >>> LineModel(drake, 100).resolves(19.7), LineModel(drake).resolves(19.7)
+        (False, True)
+        """
+        f = check_real("frequency", frequency, low=0.0, low_inclusive=True)
+        if f == 0.0:
+            return True
+        per_loop = float(self.span.loop_length(f)) / self.element_length
+        return bool(per_loop >= MIN_ELEMENTS_PER_LOOP
+                    and self.frequency_error(f) <= self.frequency_tolerance)
+
+    @property
+    def max_resolved_frequency(self) -> float:
+        """Highest frequency (Hz) the mesh resolves in the sense of :meth:`resolves`."""
+        h = self.element_length
+        k_hi = np.pi / (MIN_ELEMENTS_PER_LOOP * h)
+        f_hi = float(self.span.frequency_of_wavenumber(k_hi))
+        if self.frequency_error(f_hi) <= self.frequency_tolerance:
+            return f_hi
+        lo, hi = 0.0, f_hi
+        for _ in range(60):   # bisection: the error estimate grows monotonically with f
+            mid = 0.5 * (lo + hi)
+            ok = self.frequency_error(mid) <= self.frequency_tolerance
+            lo, hi = (mid, hi) if ok else (lo, mid)
+        return lo
+
+    def check_resolution(self, frequency: float, what: str = "load") -> bool:
+        """Warn (TruncationWarning) when the mesh does not resolve ``frequency``; return resolves.
+
+        For the CLI and :func:`~powerline_control.simulate.simulate`: the message names the
+        frequency, the loop length, the element length and the element count that would work.
+
+        Examples
+        --------
+        >>> from powerline_control import Span
+        >>> LineModel(Span.paper_lab(), 20).check_resolution(24.5)
+        True
+        """
+        if self.resolves(frequency):
+            return True
+        per_loop = max(accuracy_elements_per_loop(self.frequency_tolerance), MIN_ELEMENTS_PER_LOOP)
+        needed = self._needed_elements(self.span, frequency, per_loop)
+        warnings.warn(
+            f"The {what} at {frequency:.4g} Hz has loops {self.span.loop_length(frequency):.3g} m"
+            f" long, not resolved by elements up to {self.element_length:.3g} m (the mesh "
+            f"resolves up to {self.max_resolved_frequency:.4g} Hz): use at least {needed} "
+            "elements ('n_elements'), or n_elements=None with max_frequency.",
+            TruncationWarning,
+            stacklevel=3,
+        )
+        return False
+
+    # ------------------------------------------------------------------ shape functions
+    def _element_of(self, x: float) -> int:
+        """Index of the element containing ``x`` (the last one for x = L)."""
+        element = int(np.searchsorted(self.node_positions, x, side="right")) - 1
+        return min(max(element, 0), self.n_elements - 1)
+
+    def _line_entries(self, x: float) -> tuple[np.ndarray, np.ndarray]:
+        """Global line DOFs and Hermite values of the displacement at ``x`` (4 entries)."""
+        element = self._element_of(x)
+        h = self.element_lengths[element]
+        xi = (x - self.node_positions[element]) / h
+        return 2 * element + np.arange(4), _hermite(np.array(xi), h)
+
+    def shape_entries(self, position: float) -> tuple[np.ndarray, np.ndarray]:
+        """Sparse interpolation row: (free-DOF indices, weights) of the displacement at position.
+
+        At most 4 entries: what couples a point (robot, sensor, load) to the line at O(1) cost
+        on any mesh, ``row @ u == weights @ u[indices]``.
+
+        Examples
+        --------
+        >>> from powerline_control import Span
+        >>> model = LineModel(Span.paper_lab(), n_elements=4)
+        >>> idx, w = model.shape_entries(model.node_positions[1])
+        >>> idx.tolist(), w.round(12).tolist()      # w_1, theta_1, w_2, theta_2
+        ([1, 2, 3, 4], [1.0, 0.0, 0.0, 0.0])
+        """
+        x = self._check_position("position", position)
+        dofs, values = self._line_entries(x)
+        index = self._free_index[dofs]
+        keep = index >= 0
+        return index[keep], values[keep]
+
     def shape_vector(self, position: float) -> np.ndarray:
         """Interpolation row: displacement at ``position`` = row @ (free DOFs), shape (n_dofs,).
+
+        Builds one dense vector with at most 4 non-zeros (see :meth:`shape_entries` for the
+        sparse form).
 
         Examples
         --------
@@ -404,12 +750,10 @@ class LineModel:
         >>> model.shape_vector(model.node_positions[1])[:3]   # free DOFs: theta_0, w_1, theta_1
         array([0., 1., 0.])
         """
-        x = self._check_position("position", position)
-        h = self.element_length
-        element = min(int(x // h), self.n_elements - 1)
-        row = np.zeros(self._n_total)
-        row[2 * element : 2 * element + 4] = _hermite(np.array((x - element * h) / h), h)
-        return row[self._free]
+        index, values = self.shape_entries(position)
+        row = np.zeros(self.n_dofs)
+        row[index] = values
+        return row
 
     def displacement_map(
         self, positions: Sequence[float] | np.ndarray | None = None
@@ -426,20 +770,23 @@ class LineModel:
         """
         if positions is None:
             # Node j's displacement is the global DOF 2j; constrained ones give empty rows.
-            col_of_global = {g: i for i, g in enumerate(self._free)}
-            rows, cols = [], []
-            for j in range(self.n_nodes):
-                if 2 * j in col_of_global:
-                    rows.append(j)
-                    cols.append(col_of_global[2 * j])
+            cols = self._free_index[2 * np.arange(self.n_nodes)]
+            rows = np.flatnonzero(cols >= 0)
             return sp.csr_array(
-                (np.ones(len(rows)), (rows, cols)), shape=(self.n_nodes, self.n_dofs)
+                (np.ones(rows.size), (rows, cols[rows])), shape=(self.n_nodes, self.n_dofs)
             )
         positions = check_array("positions", positions, ndim=1)
+        rows, cols, vals = [], [], []
+        for i, x in enumerate(positions):
+            index, values = self.shape_entries(x)
+            rows.append(np.full(index.size, i))
+            cols.append(index)
+            vals.append(values)
+        if not positions.size:
+            return sp.csr_array((0, self.n_dofs))
         return sp.csr_array(
-            np.vstack([self.shape_vector(x) for x in positions])
-            if positions.size
-            else np.zeros((0, self.n_dofs))
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(positions.size, self.n_dofs),
         )
 
     def point_load(self, position: float) -> np.ndarray:
@@ -459,11 +806,12 @@ class LineModel:
         """
         gauss_x, gauss_w = np.polynomial.legendre.leggauss(4)
         xi = (gauss_x + 1) / 2
-        h = self.element_length
-        starts = self.node_positions[:-1]
-        x = starts[:, None] + h * xi[None, :]  # (n_el, 4)
-        q = np.asarray(load_per_length(x), dtype=float)
-        element_loads = np.einsum("eg,gk,g->ek", q, _hermite(xi, h), gauss_w * h / 2)
+        h = self.element_lengths[:, None]                      # (n_el, 1)
+        x = self.node_positions[:-1, None] + h * xi[None, :]  # (n_el, 4)
+        q = check_array("load_per_length(x)", np.broadcast_to(
+            np.asarray(load_per_length(x), dtype=float), x.shape))
+        shapes = _hermite(xi[None, :], h)                      # (n_el, 4 points, 4 functions)
+        element_loads = np.einsum("eg,egk,eg->ek", q, shapes, gauss_w[None, :] * h / 2)
         full = np.zeros(self._n_total)
         for k in range(4):
             np.add.at(full, 2 * np.arange(self.n_elements) + k, element_loads[:, k])
@@ -473,18 +821,14 @@ class LineModel:
     def _assemble(self) -> tuple[sp.csr_array, sp.csr_array, sp.csr_array]:
         cond = self.span.conductor
         k_e, m_e = _element_matrices(
-            self.element_length, cond.ei, self.span.tension, cond.mass_per_length
+            self.element_lengths, cond.ei, self.span.tension, cond.mass_per_length
         )
         dofs = 2 * np.arange(self.n_elements)[:, None] + np.arange(4)[None, :]  # (n_el, 4)
         rows = np.repeat(dofs, 4, axis=1).ravel()
         cols = np.tile(dofs, (1, 4)).ravel()
         n_total = self._n_total
-        stiffness = sp.coo_array(
-            (np.tile(k_e.ravel(), self.n_elements), (rows, cols)), shape=(n_total, n_total)
-        ).tocsr()
-        mass = sp.coo_array(
-            (np.tile(m_e.ravel(), self.n_elements), (rows, cols)), shape=(n_total, n_total)
-        ).tocsr()
+        stiffness = sp.coo_array((k_e.ravel(), (rows, cols)), shape=(n_total, n_total)).tocsr()
+        mass = sp.coo_array((m_e.ravel(), (rows, cols)), shape=(n_total, n_total)).tocsr()
         damper = sp.csr_array((n_total, n_total))
         if self.mdr is not None:
             mass, stiffness, damper = self._attach_mdr(mass, stiffness, damper, n_total)
@@ -496,27 +840,63 @@ class LineModel:
         )
 
     def _attach_mdr(self, mass, stiffness, damper, n_total):
-        """Body mass m_r N N^T on the line; spring and damper k, c [[N N^T, -N], [-N^T, 1]]."""
+        """Body mass m_r N N^T on the line; spring and damper k, c [[N N^T, -N], [-N^T, 1]].
+
+        All sparse (at most 5 x 5 non-zeros), so a robot costs nothing on a large mesh.
+        """
         robot = self.mdr
-        h = self.element_length
-        element = min(int(robot.position // h), self.n_elements - 1)
-        n_vec = np.zeros(n_total)
-        n_vec[2 * element : 2 * element + 4] = _hermite(
-            np.array((robot.position - element * h) / h), h
-        )
+        dofs, values = self._line_entries(robot.position)
+
+        def outer(index, vals):
+            return sp.coo_array(
+                (np.outer(vals, vals).ravel(), (np.repeat(index, index.size),
+                                                np.tile(index, index.size))),
+                shape=(n_total, n_total),
+            ).tocsr()
+
+        mass = mass + robot.body_mass * outer(dofs, values)
         if robot.has_absorber:
-            n_vec[-1] = -1.0  # relative displacement y(x_r) - y_d
-        body = np.zeros(n_total)
-        body[: self._n_line_dofs] = n_vec[: self._n_line_dofs]
-        mass = mass + robot.body_mass * sp.csr_array(np.outer(body, body))
-        if robot.has_absorber:
-            coupling = sp.csr_array(np.outer(n_vec, n_vec))
+            # relative displacement y(x_r) - y_d
+            index = np.append(dofs, n_total - 1)
+            coupling = outer(index, np.append(values, -1.0))
             stiffness = stiffness + robot.stiffness * coupling
             damper = damper + robot.damping * coupling
-            absorber = np.zeros((n_total, n_total))
-            absorber[-1, -1] = robot.suspended_mass
-            mass = mass + sp.csr_array(absorber)
+            mass = mass + sp.coo_array(([robot.suspended_mass], ([n_total - 1], [n_total - 1])),
+                                       shape=(n_total, n_total)).tocsr()
         return mass, stiffness, damper
+
+    # ------------------------------------------------------------------ static / dynamic solves
+    def solve_flexibility(self, load: np.ndarray, frequency: float = 0.0) -> np.ndarray:
+        """(K - omega^2 M)^-1 load over the free DOFs, by a cached sparse LU factorisation.
+
+        ``frequency`` 0 gives the static deflection K^-1 load (the mode-acceleration correction
+        of :func:`~powerline_control.simulate.simulate` uses both).
+
+        Examples
+        --------
+        >>> from powerline_control import Span
+        >>> model = LineModel(Span.paper_lab(), n_elements=20)
+        >>> u = model.solve_flexibility(model.point_load(1.83))
+        >>> bool(np.allclose(model.stiffness_matrix @ u, model.point_load(1.83)))
+        True
+        """
+        f = check_real("frequency", frequency, low=0.0, low_inclusive=True)
+        load = check_array("load", load, shape=(self.n_dofs,))
+        if f not in self._factor_cache:
+            if len(self._factor_cache) > 8:
+                self._factor_cache.clear()
+            matrix = self.stiffness_matrix - (2 * np.pi * f) ** 2 * self.mass_matrix
+            try:
+                self._factor_cache[f] = spla.splu(sp.csc_matrix(matrix))
+            except RuntimeError as exc:  # exactly singular: the frequency is an FE eigenvalue
+                raise ModelError(
+                    f"K - omega^2 M is singular at {f:g} Hz (a natural frequency of the model); "
+                    "shift the frequency slightly."
+                ) from exc
+        solution = self._factor_cache[f].solve(load)
+        if not np.all(np.isfinite(solution)):
+            raise ModelError(f"The flexibility solve at {f:g} Hz is not finite (singular K).")
+        return solution
 
     # ------------------------------------------------------------------ modal analysis
     def modes(self, n_modes: int | None = None) -> ModalBasis:
@@ -553,16 +933,27 @@ class LineModel:
                 )
             n_modes = n
         n_modes = check_int("n_modes", n_modes, low=1, high=n)
+        dense = n <= DENSE_EIGEN_LIMIT or n_modes >= n - 1
+        # Dense: K, M and the eigenvectors as n x n; sparse: the Lanczos basis (ncv = 2k + 1)
+        # and the returned shapes. Work: n^3 dense, n ncv^2 for the Lanczos restarts.
+        nbytes = 8.0 * (3 * n * n if dense else n * (3 * n_modes + 1) + 200 * n)
+        flops = 10.0 * n**3 if dense else 20.0 * n * (2 * n_modes + 1) ** 2
+        check_budget(f"The eigen-solve for {n_modes} modes of {n} DOFs", nbytes=nbytes,
+                     flops=flops, parameter="n_modes", value=n_modes,
+                     fix="ask for fewer modes (n_modes) or use a coarser mesh")
         # The model is immutable after __init__, so each mode count is solved once per model;
         # the arrays are read-only so no caller can change what the next one gets.
         if n_modes not in self._modes_cache:
             self._modes_cache[n_modes] = self._solve_modes(n_modes)
         return self._modes_cache[n_modes]
 
+    # One BLAS thread: the eigen-solves are small-matrix work (ARPACK's restarts, eigh of a
+    # few thousand), measured 10x slower with two contending threads on a shared 2-core machine.
+    @threadpool_limits.wrap(limits=1, user_api="blas")
     def _solve_modes(self, n_modes: int) -> ModalBasis:
         n = self.n_dofs
         try:
-            if n <= DENSE_EIGEN_LIMIT or n_modes >= n - 1:
+            if n <= DENSE_EIGEN_LIMIT or n_modes >= n - 1:  # same rule as the budget above
                 omega2, shapes = scipy.linalg.eigh(
                     self.stiffness_matrix.toarray(),
                     self.mass_matrix.toarray(),
@@ -585,12 +976,17 @@ class LineModel:
                 f"The stiffness matrix is not positive definite (lowest omega^2 = "
                 f"{omega2[0]:.3g}); check tension, EI and supports."
             )
-        # Normalise to unit modal mass (eigsh does not guarantee it) and a positive first entry
-        # of largest magnitude, so shapes are reproducible.
+        # Normalise to unit modal mass (eigsh does not guarantee it) and a sign that survives
+        # round-off: the leftmost nodal displacement of at least half the peak is positive (the
+        # largest entry alone is ambiguous: symmetric modes have equal peaks).
         modal_mass = np.einsum("ik,ik->k", shapes, self.mass_matrix @ shapes)
         shapes = shapes / np.sqrt(modal_mass)
-        signs = np.sign(shapes[np.argmax(np.abs(shapes), axis=0), np.arange(n_modes)])
-        shapes = shapes * signs
+        nodal = self.displacement_map() @ shapes
+        if self.mdr is not None and self.mdr.has_absorber:
+            nodal = np.vstack([nodal, shapes[-1:]])     # a mode of the absorber alone
+        big = np.abs(nodal) >= 0.5 * np.abs(nodal).max(axis=0)
+        signs = np.sign(nodal[np.argmax(big, axis=0), np.arange(n_modes)])
+        shapes = shapes * np.where(signs == 0, 1.0, signs)
         omega = np.sqrt(omega2)
         return ModalBasis(omega=read_only(omega), shapes=read_only(shapes),
                           damping=read_only(self._modal_damping(omega, shapes)))
@@ -604,6 +1000,33 @@ class LineModel:
                 self.damping.mass_coefficient + self.damping.stiffness_coefficient * omega**2
             )
         return damping
+
+    def modes_below(self, max_frequency: float) -> ModalBasis:
+        """Every mode with natural frequency <= ``max_frequency`` Hz (at least one).
+
+        The count is estimated from the pinned closed form (no extra eigen-solve) and widened
+        until the highest mode returned lies above the limit.
+
+        Examples
+        --------
+        >>> from powerline_control import Span
+        >>> LineModel(Span.paper_lab(), n_elements=20).modes_below(30.0).frequencies.round(2)
+        array([ 6.53, 14.39, 24.53])
+        """
+        f = check_real("max_frequency", max_frequency, low=0.0)
+        n = self.n_dofs
+        count = min(n, self.default_mode_count(f))
+        while True:
+            basis = self.modes(count)
+            if basis.frequencies[-1] > f or count == n:
+                break
+            count = min(n, 2 * count)
+        keep = max(1, int(np.count_nonzero(basis.frequencies <= f)))
+        if keep == basis.n_modes:
+            return basis
+        return ModalBasis(omega=read_only(basis.omega[:keep]),
+                          shapes=read_only(basis.shapes[:, :keep]),
+                          damping=read_only(basis.damping[:keep, :keep]))
 
     def natural_frequencies(self, n_modes: int = 10) -> np.ndarray:
         """Undamped natural frequencies, Hz, ascending, shape (n_modes,).

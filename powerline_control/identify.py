@@ -39,6 +39,7 @@ from .errors import IdentificationError, IllConditionedWarning, InputError, Unst
 __all__ = [
     "DMDModel",
     "StabilityReport",
+    "DampingReport",
     "AlphaCurve",
     "OnlineDMD",
     "fit_dmd",
@@ -54,6 +55,9 @@ _GRAM_ALPHA_FRACTION = 1e-6
 #: The Gram-eigh + Rayleigh-Ritz route for a rank-r POD basis is used when s_r >= this * s_max
 #: (subspace-iteration steps recover the accuracy the Gram matrix loses above that).
 _GRAM_RANK_RATIO = 1e-6
+#: Models with at most this many regressors (states + inputs) keep their Gram matrix for
+#: DMDModel.damping_report (2 MB at the limit).
+_KEEP_GRAM_LIMIT = 500
 #: |lambda| above 1 + this counts as outside the unit circle (round-off of a marginal mode).
 _UNIT_CIRCLE_TOL = 1e-9
 
@@ -100,6 +104,39 @@ class StabilityReport:
 
 
 @dataclass(frozen=True, eq=False)
+class DampingReport:
+    """Whether each identified damping ratio can be trusted (:meth:`DMDModel.damping_report`).
+
+    Attributes
+    ----------
+    damping_ratio : ndarray, shape (n_states,)
+        ``DMDModel.damping_ratios``.
+    regularisation_shift : ndarray, shape (n_states,)
+        First-order change of each damping ratio if alpha were 0 (0 for alpha = 0; NaN when the
+        model is too large to have kept its Gram matrix, or was loaded from a file).
+    decay_over_record : ndarray, shape (n_states,)
+        ``|Re s| T``: e-folds of decay over the training record.
+    trusted : ndarray of bool, shape (n_states,)
+        Shift at most half the damping and at least one e-fold over the record.
+    message : str
+        In words, with what to change.
+
+    Examples
+    --------
+    >>> import numpy as np, powerline_control as plc
+    >>> X = np.array([[0.9 ** k for k in range(40)]])
+    >>> plc.fit_dmd(X, dt=0.1).damping_report().trusted.tolist()
+    [True]
+    """
+
+    damping_ratio: np.ndarray
+    regularisation_shift: np.ndarray
+    decay_over_record: np.ndarray
+    trusted: np.ndarray
+    message: str
+
+
+@dataclass(frozen=True, eq=False)
 class DMDModel:
     """A discrete-time linear model identified from snapshots, ``z_{k+1} = A z_k + B u_k``.
 
@@ -141,6 +178,9 @@ class DMDModel:
         Number of snapshot pairs used for the fit.
     initial_state : ndarray, shape (n_states,)
         The first training state, used for the mode amplitudes.
+    regressor_gram : ndarray, shape (n_states + n_inputs, n_states + n_inputs) or None
+        Gram matrix of the regressor (states and inputs) when alpha > 0 and it has at most 500
+        rows, kept for :meth:`damping_report`; ``None`` otherwise and for loaded models.
 
     Examples
     --------
@@ -172,6 +212,9 @@ class DMDModel:
     residual_covariance: np.ndarray
     n_pairs: int
     initial_state: np.ndarray = field(repr=False)
+    #: Gram matrix ``R R^T`` of the regressor (states and inputs), kept for small models so that
+    #: :meth:`damping_report` can tell how far alpha moved the eigenvalues; not saved to files.
+    regressor_gram: np.ndarray | None = field(default=None, repr=False)
 
     # --- sizes --------------------------------------------------------------------------------
 
@@ -249,7 +292,11 @@ class DMDModel:
 
     @property
     def damping_ratios(self) -> np.ndarray:
-        """Damping ratio ``-Re(s) / |s|`` of each eigenvalue (1 for real decaying, 1 at 0)."""
+        """Damping ratio ``-Re(s) / |s|`` of each eigenvalue (1 for real decaying, 1 at 0).
+
+        Whether a value can be trusted (regularisation bias, record length) is said by
+        :meth:`damping_report`.
+        """
         s = self.continuous_eigenvalues
         magnitude = np.abs(s)
         safe = np.where(magnitude > 0, magnitude, 1.0)
@@ -259,6 +306,113 @@ class DMDModel:
     @property
     def _at_origin(self) -> np.ndarray:
         return np.abs(self.eigenvalues) <= np.finfo(float).tiny
+
+    def damping_report(self, *, warn: bool = False) -> DampingReport:
+        """Say, per eigenvalue, whether the identified damping ratio can be trusted.
+
+        Two things make an identified damping untrustworthy:
+
+        * **regularisation**: Tikhonov's alpha shrinks the operator, ``A_0 = A_alpha (I + alpha
+          G^-1)`` with ``G`` the regressor's Gram matrix, so to first order each eigenvalue
+          moves by ``delta lambda_i = alpha lambda_i (w_i^H G^-1 v_i) / (w_i^H v_i)`` (``v``,
+          ``w`` right and left eigenvectors).  The implied change of the damping ratio,
+          ``regularisation_shift``, is compared with the damping itself;
+        * **record length**: a decay of less than one e-fold over the training record
+          (``|Re s| T < 1``, ``T = n_pairs dt``) cannot be told from noise or from an undamped
+          mode; ``decay_over_record`` holds ``|Re s| T``.
+
+        Parameters
+        ----------
+        warn : bool, default False
+            Warn :class:`~powerline_control.errors.IllConditionedWarning` when an oscillatory
+            eigenvalue's damping is not trusted.
+
+        Returns
+        -------
+        DampingReport
+            Damping ratios, shifts, decays over the record, the ``trusted`` flags and a message.
+
+        Examples
+        --------
+        A 3 Hz mode with damping ratio 0.02, 8 s of clean data, alpha = 0: exact and trusted.
+
+        >>> import numpy as np, powerline_control as plc
+        >>> t = np.arange(800) * 0.01
+        >>> w = 2 * np.pi * 3.0
+        >>> X = np.exp(-0.02 * w * t) * np.cos(w * np.sqrt(1 - 0.02**2) * t)
+        >>> report = plc.fit_dmd(X[None, :], dt=0.01, delays=2).damping_report()
+        >>> np.round(report.damping_ratio, 6).tolist(), report.trusted.tolist()
+        ([0.02, 0.02], [True, True])
+        """
+        zeta = np.asarray(self.damping_ratios, dtype=float)
+        s = np.asarray(self.continuous_eigenvalues)
+        decay = np.abs(s.real) * self.n_pairs * self.dt
+        shift = self._regularisation_shift(s)
+        oscillatory = (np.abs(self.eigenvalues.imag) > 0) & ~self._at_origin
+        shift_ok = np.where(np.isnan(shift), self.alpha == 0, shift <= 0.5 * np.abs(zeta))
+        trusted = shift_ok & (decay >= 1.0)
+        trusted = np.where(self._at_origin, False, trusted)
+        bad = oscillatory & ~trusted
+        if not bad.any():
+            message = (f"All {int(oscillatory.sum())} oscillatory eigenvalues have a damping ratio "
+                       "that neither alpha nor the record length limits.")
+        else:
+            reasons = []
+            if np.any(bad & ~shift_ok):
+                reasons.append(
+                    f"alpha = {self.alpha:.3g} moves the damping of {int(np.sum(bad & ~shift_ok))} "
+                    "of them by more than half its value (refit with a smaller alpha, e.g. 0 on "
+                    "clean data, or compare with the alpha = 0 model)"
+                )
+            if np.any(bad & (decay < 1.0)):
+                reasons.append(
+                    f"{int(np.sum(bad & (decay < 1.0)))} decay by less than one e-fold over the "
+                    f"{self.n_pairs * self.dt:.3g} s record (use a longer record: the damping "
+                    "ratio resolvable is about 1 / (omega T))"
+                )
+            message = (f"{int(bad.sum())} of {int(oscillatory.sum())} oscillatory eigenvalues have "
+                       "an untrustworthy damping ratio: " + "; ".join(reasons) + ".")
+            if warn:
+                warnings.warn(message, IllConditionedWarning, stacklevel=2)
+        return DampingReport(
+            damping_ratio=read_only(zeta),
+            regularisation_shift=read_only(shift),
+            decay_over_record=read_only(decay),
+            trusted=read_only(trusted),
+            message=message,
+        )
+
+    def _regularisation_shift(self, s: np.ndarray) -> np.ndarray:
+        """First-order change of each damping ratio when alpha goes to 0 (NaN: unknown)."""
+        n = self.n_states
+        if self.alpha == 0:
+            return np.zeros(n)
+        if self.regressor_gram is None:
+            return np.full(n, np.nan)
+        structured = self.basis is None and self.delays > 1
+        k = self.n_nodes if structured else n
+        coef = self.A[:k] if self.B is None else np.hstack([self.A[:k], self.B[:k]])
+        gram = np.asarray(self.regressor_gram)
+        # A_0 = A_alpha (I + alpha G^+): the pseudo-inverse, as plain DMD on rank-deficient data.
+        delta_top = self.alpha * (coef @ sla.pinvh(gram))[:, :n]
+        delta = np.zeros((n, n))
+        delta[:k] = delta_top
+        values, right = sla.eig(self.A)
+        order = _spectral_order(values)
+        values, right = values[order], right[:, order]
+        try:
+            left = sla.inv(right).conj().T  # rows of V^-1 are the left eigenvectors
+        except (np.linalg.LinAlgError, ValueError):
+            return np.full(n, np.nan)
+        numerator = np.einsum("ij,ik,kj->j", left.conj(), delta, right)
+        denominator = np.einsum("ij,ij->j", left.conj(), right)
+        d_lambda = numerator / np.where(denominator == 0, 1.0, denominator)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d_s = d_lambda / np.where(values == 0, 1.0, values) / self.dt
+            magnitude = np.abs(s)
+            shift = np.where(magnitude > 0, np.abs(d_s.real) / np.where(magnitude > 0,
+                                                                        magnitude, 1.0), 0.0)
+        return np.where(np.isfinite(shift), shift, np.nan)
 
     def stability_report(self, *, warn: bool = True) -> StabilityReport:
         """Summarise stability; warn with :class:`UnstableModelWarning` when unstable.
@@ -358,6 +512,13 @@ class DMDModel:
         ------
         InputError
             Wrong shapes, missing or unexpected inputs.
+        IdentificationError
+            The free run of an unstable model overflows (never NaN or inf results).
+
+        Warns
+        -----
+        UnstableModelWarning
+            The model is unstable (its free run grows).
 
         Examples
         --------
@@ -368,7 +529,24 @@ class DMDModel:
         """
         n_steps = check_int("n_steps", n_steps, low=1)
         u = self._check_prediction_inputs(inputs, n_steps)
-        z = self.window_to_state(initial)
+        if not self.is_stable:
+            warnings.warn(
+                f"predict: the model is unstable (spectral radius {self.spectral_radius:.6g}); "
+                "the free run grows without bound. Refit with alpha > 0 or a rank.",
+                UnstableModelWarning, stacklevel=2,
+            )
+        with np.errstate(over="ignore", invalid="ignore"):
+            field_run = self._free_run(self.window_to_state(initial), n_steps, u)
+        bad = ~np.isfinite(field_run).all(axis=0)
+        if bad.any():
+            raise IdentificationError(
+                f"predict: the free run of this unstable model overflows at step "
+                f"{int(np.argmax(bad)) + 1} of {n_steps}. Predict fewer steps or refit a stable "
+                "model (alpha > 0, see select_alpha)."
+            )
+        return field_run
+
+    def _free_run(self, z: np.ndarray, n_steps: int, u: np.ndarray | None) -> np.ndarray:
         states = np.empty((self.n_states, n_steps))
         for k in range(n_steps):
             z = self.A @ z if u is None else self.A @ z + self.B @ u[:, k]
@@ -644,6 +822,13 @@ class _TargetGram:
     ) -> None:
         self.factor, self.diagonal, self.first, self.last = factor, diagonal, first, last
 
+    def regressor_gram(self) -> np.ndarray:
+        """The regressor's Gram matrix ``G`` (a new array), rebuilt from the stored factor."""
+        gram = np.triu(self.factor, 1)
+        gram += gram.T
+        gram[np.diag_indices_from(gram)] = self.diagonal
+        return gram
+
     def trace(self) -> float:
         k = self.first.size
         return float(self.diagonal[:k].sum() - self.first @ self.first + self.last @ self.last)
@@ -755,6 +940,11 @@ def _fit_problem(
     svd: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     gram: np.ndarray | None = None,
 ) -> DMDModel:
+    n_reg = problem.regressor.shape[0]
+    keep_gram = alpha > 0 and n_reg <= _KEEP_GRAM_LIMIT
+    kept_gram = None
+    if keep_gram and gram is not None:
+        kept_gram = gram.copy()  # the Cholesky route overwrites it
     gram_route = None if svd is not None else _ridge_gram(
         problem.target, problem.regressor, alpha, gram
     )
@@ -762,8 +952,15 @@ def _fit_problem(
     if gram_route is not None:
         coef, target_gram, W = gram_route
         scatter = _residual_covariance_from_gram(coef, alpha, target_gram, W)
+        if keep_gram and kept_gram is None:
+            kept_gram = target_gram.regressor_gram()
     else:
+        if svd is None:
+            svd = _ridge_svd(problem.target, problem.regressor)
         coef, kept_ratio = _ridge(problem.target, problem.regressor, alpha, svd)
+        if keep_gram:
+            U, sv = svd[2], svd[1]
+            kept_gram = (U * sv**2) @ U.T
     if (
         warn
         and alpha == 0
@@ -803,11 +1000,23 @@ def _fit_problem(
         residual_covariance=covariance,
         n_pairs=n_pairs,
         initial_state=read_only(problem.regressor[:n_states, 0].copy()),
+        regressor_gram=None if kept_gram is None else read_only(kept_gram),
     )
 
 
 def _check_snapshots(X: object) -> np.ndarray:
+    if np.iscomplexobj(X):
+        raise InputError(
+            "The 'X' parameter must be real: complex snapshots would lose their imaginary part. "
+            "Stack real and imaginary parts as rows (np.vstack([X.real, X.imag])) instead."
+        )
     X = check_array("X", X, ndim=2)
+    if X.shape[0] >= 10 * X.shape[1] and X.shape[1] < 100:
+        raise InputError(
+            f"The 'X' parameter has {X.shape[0]} rows (states) but only {X.shape[1]} columns "
+            "(samples): it looks transposed. The layout is (n_nodes, n_samples), one column per "
+            "sample; pass X.T if the rows are samples."
+        )
     if X.shape[0] < 1 or X.shape[1] < 2:
         raise InputError(
             "The 'X' parameter must be a (n_nodes, n_samples) snapshot matrix with at least one "
@@ -1044,7 +1253,8 @@ def _held_out_errors(
         for t0 in starts:
             window = X[:, t0 - d + 1 : t0 + 1]
             inputs = None if u is None else u[:, t0 : t0 + horizon]
-            predicted = model.predict(window, horizon, inputs)
+            u_run = model._check_prediction_inputs(inputs, horizon)
+            predicted = model._free_run(model.window_to_state(window), horizon, u_run)
             true = X[:, t0 + 1 : t0 + 1 + horizon]
             num += float(np.sum((predicted - true) ** 2))
             den += float(np.sum(true**2))
@@ -1093,8 +1303,8 @@ def select_alpha(
     dt : float
         Sample time in seconds (> 0).
     alphas : sequence of float, optional
-        Alphas to try (>= 0), in ``alpha_mode`` units.  Default: 25 values log-spaced from 1e-12
-        to 1 relative (converted when ``alpha_mode`` is "absolute").
+        Alphas to try (>= 0), in ``alpha_mode`` units.  Default: 0 and 25 values log-spaced from
+        1e-12 to 1 relative (converted when ``alpha_mode`` is "absolute").
     delays, rank, inputs
         As in :func:`fit_dmd` (inputs cover all samples, training and held-out).
     alpha_mode : {"relative", "absolute"}, default "relative"
@@ -1155,7 +1365,8 @@ def select_alpha(
     _, problem = _absolute_alpha(0.0, "absolute", problem)
     scale = problem.s_max**2
     if alphas is None:
-        relative = np.logspace(-12, 0, 25)
+        # alpha = 0 first: on clean data it is exact, and any floor biases the damping.
+        relative = np.concatenate([[0.0], np.logspace(-12, 0, 25)])
         given = relative if alpha_mode == "relative" else relative * scale
     else:
         given = check_array("alphas", alphas, ndim=1)

@@ -204,6 +204,72 @@ class Span:
         """Transverse wave speed of the taut string, sqrt(T/m), m/s."""
         return float(np.sqrt(self.tension / self.conductor.mass_per_length))
 
+    @property
+    def boundary_layer(self) -> float:
+        """Width of the bending boundary layer at a clamp, sqrt(EI / T), m (inf without tension).
+
+        Within about this distance of a clamped support the slope turns from zero to the slope of
+        the travelling wave; a mesh must resolve it for clamped frequencies to converge at the
+        interior rate.
+
+        Examples
+        --------
+        >>> round(Span.at_rts_fraction(300.0, "drake", 0.20).boundary_layer, 4)
+        0.0396
+        """
+        if self.tension == 0.0:
+            return float("inf")
+        return float(np.sqrt(self.conductor.ei / self.tension))
+
+    def wavenumber(self, frequency: float | np.ndarray) -> float | np.ndarray:
+        """Wavenumber k (rad/m) of a free wave at ``frequency`` (Hz), from the taut-beam dispersion.
+
+        m omega^2 = EI k^4 + T k^2, so k^2 = (-T + sqrt(T^2 + 4 EI m omega^2)) / (2 EI) (the string
+        limit omega / c when EI = 0). Written as 2 m omega^2 / (T + sqrt(...)) to avoid the
+        cancellation of the first form on tension-dominated spans.
+
+        Examples
+        --------
+        >>> span = Span.at_rts_fraction(300.0, "drake", 0.20)
+        >>> round(float(span.wavenumber(span.pinned_frequencies(10)[-1])) * 300 / np.pi, 6)
+        10.0
+        """
+        f = np.asarray(frequency, dtype=float)
+        if np.any(~np.isfinite(f)) or np.any(f < 0):
+            raise InputError(
+                f"The 'frequency' parameter must be finite and >= 0. Got {frequency!r}."
+            )
+        cond = self.conductor
+        mw2 = cond.mass_per_length * (2 * np.pi * f) ** 2
+        t = self.tension
+        k2 = 2 * mw2 / (t + np.sqrt(t**2 + 4 * cond.ei * mw2)) if t > 0 else np.sqrt(mw2 / cond.ei)
+        k = np.sqrt(k2)
+        return float(k) if np.ndim(k) == 0 else k
+
+    def loop_length(self, frequency: float | np.ndarray) -> float | np.ndarray:
+        """Half wavelength pi / k (m) of the standing wave at ``frequency`` (Hz): one loop.
+
+        Examples
+        --------
+        >>> round(Span.at_rts_fraction(300.0, "drake", 0.20).loop_length(46.0), 3)
+        1.431
+        """
+        return np.pi / self.wavenumber(frequency)
+
+    def frequency_of_wavenumber(self, wavenumber: float | np.ndarray) -> float | np.ndarray:
+        """Frequency (Hz) of a free wave of wavenumber k (rad/m): the inverse of :meth:`wavenumber`.
+
+        Examples
+        --------
+        >>> span = Span.paper_lab()
+        >>> round(float(span.frequency_of_wavenumber(np.pi / span.length)), 3)
+        6.534
+        """
+        k = np.asarray(wavenumber, dtype=float)
+        cond = self.conductor
+        f = np.sqrt((cond.ei * k**4 + self.tension * k**2) / cond.mass_per_length) / (2 * np.pi)
+        return float(f) if np.ndim(f) == 0 else f
+
     def pinned_frequencies(self, n_modes: int) -> np.ndarray:
         """Closed-form natural frequencies (Hz) of the pinned-pinned taut beam.
 

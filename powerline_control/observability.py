@@ -28,9 +28,17 @@ from dataclasses import dataclass
 
 import control as ct
 import numpy as np
-import scipy.linalg as sla
 
-from ._validation import check_array, check_indices, check_int, check_psd
+from ._riccati import field_variances, posterior_from_predicted, solve_filter_dare
+from ._validation import (
+    check_budget,
+    check_covariance,
+    check_discrete_system,
+    check_field_map,
+    check_indices,
+    check_int,
+    read_only,
+)
 from .errors import EstimationError, InputError
 
 __all__ = [
@@ -47,75 +55,11 @@ __all__ = [
 # --------------------------------------------------------------------------- argument checks
 
 
-def _check_discrete_system(name: str, sys: object) -> ct.StateSpace:
-    """Return ``sys`` if it is a finite, discrete-time ``control.StateSpace``."""
-    if not isinstance(sys, ct.StateSpace):
-        raise InputError(
-            f"The {name!r} parameter must be a discrete-time control.StateSpace. "
-            f"Got an object of type {type(sys).__name__} instead."
-        )
-    if sys.dt is None or (sys.dt is not True and sys.dt == 0):
-        raise InputError(
-            f"The {name!r} parameter must be a discrete-time system (dt > 0 or dt=True). "
-            f"Got a continuous-time system (dt={sys.dt!r}); discretise it first, e.g. with "
-            "sys.sample(dt) or LineModel.to_statespace(dt=...)."
-        )
-    for label in ("A", "B", "C", "D"):
-        matrix = np.asarray(getattr(sys, label))
-        if not np.all(np.isfinite(matrix)):
-            raise InputError(
-                f"The {name!r} parameter has {int(np.count_nonzero(~np.isfinite(matrix)))} "
-                f"NaN or infinite entries in its {label} matrix; the model must be finite."
-            )
-    if sys.nstates == 0:
-        raise InputError(f"The {name!r} parameter must have at least one state. Got 0 states.")
-    return sys
-
-
 def _check_sensors(sensors: object, n_outputs: int) -> np.ndarray:
     """Sensor indices into the outputs of the system (all of them when None)."""
     if sensors is None:
         return np.arange(n_outputs)
     return check_indices("sensors", sensors, n_outputs)
-
-
-def _noise_covariance(name: str, value: object, size: int, index: np.ndarray | None = None):
-    """Return a PSD covariance of the given size from a scalar, a vector of variances or a matrix.
-
-    With ``index`` the value describes all ``size`` candidates and the rows/columns of ``index``
-    are returned.
-    """
-    if isinstance(value, numbers.Real) and not isinstance(value, bool):
-        variance = float(value)
-        if not np.isfinite(variance) or variance < 0:
-            raise InputError(
-                f"The {name!r} parameter must be a non-negative variance. Got {variance!r}."
-            )
-        out = variance * np.eye(size)
-    else:
-        array = check_array(name, value, ndim=(1, 2))
-        if array.ndim == 1:
-            if array.shape != (size,):
-                raise InputError(
-                    f"The {name!r} parameter has the wrong shape: expected a scalar, ({size},) "
-                    f"variances or a ({size}, {size}) matrix but found {array.shape}."
-                )
-            if np.any(array < 0):
-                raise InputError(
-                    f"The {name!r} parameter must contain non-negative variances. "
-                    f"Got a smallest value of {array.min():.3g}."
-                )
-            out = np.diag(array)
-        else:
-            if array.shape != (size, size):
-                raise InputError(
-                    f"The {name!r} parameter has the wrong shape: expected a scalar, ({size},) "
-                    f"variances or a ({size}, {size}) matrix but found {array.shape}."
-                )
-            out = check_psd(name, array, size)
-    if index is not None:
-        out = out[np.ix_(index, index)]
-    return (out + out.T) / 2
 
 
 # --------------------------------------------------------------------------- rank and Gramian
@@ -135,7 +79,9 @@ def observability_rank(
     tol : float, optional
         Singular values at or below ``tol`` count as zero. The default,
         ``max(O.shape) * eps * sigma_max(O)``, is the round-off level of the SVD of ``O``: smaller
-        singular values cannot be told apart from zero in floating point. Note that
+        singular values cannot be told apart from zero in floating point. For an unstable model
+        (spectral radius ``rho > 1``) the matrix is built from ``A / rho`` (same rank, no
+        overflow) and ``tol`` applies to that one. Note that
         ``control.obsv`` forms powers of ``A``, so for lightly damped high-order models a
         full-rank answer can still mean "observable only in theory"; the Gramian
         (:func:`observability_gramian`) and the estimation error (:func:`steady_state_covariance`)
@@ -150,6 +96,8 @@ def observability_rank(
     ------
     InputError
         If ``sys`` is not a finite discrete-time StateSpace, or ``sensors``/``tol`` are invalid.
+    EstimationError
+        If the observability matrix is not finite even after scaling.
 
     Examples
     --------
@@ -161,14 +109,35 @@ def observability_rank(
     >>> observability_rank(sys)
     2
     """
-    sys = _check_discrete_system("sys", sys)
+    sys = check_discrete_system("sys", sys)
     index = _check_sensors(sensors, sys.noutputs)
-    matrix = ct.obsv(sys.A, sys.C[index])
+    if tol is not None and (
+        isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not np.isfinite(tol)
+        or not tol >= 0
+    ):
+        raise InputError(
+            f"The 'tol' parameter must be a finite non-negative real number. Got {tol!r}."
+        )
+    a = np.asarray(sys.A, dtype=float)
+    n = a.shape[0]
+    check_budget("The observability matrix", nbytes=8.0 * n * index.size * n,
+                 flops=2.0 * (n * index.size) * n * n, parameter="sys", value=f"{n} states",
+                 fix="use a reduced model (fewer states) or fewer sensors")
+    # Scaling A by 1/rho leaves the rank unchanged (row blocks scale by rho^-k) and keeps the
+    # powers of an unstable model from overflowing to inf / NaN singular values.
+    radius = float(np.max(np.abs(np.linalg.eigvals(a))))
+    if radius > 1.0:
+        a = a / radius
+    with np.errstate(all="ignore"):
+        matrix = ct.obsv(a, np.asarray(sys.C, dtype=float)[index])
+    if not np.all(np.isfinite(matrix)):
+        raise EstimationError(
+            "The observability matrix of 'sys' overflows even after scaling A by its spectral "
+            f"radius ({radius:.3g}); the rank cannot be computed reliably."
+        )
     singular_values = np.linalg.svd(matrix, compute_uv=False)
     if tol is None:
         tol = max(matrix.shape) * np.finfo(float).eps * float(singular_values[0])
-    elif isinstance(tol, bool) or not isinstance(tol, numbers.Real) or not tol >= 0:
-        raise InputError(f"The 'tol' parameter must be a non-negative real number. Got {tol!r}.")
     return int(np.count_nonzero(singular_values > tol))
 
 
@@ -200,6 +169,9 @@ def observability_gramian(
     ------
     InputError
         If an argument is invalid.
+    EstimationError
+        If the Gramian overflows (an unstable model over a long horizon: the message gives the
+        longest horizon that stays finite).
 
     Notes
     -----
@@ -214,7 +186,7 @@ def observability_gramian(
     >>> float(observability_gramian(sys, 3)[0, 0])   # 4 * (1 + 0.25 + 0.0625)
     5.25
     """
-    sys = _check_discrete_system("sys", sys)
+    sys = check_discrete_system("sys", sys)
     horizon = check_int("horizon", horizon, low=1)
     index = _check_sensors(sensors, sys.noutputs)
     a = np.asarray(sys.A, dtype=float)
@@ -226,16 +198,27 @@ def observability_gramian(
     total = np.zeros((n, n))
     total_power = np.eye(n)  # A^(length accumulated so far)
     remaining = horizon
-    while remaining:
-        if remaining & 1:
-            # Append the block after what has been accumulated: W += (A^s)^T W_m A^s.
-            total += total_power.T @ block @ total_power
-            total_power = power @ total_power
-        remaining >>= 1
-        if remaining:
-            block = block + power.T @ block @ power
-            power = power @ power
-    return (total + total.T) / 2
+    with np.errstate(all="ignore"):  # overflow is checked below
+        while remaining:
+            if remaining & 1:
+                # Append the block after what has been accumulated: W += (A^s)^T W_m A^s.
+                total += total_power.T @ block @ total_power
+                total_power = power @ total_power
+            remaining >>= 1
+            if remaining:
+                block = block + power.T @ block @ power
+                power = power @ power
+    if not np.all(np.isfinite(total)) or np.max(np.abs(total)) > 1e300:
+        radius = float(np.max(np.abs(np.linalg.eigvals(a))))
+        longest = int(300 * np.log(10) / (2 * np.log(radius))) if radius > 1 else None
+        hint = (f"the model has spectral radius {radius:.6g} > 1, so the Gramian grows like "
+                f"radius^(2 N); horizons up to about {longest} stay finite"
+                if longest is not None else "the model's powers overflow")
+        raise EstimationError(
+            f"The observability Gramian over horizon={horizon} overflows floating point: "
+            f"{hint}. Use a shorter 'horizon' or stabilise the model."
+        )
+    return read_only((total + total.T) / 2)
 
 
 # --------------------------------------------------------------------------- Riccati
@@ -265,9 +248,11 @@ def steady_state_covariance(
     Q : array_like
         Process-noise covariance ``(n, n)``, symmetric positive semidefinite.
     R : float or array_like
-        Measurement-noise covariance of the candidates: one variance for all, one variance per
-        output ``(n_outputs,)``, or a full ``(n_outputs, n_outputs)`` matrix. The rows and
-        columns of ``sensors`` are used; they must be positive definite.
+        Measurement-noise covariance of the candidates, the package's one rule for ``R``: one
+        variance for all, one variance per output ``(n_outputs,)``, or a full
+        ``(n_outputs, n_outputs)`` symmetric matrix. The rows and columns of ``sensors`` are used
+        and must be positive definite (a zero variance is an ``InputError``: a noise-free sensor
+        makes the Riccati equation singular).
     sensors : sequence of int, optional
         Output indices that are measured (default: all outputs).
     form : {"filter", "predicted"}
@@ -281,10 +266,17 @@ def steady_state_covariance(
     Raises
     ------
     InputError
-        If an argument is invalid.
+        If an argument is invalid (``R`` of the sensors not positive definite included).
     EstimationError
         If the Riccati equation has no stabilising solution (a mode on or outside the unit
-        circle that the sensors cannot see, or a singular measurement covariance).
+        circle that the sensors cannot see: the message names its eigenvalue).
+
+    Notes
+    -----
+    Solved by :func:`powerline_control._riccati.solve_filter_dare` (doubling first, SciPy's QZ as
+    the fallback, a solution accepted only if stabilising with a small residual), in the
+    information form: the cost is ``O(n^3)`` in the model order plus ``O(p n^2)`` in the number
+    of sensors, so a reduced model with 1,001 outputs costs what its ``n`` states cost.
 
     Examples
     --------
@@ -298,121 +290,17 @@ def steady_state_covariance(
         raise InputError(
             f"The 'form' parameter must be one of 'filter', 'predicted'. Got {form!r} instead."
         )
-    sys = _check_discrete_system("sys", sys)
+    sys = check_discrete_system("sys", sys)
     index = _check_sensors(sensors, sys.noutputs)
     n = sys.nstates
-    q = _noise_covariance("Q", Q, n)
-    r = _noise_covariance("R", R, sys.noutputs, index)
+    q = check_covariance("Q", Q, n)
+    r = check_covariance("R", R, sys.noutputs, index=index, definite=True)
     a = np.asarray(sys.A, dtype=float)
     c = np.asarray(sys.C, dtype=float)[index]
-    predicted = _solve_filter_dare(a, c, q, r)
+    predicted = solve_filter_dare(a, c, q, r)
     if form == "predicted":
-        return predicted
-    return _posterior_from_predicted(predicted, c, r)
-
-
-def _solve_filter_dare(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Predicted steady-state covariance from the filter DARE (the dual of the LQR one)."""
-    try:
-        np.linalg.cholesky(r)
-    except np.linalg.LinAlgError as exc:
-        raise EstimationError(
-            "The measurement-noise covariance R of the chosen sensors is singular; the Riccati "
-            "equation needs R positive definite. Give every sensor a positive noise variance "
-            "(or use epsilon > 0 in KalmanFilter)."
-        ) from exc
-    try:
-        predicted = sla.solve_discrete_are(a.T, c.T, q, r)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        # SciPy's QZ reordering gives up on ill-conditioned pencils (identified models with
-        # clusters of eigenvalues near the unit circle); the doubling algorithm does not need it.
-        predicted = _doubling_dare(a, c, q, r)
-        if predicted is None:
-            raise EstimationError(
-                "The Kalman Riccati equation has no stabilising solution for this sensor set: "
-                "some mode on or outside the unit circle is not detectable from the chosen "
-                f"outputs (or not excited by Q). SciPy said: {exc}"
-            ) from exc
-    if not np.all(np.isfinite(predicted)):
-        raise EstimationError("The Kalman Riccati solution is not finite for this sensor set.")
-    return (predicted + predicted.T) / 2
-
-
-def _doubling_dare(
-    a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, max_iter: int = 200
-) -> np.ndarray | None:
-    """Structured doubling algorithm for the filter DARE; None if it does not converge.
-
-    Iterates ``A <- A W^-1 A``, ``G <- G + A W^-1 G A^T``, ``H <- H + A^T H W^-1 A`` with
-    ``W = I + G H``, from ``A = A^T``, ``G = C^T R^-1 C``, ``H = Q``; ``H`` converges
-    quadratically to the stabilising solution (Chu, Fan, Lin & Wang, 2004). The result is accepted
-    only if it satisfies the Riccati equation to a small relative residual and is stabilising
-    (the predictor A - A P C^T S^-1 C has spectral radius < 1): an undetectable marginal mode
-    makes the iterates grow without bound while the relative residual can still look small.
-    """
-    n = a.shape[0]
-    ak = a.T.copy()
-    gk = c.T @ sla.cho_solve(sla.cho_factor(r), c)
-    hk = q.copy()
-    eye = np.eye(n)
-    with np.errstate(over="ignore", invalid="ignore"):  # divergence is checked below
-        for _ in range(max_iter):
-            w = eye + gk @ hk
-            try:
-                w_a = np.linalg.solve(w, ak)  # W^-1 A
-                w_g = np.linalg.solve(w, gk)  # W^-1 G
-            except np.linalg.LinAlgError:
-                return None
-            a_next = ak @ w_a
-            g_next = gk + ak @ w_g @ ak.T
-            h_next = hk + ak.T @ hk @ w_a
-            h_next = (h_next + h_next.T) / 2
-            g_next = (g_next + g_next.T) / 2
-            change = np.max(np.abs(h_next - hk))
-            ak, gk, hk = a_next, g_next, h_next
-            if not np.all(np.isfinite(hk)):
-                return None
-            if change <= 1e-14 * max(np.max(np.abs(hk)), np.finfo(float).tiny):
-                break
-    pct = hk @ c.T
-    s = c @ pct + r
-    residual = a @ (hk - pct @ np.linalg.solve(s, pct.T)) @ a.T + q - hk
-    if np.max(np.abs(residual)) > 1e-8 * max(np.max(np.abs(hk)), np.max(np.abs(q))):
-        return None
-    predictor = a - a @ pct @ np.linalg.solve(s, c)
-    if np.max(np.abs(np.linalg.eigvals(predictor))) >= 1.0:
-        return None
-    return hk
-
-
-def _posterior_from_predicted(
-    predicted: np.ndarray, c: np.ndarray, r: np.ndarray
-) -> np.ndarray:
-    """``P - P C^T S^-1 C P`` with ``S = C P C^T + R``, through a Cholesky solve."""
-    pct = predicted @ c.T
-    innovation = c @ pct + r
-    factor = sla.cho_factor((innovation + innovation.T) / 2)
-    posterior = predicted - pct @ sla.cho_solve(factor, pct.T)
-    return (posterior + posterior.T) / 2
-
-
-def _field_variances(covariance: np.ndarray, field_map: np.ndarray | None) -> np.ndarray:
-    """Diagonal of ``M P M^T`` without forming the full product (``diag(P)`` without a map)."""
-    if field_map is None:
-        return np.clip(np.diag(covariance).copy(), 0.0, None)
-    return np.clip(np.sum((field_map @ covariance) * field_map, axis=1), 0.0, None)
-
-
-def _check_field_map(field_map: object, n: int) -> np.ndarray | None:
-    if field_map is None:
-        return None
-    matrix = check_array("field_map", field_map, ndim=2)
-    if matrix.shape[1] != n:
-        raise InputError(
-            "The 'field_map' parameter has the wrong shape: expected (n_nodes, "
-            f"{n}) (one column per model state) but found {matrix.shape}."
-        )
-    return matrix
+        return read_only(predicted)
+    return read_only(posterior_from_predicted(predicted, c, r))
 
 
 # --------------------------------------------------------------------------- reports
@@ -524,15 +412,17 @@ def analyze_observability(
     >>> round(float(report.node_std[0]), 4)   # state 0 unseen: its stationary std 1/sqrt(1-0.25)
     1.1547
     """
-    sys = _check_discrete_system("sys", sys)
+    sys = check_discrete_system("sys", sys)
     index = _check_sensors(sensors, sys.noutputs)
     n = sys.nstates
     horizon = 2 * n if horizon is None else check_int("horizon", horizon, low=1)
-    matrix = _check_field_map(field_map, n)
+    matrix = check_field_map(field_map, n)
     rank = observability_rank(sys, index, tol=tol)
     singular_values = np.linalg.svd(
         observability_gramian(sys, horizon, index), compute_uv=False
     )
+    if not np.all(np.isfinite(singular_values)):  # pragma: no cover - the Gramian is checked
+        raise EstimationError("The Gramian's singular values are not finite.")
     smallest = float(singular_values[-1])
     condition = float(singular_values[0] / smallest) if smallest > 0 else float("inf")
     if (Q is None) != (R is None):
@@ -543,11 +433,11 @@ def analyze_observability(
     node_std = covariance = mean_std = max_std = None
     if Q is not None:
         covariance = steady_state_covariance(sys, Q, R, index)
-        node_std = np.sqrt(_field_variances(covariance, matrix))
+        node_std = read_only(np.sqrt(field_variances(covariance, matrix)))
         mean_std = float(np.sqrt(np.mean(node_std**2)))
         max_std = float(np.max(node_std))
     return ObservabilityReport(
-        sensors=index,
+        sensors=read_only(index),
         n_states=n,
         rank=rank,
         observable=rank == n,

@@ -160,7 +160,10 @@ class Trajectory:
     iterations : int
         IPOPT iterations used (0 when no solve was needed).
     solve_time : float
-        Wall-clock time of the solve, s.
+        Wall-clock time of the solve, s (information only: no result depends on it).
+    method : str
+        ``"closed_form"`` (the exact time-optimal move), ``"ipopt"`` (the discretised nonlinear
+        program) or ``"none"`` (no motion needed).
 
     Examples
     --------
@@ -181,6 +184,7 @@ class Trajectory:
     bounds: tuple[float, float]
     iterations: int = 0
     solve_time: float = 0.0
+    method: str = "ipopt"
 
     def sample(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Exact position, velocity and acceleration at any times in ``[0, duration]``.
@@ -344,6 +348,250 @@ def _rest_to_rest_time(distance: float, v_max: float, a_max: float) -> float:
 
 
 # ----------------------------------------------------------------------------------------------
+# The 1-D time-optimal move in closed form
+# ----------------------------------------------------------------------------------------------
+# A move is a list of pieces (duration, value) over which the highest derivative is constant: the
+# acceleration of a double integrator, the jerk of a triple integrator.
+
+
+def _bang_coast_bang(
+    distance: float, v0: float, v_max: float, a_max: float
+) -> list[tuple[float, float]]:
+    """Time-optimal pieces of a double integrator from speed ``v0`` to rest ``distance`` away.
+
+    Pontryagin: bang-bang in the acceleration with at most one switch, plus a coast at v_max
+    when that speed is reached.  If the robot cannot stop before the target (or moves away from
+    it), the first bang brakes and turns it round; mirroring the problem reduces that case to
+    the forward one.  Forward: accelerate at a_max from v0 to the peak speed
+    v_p = sqrt(a d + v0^2 / 2) (the two bangs together cover d), brake at a_max to rest; if
+    v_p > v_max, coast at v_max in between.  From rest: T = d / v + v / a, or 2 sqrt(d / a).
+    """
+    sign = 1.0
+    if distance - v0 * abs(v0) / (2.0 * a_max) < 0.0:
+        sign, distance, v0 = -1.0, -distance, -v0
+    peak = math.sqrt(max(a_max * distance + v0 * v0 / 2.0, 0.0))
+    if peak <= v_max:
+        pieces = [((peak - v0) / a_max, sign * a_max), (peak / a_max, -sign * a_max)]
+    else:
+        cruise = distance - (v_max**2 - v0**2) / (2.0 * a_max) - v_max**2 / (2.0 * a_max)
+        pieces = [
+            ((v_max - v0) / a_max, sign * a_max),
+            (max(cruise, 0.0) / v_max, 0.0),
+            (v_max / a_max, -sign * a_max),
+        ]
+    return [(duration, value) for duration, value in pieces if duration > 0.0]
+
+
+def _s_curve(
+    distance: float, v_max: float, a_max: float, j_max: float
+) -> list[tuple[float, float]]:
+    """Time-optimal jerk pieces of a triple integrator from rest to rest ``distance`` away.
+
+    The seven-segment S-curve: a speed ramp (jerk +j, hold a_max, jerk -j; or +j, -j when a_max
+    is not reached, i.e. for a peak speed below a_max^2 / j_max), a coast, the mirrored ramp.
+    A ramp to speed v lasts v / a + a / j (or 2 sqrt(v / j)) and covers v times half that, by
+    symmetry.  The peak speed is v_max if the two ramps fit in the distance; otherwise the
+    positive root of v^2 / a + v a / j = d, or v = (d^2 j / 4)^(1/3) when a_max is not reached.
+    From rest with both limits reached: T = d / v + v / a + a / j.
+    """
+    sign = 1.0 if distance >= 0.0 else -1.0
+    distance = abs(distance)
+
+    def ramp(speed: float) -> tuple[list[tuple[float, float]], float]:
+        if speed >= a_max**2 / j_max:
+            tj = a_max / j_max
+            pieces = [(tj, j_max), (speed / a_max - tj, 0.0), (tj, -j_max)]
+            duration = speed / a_max + tj
+        else:
+            tj = math.sqrt(speed / j_max)
+            pieces = [(tj, j_max), (tj, -j_max)]
+            duration = 2.0 * tj
+        return pieces, speed * duration / 2.0
+
+    up, ramp_distance = ramp(v_max)
+    cruise = 0.0
+    if 2.0 * ramp_distance <= distance:
+        cruise = (distance - 2.0 * ramp_distance) / v_max
+    else:
+        ratio = a_max / j_max
+        peak = a_max / 2.0 * (-ratio + math.sqrt(ratio**2 + 4.0 * distance / a_max))
+        if peak < a_max**2 / j_max:
+            peak = (distance * distance * j_max / 4.0) ** (1.0 / 3.0)
+        up, _ = ramp(peak)
+    pieces = up + [(cruise, 0.0)] + [(duration, -value) for duration, value in up]
+    return [(duration, sign * value) for duration, value in pieces if duration > 0.0]
+
+
+def _advance(state: Sequence[float], value: float, tau: float | np.ndarray, order: int) -> tuple:
+    """Exact state after ``tau`` under a constant highest derivative ``value``."""
+    if order == 2:
+        p, v = state[0], state[1]
+        return p + v * tau + value * tau**2 / 2, v + value * tau
+    p, v, a = state
+    return (
+        p + v * tau + a * tau**2 / 2 + value * tau**3 / 6,
+        v + a * tau + value * tau**2 / 2,
+        a + value * tau,
+    )
+
+
+def _extremes(start: float, v0: float, pieces: list[tuple[float, float]]) -> tuple[float, float]:
+    """Smallest and largest position of a double-integrator move (where v = 0 inside a piece)."""
+    state = (start, v0)
+    low = high = start
+    for duration, value in pieces:
+        if value != 0.0 and 0.0 < -state[1] / value < duration:
+            turn = state[0] - state[1] ** 2 / (2.0 * value)
+            low, high = min(low, turn), max(high, turn)
+        state = _advance(state, value, duration, 2)
+        low, high = min(low, state[0]), max(high, state[0])
+    return low, high
+
+
+def _time_optimal_pieces(
+    start: float, target: float, start_velocity: float, limits: RobotLimits
+) -> list[tuple[float, float]] | None:
+    """The closed-form minimum-time move to rest at ``target``, or None where none is coded
+    (a jerk limit with a moving start)."""
+    if limits.order == 2:
+        return _bang_coast_bang(target - start, start_velocity, limits.v_max, limits.a_max)
+    if start_velocity == 0.0:
+        return _s_curve(target - start, limits.v_max, limits.a_max, limits.j_max)
+    return None
+
+
+def _split_intervals(durations: list[float], n: int) -> list[int]:
+    """Intervals per piece: proportional to its duration (largest remainders), at least one."""
+    total = sum(durations)
+    shares = [n * d / total for d in durations]
+    counts = [max(1, int(math.floor(s))) for s in shares]
+    order = sorted(range(len(durations)), key=lambda i: counts[i] - shares[i])
+    i = 0
+    while sum(counts) < n:
+        counts[order[i % len(order)]] += 1
+        i += 1
+    return counts
+
+
+def _closed_form_trajectory(
+    start: float,
+    target: float,
+    start_velocity: float,
+    pieces: list[tuple[float, float]],
+    limits: RobotLimits,
+    bounds: tuple[float, float],
+    n: int,
+) -> Trajectory:
+    """Sample a closed-form move on about ``n`` intervals that include every switching time."""
+    order = limits.order
+    counts = _split_intervals([duration for duration, _ in pieces], n)
+    times, states, inputs = [0.0], [(start, start_velocity, 0.0)[:order]], []
+    t0, state = 0.0, tuple(states[0])
+    for (duration, value), count in zip(pieces, counts, strict=True):
+        taus = duration * np.arange(1, count + 1) / count
+        values = _advance(state, value, taus, order)
+        for k in range(count):
+            times.append(t0 + taus[k])
+            states.append(tuple(float(v[k]) for v in values))
+        inputs += [value] * count
+        t0 += duration
+        state = _advance(state, value, duration, order)
+    samples = np.array(states)
+    # The move ends at rest on the target, and its speed (acceleration) peaks exactly at the
+    # limit: pin both against round-off.
+    samples[-1] = [target] + [0.0] * (order - 1)
+    samples[:, 1] = np.clip(samples[:, 1], -limits.v_max, limits.v_max)
+    if order == 3:
+        samples[:, 2] = np.clip(samples[:, 2], -limits.a_max, limits.a_max)
+    inputs_array = np.array(inputs)
+    h = np.diff(np.array(times))
+    if order == 2:
+        acceleration = np.append(inputs_array, 0.0)
+        jerk = None
+        energy = float(np.sum(inputs_array**2 * h))
+    else:
+        acceleration = samples[:, 2].copy()
+        jerk = inputs_array
+        a0, a1 = acceleration[:-1], acceleration[1:]
+        energy = float(np.sum(h / 3 * (a0 * a0 + a0 * a1 + a1 * a1)))
+    return Trajectory(
+        t=read_only(np.array(times)),
+        position=read_only(samples[:, 0].copy()),
+        velocity=read_only(samples[:, 1].copy()),
+        acceleration=read_only(acceleration),
+        jerk=None if jerk is None else read_only(jerk),
+        duration=float(times[-1]),
+        energy=energy,
+        objective="time",
+        limits=limits,
+        bounds=bounds,
+        method="closed_form",
+    )
+
+
+def _sample_pieces(
+    state: Sequence[float], pieces: list[tuple[float, float]], times: np.ndarray, order: int
+) -> np.ndarray:
+    """States of a closed-form move at ``times`` (at rest at its end afterwards), (order, n)."""
+    out = np.zeros((order, times.size))
+    t0, current = 0.0, tuple(state)
+    remaining = np.ones(times.size, dtype=bool)
+    for duration, value in pieces:
+        inside = remaining & (times <= t0 + duration)
+        values = _advance(current, value, times[inside] - t0, order)
+        for row in range(order):
+            out[row, inside] = values[row]
+        remaining &= ~inside
+        current = _advance(current, value, duration, order)
+        t0 += duration
+    for row in range(order):
+        out[row, remaining] = current[row] if row == 0 else 0.0
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# Units of the nonlinear programs
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Scale:
+    """Units for IPOPT: time v_max / a_max, length v_max^2 / a_max, positions from ``origin``.
+
+    IPOPT's tolerances are absolute (1e-8 on the constraints, 1e-8 on the optimality error): in
+    these units v_max = a_max = 1 and the tolerances are relative to the limits, whatever their
+    size (with metres and seconds, limits of 1e-3 m/s met "to 1e-8" were exceeded 11-fold).
+    """
+
+    time: float
+    length: float
+    origin: float = 0.0
+
+    @classmethod
+    def of(cls, limits: RobotLimits, origin: float = 0.0) -> _Scale:
+        unit_time = limits.v_max / limits.a_max
+        return cls(unit_time, limits.v_max * unit_time, origin)
+
+    def position(self, value: float) -> float:
+        return max(min((value - self.origin) / self.length, _FAR), -_FAR)
+
+    def derivative(self, value: float | np.ndarray, order: int) -> float | np.ndarray:
+        """A derivative of the position (order 1: velocity, ...) in the scaled units."""
+        return value * self.time**order / self.length
+
+    def state(self, state: Sequence[float]) -> np.ndarray:
+        return np.array(
+            [(state[0] - self.origin) / self.length]
+            + [self.derivative(state[i], i) for i in range(1, len(state))]
+        )
+
+    def unscale_states(self, states: np.ndarray) -> np.ndarray:
+        out = states * self.length / self.time ** np.arange(states.shape[0])[:, None]
+        out[0] += self.origin
+        return out
+
+
+# ----------------------------------------------------------------------------------------------
 # The nonlinear programs (built once per shape, solved many times)
 # ----------------------------------------------------------------------------------------------
 
@@ -424,7 +672,7 @@ def _new_program(n: int, order: int) -> tuple[ca.Opti, ca.MX, ca.MX, dict[str, c
 
 
 @functools.lru_cache(maxsize=16)
-def _plan_program(n: int, order: int, objective: str) -> _Program:
+def _plan_program(n: int, order: int, objective: str, max_iter: int) -> _Program:
     """Plan to a target and end velocity: free duration ("time") or fixed ("energy")."""
     opti, states, inputs, params = _new_program(n, order)
     params["target"] = opti.parameter()
@@ -446,11 +694,15 @@ def _plan_program(n: int, order: int, objective: str) -> _Program:
         opti.minimize(_acceleration_energy(states, inputs, h, order))
     # Adaptive barrier updates: measured 10-15 iterations on every distance where the monotone
     # default needs up to 80 for short jerk-limited moves.
-    opti.solver("ipopt", {**_IPOPT_QUIET, "ipopt.mu_strategy": "adaptive"})
+    opti.solver(
+        "ipopt", {**_IPOPT_QUIET, "ipopt.mu_strategy": "adaptive", "ipopt.max_iter": max_iter}
+    )
     return _Program(opti, order, n, states, inputs, duration, params)
 
 
-def _track_program(n: int, order: int, time_budget: float, warm: bool) -> _Program:
+def _track_program(
+    n: int, order: int, time_budget: float | None, max_iter: int, warm: bool
+) -> _Program:
     """Receding-horizon tracking: fixed step, approach the target, end the horizon at rest."""
     opti, states, inputs, params = _new_program(n, order)
     params["target"] = opti.parameter()
@@ -488,7 +740,11 @@ def _track_program(n: int, order: int, time_budget: float, warm: bool) -> _Progr
     )
     # Adaptive barrier updates: measured 9 instead of 13 iterations cold, and 4 instead of 10
     # warm, along the benchmark's closed loop.
-    options = {**_IPOPT_QUIET, "ipopt.max_wall_time": time_budget, "ipopt.mu_strategy": "adaptive"}
+    # An iteration limit, never a clock, unless the user asks for one: a result must not depend
+    # on how busy the machine is.
+    options = {**_IPOPT_QUIET, "ipopt.max_iter": max_iter, "ipopt.mu_strategy": "adaptive"}
+    if time_budget is not None:
+        options["ipopt.max_wall_time"] = time_budget
     if warm:
         # Start from the shifted previous solution and its multipliers, close to the boundary.
         options.update(
@@ -504,15 +760,17 @@ def _track_program(n: int, order: int, time_budget: float, warm: bool) -> _Progr
     return _Program(opti, order, n, states, inputs, duration, params)
 
 
-def _set_limits(program: _Program, limits: RobotLimits, low: float, high: float) -> None:
+def _set_limits(
+    program: _Program, limits: RobotLimits, low: float, high: float, scale: _Scale
+) -> None:
     opti, params = program.opti, program.params
     # CasADi parameters must be finite: "no span" becomes a bound far beyond any real line.
-    opti.set_value(params["low"], max(low, -_FAR))
-    opti.set_value(params["high"], min(high, _FAR))
-    opti.set_value(params["v_max"], limits.v_max)
-    opti.set_value(params["a_max"], limits.a_max)
+    opti.set_value(params["low"], scale.position(low))
+    opti.set_value(params["high"], scale.position(high))
+    opti.set_value(params["v_max"], scale.derivative(limits.v_max, 1))
+    opti.set_value(params["a_max"], scale.derivative(limits.a_max, 2))
     if program.order == 3:
-        opti.set_value(params["j_max"], limits.j_max)
+        opti.set_value(params["j_max"], scale.derivative(limits.j_max, 3))
 
 
 def _solve(program: _Program) -> tuple[ca.OptiSol | None, dict, float]:
@@ -536,10 +794,12 @@ def _trajectory_from(
     objective: str,
     limits: RobotLimits,
     bounds: tuple[float, float],
+    scale: _Scale,
 ) -> Trajectory:
-    states = np.atleast_2d(solution.value(program.states))
+    states = scale.unscale_states(np.atleast_2d(solution.value(program.states)))
     inputs = np.atleast_1d(solution.value(program.inputs)).ravel()
-    duration = float(solution.value(program.duration))
+    inputs = inputs * scale.length / scale.time**program.order
+    duration = float(solution.value(program.duration)) * scale.time
     n = program.n
     h = duration / n
     if program.order == 2:
@@ -564,6 +824,7 @@ def _trajectory_from(
         bounds=bounds,
         iterations=int(stats.get("iter_count", 0)),
         solve_time=elapsed,
+        method="ipopt",
     )
 
 
@@ -584,8 +845,17 @@ def plan_motion(
     start_velocity: float = 0.0,
     end_velocity: float = 0.0,
     n_intervals: int = 100,
+    method: str = "auto",
+    max_iter: int = 3000,
 ) -> Trajectory:
     """Plan the robot's motion from ``start`` to ``target`` within its limits.
+
+    A minimum-time move that ends at rest is the closed-form time-optimal motion (bang-coast-bang
+    for ``v_max`` and ``a_max``; the seven-segment S-curve with a jerk limit, from rest): exact,
+    microseconds, and the same on any machine.  Other requests (minimum energy, an end velocity,
+    a jerk limit with a moving start) are solved by IPOPT on
+    the discretised problem, in units where ``v_max = a_max = 1`` so that its absolute
+    tolerances are relative to the limits, and with an iteration limit, not a clock.
 
     Parameters
     ----------
@@ -606,18 +876,27 @@ def plan_motion(
         Velocities at the start and the end, m/s (default: from rest to rest).  The acceleration
         starts and ends at zero when a jerk limit is set.
     n_intervals : int
-        Number of time intervals of the discretisation (>= 2).
+        Number of time intervals of the samples (>= 2): of the discretisation for IPOPT; for the
+        closed form, the samples include every switching time (at least one interval per piece).
+    method : {"auto", "closed_form", "ipopt"}
+        ``"auto"``: the closed form where it applies, else IPOPT.  ``"closed_form"``: insist on
+        it (an InputError says why it does not apply).  ``"ipopt"``: always the nonlinear program
+        (for comparison).
+    max_iter : int
+        IPOPT iteration limit (>= 1); reaching it raises PlanningError.
 
     Returns
     -------
     Trajectory
         Samples and the exact piecewise-polynomial motion; the limits hold between samples.
+        ``method`` says which way it was computed.
 
     Raises
     ------
     InputError
         If an argument has no meaning: non-finite numbers, a start or target outside the span, a
-        start that puts the robot in an obstacle, ``duration`` missing for ``"energy"``, ...
+        start that puts the robot in an obstacle, ``duration`` missing for ``"energy"``,
+        ``method="closed_form"`` where it does not apply, ...
     PlanningError
         If no motion satisfies the limits; the message names the limit: an obstacle or span end
         between start and target, a target inside an obstacle, a ``duration`` shorter than
@@ -628,8 +907,8 @@ def plan_motion(
     --------
     >>> limits = RobotLimits(v_max=0.5, a_max=1.0)
     >>> traj = plan_motion(0.2, 1.8, limits, span_length=3.66)
-    >>> round(traj.duration, 2)  # 1.6 m / 0.5 m/s + 0.5 m/s / 1 m/s^2
-    3.7
+    >>> round(traj.duration, 6), traj.method  # 1.6 m / 0.5 m/s + 0.5 m/s / 1 m/s^2
+    (3.7, 'closed_form')
     >>> plan_motion(0.2, 1.8, limits, span_length=3.66, obstacles=[(1.0, 1.1)])
     Traceback (most recent call last):
     ...
@@ -640,7 +919,9 @@ def plan_motion(
             f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__} instead."
         )
     objective = check_choice("objective", objective, ("time", "energy"))
+    method = check_choice("method", method, ("auto", "closed_form", "ipopt"))
     n = check_int("n_intervals", n_intervals, low=2)
+    max_iter = check_int("max_iter", max_iter, low=1)
     if span_length is not None:
         span_length = check_real("span_length", span_length, low=0.0)
         if limits.length > span_length:
@@ -666,6 +947,9 @@ def plan_motion(
     low, high = interval[0], interval[1]
     _check_velocity_state(start_velocity, end_velocity, limits)
     _check_braking(start, start_velocity, limits, interval)
+    # A measured speed a hair above v_max (round-off) is the limit.
+    start_velocity = min(max(start_velocity, -limits.v_max), limits.v_max)
+    end_velocity = min(max(end_velocity, -limits.v_max), limits.v_max)
 
     distance = abs(target - start)
     at_rest = start_velocity == 0.0 and end_velocity == 0.0
@@ -680,7 +964,78 @@ def plan_motion(
     if objective == "time" and at_rest and distance <= _GEOMETRY_TOL:
         return _stationary(start, limits, (low, high))
 
-    program = _plan_program(n, limits.order, objective)
+    if method != "ipopt":
+        pieces, reason = _closed_form_request(
+            start, target, start_velocity, end_velocity, objective, limits, (low, high)
+        )
+        if pieces is not None:
+            minimum = sum(piece[0] for piece in pieces)
+            if duration is not None and minimum > duration * (1 + 1e-12):
+                raise PlanningError(
+                    f"The duration {duration:g} s is too short: the fastest motion from "
+                    f"{start:g} m (at {start_velocity:g} m/s) to rest at {target:g} m takes "
+                    f"{minimum:.6g} s with v_max={limits.v_max:g} m/s, a_max={limits.a_max:g} "
+                    f"m/s^2, j_max={limits.j_max}. Allow more time or raise the limits."
+                )
+            return _closed_form_trajectory(
+                start, target, start_velocity, pieces, limits, (low, high), n
+            )
+        if method == "closed_form":
+            raise InputError(
+                f"The 'method' parameter 'closed_form' does not apply to this request: {reason}. "
+                "Use method='auto' (IPOPT where the closed form does not apply) or 'ipopt'."
+            )
+
+    return _ipopt_plan(
+        start, target, limits, objective, duration, start_velocity, end_velocity, n, max_iter,
+        (low, high),
+    )
+
+
+def _closed_form_request(
+    start: float,
+    target: float,
+    start_velocity: float,
+    end_velocity: float,
+    objective: str,
+    limits: RobotLimits,
+    bounds: tuple[float, float],
+) -> tuple[list[tuple[float, float]] | None, str]:
+    """The closed-form pieces for a request, or None and the reason it does not apply."""
+    if objective != "time":
+        return None, "it is the minimum-time move (objective='time'), not a minimum-energy one"
+    if end_velocity != 0.0:
+        return None, "the closed form ends at rest (end_velocity=0)"
+    pieces = _time_optimal_pieces(start, target, start_velocity, limits)
+    if pieces is None:
+        return None, "with a jerk limit the closed form (S-curve) starts at rest"
+    if limits.order == 2:
+        # The first bang brakes at a_max, so a turn goes no further than braking does, which
+        # _check_braking has allowed; kept as a guard.
+        lowest, highest = _extremes(start, start_velocity, pieces)
+        if lowest < bounds[0] - _GEOMETRY_TOL or highest > bounds[1] + _GEOMETRY_TOL:
+            return None, (
+                "turning round, the time-optimal move would leave the free interval "
+                f"[{bounds[0]:g}, {bounds[1]:g}] m"
+            )
+    return pieces, ""
+
+
+def _ipopt_plan(
+    start: float,
+    target: float,
+    limits: RobotLimits,
+    objective: str,
+    duration: float | None,
+    start_velocity: float,
+    end_velocity: float,
+    n: int,
+    max_iter: int,
+    bounds: tuple[float, float],
+) -> Trajectory:
+    low, high = bounds
+    distance = abs(target - start)
+    program = _plan_program(n, limits.order, objective, max_iter)
     speed_time = distance / limits.v_max + limits.v_max / limits.a_max
     if limits.j_max is not None:
         speed_time += limits.a_max / limits.j_max
@@ -695,26 +1050,30 @@ def plan_motion(
             math.sqrt(5.774 * distance / limits.a_max),
             0.0 if limits.j_max is None else (60 * distance / limits.j_max) ** (1 / 3),
         ) + abs(start_velocity) / limits.a_max
-    bound = duration if duration is not None else 1e3 * (guess_time + 1.0)
+    bound = duration if duration is not None else 1e3 * (guess_time + limits.v_max / limits.a_max)
+    scale = _Scale.of(limits, origin=start)
     start_state = [start, start_velocity] + ([0.0] if limits.order == 3 else [])
     with program.lock:
         opti, params = program.opti, program.params
-        _set_limits(program, limits, low, high)
-        opti.set_value(params["start"], start_state)
-        opti.set_value(params["target"], target)
-        opti.set_value(params["end_velocity"], end_velocity)
-        opti.set_value(params["duration"], bound)
-        _set_cold_guess(program, start, target, start_velocity, guess_time)
+        _set_limits(program, limits, low, high, scale)
+        opti.set_value(params["start"], scale.state(start_state))
+        opti.set_value(params["target"], scale.position(target))
+        opti.set_value(params["end_velocity"], scale.derivative(end_velocity, 1))
+        opti.set_value(params["duration"], bound / scale.time)
+        _set_cold_guess(program, scale, start, target, start_velocity, guess_time)
         solution, stats, elapsed = _solve(program)
         if solution is None:
             raise PlanningError(
                 f"IPOPT found no {objective}-optimal motion from {start:g} m to {target:g} m "
-                f"(status {stats.get('return_status', 'unknown')!r}) with v_max="
-                f"{limits.v_max:g} m/s, a_max={limits.a_max:g} m/s^2, j_max={limits.j_max}, "
-                f"duration={duration}, free interval [{low:g}, {high:g}] m. A too-short "
-                "duration or a start velocity that cannot be braked in time are the usual causes."
+                f"(status {stats.get('return_status', 'unknown')!r}, iteration limit {max_iter}) "
+                f"with v_max={limits.v_max:g} m/s, a_max={limits.a_max:g} m/s^2, "
+                f"j_max={limits.j_max}, duration={duration}, free interval [{low:g}, {high:g}] "
+                "m. A too-short duration or a start velocity that cannot be braked in time are "
+                "the usual causes."
             )
-        return _trajectory_from(program, solution, stats, elapsed, objective, limits, (low, high))
+        return _trajectory_from(
+            program, solution, stats, elapsed, objective, limits, (low, high), scale
+        )
 
 
 def _check_velocity_state(start_velocity: float, end_velocity: float, limits: RobotLimits) -> None:
@@ -740,7 +1099,12 @@ def _check_braking(
 
 
 def _set_cold_guess(
-    program: _Program, start: float, target: float, start_velocity: float, guess_time: float
+    program: _Program,
+    scale: _Scale,
+    start: float,
+    target: float,
+    start_velocity: float,
+    guess_time: float,
 ) -> None:
     """Initial guess: the minimum-jerk quintic from start to target (smooth and consistent)."""
     n, opti = program.n, program.opti
@@ -756,9 +1120,10 @@ def _set_cold_guess(
         inputs = np.diff(acceleration) / (T / n)
     else:
         inputs = (acceleration[:-1] + acceleration[1:]) / 2
-    opti.set_initial(program.states, guess)
-    opti.set_initial(program.inputs, inputs.reshape(1, n))
-    opti.set_initial(program.duration, guess_time)
+    scaled = np.vstack([scale.state(column) for column in guess.T]).T
+    opti.set_initial(program.states, scaled)
+    opti.set_initial(program.inputs, scale.derivative(inputs, program.order).reshape(1, n))
+    opti.set_initial(program.duration, guess_time / scale.time)
 
 
 def _stationary(position: float, limits: RobotLimits, bounds: tuple[float, float]) -> Trajectory:
@@ -774,6 +1139,7 @@ def _stationary(position: float, limits: RobotLimits, bounds: tuple[float, float
         objective="time",
         limits=limits,
         bounds=bounds,
+        method="none",
     )
 
 
@@ -798,7 +1164,8 @@ class MPCStep:
         integrated exactly.
     status : str
         ``"optimal"`` (a solve succeeded), ``"at_target"`` (at rest at the target: hold, no solve)
-        or ``"safe_stop"`` (the solve failed or ran out of time: braking to rest instead).
+        or ``"safe_stop"`` (the solve failed, reached its iteration limit or the time budget the
+        user set: braking to rest instead).
     fallback : bool
         True when the command is the safe-stop fallback rather than an optimal plan.
     target : float
@@ -809,17 +1176,21 @@ class MPCStep:
     plan : Trajectory or None
         The horizon plan when a solve succeeded.
     solve_time : float
-        Wall-clock time of the step, s.
+        Wall-clock time of the step, s (information only: no result depends on it unless a
+        ``time_budget`` was set).
     within_budget : bool
-        Whether ``solve_time`` stayed within the planner's ``time_budget``.
+        Whether ``solve_time`` stayed within the planner's ``time_budget`` (True without one).
     iterations : int
         IPOPT iterations (0 without a solve).
     message : str
         Human-readable account of the step (the solver status on a fallback).
+    guess : str
+        Initial guess of the solve: ``"closed_form"`` (the time-optimal move from the current
+        state), ``"previous"`` (the previous plan shifted by one period) or ``"none"``.
 
     Examples
     --------
-    >>> planner = MotionPlanner(RobotLimits(v_max=0.5, a_max=1.0), dt=0.05, time_budget=1.0)
+    >>> planner = MotionPlanner(RobotLimits(v_max=0.5, a_max=1.0), dt=0.05)
     >>> step = planner.step((0.0, 0.0), target=1.0)
     >>> step.status, step.fallback, [round(v, 5) for v in step.next_state]
     ('optimal', False, [0.00125, 0.05])
@@ -837,18 +1208,25 @@ class MPCStep:
     within_budget: bool
     iterations: int
     message: str
+    guess: str = "none"
 
 
 class MotionPlanner:
     """Receding-horizon (MPC) motion planner that follows a moving antinode.
 
     Each :meth:`step` solves, from the robot's current state, a plan over ``horizon`` control
-    periods that approaches the target as fast as the limits allow (least squared distance to the
+    periods that approaches the target as fast as the limits allow (least distance to the
     target, lightly penalised acceleration) and ends the horizon at rest inside the free interval;
     the first period of that plan is the command.  Because every plan can stop, braking is always
-    possible: when a solve fails or exceeds the time budget, the step brakes to rest at ``a_max``
-    (the *safe stop*) and reports ``status="safe_stop"``.  Solves after the first are warm-started
-    from the previous plan shifted by one period, with its multipliers.
+    possible: when a solve fails (or reaches its iteration limit, or a time budget the user set),
+    the step brakes to rest at ``a_max`` (the *safe stop*) and reports ``status="safe_stop"``.
+
+    Each solve starts from the closed-form time-optimal move from the current state to the
+    target (bang-coast-bang; the S-curve from rest with a jerk limit), sampled on the horizon:
+    close to the tracking optimum and valid at once when the target jumps, which a shifted
+    previous plan is not (``warm_start="previous"`` keeps that older scheme, with the previous
+    multipliers).  Results depend only on the inputs: IPOPT stops on an iteration limit, and
+    a wall-clock budget applies only when ``time_budget`` is given.
 
     Parameters
     ----------
@@ -863,13 +1241,18 @@ class MotionPlanner:
         Span length, m (hard limits for the robot's body), or None.
     obstacles : sequence of (left, right)
         Intervals, m, the robot may neither enter nor cross.
-    time_budget : float
-        Wall-clock time allowed per step, s (IPOPT is stopped after it).
+    time_budget : float or None
+        Wall-clock time allowed per solve, s (IPOPT is stopped after it), or None (default): no
+        clock, only ``max_iter``.  With a budget the results depend on the machine's load.
     effort_weight : float
         Weight of the (normalised) squared acceleration against the (normalised) squared
         distance to the target (>= 0); small values give nearly time-optimal motion.
     tolerance : float
         Position (m) and speed (m/s) within which the robot counts as at rest at the target.
+    max_iter : int
+        IPOPT iterations allowed per solve (>= 1); a solve that needs more brakes instead.
+    warm_start : {"closed_form", "previous", "none"}
+        Initial guess of each solve (see above).
 
     Raises
     ------
@@ -880,8 +1263,8 @@ class MotionPlanner:
     --------
     >>> planner = MotionPlanner(RobotLimits(v_max=0.5, a_max=1.0), dt=0.05, span_length=3.66)
     >>> step = planner.step((0.5, 0.0), target=2.0)
-    >>> step.status, round(step.acceleration, 3)
-    ('optimal', 1.0)
+    >>> step.status, round(step.acceleration, 3), step.guess
+    ('optimal', 1.0, 'closed_form')
     """
 
     def __init__(
@@ -892,9 +1275,11 @@ class MotionPlanner:
         horizon: int = 40,
         span_length: float | None = None,
         obstacles: Sequence[tuple[float, float]] = (),
-        time_budget: float = 0.03,
+        time_budget: float | None = None,
         effort_weight: float = 1e-3,
         tolerance: float = 1e-3,
+        max_iter: int = 200,
+        warm_start: str = "closed_form",
     ) -> None:
         if not isinstance(limits, RobotLimits):
             raise InputError(
@@ -922,13 +1307,21 @@ class MotionPlanner:
                 )
         self.span_length = span_length
         self.obstacles = tuple(_check_obstacles(obstacles, span_length))
-        self.time_budget = check_real("time_budget", time_budget, low=0.0)
+        self.time_budget = (
+            None if time_budget is None else check_real("time_budget", time_budget, low=0.0)
+        )
         self.effort_weight = check_real(
             "effort_weight", effort_weight, low=0.0, low_inclusive=True
         )
         self.tolerance = check_real("tolerance", tolerance, low=0.0)
-        self._cold = _track_program(self.horizon, limits.order, self.time_budget, warm=False)
-        self._warm = _track_program(self.horizon, limits.order, self.time_budget, warm=True)
+        self.max_iter = check_int("max_iter", max_iter, low=1)
+        self.warm_start = check_choice(
+            "warm_start", warm_start, ("closed_form", "previous", "none")
+        )
+        self._scale = _Scale.of(limits)
+        order = limits.order
+        self._cold = _track_program(self.horizon, order, self.time_budget, self.max_iter, False)
+        self._warm = _track_program(self.horizon, order, self.time_budget, self.max_iter, True)
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.n_fallbacks = 0
         self.n_steps = 0
@@ -958,7 +1351,13 @@ class MotionPlanner:
         ------
         InputError
             If the state has the wrong length, is not finite, or puts the robot outside the span
-            or in an obstacle, or the target lies outside the span.
+            or in an obstacle, or the target lies outside the span or is not finite.
+
+        Examples
+        --------
+        >>> planner = MotionPlanner(RobotLimits(v_max=0.5, a_max=1.0), span_length=3.66)
+        >>> planner.step((1.0, 0.0), target=1.0).status
+        'at_target'
         """
         started = time.perf_counter()
         order = self.limits.order
@@ -992,23 +1391,26 @@ class MotionPlanner:
             self._previous = None
             return self._hold(state_array, tracked, clamped, started)
 
-        program = self._warm if self._previous is not None else self._cold
+        use_previous = self.warm_start == "previous" and self._previous is not None
+        program = self._warm if self._previous is not None and self.warm_start != "none" \
+            else self._cold
+        scale = self._scale
         with program.lock:
             opti, params = program.opti, program.params
-            _set_limits(program, self.limits, low, high)
-            opti.set_value(params["start"], state_array)
-            opti.set_value(params["target"], tracked)
-            opti.set_value(params["dt"], self.dt)
-            scale = max(self.limits.v_max * self.dt * self.horizon, self.tolerance)
-            opti.set_value(params["scale"], scale)
+            _set_limits(program, self.limits, low, high, scale)
+            opti.set_value(params["start"], scale.state(state_array))
+            opti.set_value(params["target"], scale.position(tracked))
+            opti.set_value(params["dt"], self.dt / scale.time)
+            normaliser = max(self.limits.v_max * self.dt * self.horizon, self.tolerance)
+            opti.set_value(params["scale"], normaliser / scale.length)
             opti.set_value(params["rho"], self.effort_weight)
-            opti.set_value(params["tolerance"], self.tolerance)
-            opti.set_value(params["margin"], _MARGIN_FRACTION * self.tolerance)
-            self._set_guess(program, state_array, tracked)
+            opti.set_value(params["tolerance"], self.tolerance / scale.length)
+            opti.set_value(params["margin"], _MARGIN_FRACTION * self.tolerance / scale.length)
+            guess = self._set_guess(program, state_array, tracked, use_previous, (low, high))
             solution, stats, _ = _solve(program)
             if solution is not None:
                 plan = _trajectory_from(
-                    program, solution, stats, 0.0, "track", self.limits, (low, high)
+                    program, solution, stats, 0.0, "track", self.limits, (low, high), scale
                 )
                 inputs = plan.acceleration[:-1] if order == 2 else plan.jerk
                 lam_g = np.atleast_1d(solution.value(opti.lam_g))
@@ -1017,12 +1419,10 @@ class MotionPlanner:
         if solution is None:
             self._previous = None
             self.n_fallbacks += 1
-            return self._safe_stop(state_array, tracked, clamped, elapsed, stats)
+            return self._safe_stop(state_array, tracked, clamped, elapsed, stats, guess)
         first_acc = float(plan.acceleration[0])
         first_jerk = float(plan.jerk[0]) if plan.jerk is not None else None
-        next_state = tuple(
-            float(value) for value in _plan_states(plan, order)[:, 1]
-        )
+        next_state = tuple(float(value) for value in _plan_states(plan, order)[:, 1])
         return MPCStep(
             acceleration=first_acc,
             jerk=first_jerk,
@@ -1033,29 +1433,64 @@ class MotionPlanner:
             target_clamped=clamped,
             plan=plan,
             solve_time=elapsed,
-            within_budget=elapsed <= self.time_budget,
+            within_budget=self._within_budget(elapsed),
             iterations=int(stats.get("iter_count", 0)),
             message=f"IPOPT: {stats.get('return_status', '')}",
+            guess=guess,
         )
 
     # -- helpers -------------------------------------------------------------------------------
 
-    def _set_guess(self, program: _Program, state: np.ndarray, target: float) -> None:
-        n, opti = program.n, program.opti
-        if self._previous is not None:
+    def _within_budget(self, elapsed: float) -> bool:
+        return self.time_budget is None or elapsed <= self.time_budget
+
+    def _set_guess(
+        self,
+        program: _Program,
+        state: np.ndarray,
+        target: float,
+        use_previous: bool,
+        bounds: tuple[float, float],
+    ) -> str:
+        """Set the solver's initial guess (scaled); return which one it is."""
+        n, opti, scale, order = program.n, program.opti, self._scale, program.order
+        if use_previous:
             states, inputs, lam_g = self._previous
             # Shift by one period; the previous plan ends at rest, so repeating its end is valid.
             guess = np.hstack([states[:, 1:], states[:, -1:]])
             guess[:, 0] = state
-            opti.set_initial(program.states, guess)
-            opti.set_initial(program.inputs, np.append(inputs[1:], 0.0).reshape(1, n))
+            opti.set_initial(program.states, _scale_columns(scale, guess))
+            shifted = np.append(inputs[1:], 0.0)
+            opti.set_initial(program.inputs, scale.derivative(shifted, order).reshape(1, n))
             opti.set_initial(opti.lam_g, lam_g)
-            return
-        guess = np.zeros((program.order, n + 1))
-        guess[0] = state[0]
-        guess[:, 0] = state
-        opti.set_initial(program.states, guess)
-        opti.set_initial(program.inputs, np.zeros((1, n)))
+            return "previous"
+        pieces = None
+        if self.warm_start == "closed_form":
+            if order == 2 or (state[1] == 0.0 and state[2] == 0.0):
+                pieces = _time_optimal_pieces(state[0], target, state[1], self.limits)
+        if pieces:
+            times = self.dt * np.arange(n + 1)
+            guess = _sample_pieces(state[:order], pieces, times, order)
+            guess[:, 0] = state
+            if order == 2:  # the mean acceleration over each period
+                inputs = np.diff(guess[1]) / self.dt
+            else:
+                inputs = np.diff(guess[2]) / self.dt
+            # The time-optimal move may leave the free interval (a turn near an obstacle): a
+            # guess need not be feasible, but keep it inside.
+            guess[0] = np.clip(guess[0], max(bounds[0], -_FAR), min(bounds[1], _FAR))
+            label = "closed_form"
+        else:
+            guess = np.zeros((order, n + 1))
+            guess[0] = state[0]
+            guess[:, 0] = state
+            inputs = np.zeros(n)
+            label = "none"
+        opti.set_initial(program.states, _scale_columns(scale, guess))
+        opti.set_initial(program.inputs, scale.derivative(inputs, order).reshape(1, n))
+        if program is self._warm:  # the previous multipliers: the active set changes little
+            opti.set_initial(opti.lam_g, self._previous[2])
+        return label
 
     def _hold(
         self, state: np.ndarray, target: float, clamped: bool, started: float
@@ -1071,13 +1506,19 @@ class MotionPlanner:
             target_clamped=clamped,
             plan=None,
             solve_time=elapsed,
-            within_budget=elapsed <= self.time_budget,
+            within_budget=self._within_budget(elapsed),
             iterations=0,
             message="At rest at the target: holding.",
         )
 
     def _safe_stop(
-        self, state: np.ndarray, target: float, clamped: bool, elapsed: float, stats: dict
+        self,
+        state: np.ndarray,
+        target: float,
+        clamped: bool,
+        elapsed: float,
+        stats: dict,
+        guess: str,
     ) -> MPCStep:
         position, velocity = float(state[0]), float(state[1])
         dt, a_max = self.dt, self.limits.a_max
@@ -1106,13 +1547,22 @@ class MotionPlanner:
             target_clamped=clamped,
             plan=None,
             solve_time=elapsed,
-            within_budget=elapsed <= self.time_budget,
+            within_budget=self._within_budget(elapsed),
             iterations=int(stats.get("iter_count", 0)),
             message=(
-                f"Solve failed ({stats.get('return_status', 'unknown')}): braking to a safe stop "
+                f"Solve failed ({stats.get('return_status', 'unknown')}; iteration limit "
+                f"{self.max_iter}, time budget {self.time_budget}): braking to a safe stop "
                 f"at a_max={a_max:g} m/s^2.{note}"
             ),
+            guess=guess,
         )
+
+
+def _scale_columns(scale: _Scale, states: np.ndarray) -> np.ndarray:
+    """Scale a (order, n) array of physical states column by column."""
+    out = states / scale.length * scale.time ** np.arange(states.shape[0])[:, None]
+    out[0] = (states[0] - scale.origin) / scale.length
+    return out
 
 
 def _plan_states(plan: Trajectory, order: int) -> np.ndarray:

@@ -11,7 +11,16 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-__all__ = ["plot_eigenvalues", "plot_estimate", "plot_envelope", "plot_closed_loop"]
+__all__ = [
+    "plot_eigenvalues",
+    "plot_estimate",
+    "plot_envelope",
+    "plot_closed_loop",
+    "plot_error_along_span",
+    "plot_layouts",
+    "plot_sensor_count",
+    "plot_robot_path",
+]
 
 
 def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray]) -> Figure:
@@ -32,14 +41,15 @@ def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray]) -> Figure:
     >>> len(fig.axes)
     1
     """
-    fig = Figure(figsize=(5, 5))
+    # constrained layout keeps the axis labels inside the canvas (the "Im" label was clipped).
+    fig = Figure(figsize=(5.5, 5), layout="constrained")
     ax = fig.add_subplot()
     theta = np.linspace(0, 2 * np.pi, 400)
     ax.plot(np.cos(theta), np.sin(theta), "k-", lw=0.8, label="unit circle")
     for (label, values), marker in zip(eigenvalue_sets.items(), "ox+s^", strict=False):
         values = np.asarray(values)
         ax.plot(values.real, values.imag, marker, ms=4, mfc="none", label=label)
-    ax.set(xlabel="Re", ylabel="Im", aspect="equal")
+    ax.set(xlabel="Re λ", ylabel="Im λ", aspect="equal")
     ax.legend(loc="upper left", fontsize=8)
     return fig
 
@@ -126,6 +136,185 @@ def plot_envelope(
     return fig
 
 
+def plot_error_along_span(
+    x: np.ndarray, errors: dict[str, np.ndarray], sensors: Sequence[float] = ()
+) -> Figure:
+    """RMS estimation error at every node, one curve per layout, with the sensors marked.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n_nodes,)
+        Node positions, m.
+    errors : dict of str to ndarray
+        Layout name -> RMS error at each node as a fraction of the RMS displacement.
+    sensors : sequence of float
+        Positions of the chosen sensors, m.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> x = np.linspace(0, 3, 31)
+    >>> len(plot_error_along_span(x, {"chosen": 0.01 * np.ones(31)}, [1.0]).axes)
+    1
+    """
+    fig = Figure(figsize=(8, 3.5), layout="constrained")
+    ax = fig.add_subplot()
+    for label, values in errors.items():
+        ax.plot(x, 100 * np.asarray(values), label=label)
+    for i, position in enumerate(sensors):
+        ax.axvline(position, color="g", ls="--", lw=1, label="chosen sensors" if i == 0 else None)
+    ax.set(xlabel="x (m)", ylabel="RMS error (% of RMS displacement)")
+    ax.set_yscale("log")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def plot_layouts(
+    errors: dict[str, float], positions: dict[str, Sequence[float]], span_length: float
+) -> Figure:
+    """Sensor layouts compared: their errors (bars) and where their sensors sit.
+
+    Parameters
+    ----------
+    errors : dict of str to float
+        Layout name -> RMS error at the unmeasured nodes, % of RMS displacement.
+    positions : dict of str to sequence of float
+        Layout name -> sensor positions, m.
+    span_length : float
+        m.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> fig = plot_layouts({"chosen": 1.0, "first 3": 9.0}, {"chosen": [1, 2], "first 3": [0.1]},
+    ...                    3.0)
+    >>> len(fig.axes)
+    2
+    """
+    fig = Figure(figsize=(9, 0.6 * len(errors) + 2), layout="constrained")
+    left, right = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 2]})
+    names = list(errors)
+    rows = np.arange(len(names))
+    left.barh(rows, [errors[n] for n in names], color=["C0"] + ["C7"] * (len(names) - 1))
+    left.set_yticks(rows, names, fontsize=8)
+    left.invert_yaxis()
+    left.set_xscale("log")
+    left.set_xlabel("error at unmeasured nodes (%)")
+    for row, name in zip(rows, names, strict=True):
+        right.plot(positions[name], np.full(len(positions[name]), row), "|", ms=12, mew=2)
+    right.set_yticks(rows, [""] * len(names))
+    right.set_ylim(left.get_ylim())
+    right.set_xlim(0, span_length)
+    right.set_xlabel("sensor position x (m)")
+    return fig
+
+
+def plot_sensor_count(
+    k: Sequence[int], predicted: Sequence[float], simulated: Sequence[float] | None = None
+) -> Figure:
+    """How many sensors: the RMS estimation error against the number of sensors.
+
+    Parameters
+    ----------
+    k : sequence of int
+        Sensor counts.
+    predicted : sequence of float
+        Predicted steady-state RMS error per state, m.
+    simulated : sequence of float, optional
+        The same measured on a simulation, m.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> len(plot_sensor_count([1, 2, 3], [3e-4, 1e-4, 8e-5], [3.1e-4, 1e-4, 8e-5]).axes)
+    1
+    """
+    fig = Figure(figsize=(6, 3.5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(k, 1e3 * np.asarray(predicted), "o-", label="predicted (Riccati)")
+    if simulated is not None:
+        ax.plot(k, 1e3 * np.asarray(simulated), "x--", label="simulated")
+    ax.set(xlabel="number of sensors", ylabel="RMS estimation error (mm)")
+    ax.set_yscale("log")
+    ax.set_xticks(list(k))
+    ax.legend(fontsize=8)
+    return fig
+
+
+def plot_robot_path(
+    x: np.ndarray,
+    envelope: np.ndarray,
+    t: np.ndarray,
+    position: np.ndarray,
+    *,
+    target: float | None = None,
+    target_series: np.ndarray | None = None,
+) -> Figure:
+    """The robot's path (position against time) under the amplitude envelope of the line.
+
+    The horizontal axis (x, m) is shared and zoomed to where the robot travels, a few loop
+    lengths either side.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n_nodes,)
+        Node positions, m.
+    envelope : ndarray, shape (n_nodes,)
+        Amplitude at each node, m.
+    t, position : ndarray, shape (n_t,)
+        Times (s) and robot positions (m).
+    target : float, optional
+        The antinode targeted, m.
+    target_series : ndarray, shape (n_t,), optional
+        The target at each time (closed loop), m.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> x = np.linspace(0, 3, 61)
+    >>> t = np.linspace(0, 1, 11)
+    >>> fig = plot_robot_path(x, np.abs(np.sin(3 * x)), t, 1.0 + 0.5 * t, target=1.5)
+    >>> len(fig.axes)
+    2
+    """
+    x = np.asarray(x, dtype=float)
+    position = np.asarray(position, dtype=float)
+    fig = Figure(figsize=(8, 5), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [1, 2]})
+    top.plot(x, 1e3 * np.asarray(envelope), "k-", lw=1)
+    top.set_ylabel("amplitude (mm)")
+    bottom.plot(position, t, "C0-", lw=1.5, label="robot")
+    if target_series is not None:
+        bottom.plot(target_series, t, "k:", lw=1, label="target")
+    if target is not None:
+        for ax in (top, bottom):
+            ax.axvline(target, color="r", ls="--", lw=1)
+        bottom.plot([], [], "r--", label="targeted antinode")
+    bottom.plot(position[0], t[0], "go", label="start")
+    bottom.set(xlabel="x (m)", ylabel="t (s)")
+    bottom.legend(fontsize=8, loc="best")
+    visited = np.concatenate([position[np.isfinite(position)],
+                              [target] if target is not None else []])
+    reach = np.ptp(visited) if visited.size else 0.0
+    margin = max(0.5 * reach, 0.05 * (x[-1] - x[0]) if x[-1] - x[0] < 20 else 5.0)
+    low = max(x[0], visited.min() - margin) if visited.size else x[0]
+    high = min(x[-1], visited.max() + margin) if visited.size else x[-1]
+    bottom.set_xlim(low, high)
+    return fig
+
+
 def plot_closed_loop(result) -> Figure:
     """Robot position and target, and line vibration, with the robot moving versus parked.
 
@@ -165,5 +354,201 @@ def plot_closed_loop(result) -> Figure:
     bottom.plot(result.t, 1e3 * moving_rms(result.displacement), label="closed loop")
     bottom.set(xlabel="t (s)", ylabel="RMS over span (mm)")
     bottom.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+# ============================================================================ severity figures
+# Section owned by the severity engineer (issue 14): energy-balance severity and robot value.
+
+__all__ += ["plot_severity", "plot_robot_value"]
+
+
+def plot_severity(result, ax=None, *, endurance: bool = True) -> Figure:
+    """Antinode amplitude and clamp strain against wind speed, one line per configuration.
+
+    Parameters
+    ----------
+    result : SeverityResult or sequence of SeverityResult
+        From :func:`~powerline_control.severity.aeolian_severity` (e.g. no damper, a fixed
+        damper, the robot at the antinode: ``robot_value(...).severities``).
+    ax : None, Axes or pair of Axes
+        None draws a new figure with two panels (amplitude, peak-to-peak strain); one Axes draws
+        the amplitude only; a pair draws both into them.
+    endurance : bool
+        Draw the endurance strain of each result as a horizontal line.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from powerline_control import Span, aeolian_severity
+    >>> sev = aeolian_severity(Span.at_rts_fraction(300.0, "drake", 0.2), [1.0, 2.0, 3.0])
+    >>> len(plot_severity(sev).axes)
+    2
+    """
+    results = [result] if hasattr(result, "amplitude") else list(result)
+    if ax is None:
+        fig = Figure(figsize=(8, 6))
+        axes = list(fig.subplots(2, 1, sharex=True))
+    elif hasattr(ax, "plot"):
+        fig, axes = ax.figure, [ax]
+    else:
+        axes = list(ax)
+        fig = axes[0].figure
+    for res in results:
+        line = axes[0].plot(res.wind_speed, 1e3 * res.amplitude, "-o", ms=4, label=res.label)[0]
+        unbalanced = ~np.asarray(res.balanced)
+        if unbalanced.any():  # no balance in the curve's range: the value is a bound
+            axes[0].plot(res.wind_speed[unbalanced], 1e3 * res.amplitude[unbalanced], "x",
+                         color=line.get_color(), ms=9)
+        if len(axes) > 1:
+            axes[1].semilogy(res.wind_speed, 1e6 * np.maximum(res.strain_pp, 1e-12), "-o",
+                             color=line.get_color(), ms=4, label=res.label)
+    axes[0].set(ylabel="antinode amplitude (mm, 0-pk)")
+    axes[0].legend(fontsize=8)
+    if len(axes) > 1:
+        if endurance and results:
+            limit = results[0].parameters.get("endurance_strain_pp", 150e-6)
+            axes[1].axhline(1e6 * limit, color="k", ls=":", lw=1, label="endurance limit")
+        axes[1].set(ylabel="clamp bending strain (µε, pk-pk)")
+        axes[1].legend(fontsize=8)
+    axes[-1].set_xlabel("wind speed (m/s)")
+    fig.tight_layout()
+    return fig
+
+
+def plot_robot_value(value) -> Figure:
+    """Fraction of time over the endurance strain and Miner's damage per year, per configuration.
+
+    Parameters
+    ----------
+    value : RobotValue
+        From :func:`~powerline_control.severity.robot_value`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> fake = SimpleNamespace(configurations=("a", "b"), fraction_over_endurance=np.ones(2),
+    ...                        fatigue_index=np.ones(2))
+    >>> len(plot_robot_value(fake).axes)
+    2
+    """
+    fig = Figure(figsize=(8, 3.5))
+    left, right = fig.subplots(1, 2)
+    names = list(value.configurations)
+    left.bar(names, 100 * np.asarray(value.fraction_over_endurance), color="C0")
+    left.set(ylabel="time over endurance strain (%)")
+    right.bar(names, np.maximum(np.asarray(value.fatigue_index), 1e-30), color="C3")
+    right.set(yscale="log", ylabel="Miner damage per year")
+    for axis in (left, right):
+        axis.tick_params(axis="x", labelrotation=15, labelsize=8)
+    fig.tight_layout()
+    return fig
+
+# ------------------------------------------------------------------ closed-loop figures
+# (section owned by the closed-loop engineer; appended here so that cli/report can use them)
+__all__ += ["plot_closed_loop_envelope", "plot_robot_path"]  # noqa: PLE0605
+
+
+def plot_closed_loop_envelope(result, ax=None) -> Figure:
+    """Displacement envelope along the span over the settled window, before and after.
+
+    One curve per comparison of the result (no robot, parked near the clamp, at the start, at
+    the best position, closed loop) with the robot's final and best positions marked.
+
+    Parameters
+    ----------
+    result : ClosedLoopResult
+        From :func:`~powerline_control.closed_loop.run_closed_loop`.
+    ax : matplotlib Axes or None
+        Axes to draw on; a new figure when None.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> c = SimpleNamespace(name="closed_loop", position=1.0, rms=1e-3, envelope=np.ones(3))
+    >>> fake = SimpleNamespace(x=np.arange(3.0), comparisons=(c,), settled_window=(1.0, 2.0),
+    ...                        best_position=1.0)
+    >>> len(plot_closed_loop_envelope(fake).axes)
+    1
+    """
+    fig = Figure(figsize=(8, 4)) if ax is None else ax.figure
+    ax = fig.subplots() if ax is None else ax
+    styles = {"no_robot": "k-", "near_clamp": "C7--", "start": "C3-", "best": "C2:",
+              "closed_loop": "C0-"}
+    for c in result.comparisons:
+        if np.all(np.isfinite(c.envelope)):
+            label = f"{c.name.replace('_', ' ')} (rms {1e3 * c.rms:.3g} mm)"
+            ax.plot(result.x, 1e3 * np.asarray(c.envelope), styles.get(c.name, "-"), label=label)
+    final = [c for c in result.comparisons if c.name == "closed_loop"]
+    if final:
+        ax.axvline(final[0].position, color="C0", lw=0.8)
+    if np.isfinite(result.best_position):
+        ax.axvline(result.best_position, color="C2", lw=0.8, ls=":")
+    t0, t1 = result.settled_window
+    ax.set(xlabel="x (m)", ylabel="envelope (mm)",
+           title=f"largest |w| over the settled window {t0:.1f}-{t1:.1f} s")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def plot_robot_path(result, ax=None) -> Figure:
+    """The robot's path over the line's moving envelope (time down, position across).
+
+    The colour is the largest |w| at each node over 0.1 s blocks; the robot's position and its
+    target are drawn over it, with the retarget times marked.
+
+    Parameters
+    ----------
+    result : ClosedLoopResult
+        From :func:`~powerline_control.closed_loop.run_closed_loop`.
+    ax : matplotlib Axes or None
+        Axes to draw on; a new figure when None.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> t = np.linspace(0, 1, 201)
+    >>> fake = SimpleNamespace(t=t, x=np.arange(4.0), displacement=np.ones((4, 201)),
+    ...                        robot_position=np.ones(201), target=np.ones(201),
+    ...                        retarget_times=(0.5,), calibration_time=0.2)
+    >>> len(plot_robot_path(fake).axes)
+    2
+    """
+    fig = Figure(figsize=(6, 6)) if ax is None else ax.figure
+    ax = fig.subplots() if ax is None else ax
+    t = np.asarray(result.t)
+    dt = t[1] - t[0]
+    block = max(int(round(0.1 / dt)), 1)
+    n_blocks = t.size // block
+    field = np.abs(np.asarray(result.displacement)[:, : n_blocks * block])
+    envelope = field.reshape(field.shape[0], n_blocks, block).max(axis=2)
+    image = ax.pcolormesh(result.x, t[: n_blocks * block : block] + 0.5 * block * dt,
+                          1e3 * envelope.T, shading="nearest", cmap="magma")
+    fig.colorbar(image, ax=ax, label="envelope (mm)")
+    ax.plot(result.robot_position, t, "c-", lw=1.5, label="robot")
+    ax.plot(result.target, t, "w:", lw=1, label="target")
+    for when in result.retarget_times:
+        ax.axhline(when, color="w", lw=0.5, ls="--")
+    ax.axhline(result.calibration_time, color="grey", lw=0.8)
+    ax.set(xlabel="x (m)", ylabel="t (s)")
+    ax.invert_yaxis()
+    ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     return fig

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import numbers
 import time
 import types
 import warnings
@@ -43,6 +42,7 @@ import numpy as np
 import scipy.linalg as sla
 from threadpoolctl import threadpool_limits
 
+from ._riccati import solve_filter_dare
 from ._sensor_criteria import (
     KalmanCriterion,
     LogDetCriterion,
@@ -53,15 +53,18 @@ from ._sensor_criteria import (
 )
 from ._validation import (
     check_array,
+    check_budget,
     check_choice,
+    check_covariance,
+    check_discrete_system,
     check_indices,
     check_int,
     check_psd,
     check_real,
     check_rng,
+    read_only,
 )
 from .errors import EstimationError, InputError, SensorSelectionError
-from .observability import _check_discrete_system, _solve_filter_dare
 
 __all__ = ["select_sensors", "SensorSelection", "Baseline", "sensor_count_study",
            "SensorCountStudy"]
@@ -142,21 +145,34 @@ class SensorSelection:
         a report compares against). ``"brute-force"`` (present when ``C(m, k)`` is small enough)
         does honour the constraints and is the true optimum.
     relaxation_value : float
-        Optimal value of the relaxation as reported by the solver (physical units).
+        Optimal value of the relaxation as reported by the solver (physical units); NaN when
+        every solver failed.
     solver : str
-        cvxpy solver used.
+        cvxpy solver whose relaxation was used (``"none"`` when every installed conic solver
+        failed on it).
     solver_status : str
-        Its status.
+        Its status (``"failed"`` when none succeeded).
     certificate : str
-        ``"convexity"``: the bound comes from the convexity inequality at the solver's weights
-        with an exact linear program, valid whatever the solver's accuracy; ``"solver"``: the
-        solver's optimal value (valid up to its tolerance); ``"exhaustive"``: every feasible
-        layout was evaluated on the exact criterion (``C(m, k)`` within ``brute_force_limit``),
-        so ``nodes`` is the optimum, ``bound`` equals ``objective`` and ``gap`` is 0.
+        What backs ``bound``, always checked rather than trusted:
+
+        * ``"exhaustive"``: every feasible layout was evaluated on the exact criterion, so
+          ``nodes`` is the optimum, ``bound`` equals ``objective`` and ``gap`` is 0. Used when
+          ``C(m, k)`` is within ``brute_force_limit``, and also, when the relaxation failed on
+          every solver and ``brute_force_limit=0``, within the default limit (100,000);
+        * ``"convexity"``: the bound comes from the convexity inequality at the relaxed weights
+          (the solver's, or a feasible point when every solver failed) with an exact linear
+          program, valid whatever the solver's accuracy;
+        * ``"solver"``: the solver's optimal value (valid up to its tolerance);
+        * ``"none: heuristic"``: no bound could be computed; ``bound`` is the trivial one
+          (0 for ``"kalman"``, ``inf`` for a maximised criterion) and ``gap`` is 1. The layout
+          comes from greedy and swap searches on the exact criterion.
     n_exact_evaluations : int
         Exact criterion evaluations used (Riccati solves for ``"kalman"``).
     runtime : float
         Wall-clock seconds.
+    solver_attempts : tuple of str
+        What each solver tried did, in order (e.g. ``("CLARABEL: failed (...)", "SCS:
+        optimal")``): the requested solver first, then the other installed conic solvers.
 
     Examples
     --------
@@ -184,6 +200,7 @@ class SensorSelection:
     certificate: str
     n_exact_evaluations: int
     runtime: float
+    solver_attempts: tuple[str, ...] = ()
 
     def summary(self) -> str:
         """A short markdown report: the layout, its certificate and the baselines.
@@ -199,6 +216,9 @@ class SensorSelection:
         if self.certificate == "exhaustive":
             claim = ("proved optimal by exhaustive search over every feasible layout, within 0 % "
                      "of the best possible layout")
+        elif self.certificate == _HEURISTIC:
+            claim = ("not certified: no solver could bound the optimum, the layout comes from "
+                     "greedy and swap searches on the exact criterion")
         elif self.sense == "minimize":
             claim = (f"certified: the best possible layout's objective lies within {pct} below "
                      "this one's")
@@ -260,18 +280,13 @@ class SensorCountStudy:
 
 
 # -------------------------------------------------------------------------------- validation
-def _check_noise(R: object, m: int) -> np.ndarray:
-    if isinstance(R, numbers.Real) and not isinstance(R, bool):
-        return np.full(m, check_real("R", R, low=0.0))
-    r = check_array("R", R, ndim=1)
-    if r.shape != (m,):
-        raise InputError(
-            f"The 'R' parameter must be one variance or one per candidate, shape ({m},). "
-            f"Got shape {r.shape} instead."
-        )
-    if np.any(r <= 0):
-        raise InputError(f"The 'R' parameter must be positive. Got minimum {r.min():.3g}.")
-    return r
+def _check_noise(R: object, m: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """The package's one rule for R (scalar, per-candidate variances or a full ``(m, m)``
+    matrix, positive definite); returns the variances and the full matrix when correlated."""
+    full = check_covariance("R", R, m, definite=True)
+    variances = np.diag(full).copy()
+    correlated = np.any(full - np.diag(variances))
+    return variances, (full if correlated else None)
 
 
 def _check_positions(positions: object, m: int) -> np.ndarray | None:
@@ -552,12 +567,30 @@ def _brute_force(crit, feas: _Feasibility, k: int, limit: int) -> tuple[list[int
 
 # ----------------------------------------------------------------------------- criteria
 def _stationary_covariance(a: np.ndarray, q: np.ndarray, horizon: int) -> np.ndarray:
+    """Stationary state covariance (Lyapunov), or after ``horizon`` steps for marginal models.
+
+    The finite sum ``sum_{k<N} A^k Q (A^k)^T`` is computed by doubling (``O(n^3 log N)``).
+    """
     if np.max(np.abs(np.linalg.eigvals(a))) < 1 - 1e-9:
         x = sla.solve_discrete_lyapunov(a, q)
     else:  # marginal or unstable: the covariance after `horizon` steps
-        x = np.zeros_like(q)
-        for _ in range(horizon):
-            x = a @ x @ a.T + q
+        block, power = q.copy(), a.copy()
+        x, total_power = np.zeros_like(q), np.eye(len(a))
+        remaining = horizon
+        with np.errstate(all="ignore"):
+            while remaining:
+                if remaining & 1:
+                    x = x + total_power @ block @ total_power.T
+                    total_power = power @ total_power
+                remaining >>= 1
+                if remaining:
+                    block = block + power @ block @ power.T
+                    power = power @ power
+        if not np.all(np.isfinite(x)):
+            raise InputError(
+                f"The stationary covariance over horizon={horizon} steps overflows: the model "
+                "has modes outside the unit circle. Use a shorter 'horizon' or pass basis=."
+            )
     return (x + x.T) / 2
 
 
@@ -574,6 +607,70 @@ def _gramian_terms(a: np.ndarray, g: np.ndarray, horizon: int) -> np.ndarray:
 
 def _default_horizon(a: np.ndarray) -> int:
     return 2 * a.shape[0]
+
+
+_HEURISTIC = "none: heuristic"
+_DEFAULT_BRUTE_FORCE_LIMIT = 100_000
+# Conic solvers that handle the semidefinite / exponential cones of the relaxations, in the order
+# they are tried after the requested one (only installed ones are used).
+_CONIC_SOLVERS = ("CLARABEL", "SCS", "MOSEK", "CVXOPT", "COPT")
+
+
+def _solve_relaxation(crit, poly: Polytope, m: int, requested: str):
+    """Solve the relaxation with ``requested``, then the other installed conic solvers.
+
+    Returns ``((weights, relaxed_cost, solver, status), attempts)`` for the first solver that
+    reports an optimal (possibly inaccurate) status with finite weights, ``(None, attempts)``
+    when all fail; ``attempts`` lists what each solver did. (The certificate never trusts the
+    solver's accuracy: it is recomputed from its weights by convexity.)
+    """
+    installed = set(cp.installed_solvers())
+    order = [requested] + [s for s in _CONIC_SOLVERS if s in installed and s != requested]
+    attempts: list[str] = []
+    for name in order:
+        z = cp.Variable(m)
+        problem = cp.Problem(cp.Minimize(crit.relaxation(z)), poly.cvxpy_constraints(z))
+        try:
+            with warnings.catch_warnings():
+                # cvxpy warns "Solution may be inaccurate"; the status says so and the
+                # certificate does not rely on the solver's accuracy.
+                warnings.simplefilter("ignore", UserWarning)
+                problem.solve(solver=name)
+        except (cp.error.SolverError, cp.error.DCPError, ValueError, ArithmeticError) as exc:
+            attempts.append(f"{name}: failed ({type(exc).__name__}: {str(exc)[:120]})")
+            continue
+        value = None if z.value is None else np.asarray(z.value, dtype=float)
+        if problem.status not in _SOLVER_OK or value is None or not np.all(np.isfinite(value)) \
+                or problem.value is None or not np.isfinite(problem.value):
+            attempts.append(f"{name}: status {problem.status!r}")
+            continue
+        attempts.append(f"{name}: {problem.status}")
+        weights = np.clip(value, 0.0, 1.0)
+        relaxed_cost = float(problem.value) * crit.relaxation_scale
+        return (weights, relaxed_cost, name, str(problem.status)), attempts
+    return None, attempts
+
+
+def _feasible_weights(poly: Polytope) -> np.ndarray:
+    """A point of the relaxed polytope without a conic solver (an LP vertex, or uniform)."""
+    _, vertex = linear_extreme(np.zeros(poly.m), poly)
+    if vertex is not None:
+        return vertex
+    weights = np.full(poly.m, poly.k / poly.m)  # pragma: no cover - the constraints were checked
+    return weights
+
+
+def _check_work(criterion: str, n: int, m: int, horizon: int, needs_covariance: bool) -> None:
+    """Refuse, before running, a horizon whose Gramian or covariance sums exceed the budget."""
+    if criterion in ("gramian", "min-eig"):
+        check_budget("The per-candidate observability Gramians", nbytes=8.0 * m * n * n,
+                     flops=2.0 * m * n * n * horizon, parameter="horizon", value=horizon,
+                     fix="use a shorter horizon or fewer candidates / states")
+    if needs_covariance:
+        check_budget("The stationary output covariance", nbytes=8.0 * (n * n + m * n),
+                     flops=2.0 * n**3 * math.ceil(math.log2(horizon + 1)) + 2.0 * m * m * n,
+                     parameter="horizon", value=horizon,
+                     fix="use a shorter horizon or fewer candidates / states")
 
 
 # ------------------------------------------------------------------------------- public API
@@ -620,7 +717,10 @@ def select_sensors(
         Process-noise covariance ``(n, n)``. Required for ``"kalman"``; for ``"reconstruction"``
         without ``basis`` it defines the POD basis (stationary output covariance).
     R : float or array_like
-        Measurement-noise variance, one for all candidates or one per candidate (m^2).
+        Measurement-noise covariance of the candidates, the package's one rule for ``R``: one
+        variance for all, one per candidate ``(m,)`` (m^2), or a full ``(m, m)`` symmetric
+        matrix (correlated noise: ``"kalman"`` only, which uses each layout's exact information
+        ``C_S^T R_SS^-1 C_S``). Positive definite: a zero variance is an ``InputError``.
     positions : array_like, optional
         Position (m) of each candidate; needed for ``forbidden`` and ``min_spacing`` and used by
         the evenly-spaced baseline.
@@ -650,11 +750,15 @@ def select_sensors(
         "reconstruction": the leading directions supply starting weights only. In every case
         the reported bound is then tightened on the full relaxation in numpy.
     solver : str
-        cvxpy solver, e.g. ``"CLARABEL"`` (default) or ``"SCS"``; both install with cvxpy.
+        cvxpy solver tried first, e.g. ``"CLARABEL"`` (default) or ``"SCS"``; both install with
+        cvxpy. If it fails (an exception, a non-optimal status, non-finite weights) the other
+        installed conic solvers are tried, then the searches run without a relaxation; the
+        result's ``certificate`` and ``solver_attempts`` say what happened.
     n_random : int
         Random layouts in the baseline (mean and best).
     brute_force_limit : int
-        Enumerate every feasible layout when ``C(m, k)`` is at most this (0 disables); the
+        Enumerate every feasible layout when ``C(m, k)`` is at most this (0 disables, unless the
+        relaxation fails on every solver: then up to 100,000 layouts are enumerated anyway); the
         result is then proved optimal (``certificate="exhaustive"``, ``gap`` 0).
     seed : int, numpy.random.Generator or None
         Seed of the random baseline.
@@ -669,7 +773,15 @@ def select_sensors(
     InputError
         Invalid arguments (the message names the parameter).
     SensorSelectionError
-        Infeasible constraints (named), a solver failure, or a model that no layout can estimate.
+        Infeasible constraints (named), or a model that no layout can estimate. A solver
+        failure is not an error: see ``certificate``.
+
+    Notes
+    -----
+    Cost: everything works in the model's ``n`` states and the ``m`` candidates (one Riccati
+    solve is ``O(n^3)`` in the information form, the relaxation has ``m`` weights and a
+    ``relaxation_rank``-sized cone), so a rank-``r`` DMD model of a 1,000-node span costs what
+    ``r`` and ``m`` cost. See ``benchmarks/bench_sensors.py`` for the measured table.
 
     Examples
     --------
@@ -690,13 +802,19 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
                     budget, error_weight, basis, horizon, relaxation_rank, solver, n_random,
                     brute_force_limit, seed) -> SensorSelection:
     started = time.perf_counter()
-    sys = _check_discrete_system("sys", sys)
+    sys = check_discrete_system("sys", sys)
     a = np.asarray(sys.A, dtype=float)
     c = np.asarray(sys.C, dtype=float)
     n, m = a.shape[0], c.shape[0]
     k = check_int("k", k, low=1, high=m)
     criterion = check_choice("criterion", criterion, CRITERIA)
-    r = _check_noise(R, m)
+    r, r_full = _check_noise(R, m)
+    if r_full is not None and criterion != "kalman":
+        raise InputError(
+            f"The 'R' parameter is a full matrix with correlated sensor noise; the {criterion!r} "
+            "criterion adds up independent sensors, so it needs uncorrelated noise (a scalar or "
+            "one variance per candidate). Use criterion='kalman', which handles correlations."
+        )
     x = _check_positions(positions, m)
     zones = _check_zones(forbidden)
     min_spacing = check_real("min_spacing", min_spacing, low=0.0, low_inclusive=True)
@@ -710,6 +828,7 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
     n_random = check_int("n_random", n_random, low=0)
     brute_force_limit = check_int("brute_force_limit", brute_force_limit, low=0)
     horizon = _default_horizon(a) if horizon is None else check_int("horizon", horizon, low=1)
+    _check_work(criterion, n, m, horizon, Q is not None or basis is not None)
     if not isinstance(solver, str) or solver.upper() not in cp.installed_solvers():
         raise InputError(
             f"The 'solver' parameter must be an installed cvxpy solver, one of "
@@ -720,7 +839,15 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
 
     # Units of the measurement noise: covariances / r0, rows scaled by sqrt(r0 / R_i).
     r0 = float(np.exp(np.mean(np.log(r))))
-    g = c * np.sqrt(r0 / r)[:, None]
+    correlated = None
+    if r_full is None:
+        g = c * np.sqrt(r0 / r)[:, None]
+    else:
+        # Relaxation rows with the smallest noise eigenvalue: their information dominates every
+        # layout's true one (R_SS >= lambda_min I), so the bound stays valid.
+        smallest = float(np.linalg.eigvalsh(r_full).min())
+        g = c * np.sqrt(r0 / smallest)
+        correlated = (c, r_full / r0)
     q = None
     if Q is not None:
         q = check_psd("Q", Q, n) / r0
@@ -728,30 +855,22 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
 
     psi = _basis(basis, a, c, q, r, r0, k, horizon, needed=criterion == "reconstruction")
     crit, to_physical, gap_of = _make_criterion(
-        criterion, a, q, g, c, psi, error_weight, horizon, relaxation_rank, r0)
+        criterion, a, q, g, c, psi, error_weight, horizon, relaxation_rank, r0, correlated)
 
-    # Relaxation.
-    z = cp.Variable(m)
-    problem = cp.Problem(cp.Minimize(crit.relaxation(z)), poly.cvxpy_constraints(z))
-    try:
-        with warnings.catch_warnings():
-            # cvxpy warns "Solution may be inaccurate"; the status says so and the certificate
-            # below does not rely on the solver's accuracy.
-            warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=solver)
-    except cp.error.SolverError as exc:
-        raise SensorSelectionError(
-            f"The cvxpy solver {solver} failed on the {criterion!r} relaxation ({exc}). Try "
-            "another solver, e.g. solver='SCS' or solver='CLARABEL'."
-        ) from exc
-    if problem.status not in _SOLVER_OK or z.value is None:
-        raise SensorSelectionError(
-            f"The cvxpy solver {solver} returned status {problem.status!r} on the {criterion!r} "
-            "relaxation; try another solver (e.g. 'SCS' or 'CLARABEL')."
-        )
-    weights = np.clip(np.asarray(z.value, dtype=float), 0.0, 1.0)
-    relaxed_cost = float(problem.value) * crit.relaxation_scale
-    bound_cost, certificate = _certificate(crit, weights, poly, relaxed_cost)
+    # Relaxation: the requested solver, then every other installed conic solver; a failure of
+    # all of them is not fatal (the exhaustive or swap search below still runs).
+    relaxed, attempts = _solve_relaxation(crit, poly, m, solver)
+    if relaxed is not None:
+        weights, relaxed_cost, used_solver, status = relaxed
+        bound_cost, certificate = _certificate(crit, weights, poly, relaxed_cost)
+    else:
+        used_solver, status = "none", "failed"
+        weights = _feasible_weights(poly)
+        relaxed_cost = float("nan")
+        # The convexity bound needs no solver: Frank-Wolfe from any feasible weights.
+        bound_cost, certificate = _certificate(crit, weights, poly, -np.inf)
+        if certificate != "convexity":
+            bound_cost, certificate = -np.inf, _HEURISTIC
 
     # Integer layouts: rounding and greedy, each improved by exact swaps; the better wins.
     starts = []
@@ -761,8 +880,11 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
     greedy = _greedy(crit, feas, k)
     if greedy is not None:
         starts.append(greedy)
-    # Every feasible layout, when there are few enough: the exact optimum.
-    brute = _brute_force(crit, feas, k, brute_force_limit) if brute_force_limit else None
+    # Every feasible layout, when there are few enough: the exact optimum. Without a relaxation
+    # the enumeration runs up to the default limit even when brute_force_limit=0 disabled it.
+    limit = brute_force_limit if relaxed is not None else (brute_force_limit
+                                                           or _DEFAULT_BRUTE_FORCE_LIMIT)
+    brute = _brute_force(crit, feas, k, limit) if limit else None
     if not starts and brute is not None:  # rounding and greedy can stall where a layout exists
         starts.append(brute[0])
     if not starts:
@@ -788,28 +910,31 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
         # The search saw every feasible layout: best_cost is the optimum itself, a tighter bound
         # than any relaxation.
         bound_cost, certificate = best_cost, "exhaustive"
+    if isinstance(crit, KalmanCriterion):
+        bound_cost = max(bound_cost, 0.0)  # the trace of a covariance is never negative
     bound_cost = min(bound_cost, best_cost)  # guard against round-off above the optimum
 
     baselines = _baselines(crit, feas, k, greedy, psi, x, rng, n_random, brute, to_physical)
     objective = to_physical(best_cost)
     bound = to_physical(bound_cost)
     nodes = tuple(sorted(int(i) for i in best_layout))
-    weights.setflags(write=False)
+    gap = gap_of(objective, bound) if np.isfinite(bound) else 1.0
     return SensorSelection(
         nodes=nodes,
         positions=None if x is None else tuple(float(x[i]) for i in nodes),
         objective=objective,
         bound=bound,
-        gap=gap_of(objective, bound),
-        weights=weights,
+        gap=float(gap),
+        weights=read_only(weights),
         criterion=criterion,
         sense=crit.sense,
         k=k,
         baselines=types.MappingProxyType(baselines),
         relaxation_value=to_physical(relaxed_cost),
-        solver=solver,
-        solver_status=str(problem.status),
+        solver=used_solver,
+        solver_status=status,
         certificate=certificate,
+        solver_attempts=tuple(attempts),
         n_exact_evaluations=crit.n_exact,
         runtime=time.perf_counter() - started,
     )
@@ -843,7 +968,8 @@ def _basis(basis, a, c, q, r, r0, k, horizon, needed) -> np.ndarray | None:
     return psi * np.sqrt(r0 / r)[:, None]
 
 
-def _make_criterion(criterion, a, q, g, c, psi, error_weight, horizon, relaxation_rank, r0):
+def _make_criterion(criterion, a, q, g, c, psi, error_weight, horizon, relaxation_rank, r0,
+                    correlated=None):
     """The criterion object, its cost-to-physical map and its gap formula."""
     n = a.shape[0]
     if criterion == "kalman":
@@ -854,7 +980,7 @@ def _make_criterion(criterion, a, q, g, c, psi, error_weight, horizon, relaxatio
             )
         weight = _error_weight(error_weight, c, n)
         try:
-            crit = KalmanCriterion(a, q, g, weight, relaxation_rank)
+            crit = KalmanCriterion(a, q, g, weight, relaxation_rank, correlated=correlated)
         except FloatingPointError as exc:
             raise SensorSelectionError(
                 "Even all candidates together cannot estimate the state (the Riccati iteration "
@@ -990,17 +1116,23 @@ def _error_rows(error_weight: object, c: np.ndarray, n: int) -> np.ndarray:
 
 def _simulated_rms(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, h: np.ndarray,
                    layout: Sequence[int], n_steps: int, rng: np.random.Generator) -> float:
-    """RMS of ``H (x - x_hat)`` for a steady-state Kalman filter on a simulated trajectory."""
-    cs, rs = c[list(layout)], r[list(layout)]
-    try:  # SciPy's solver, with the doubling fallback for ill-conditioned identified models
-        prior = _solve_filter_dare(a, cs, q, np.diag(rs))
+    """RMS of ``H (x - x_hat)`` for a steady-state Kalman filter on a simulated trajectory.
+
+    ``r`` is the candidates' noise covariance, ``(m,)`` variances or a full ``(m, m)`` matrix.
+    """
+    index = list(layout)
+    cs = c[index]
+    r_s = np.diag(r[index]) if r.ndim == 1 else r[np.ix_(index, index)]
+    try:  # the package's one Riccati solver (doubling, QZ fallback, stabilising only)
+        prior = solve_filter_dare(a, cs, q, r_s)
     except EstimationError as exc:
         raise SensorSelectionError(
-            f"The steady-state Kalman filter of the layout {list(layout)} that checks the "
+            f"The steady-state Kalman filter of the layout {index} that checks the "
             f"predicted RMS error could not be computed: {exc}"
         ) from exc
-    # _solve_filter_dare returns only stabilising solutions: the filter below is stable.
-    gain = np.linalg.solve(cs @ prior @ cs.T + np.diag(rs), cs @ prior).T
+    # solve_filter_dare returns only stabilising solutions: the filter below is stable.
+    gain = np.linalg.solve(cs @ prior @ cs.T + r_s, cs @ prior).T
+    noise_factor = np.linalg.cholesky(r_s)
     lam, vec = np.linalg.eigh((q + q.T) / 2)
     q_half = vec * np.sqrt(np.clip(lam, 0, None))
     lam, vec = np.linalg.eigh((prior + prior.T) / 2)
@@ -1008,7 +1140,7 @@ def _simulated_rms(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, h
     x_pred = np.zeros(len(a))  # the error starts with the steady-state prior covariance
     total = 0.0
     for _ in range(n_steps):
-        y = cs @ x + np.sqrt(rs) * rng.standard_normal(len(rs))
+        y = cs @ x + noise_factor @ rng.standard_normal(len(index))
         x_post = x_pred + gain @ (y - cs @ x_pred)
         err = h @ (x - x_post)
         total += float(err @ err)
@@ -1039,7 +1171,8 @@ def sensor_count_study(
     Q : array_like
         Process-noise covariance ``(n, n)``.
     R : float or array_like
-        Measurement-noise variance, one or one per candidate.
+        Measurement-noise covariance of the candidates (scalar, per-candidate variances or a
+        full matrix; see :func:`select_sensors`).
     target_error : float, optional
         RMS estimation error (per weighted state) to reach; sets ``smallest_k``.
     n_steps : int
@@ -1071,7 +1204,7 @@ def sensor_count_study(
     >>> study.k, bool(study.rms_error[1] < study.rms_error[0])
     ((1, 2), True)
     """
-    sys = _check_discrete_system("sys", sys)
+    sys = check_discrete_system("sys", sys)
     ks = [check_int("k_values", k, low=1) for k in k_values]
     if not ks or sorted(set(ks)) != ks:
         raise InputError(
@@ -1085,7 +1218,8 @@ def sensor_count_study(
     a = np.asarray(sys.A, dtype=float)
     c = np.asarray(sys.C, dtype=float)
     q = check_psd("Q", Q, a.shape[0])
-    r = _check_noise(R, c.shape[0])
+    variances, r_full = _check_noise(R, c.shape[0])
+    r = variances if r_full is None else r_full
     h = _error_rows(options.get("error_weight", "states"), c, a.shape[0])
     options = {"n_random": 0, "brute_force_limit": 0, **options}
     objective, rms, simulated, layouts = [], [], [], []
@@ -1099,9 +1233,9 @@ def sensor_count_study(
                and e <= target_error]
     return SensorCountStudy(
         k=tuple(ks),
-        objective=np.array(objective),
-        rms_error=np.array(rms),
-        simulated_rms_error=np.array(simulated),
+        objective=read_only(np.array(objective)),
+        rms_error=read_only(np.array(rms)),
+        simulated_rms_error=read_only(np.array(simulated)),
         layouts=tuple(layouts),
         target_error=target_error,
         smallest_k=reached[0] if reached else None,

@@ -23,10 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 import scipy.signal
+from threadpoolctl import threadpool_limits
 
-from ._validation import check_array, check_int, check_real, check_rng
+from ._validation import check_array, check_budget, check_int, check_real, check_rng
 from .errors import InputError, ModelError, TruncationWarning
-from .excitation import BoundAeolianForce, HarmonicForce
+from .excitation import BoundAeolianForce, HarmonicForce, RandomForce
 from .fem import LineModel
 
 __all__ = ["Snapshots", "simulate"]
@@ -118,6 +119,16 @@ def _sine_frequency(force: object) -> float | None:
     return force.frequency if isinstance(force, HarmonicForce | BoundAeolianForce) else None
 
 
+def _load_top_frequency(force: object) -> float | None:
+    """Highest frequency (Hz) a load drives: a sine's frequency, a random load's bandwidth."""
+    frequency = _sine_frequency(force)
+    if frequency is not None:
+        return frequency
+    if isinstance(force, RandomForce):
+        return force.bandwidth
+    return None
+
+
 def _initial_dofs(model: LineModel, name: str, value: object) -> np.ndarray:
     """Free-DOF vector (displacement and slope) from nodal values or a callable of x.
 
@@ -126,12 +137,12 @@ def _initial_dofs(model: LineModel, name: str, value: object) -> np.ndarray:
     """
     x = model.node_positions
     if callable(value):
-        w = np.asarray(value(x), dtype=float)
+        w = check_array(f"{name}(x)", value(x), shape=(model.n_nodes,))
         step = 1e-6 * model.span.length
         left, right = np.clip(x - step, 0, x[-1]), np.clip(x + step, 0, x[-1])
-        slope = (np.asarray(value(right), dtype=float) - np.asarray(value(left), dtype=float)) / (
-            right - left
-        )
+        slope = check_array(f"{name}(x)", value(right), shape=(model.n_nodes,)) - check_array(
+            f"{name}(x)", value(left), shape=(model.n_nodes,))
+        slope = slope / (right - left)
     else:
         w = check_array(name, value, shape=(model.n_nodes,))
         slope = np.gradient(w, x, edge_order=2)
@@ -158,6 +169,8 @@ def simulate(
     initial_state: tuple[np.ndarray, np.ndarray] | None = None,
     start_time: float = 0.0,
     n_modes: int | None = None,
+    quasi_static: bool = True,
+    memory_budget: float | None = None,
 ) -> Snapshots:
     """Simulate nodal displacement snapshots, (n_nodes, n_samples).
 
@@ -190,7 +203,19 @@ def simulate(
     n_modes : int or None
         Modes kept; None keeps all of them on models up to
         :data:`~powerline_control.fem.DENSE_EIGEN_LIMIT` DOFs (exact), otherwise those below the
-        smaller of the Nyquist frequency and 4x the highest harmonic load frequency.
+        smaller of the Nyquist frequency and 4x the highest load frequency (a sine's frequency,
+        a random load's bandwidth).
+    quasi_static : bool
+        True (default): add the quasi-static response of the modes not kept (mode acceleration /
+        residual flexibility): for a sine at omega, ``[(K - omega^2 M)^-1 - sum_kept phi phi^T /
+        (omega_k^2 - omega^2)] F`` times the load's time factor (exact for the undamped dropped
+        modes); for other loads the static ``[K^-1 - sum_kept phi phi^T / omega_k^2] F``. Both by
+        sparse LU factorisation, so truncation costs accuracy only for dropped modes that respond
+        dynamically (those near the load, which the default cut-off keeps) and for their own
+        transients (ringing from initial conditions or a load's onset, which decays).
+    memory_budget : float or None
+        Bytes the output and work arrays may take (default 4 GiB, see
+        :func:`~powerline_control._validation.check_budget`).
 
     Returns
     -------
@@ -206,8 +231,9 @@ def simulate(
     Warns
     -----
     TruncationWarning
-        When a load's frequency is at or above the Nyquist frequency, or above the highest mode
-        kept.
+        When a load's frequency is at or above the Nyquist frequency, above the highest mode
+        kept, or when the mesh does not resolve the load's wavelength
+        (:meth:`~powerline_control.fem.LineModel.resolves`).
 
     Examples
     --------
@@ -231,6 +257,10 @@ def simulate(
         noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True)
         if noise_std:
             raise InputError("Give either 'noise_std' or 'noise_fraction', not both.")
+    if not isinstance(quasi_static, bool | np.bool_):
+        raise InputError(
+            f"The 'quasi_static' parameter must be True or False. Got {quasi_static!r}."
+        )
     rng = check_rng(seed)
     forces = [f.bind(model) if hasattr(f, "bind") else f for f in _as_force_list(force)]
     for f in forces:
@@ -238,18 +268,38 @@ def simulate(
             check_real(
                 "force position", f.position, low=0.0, low_inclusive=True, high=model.span.length
             )
-    t = dt * np.arange(int(np.floor(duration / dt + 1e-9)) + 1)
+    n_t = int(np.floor(duration / dt + 1e-9)) + 1
     nyquist = 0.5 / dt
     load_frequencies = [f for f in map(_sine_frequency, forces) if f is not None]
+    top_frequencies = [f for f in map(_load_top_frequency, forces) if f is not None]
     if n_modes is None:
         # Large models: the modes the samples can show, but no more than the load can drive
-        # dynamically (above ~4x its frequency a mode only responds quasi-statically, ~1/omega^2).
-        cutoff = min(nyquist, 4 * max(load_frequencies)) if load_frequencies else nyquist
+        # dynamically (above ~4x its frequency a mode only responds quasi-statically, ~1/omega^2,
+        # and the quasi-static correction below adds that part back).
+        cutoff = min(nyquist, 4 * max(top_frequencies)) if top_frequencies else nyquist
         n_modes = model.default_mode_count(cutoff)
     else:
         n_modes = check_int("n_modes", n_modes, low=1, high=model.n_dofs)
+    # Before anything of size n_t exists: the output (noise-free and measured), the rotating
+    # phasors and the homogeneous part (kept modes x n_t, complex).
+    n_out = model.n_nodes
+    n_kept = 2 * min(n_modes, model.n_dofs)
+    nbytes = 8.0 * n_t * (4 * n_out + 2 * n_kept + 8 * max(1, len(forces)))
+    check_budget(
+        f"simulate's {n_out} x {n_t} output", nbytes=nbytes, parameter="duration",
+        value=duration,
+        fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use fewer nodes "
+        f"(n_elements; {n_out} now)",
+        memory_budget=memory_budget,
+    )
+    t = dt * np.arange(n_t)
     basis = model.modes(n_modes)
     _warn_unresolved(load_frequencies, nyquist, basis.frequencies[-1])
+    # A sine has a wavelength the mesh must resolve; a random load's bandwidth only bounds its
+    # spectrum (what the mesh does not resolve there, the kept modes' frequencies say).
+    for frequency in load_frequencies:
+        if frequency < nyquist:
+            model.check_resolution(frequency, what="load")
 
     complex_modes = _complex_modes_of(model, basis)
     q0 = _initial_modal_state(
@@ -264,10 +314,25 @@ def simulate(
     clean = np.zeros((model.n_nodes, t.size))
     final = np.zeros_like(homogeneous)  # complex modal state at the last sample
     inputs = []
-    for f in forces:
-        forcing = complex_modes.input_gain(basis.shapes.T @ f.load_vector(model))
-        values = f.values(start_time + t)
+    nodal = model.displacement_map()
+    truncated = quasi_static and basis.n_modes < model.n_dofs
+    residual_state = [np.zeros(model.n_dofs), np.zeros(model.n_dofs)]
+    for i, f in enumerate(forces):
+        load = check_array(f"force[{i}].load_vector(model)", f.load_vector(model),
+                           shape=(model.n_dofs,))
+        forcing = complex_modes.input_gain(basis.shapes.T @ load)
+        values = check_array(f"force[{i}].values(t)", f.values(start_time + t), shape=(t.size,))
         frequency = _sine_frequency(f)
+        if truncated:
+            shape = _residual_shape(model, basis, load, frequency)
+            clean += np.outer(nodal @ shape, values)
+            residual_state[0] += shape * values[-1]
+            if frequency is not None:
+                rate = 2 * np.pi * frequency * getattr(f, "amplitude", 1.0) * np.cos(
+                    2 * np.pi * frequency * (start_time + t[-1]) + getattr(f, "phase", 0.0))
+            else:
+                rate = (values[-1] - values[-2]) / dt if values.size > 1 else 0.0
+            residual_state[1] += shape * rate
         if frequency is not None and _exact_harmonic_possible(complex_modes.eigenvalues, frequency):
             plus, minus = _harmonic_phasors(complex_modes.eigenvalues, forcing, f, start_time)
             rotation = np.exp(2j * np.pi * f.frequency * t)
@@ -292,12 +357,31 @@ def simulate(
         x=model.node_positions.copy(),
         displacement=noisy,
         true_displacement=clean,
-        final_state=complex_modes.to_dofs(basis, final),
+        final_state=tuple(part + extra for part, extra in
+                          zip(complex_modes.to_dofs(basis, final), residual_state, strict=True)),
         inputs=np.array(inputs) if inputs else np.zeros((0, t.size)),
         force_positions=tuple(f.position for f in forces),
         noise_std=noise_std,
         mode_frequencies=basis.frequencies,
     )
+
+
+def _residual_shape(model: LineModel, basis, load: np.ndarray, frequency: float | None
+                    ) -> np.ndarray:
+    """Quasi-static response (free DOFs, per unit time factor) of the modes not kept.
+
+    Mode acceleration: the full flexibility minus the kept modes' share, so only the dropped
+    modes remain. For a sine the dynamic flexibility (K - omega^2 M)^-1 is exact for undamped
+    dropped modes; otherwise the static K^-1 (dropped modes far above the load's band).
+    """
+    f = 0.0 if frequency is None else float(frequency)
+    omega2 = (2 * np.pi * f) ** 2
+    gaps = basis.omega**2 - omega2
+    if f > 0.0 and np.min(np.abs(gaps)) < 1e-9 * basis.omega.max() ** 2:
+        f, omega2, gaps = 0.0, 0.0, basis.omega**2   # on a kept resonance: the static split
+    full = model.solve_flexibility(load, f)
+    kept = basis.shapes @ ((basis.shapes.T @ load) / gaps)
+    return full - kept
 
 
 def _warn_unresolved(load_frequencies: Sequence[float], nyquist: float, top_mode: float) -> None:
@@ -369,32 +453,50 @@ def _complex_modes_of(model: LineModel, basis) -> _ComplexModes:
     return per_model[basis.n_modes]
 
 
+@threadpool_limits.wrap(limits=1, user_api="blas")   # small-matrix work (see fem._solve_modes)
 def _complex_modes(basis) -> _ComplexModes:
     r = basis.n_modes
     omega = basis.omega
     system = np.block([[np.zeros((r, r)), np.diag(omega)], [-np.diag(omega), -basis.damping]])
     if np.count_nonzero(basis.damping - np.diag(np.diag(basis.damping))) == 0:
         # Proportional damping: each mode is an independent 2x2 block with closed-form eigen-pair.
+        # lambda = -zeta w +/- sqrt(zeta^2 w^2 - w^2): a conjugate pair when underdamped, two
+        # distinct real roots when overdamped (stiffness-proportional Rayleigh damping makes
+        # high modes overdamped: physical, and not defective), one double root only at zeta = 1.
         zeta_w = np.diag(basis.damping) / 2
-        damped = np.sqrt(np.maximum(omega**2 - zeta_w**2, 0.0)).astype(complex)
-        over = omega**2 < zeta_w**2
-        damped[over] = 1j * np.sqrt(zeta_w[over] ** 2 - omega[over] ** 2)
-        eigenvalues = -zeta_w + 1j * damped
-        values_all = np.concatenate([eigenvalues, np.conj(eigenvalues)])
+        root = np.sqrt((zeta_w**2 - omega**2).astype(complex))
+        root = np.where(root.imag < 0, -root, root)       # the +i branch for underdamped modes
+        critical = np.abs(zeta_w - omega) <= 1e-9 * omega
+        if np.any(critical):
+            raise ModelError(
+                f"Mode(s) {np.flatnonzero(critical).tolist()} are critically damped "
+                "(zeta = 1: a defective double eigenvalue); change the damping slightly."
+            )
+        first, second = -zeta_w + root, -zeta_w - root
+        values_all = np.concatenate([first, second])
         vectors = np.zeros((2 * r, 2 * r), dtype=complex)
+        inverse = np.zeros((2 * r, 2 * r), dtype=complex)
         idx = np.arange(r)
-        for block, lam in ((0, eigenvalues), (1, np.conj(eigenvalues))):
+        # Each mode's 2 x 2 block [[w, w], [l1, l2]] has the closed-form inverse
+        # [[l2, -w], [-l1, w]] / (w (l2 - l1)): no 2r x 2r solve.
+        det = omega * (second - first)
+        for block, lam in ((0, first), (1, second)):
             vectors[idx, block * r + idx] = omega
             vectors[r + idx, block * r + idx] = lam
+        inverse[idx, idx], inverse[idx, r + idx] = second / det, -omega / det
+        inverse[r + idx, idx], inverse[r + idx, r + idx] = -first / det, omega / det
     else:
+        check_budget(f"The complex eigen-solve of {r} non-proportionally damped modes",
+                     nbytes=16.0 * 4 * (2 * r) ** 2, flops=30.0 * (2 * r) ** 3,
+                     parameter="n_modes", value=r, fix="keep fewer modes (n_modes)")
         values_all, vectors = scipy.linalg.eig(system)
-    try:
-        inverse = np.linalg.solve(vectors, np.eye(2 * r))
-    except np.linalg.LinAlgError as exc:
-        raise ModelError(
-            "The modal system is defective (repeated, critically damped modes); "
-            "change the damping slightly."
-        ) from exc
+        try:
+            inverse = np.linalg.solve(vectors, np.eye(2 * r))
+        except np.linalg.LinAlgError as exc:
+            raise ModelError(
+                "The modal system is defective (repeated, critically damped modes); "
+                "change the damping slightly."
+            ) from exc
     keep = values_all.imag > 0
     real = np.abs(values_all.imag) <= 1e-12 * np.abs(values_all).max()
     keep |= real
@@ -424,7 +526,9 @@ def _initial_modal_state(model, basis, displacement, velocity, modes, state) -> 
         for index, amplitude in modes.items():
             index = check_int("initial_modes key", index, low=0, high=r - 1)
             amplitude = check_real("initial_modes value", amplitude)
-            q[index] += amplitude / np.max(np.abs(nodal[:, index]))
+            # the signed peak, exactly as LineModel.mode_shapes scales its shapes
+            column = nodal[:, index]
+            q[index] += amplitude / column[np.argmax(np.abs(column))]
     return q
 
 

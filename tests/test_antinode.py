@@ -42,7 +42,11 @@ def test_mode_of_a_string_cosine_interpolation_is_exact(n, n_elements):
     # ~ 0 at a zero of a sine), so round-off level; 1e-9 m.
     np.testing.assert_allclose([a.loop_start for a in found], nodes[:-1], atol=1e-9)
     np.testing.assert_allclose([a.loop_end for a in found], nodes[1:], atol=1e-9)
-    assert all(a.position_std is None for a in found)
+    # Without variances the uncertainty comes from the estimated noise of an exact sine, which
+    # is its discretisation misfit of local parabolas, (k h)^4 / 24 of the amplitude at most
+    # (2e-3 for mode 7 on 20 elements): the std is a small fraction of the sample spacing.
+    assert all(a.uncertainty == "estimated" for a in found)
+    assert all(0.0 <= a.position_std < 0.1 * L / n_elements for a in found)
 
 
 @pytest.mark.parametrize("shift", [0.0, 0.013, 0.0247, 0.05])
@@ -230,3 +234,177 @@ def test_kalman_estimate_of_the_paper_span_near_resonance():
         assert abs(a.position - b.position) < 0.02 * a.loop_length
         assert b.position_std > 0 and np.isfinite(b.position_std)
     assert found[0].frequency == pytest.approx(24.0, abs=0.1)  # 1 s window: 1 Hz bins, refined
+
+
+# ------------------------------------------------------------------------------ off resonance
+# Independent truth: the exact steady response of the lab span (a pinned taut beam,
+# m w^2 y + EI y'''' - T y'' = F delta(x - x0) with y = y'' = 0 at both ends) to a harmonic
+# point load, in closed form.  Away from the load y is a sum of sin(k .) and sinh(kappa .)
+# terms with k^2, kappa^2 = (sqrt(T^2 + 4 EI m w^2) -/+ T) / (2 EI); the pinned ends leave one
+# sine and one sinh on each side, and continuity of y, y', y'' plus the jump EI [y'''] = F at
+# the load fix their four coefficients.
+
+
+def pinned_beam_response(span, frequency, load):
+    """y(x) of the pinned lab span under a unit harmonic point load at ``load`` (undamped)."""
+    length, tension = span.length, span.tension
+    ei, mass = span.conductor.ei, span.conductor.mass_per_length
+    omega = 2 * np.pi * frequency
+    root = np.sqrt(tension**2 + 4 * ei * mass * omega**2)
+    k, kappa = np.sqrt((root - tension) / (2 * ei)), np.sqrt((root + tension) / (2 * ei))
+    s_left, s_right = np.sinh(kappa * load), np.sinh(kappa * (length - load))
+
+    def derivatives(u, side):  # y, y', y'', y''' of sin(k u) and sinh(kappa u) / norm
+        norm = s_left if side == "left" else s_right
+        sign = 1.0 if side == "left" else -1.0  # u = length - x on the right
+        return np.array([
+            [np.sin(k * u), sign * k * np.cos(k * u), -k**2 * np.sin(k * u),
+             -sign * k**3 * np.cos(k * u)],
+            [np.sinh(kappa * u) / norm, sign * kappa * np.cosh(kappa * u) / norm,
+             kappa**2 * np.sinh(kappa * u) / norm, sign * kappa**3 * np.cosh(kappa * u) / norm],
+        ])
+
+    left, right = derivatives(load, "left"), derivatives(length - load, "right")
+    system = np.zeros((4, 4))
+    system[:3, :2], system[:3, 2:] = left[:, :3].T, -right[:, :3].T
+    system[3, :2], system[3, 2:] = -ei * left[:, 3], ei * right[:, 3]
+    a, c, b, d = np.linalg.solve(system, [0.0, 0.0, 0.0, 1.0])
+
+    def y(x):
+        x = np.asarray(x, dtype=float)
+        xl, xr = np.minimum(x, load), length - np.maximum(x, load)
+        return np.where(x <= load, a * np.sin(k * xl) + c * np.sinh(kappa * xl) / s_left,
+                        b * np.sin(k * xr) + d * np.sinh(kappa * xr) / s_right)
+
+    return y
+
+
+def exact_largest_antinode(y, length):
+    """Position of the largest |y| and the length of its loop (between zeros of y), exactly."""
+    from scipy.optimize import brentq, minimize_scalar
+
+    fine = np.linspace(0.0, length, 36601)
+    values = y(fine)
+    i = int(np.argmax(np.abs(values)))
+    best = minimize_scalar(lambda s: -abs(float(y(s))), method="bounded",
+                           bounds=(fine[max(i - 1, 0)], fine[min(i + 1, fine.size - 1)]),
+                           options={"xatol": 1e-10})
+    crossings = np.nonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0)[0]
+    zeros = [0.0] + [brentq(y, fine[j], fine[j + 1]) for j in crossings] + [length]
+    return best.x, min(z for z in zeros if z > best.x) - max(z for z in zeros if z < best.x)
+
+
+LAB = plc.Span.paper_lab()
+# Natural frequencies of the lab span: 6.53, 14.39, 24.53, 37.52, 53.66 Hz.  These lie between.
+OFF_RESONANCE = [(11.2, 0.63), (20.7, 1.71), (31.0, 0.9), (31.0, 3.18), (43.9, 2.37),
+                 (58.4, 1.12)]
+
+
+def graded_mesh(n):
+    """Nodes graded toward both ends (spacing 0.4x the mean there, 1.6x mid-span)."""
+    s = np.linspace(0.0, 1.0, n)
+    return LAB.length * (s - 0.6 * np.sin(2 * np.pi * s) / (2 * np.pi))
+
+
+def test_closed_form_response_matches_modal_sum():
+    # The truth itself, checked against a second independent form: the modal sum with the
+    # pinned beam's modes sin(n pi x / L) (modal mass m L / 2) and w_n^2 = (EI k^4 + T k^2) / m.
+    # 20000 modes: the tail is below 1e-6 of the response (terms fall as 1 / n^2).
+    y = pinned_beam_response(LAB, 43.9, 2.37)
+    x = np.linspace(0.0, LAB.length, 9)
+    n = np.arange(1, 20001)
+    k = n * np.pi / LAB.length
+    c = LAB.conductor
+    w2 = (c.ei * k**4 + LAB.tension * k**2) / c.mass_per_length
+    modal = (2 / (c.mass_per_length * LAB.length)) * np.sin(np.outer(x, k)) @ (
+        np.sin(k * 2.37) / (w2 - (2 * np.pi * 43.9) ** 2))
+    np.testing.assert_allclose(y(x), modal, atol=1e-6 * np.max(np.abs(modal)))
+
+
+@pytest.mark.parametrize("mesh", ["uniform", "graded"])
+@pytest.mark.parametrize("kind", ["window", "snapshot"])
+def test_largest_antinode_of_exact_off_resonance_fields(kind, mesh):
+    # The issue's Must-show.  Exact steady fields of the lab span at frequencies between its
+    # resonances and several load positions (a loop next to the load is not a sine), sampled on a
+    # uniform (101 nodes) or graded (121 nodes, finer near the ends) mesh, as a 0.4 s window
+    # y(x) cos(w t + 0.4) sampled at 1 kHz or as one snapshot y(x), plus white noise of 0.3, 1
+    # and 3 % of the largest amplitude (seed 2026).  Requirement: the largest antinode within 2 %
+    # of its loop length of the exact maximum of |y| up to 1 % noise.  Measured worst: 0.6 %
+    # (window), 1.6 % (snapshot); at 3 % noise 0.9 % and 2.0 %.
+    x = np.linspace(0.0, LAB.length, 101) if mesh == "uniform" else graded_mesh(121)
+    t = np.arange(400) * 1e-3
+    errors = {0.0: [], 0.003: [], 0.01: [], 0.03: []}
+    stds = {level: [] for level in errors}
+    for frequency, load in OFF_RESONANCE:
+        y = pinned_beam_response(LAB, frequency, load)
+        where, loop = exact_largest_antinode(y, LAB.length)
+        shape = y(x)
+        clean = np.outer(shape, np.cos(2 * np.pi * frequency * t + 0.4)) if kind == "window" \
+            else shape
+        rng = np.random.default_rng(2026)
+        unit = rng.standard_normal(clean.shape)
+        for level in errors:
+            noisy = clean + level * np.max(np.abs(shape)) * unit
+            found = largest_antinode(locate_antinodes(noisy, x, dt=1e-3))
+            errors[level].append(abs(found.position - where) / loop)
+            stds[level].append(found.position_std / loop)
+    for level in (0.0, 0.003, 0.01):
+        assert max(errors[level]) < 0.02, (level, errors[level])
+    # Beyond the requirement (3 % noise): within 5 % of the loop (measured 2 %).
+    assert max(errors[0.03]) < 0.05
+    # The uncertainty grows with the noise.  At low noise it is the estimated bias of loops that
+    # are not sines (and a window averages the noise over 400 samples, so its noise stays below
+    # that bias up to 1 %): the median over the fields may stay flat there (5 % allowed for the
+    # change of fit window), and then rises: at 3 % it is at least 1.5x the noise-free one, and
+    # snapshots (noise not averaged) rise at every level.
+    medians = [float(np.median(stds[level])) for level in (0.0, 0.003, 0.01, 0.03)]
+    assert all(b > 0.95 * a for a, b in zip(medians[:-1], medians[1:], strict=True)), medians
+    assert medians[-1] > 1.5 * medians[0], medians
+    if kind == "snapshot":
+        assert all(b > a for a, b in zip(medians[:-1], medians[1:], strict=True)), medians
+
+
+def test_small_loop_between_resonances_keeps_its_own_ends():
+    # The issue's case: 31 Hz, here with the load at 1.1 m, where the exact response has a small
+    # loop of 0.13 m between two large ones.  Its ends must be the zeros of the exact response
+    # (a node-finding error of less than a sample spacing, 3.7 cm), and the large loops keep
+    # theirs (the old code stretched one over the small loop).
+    y = pinned_beam_response(LAB, 31.0, 1.1)
+    from scipy.optimize import brentq
+
+    fine = np.linspace(0.0, LAB.length, 36601)
+    values = y(fine)
+    crossings = np.nonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0)[0]
+    zeros = np.array([brentq(y, fine[j], fine[j + 1]) for j in crossings])
+    x = np.linspace(0.0, LAB.length, 101)
+    t = np.arange(500) * 1e-3
+    window = np.outer(y(x), np.sin(2 * np.pi * 31.0 * t))
+    window += 0.01 * np.max(np.abs(window)) * np.random.default_rng(7).standard_normal(window.shape)
+    found = locate_antinodes(window, x, min_prominence=0.01)
+    ends = sorted({a.loop_start for a in found} | {a.loop_end for a in found})
+    interior = np.array([e for e in ends if 0.0 < e < LAB.length])
+    assert interior.size == zeros.size
+    # Linear / sine interpolation of the harmonic's zero crossing with 1 % noise averaged over
+    # 500 samples: a few mm (measured < 2 mm); 1 cm.
+    np.testing.assert_allclose(interior, zeros, atol=0.01)
+
+
+def test_uncertainty_of_a_sine_loop_scales_with_noise():
+    # Without variances the std comes from the estimated noise: for a pure sine loop (no bias)
+    # it must scale with the noise (linear propagation), and match the scatter over draws.
+    x = graded_mesh(81)
+    clean = np.sin(2 * np.pi * x / LAB.length)
+    rng = np.random.default_rng(31)
+    unit = rng.standard_normal((200, x.size))
+    results = {}
+    for sigma in (0.003, 0.03):
+        found = [locate_antinodes(clean + sigma * u, x)[0] for u in unit]
+        results[sigma] = (np.std([a.position for a in found]),
+                          np.median([a.position_std for a in found]))
+    (scatter_low, std_low), (scatter_high, std_high) = results[0.003], results[0.03]
+    # 10x noise, 10x std (within 30 %: the fit window can change between draws)
+    assert 7 < std_high / std_low < 13
+    # the reported std covers the actual scatter to within a factor of 2 (it adds the shift to a
+    # narrower fit as a bias estimate, so it is conservative; sampling error of 200 draws ~5 %)
+    for scatter, std in ((scatter_low, std_low), (scatter_high, std_high)):
+        assert 0.8 < std / scatter < 2.0

@@ -1,64 +1,224 @@
-"""The closed loop: the robot finds the antinode from three sensors and the line vibrates less."""
+"""The closed loop: the robot settles where the line vibrates least, from three sensors.
+
+Truth comes from outside the closed loop's own plant: the full finite-element model (dense
+complex solves of K - w^2 M + i w C with the robot attached) for steady states, plc.simulate for
+transients, and conservation of energy for the integrator.
+"""
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 import powerline_control as plc
-from powerline_control.closed_loop import run_closed_loop
+from powerline_control.closed_loop import _ModalPlant, run_closed_loop
+from powerline_control.tuning import tune_damper
 
 LAB = plc.Span.paper_lab()
+N_EL = 60
+ZETA = 0.003  # lightly damped line: start-up transients of undriven modes die out in ~2-4 s
+BARE = plc.LineModel(LAB, N_EL)
+FREQS = BARE.natural_frequencies(6)
+SENSORS = [11, 23, 47]
 
 
-@pytest.fixture(scope="module")
-def result():
-    # 40 elements keep the test quick; forced at 24 Hz, next to mode 3 (24.5 Hz), whose nodes are
-    # at L/3 and 2L/3. The robot starts at 1.2 m, next to the node at L/3 = 1.22 m: the worst place.
-    f3 = plc.LineModel(LAB, 40).natural_frequencies(3)[2]
-    robot = plc.MDR.tuned(1.2, body_mass=0.02, suspended_mass=0.05, frequency=f3, damping_ratio=0.1)
-    limits = plc.RobotLimits(v_max=0.5, a_max=1.0)
-    return run_closed_loop(
-        LAB,
-        plc.HarmonicForce(1.0, 24.0, 0.5),
-        robot,
-        limits,
-        sensors=[6, 16, 28],
-        n_elements=40,
-        duration=6.0,
-        calibration=2.0,
-        obstacles=[(2.6, 2.8)],
-        seed=1,
-    )
+def _robot(mode, start):
+    """0.03 kg body + 0.04 kg absorber tuned (Den Hartog) to `mode` at its first antinode."""
+    tuned = tune_damper(BARE, mode, LAB.length / (2 * mode), 0.04, body_mass=0.03)
+    return plc.MDR(start, tuned.body_mass, tuned.suspended_mass, tuned.stiffness, tuned.damping)
 
 
-def test_line_vibrates_less_than_with_the_robot_parked(result):
-    # A tuned absorber at a node of the driven mode does nothing to it; at an antinode it damps
-    # it. Measured: about 7x less RMS displacement; 3x leaves room for seeds and model changes.
-    assert result.vibration_reduction > 3.0
+def _fe_line_matrices():
+    """Dense bare-line M, K and its modal damping (2 zeta omega per mode) as M Phi Z Phi^T M."""
+    basis = BARE.modes()
+    mass = BARE.mass_matrix.toarray()
+    mode_damping = np.diag(2 * ZETA * np.asarray(basis.omega))
+    shapes = np.asarray(basis.shapes)
+    return mass, BARE.stiffness_matrix.toarray(), mass @ shapes @ mode_damping @ shapes.T @ mass
 
 
-def test_robot_ends_in_the_loop_whose_antinode_it_was_sent_to(result):
-    # Mode 3's loops are [0, L/3], [L/3, 2L/3], [2L/3, L]; the robot starts at the first node, so
-    # it must settle inside one loop, away from the nodes (the absorber shifts the antinode a bit).
-    final = result.robot_position[-1]
-    distance_to_node = np.min(np.abs(final - LAB.length * np.array([1 / 3, 2 / 3])))
-    assert distance_to_node > 0.25 * LAB.length / 3
+M_LINE, K_LINE, C_LINE = _fe_line_matrices()
+NODAL = BARE.displacement_map().toarray()
+_x = BARE.node_positions
+WEIGHTS = np.zeros_like(_x)
+WEIGHTS[1:] += 0.5 * np.diff(_x)
+WEIGHTS[:-1] += 0.5 * np.diff(_x)
+WEIGHTS /= WEIGHTS.sum()
 
 
-def test_robot_respects_its_limits_and_the_obstacle(result):
+def _fe_steady_rms(robot, position, force):
+    """Steady-state RMS over the span (length-weighted) with the robot parked at `position`:
+    the full FE line plus the robot's body mass and its absorber DOF (spring k, damper c)."""
+    omega = 2 * np.pi * force.frequency
+    n = M_LINE.shape[0]
+    s = BARE.shape_vector(position)
+    dynamic = np.zeros((n + 1, n + 1), dtype=complex)
+    dynamic[:n, :n] = K_LINE - omega**2 * (M_LINE + robot.body_mass * np.outer(s, s))
+    dynamic[:n, :n] += 1j * omega * C_LINE
+    spring = robot.stiffness + 1j * omega * robot.damping
+    coupling = np.append(s, -1.0)
+    dynamic += spring * np.outer(coupling, coupling)
+    dynamic[n, n] -= omega**2 * robot.suspended_mass
+    load = np.zeros(n + 1, dtype=complex)
+    load[:n] = force.amplitude * BARE.point_load(force.position)  # |phasor| of a sine
+    response = np.linalg.solve(dynamic, load)
+    return float(np.sqrt(0.5 * WEIGHTS @ np.abs(NODAL @ response[:n]) ** 2))
+
+
+@threadpool_limits.wrap(limits=1, user_api="blas")  # thousands of small solves: one thread
+def _fe_best(robot, force):
+    grid = np.linspace(0.02, LAB.length - 0.02, 91)
+    rms = np.array([_fe_steady_rms(robot, p, force) for p in grid])
+    i = int(np.argmin(rms))
+    fine = np.linspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 11)
+    fine_rms = np.array([_fe_steady_rms(robot, p, force) for p in fine])
+    return float(fine[np.argmin(fine_rms)]), float(fine_rms.min())
+
+
+def _rms_over(result, t0, t1):
+    mask = (result.t >= t0) & (result.t <= t1)
+    return float(np.sqrt(np.mean(WEIGHTS @ result.displacement[:, mask] ** 2)))
+
+
+# (mode, frequency / natural frequency, force position / L, seed): on and off resonance (within
+# the band where a tuned absorber at the antinode beats the bare node by > 3x), two modes.
+CASES = [(3, 1.0, 0.41, 21), (3, 0.988, 0.29, 5), (4, 1.012, 0.63, 8), (4, 0.995, 0.41, 3)]
+
+
+@pytest.fixture(scope="module", params=CASES, ids=lambda c: f"mode{c[0]}-{c[1]}-seed{c[3]}")
+def settled_case(request):
+    mode, ratio, where, seed = request.param
+    node = LAB.length / mode  # the first interior node of the driven mode: the worst start
+    robot = _robot(mode, node)
+    force = plc.HarmonicForce(1.0, ratio * FREQS[mode - 1], where * LAB.length)
+    result = run_closed_loop(LAB, force, robot, sensors=SENSORS, n_elements=N_EL,
+                             damping=plc.ModalDamping(ZETA), duration=12.0, calibration=2.0,
+                             seed=seed)
+    return mode, robot, force, result
+
+
+def test_robot_settles(settled_case):
+    mode, _, _, result = settled_case
+    last = result.t >= result.t[-1] - 3.0  # the test's own window: the last 3 s
+    loop = LAB.length / mode
+    assert np.ptp(result.robot_position[last]) < 0.02 * loop
+    assert result.settled
+
+
+def test_line_ends_near_the_best_parked_position_and_far_below_the_start(settled_case):
+    _, robot, force, result = settled_case
+    best_x, best_rms = _fe_best(robot, force)
+    closed = _rms_over(result, result.t[-1] - 3.0, result.t[-1])
+    # 25 %: the issue's bar. The time-domain RMS also holds what is left of the start-up
+    # transients of undriven modes (zeta 0.3 %) and the plant's first-order hold (~0.5 %).
+    assert closed <= 1.25 * best_rms
+    start_rms = _fe_steady_rms(robot, robot.position, force)
+    assert start_rms >= 3.0 * closed
+    # The result's own "best" comparison is parked where the FE scan finds the minimum (2 % of
+    # a loop: the scan grids), and it and the loop are both far below the start.
+    mode = settled_case[0]
+    assert abs(result.comparison("best").position - best_x) < 0.02 * LAB.length / mode
+    assert result.comparison("start").rms > 3 * max(result.comparison("best").rms,
+                                                    result.rms_closed_loop)
+
+
+def test_steady_state_scan_matches_the_finite_element_model():
+    mode = 4
+    robot = _robot(mode, LAB.length / mode)
+    force = plc.HarmonicForce(0.8, 1.007 * FREQS[mode - 1], 0.53 * LAB.length)
+    result = run_closed_loop(LAB, force, robot, sensors=SENSORS, n_elements=N_EL,
+                             damping=plc.ModalDamping(ZETA), duration=3.0, calibration=1.0,
+                             seed=2)
+    picks = np.linspace(5, result.scan_positions.size - 6, 7).astype(int)
+    fe = [_fe_steady_rms(robot, result.scan_positions[i], force) for i in picks]
+    # 2 %: the plant keeps the bare line's modes below 8x the load frequency; the robot couples
+    # to the dropped ones only quasi-statically (measured ~0.3 %).
+    np.testing.assert_allclose(result.scan_rms[picks], fe, rtol=0.02)
+    best_x, _ = _fe_best(robot, force)
+    assert abs(result.best_position - best_x) < 0.02 * LAB.length / mode
+
+
+def test_parked_plant_matches_full_fe_simulation():
+    # The baseline (robot parked at its start) against plc.simulate on the full FE model with the
+    # robot attached: exact modal propagation of every mode, closed form for the harmonic load.
+    robot = _robot(3, 0.9)
+    force = plc.HarmonicForce(1.3, 0.97 * FREQS[2], 1.7)
+    result = run_closed_loop(LAB, force, robot, sensors=SENSORS, n_elements=N_EL,
+                             duration=1.5, calibration=0.5, seed=4)
+    full = plc.simulate(plc.LineModel(LAB, N_EL, mdr=robot), force, duration=1.5, dt=1e-3)
+    error = result.baseline_displacement - full.true_displacement
+    relative = np.sqrt(np.mean(error**2) / np.mean(full.true_displacement**2))
+    # 2 %: first-order hold of a 24 Hz sine at 1 kHz (~(omega dt)^2 / 12 = 0.2 %) and the modes
+    # the plant drops; measured ~0.5 %.
+    assert relative < 0.02
+
+
+def test_energy_is_conserved_with_no_damping_and_a_still_robot():
+    robot = plc.MDR(1.1, body_mass=0.03, suspended_mass=0.04, stiffness=1500.0, damping=0.0)
+    plant = _ModalPlant(BARE, robot, 15, 1e-3)
+    rng = np.random.default_rng(17)
+    z = np.concatenate([1e-3 * rng.standard_normal(plant.n_q), 0.1 * rng.standard_normal(plant.n_q)])
+    phi, _, _ = plant.discretise(1.1)
+    e0 = plant.energy(z, 1.1)
+    energies = []
+    for _ in range(10_000):
+        z = phi @ z
+        energies.append(plant.energy(z, 1.1))
+    # The discrete map is the exact flow (matrix exponential), so energy drifts only by
+    # round-off: 1e-9 relative over 1e4 steps leaves room for ~1e-13 per step.
+    assert np.max(np.abs(np.array(energies) - e0)) / e0 < 1e-9
+
+
+def test_wind_change_robot_follows_to_the_new_best_position():
+    # Mode 4 then mode 3 (a frequency step at 8 s, as a wind change would make): the robot,
+    # tuned to mode 4, leaves the mode-4 position and settles where the line now vibrates least.
+    robot = _robot(4, LAB.length / 4)
+    first = plc.HarmonicForce(1.0, 0.99 * FREQS[3], 0.37 * LAB.length)
+    second = plc.HarmonicForce(1.0, 1.01 * FREQS[2], 0.37 * LAB.length)
+    result = run_closed_loop(LAB, [(0.0, first), (8.0, second)], robot, sensors=SENSORS,
+                             n_elements=N_EL, damping=plc.ModalDamping(ZETA), duration=16.0,
+                             calibration=2.0, seed=9)
+    assert len(result.retarget_times) == 2 and result.retarget_times[1] > 8.0
+    assert np.isfinite(result.settle_times[1])
+    last = result.t >= result.t[-1] - 2.0
+    assert np.ptp(result.robot_position[last]) < 0.02 * LAB.length / 3
+    _, best_rms = _fe_best(robot, second)
+    after_change = _rms_over(result, 8.0, 9.0)
+    final = _rms_over(result, result.t[-1] - 2.0, result.t[-1])
+    assert final <= 1.25 * best_rms
+    assert final < 0.5 * after_change  # the RMS falls again once the robot has moved
+
+
+def test_noise_free_sensors_work():
+    robot = _robot(2, LAB.length / 2)
+    result = run_closed_loop(LAB, plc.HarmonicForce(1.0, FREQS[1], 1.0), robot, sensors=[5, 9, 14],
+                             n_elements=20, duration=2.0, calibration=1.0, noise_fraction=0.0)
+    assert np.all(np.isfinite(result.estimated_field))
+    assert result.robot_position[-1] != robot.position
+
+
+def test_robot_respects_its_limits_and_the_obstacle():
+    robot = _robot(3, 1.2)
+    result = run_closed_loop(LAB, plc.HarmonicForce(1.0, FREQS[2], 0.5), robot,
+                             plc.RobotLimits(v_max=0.3, a_max=0.8), sensors=[7, 16, 28],
+                             n_elements=40, duration=4.0, calibration=1.0,
+                             obstacles=[(1.5, 1.6)], seed=1)
     # Constant acceleration per period: sampled velocity is exact, so the limit holds at samples.
-    assert np.abs(result.robot_velocity).max() <= 0.5 + 1e-9
+    assert np.abs(result.robot_velocity).max() <= 0.3 + 1e-9
     accel = np.diff(result.robot_velocity) / np.diff(result.t)
-    assert np.abs(accel).max() <= 1.0 + 1e-6
-    assert not np.any((result.robot_position > 2.6) & (result.robot_position < 2.8))
+    assert np.abs(accel).max() <= 0.8 + 1e-6
+    assert not np.any((result.robot_position > 1.5) & (result.robot_position < 1.6))
 
 
-def test_estimate_tracks_the_true_field_after_calibration(result):
+def test_estimate_tracks_the_true_field(settled_case):
+    _, _, _, result = settled_case
     after = result.t > result.calibration_time + 0.5
     error = result.estimated_field[:, after] - result.displacement[:, after]
     relative = np.sqrt(np.mean(error**2)) / np.sqrt(np.mean(result.displacement[:, after] ** 2))
-    # The model was identified with the robot parked; moving it changes the line, so the
-    # estimate is not perfect. Measured ~10-20 %; 50 % still locates the loops.
-    assert relative < 0.5
+    # The model was identified with the robot parked at a node; once it damps the loop the
+    # line's dynamics differ from the model's and the (much smaller) field is estimated less
+    # well. 60 % still tells the loops apart; the policy does not rely on it (see the docs).
+    assert relative < 0.6
+    assert result.innovation_ratio.size == len(result.statuses)
 
 
 @pytest.mark.parametrize(
@@ -66,11 +226,33 @@ def test_estimate_tracks_the_true_field_after_calibration(result):
     [
         (dict(sensors=[]), "sensors"),
         (dict(sensors=[50]), "sensors"),
+        (dict(sensors=[0, 5]), "sensors"),  # a pinned support: the model has no displacement
+        (dict(sensors=[5, 5]), "sensors"),
         (dict(calibration=10.0), "calibration"),
+        (dict(calibration=1.0005), "calibration"),
         (dict(control_period=0.0015), "control_period"),
+        (dict(plant_period=0.0025), "plant_period"),
+        (dict(duration=3.0004), "duration"),
+        (dict(noise_fraction=-0.1), "noise_fraction"),
+        (dict(motion="fast"), "motion"),
+        (dict(obstacles=[(1.0, 1.5)]), "robot.position"),
+        (dict(robot=plc.MDR(4.0, 0.02)), "robot.position"),
+        (dict(robot=plc.MDR(1.2, 0.3)), "robot"),  # 0.3 kg > 25 % of the span's 0.68 kg
+        (dict(force=[(0.0, plc.HarmonicForce(1.0, 24.0, 0.5)), (5.0, "gust")]), "force"),
+        (dict(force=[(1.0, plc.HarmonicForce(1.0, 24.0, 0.5))]), "force"),
+        (dict(force="wind"), "force"),
     ],
 )
 def test_bad_arguments(kwargs, name):
-    args = {"sensors": [5, 10], "n_elements": 20, "duration": 3.0, "calibration": 1.0, **kwargs}
+    args = {"sensors": [5, 10], "n_elements": 20, "duration": 3.0, "calibration": 1.0,
+            "force": plc.HarmonicForce(1.0, 24.0, 0.5), "robot": plc.MDR(1.2, 0.02), **kwargs}
     with pytest.raises(plc.InputError, match=name):
-        run_closed_loop(LAB, plc.HarmonicForce(1.0, 24.0, 0.5), plc.MDR(1.2, 0.02), **args)
+        run_closed_loop(LAB, args.pop("force"), args.pop("robot"), **args)
+
+
+def test_robot_too_heavy_for_the_tension():
+    # A slack line (10 N) under a 0.1 kg robot: W / 2T = 0.049 ... at 5 N it is 0.098 rad.
+    slack = plc.Span(length=3.66, tension=5.0, conductor=LAB.conductor)
+    with pytest.raises(plc.InputError, match="tension"):
+        run_closed_loop(slack, plc.HarmonicForce(1.0, 5.0, 0.5), plc.MDR(1.2, 0.1),
+                        sensors=[5, 10], n_elements=20, duration=3.0, calibration=1.0)

@@ -7,13 +7,15 @@ paper's eqs. 15-20 written literally, python-control's ``dlqe`` and filterpy's `
 
 from __future__ import annotations
 
+import dataclasses
+
 import control as ct
 import numpy as np
 import pytest
 import scipy.linalg as sla
 
 import powerline_control as plc
-from powerline_control.errors import EstimationError, InputError
+from powerline_control.errors import EstimationError, InputError, UndetectableModeWarning
 from powerline_control.estimate import (
     Estimate,
     KalmanFilter,
@@ -370,11 +372,13 @@ def test_bad_input_is_rejected_clearly(make, match):
         make()
 
 
-def test_singular_innovation_covariance_is_reported():
+def test_noise_free_sensor_is_refused_unless_epsilon_cures_it():
+    """The one rule for R: R + epsilon I positive definite, checked at construction."""
     sys = ct.ss(np.eye(2) * 0.5, np.zeros((2, 1)), np.eye(2), 0, dt=1.0)
-    kf = KalmanFilter(sys, Q=0.0, R=0.0, P0=np.zeros((2, 2)))
-    with pytest.raises(EstimationError, match="singular"):
-        kf.filter(np.ones((2, 3)))
+    with pytest.raises(InputError, match="'R' parameter plus epsilon"):
+        KalmanFilter(sys, Q=0.0, R=0.0, P0=np.zeros((2, 2)))
+    with pytest.raises(InputError, match="'R' parameter plus epsilon"):
+        KalmanFilter(sys, Q=1.0, R=np.ones((2, 2)))  # perfectly correlated pair: singular
     # The paper's epsilon is exactly the cure.
     assert np.all(np.isfinite(KalmanFilter(sys, 0.0, 0.0, epsilon=1e-6,
                                            P0=np.zeros((2, 2))).filter(np.ones((2, 3))).states))
@@ -568,3 +572,160 @@ def test_filter_then_step_continues_the_record(steady_state):
     fresh = KalmanFilter(sys, q, r, steady_state=steady_state)
     fresh.filter(y[:, :1000], u[:, :1000])  # default: the real-time state is untouched
     np.testing.assert_array_equal(fresh.state, np.zeros(n))
+
+
+# --------------------------------------------------------- a filter that knows when it is lost
+
+
+def plain_covariance_recursion(a, c, q, r, p0, n_t):
+    """The exact covariance recursion written plainly: predict, then the textbook update.
+
+    Returns the posterior variances ``(n, n_t)``: the truth a filter must report.
+    """
+    p = p0.copy()
+    out = np.zeros((a.shape[0], n_t))
+    for k in range(n_t):
+        if k:
+            p = a @ p @ a.T + q
+        s = c @ p @ c.T + r
+        gain = np.linalg.solve(s, c @ p).T
+        p = p - gain @ c @ p
+        out[:, k] = np.diag(p)
+    return out
+
+
+@pytest.mark.parametrize("gain_rtol", [1e-10, 1e-3, 0.0])
+def test_unseen_marginal_mode_variance_grows_like_the_truth(gain_rtol):
+    """Must show: a random walk (eigenvalue 1) the sensor cannot see; a seen stable oscillator.
+
+    The old filter froze once the gain settled (the unseen state's gain is 0 from the start)
+    and reported a small constant variance; the truth grows by q per sample.
+    """
+    rotation = 0.97 * np.array([[np.cos(0.4), -np.sin(0.4)], [np.sin(0.4), np.cos(0.4)]])
+    a = sla.block_diag(rotation, [[1.0]])
+    c = np.array([[1.0, 0.3, 0.0]])
+    q, r = np.diag([0.02, 0.01, 0.05]), np.array([[0.1]])
+    sys = ct.ss(a, np.zeros((3, 1)), c, 0, dt=0.01)
+    with pytest.warns(UndetectableModeWarning, match="1\\+0j"):
+        kf = KalmanFilter(sys, q, r, gain_rtol=gain_rtol)
+    n_t = 4000
+    _, y = simulate_truth(sys, q, r, n_t, seed=1234)
+    est = kf.filter(y)
+    truth = plain_covariance_recursion(a, c, q, r, np.eye(3), n_t)
+    # "Within 10 % of the exact recursion": it is the same recursion, so round-off only, and
+    # the reported variance grows by q = 0.05 per sample: 200 after 4000 samples.
+    np.testing.assert_allclose(est.variances, truth, rtol=1e-6)
+    assert est.variances[2, -1] == pytest.approx(1.0 + 0.05 * (n_t - 1), rel=0.1)
+    assert est.converged_at is None and est.undetectable_modes == (1 + 0j,)
+    np.testing.assert_array_equal(kf.undetectable_modes, [1.0 + 0j])
+    # Real time: the same honest growth sample by sample.
+    for k in range(200):
+        kf.step(y[:, k])
+    assert kf.covariance[2, 2] == pytest.approx(truth[2, 199], rel=1e-9)
+    # There is no steady state to freeze at: the Riccati equation says so and names the mode.
+    with pytest.raises(EstimationError, match="1\\+0j"):
+        KalmanFilter(sys, q, r, steady_state=True)
+
+
+@pytest.mark.parametrize("gain_rtol", [0.0, 1e-10])
+def test_unseen_unstable_mode_raises_instead_of_overflowing(gain_rtol):
+    """|lambda| = 1.05 unseen: the variance grows like 1.1^k and passes 1e100 x its scale at
+    about k = 2400; the filter must stop with EstimationError, not overflow into SciPy."""
+    a = np.diag([0.9, 1.05])
+    sys = ct.ss(a, np.zeros((2, 1)), [[1.0, 0.0]], 0, dt=1.0)
+    with pytest.warns(UndetectableModeWarning):
+        kf = KalmanFilter(sys, Q=np.eye(2), R=1.0, gain_rtol=gain_rtol)
+    y = np.random.default_rng(5).normal(size=(1, 20_000))
+    with pytest.raises(EstimationError, match="diverged.*1.05"):
+        kf.filter(y)
+    kf.reset()
+    with pytest.raises(EstimationError, match="diverged"):
+        for k in range(20_000):
+            kf.step(y[:, k])
+
+
+@pytest.mark.parametrize("steady_state", [False, True])
+def test_long_dropout_on_an_unstable_model_raises(steady_state):
+    """A detectable unstable mode (|lambda| = 1.02) with a 20,000-sample dropout: the predicted
+    variance grows like 1.02^(2k) = 1e100 x its scale near k = 5800: EstimationError, never inf."""
+    a = np.diag([1.02, 0.5])
+    sys = ct.ss(a, np.zeros((2, 1)), np.eye(2), 0, dt=1.0)
+    kf = KalmanFilter(sys, Q=0.01 * np.eye(2), R=0.1, steady_state=steady_state)
+    y = np.random.default_rng(6).normal(size=(2, 21_000))
+    y[:, 500:20_500] = np.nan
+    with pytest.raises(EstimationError, match="diverged.*missing"):
+        kf.filter(y)
+    # A short dropout on the same model is fine and finite (the growth is bounded).
+    y_short = y.copy()
+    y_short[:, 500:20_500] = 0.0
+    y_short[:, 600:700] = np.nan
+    est = kf.filter(y_short)
+    assert np.all(np.isfinite(est.states)) and np.all(np.isfinite(est.variances))
+
+
+def test_gain_freezes_only_when_the_covariance_has_converged():
+    """A slowly converging covariance whose gain is nearly constant: the gain-only rule froze
+    early; with the covariance rule the reported variances follow the exact recursion."""
+    sys = lightly_damped_system(4, 2, seed=2026)
+    n = sys.nstates
+    q, r = 1e-4 * np.eye(n), 1e-2 * np.eye(2)
+    _, y = simulate_truth(sys, q, r, 3000, seed=2027)
+    est = KalmanFilter(sys, q, r, gain_rtol=1e-6).filter(y)
+    truth = plain_covariance_recursion(np.asarray(sys.A), np.asarray(sys.C), q, r, np.eye(n),
+                                       3000)
+    assert est.converged_at is not None
+    k0 = est.converged_at
+    # Frozen only after P itself changed by <= 1e-6 relative per sample: what is left of the
+    # geometric convergence is then below ~1e-6 / (1 - rate) relative; 1e-3 is a safe margin.
+    np.testing.assert_allclose(est.variances[:, k0:], truth[:, k0:], rtol=1e-3)
+
+
+def test_information_form_with_more_outputs_than_states_equals_textbook():
+    """p = 12 outputs of a 6-state model (a reduced model with many sensors): the Woodbury path
+    (never a p x p solve) must give the textbook filter, with dropouts and a full R."""
+    sys = lightly_damped_system(3, 12, seed=303, selection=False)
+    n = sys.nstates
+    rng = np.random.default_rng(304)
+    l = rng.normal(size=(12, 12))
+    r = 0.05 * (l @ l.T / 12 + np.eye(12))  # correlated sensor noise
+    q = 1e-3 * np.eye(n)
+    _, y = simulate_truth(sys, q, r, 1200, seed=305)
+    y[3, 100:140] = np.nan
+    y[:, 400] = np.nan
+    ref, ref_var, ref_innov = textbook_filter(sys, q, r, y)
+    est = KalmanFilter(sys, q, r).filter(y)
+    # Information and Joseph forms are algebraically equal at the optimal gain: round-off.
+    assert rel(est.states, ref) < 1e-9
+    assert rel(est.variances, ref_var) < 1e-9
+    assert rel(np.nan_to_num(est.innovations), np.nan_to_num(ref_innov)) < 1e-9
+    # NIS through Woodbury against the plain e^T S^-1 e at the last (frozen) sample.
+    a, c = np.asarray(sys.A), np.asarray(sys.C)
+    kf_ss = KalmanFilter(sys, q, r, steady_state=True)
+    _, predicted, _ = ct.dlqe(a, np.eye(n), c, q, r)
+    s = c @ predicted @ c.T + r
+    np.testing.assert_allclose(kf_ss.steady_gain, predicted @ c.T @ np.linalg.inv(s),
+                               rtol=1e-8, atol=1e-12)
+    e = est.innovations[:, -1]
+    assert est.nis[-1] == pytest.approx(float(e @ np.linalg.solve(s, e)), rel=1e-6)
+
+
+def test_construction_parameters_and_results_are_read_only():
+    sys = lightly_damped_system(2, 2, seed=404)
+    kf = KalmanFilter(sys, Q=1e-3, R=[1e-2, 2e-2], field_map=np.ones((3, 4)))
+    for name in ("Q", "R", "epsilon", "gain_rtol", "steady_state", "dt", "n_states"):
+        with pytest.raises(AttributeError):
+            setattr(kf, name, 1.0)
+    np.testing.assert_array_equal(kf.R, np.diag([1e-2, 2e-2]))
+    with pytest.raises(ValueError, match="read-only"):
+        kf.Q[0, 0] = 5.0
+    est = kf.filter(np.zeros((2, 20)))
+    acc = estimation_accuracy(est.field + 1.0, est.field + 2.0)
+    cons = filter_consistency(est, est.states)
+    for result in (est, acc, cons):
+        for field in dataclasses.fields(result):
+            value = getattr(result, field.name)
+            if isinstance(value, np.ndarray):
+                assert not value.flags.writeable, (type(result).__name__, field.name)
+    steady = KalmanFilter(sys, Q=1e-3, R=1e-2, steady_state=True)
+    assert not steady.steady_gain.flags.writeable
+    assert not steady.steady_covariance.flags.writeable

@@ -269,3 +269,223 @@ def test_modes_are_cached_per_model_and_read_only():
         basis.omega[:] = 0.0
     # Another model's cache is its own.
     assert plc.LineModel(LAB, 20).modes(3) is not basis
+
+
+# ---------------------------------------------------------------- mesh from physics (issue 10)
+DRAKE = plc.Span.at_rts_fraction(300.0, "drake", 0.20)
+
+
+def clamped_frequencies(span, n_modes):
+    """Clamped-clamped taut-beam frequencies (Hz) from the characteristic equation (domain 3.2).
+
+    Scaled form F / cosh(alpha L) = 2 alpha beta (sech alpha L - cos beta L)
+    + (alpha^2 - beta^2) tanh(alpha L) sin(beta L), which does not overflow on real spans. At
+    the pinned frequency omega_n^pp, beta = n pi / L exactly, so F changes sign between
+    consecutive pinned frequencies: one bracket per mode for a string-like span.
+    """
+    from scipy.optimize import brentq
+
+    ei, t, m, length = span.conductor.ei, span.tension, span.conductor.mass_per_length, span.length
+
+    def scaled(omega):
+        root = np.sqrt(t**2 + 4 * ei * m * omega**2)
+        a, b = np.sqrt((root + t) / (2 * ei)), np.sqrt((root - t) / (2 * ei))
+        sech = 2 * np.exp(-a * length) / (1 + np.exp(-2 * a * length))
+        return (2 * a * b * (sech - np.cos(b * length))
+                + (a * a - b * b) * np.tanh(a * length) * np.sin(b * length))
+
+    omega_pp = 2 * np.pi * span.pinned_frequencies(n_modes + 1)
+    roots = [brentq(scaled, omega_pp[i], omega_pp[i + 1], xtol=1e-13, rtol=1e-15)
+             for i in range(n_modes)]
+    return np.array(roots) / (2 * np.pi)
+
+
+def test_error_constants_of_hermite_cubics_match_uniform_mesh_bloch_waves():
+    # The mesh rule rests on omega_h/omega - 1 = (kh)^4/1440 (bending) and (kh)^6/60480 (string).
+    # Pinned uniform meshes carry the exact sin(n pi x / L) Bloch waves, so the closed form is the
+    # truth. At kh = pi/16 the next-order terms are 0.1 % (bending) and 1.3 % (string) of the
+    # leading one (measured at kh = pi/8 and pi/16: they fall as (kh)^2); eigh round-off ~1e-13.
+    ne, n = 80, 5
+    kh = n * np.pi / ne
+    for ei, tension, constant, power in ((1.0, 0.0, 1 / 1440, 4), (0.0, 1.0, 1 / 60480, 6)):
+        cond = plc.Conductor(mass_per_length=1.0, diameter=0.01, ei=ei)
+        span = plc.Span(length=1.0, tension=tension, conductor=cond)
+        got = plc.LineModel(span, ne).natural_frequencies(n)[-1] / span.pinned_frequencies(n)[-1]
+        assert got - 1 == pytest.approx(constant * kh**power, rel=0.03)
+        assert plc.fem.frequency_error_estimate(span, span.pinned_frequencies(n)[-1],
+                                                1 / ne) == pytest.approx(got - 1, rel=0.03)
+
+
+@pytest.fixture(scope="module")
+def drake_truth():
+    # 240 modes reach 52 Hz: every mode up to 50 Hz
+    return {"pinned": DRAKE.pinned_frequencies(240), "clamped": clamped_frequencies(DRAKE, 240)}
+
+
+@pytest.fixture(scope="module")
+def drake_band_errors(drake_truth):
+    """Max relative error of every mode up to 50 Hz, for elements_per_loop 1, 2 and the default."""
+    errors = {}
+    for bc in ("pinned", "clamped"):
+        for per_loop in (1.0, 2.0, None):
+            model = plc.LineModel(DRAKE, bc=bc, elements_per_loop=per_loop)
+            exact = drake_truth[bc][drake_truth[bc] <= 50.0]     # every mode up to 50 Hz
+            f = model.natural_frequencies(exact.size)
+            errors[bc, per_loop] = (model.element_length, float(np.max(np.abs(f / exact - 1))))
+    return errors
+
+
+@pytest.mark.parametrize("bc", ["pinned", "clamped"])
+def test_default_drake_mesh_gives_every_frequency_to_50_hz_within_one_percent(drake_band_errors,
+                                                                             bc):
+    _, error = drake_band_errors[bc, None]
+    assert error < 0.01        # the issue's requirement
+    # What docs/model.md states: measured 8.3e-6 (both supports); the h^6 string estimate at
+    # 4 elements per 46 Hz loop is 6e-6 at 50 Hz, so 3e-5 leaves room without hiding a regression.
+    assert error < 3e-5
+
+
+def test_clamped_error_falls_at_the_pinned_rate(drake_band_errors):
+    slopes = {}
+    for bc in ("pinned", "clamped"):
+        h, e = np.array([drake_band_errors[bc, p] for p in (1.0, 2.0, None)]).T
+        slopes[bc] = np.polyfit(np.log(h), np.log(e), 1)[0]
+    # Hermite cubics: h^4 (bending) to h^6 (tension); the Drake span mixes them (measured 4.9 for
+    # both). Without grading the clamped error converged at ~1.3 (issue 10), so "within 0.3 of
+    # the pinned slope and above 3.5" is what grading must deliver.
+    assert 3.5 < slopes["pinned"] < 6.5, slopes
+    assert abs(slopes["clamped"] - slopes["pinned"]) < 0.3, slopes
+
+
+def test_physics_mesh_is_graded_at_clamps_only_and_resolves_the_band():
+    pinned = plc.LineModel(DRAKE)
+    clamped = plc.LineModel(DRAKE, bc=("pinned", "clamped"))
+    assert np.ptp(pinned.element_lengths) < 1e-9            # uniform: no boundary layer
+    loop = np.pi / np.sqrt(
+        (-DRAKE.tension + np.sqrt(DRAKE.tension**2 + 4 * DRAKE.conductor.ei
+                                  * DRAKE.conductor.mass_per_length
+                                  * (2 * np.pi * 0.185 * 7.0 / 0.02814) ** 2))
+        / (2 * DRAKE.conductor.ei))                          # dispersion relation, domain 2.3
+    # 4 elements per shortest loop (sampling rule), everywhere
+    assert clamped.element_length <= loop / 4 * (1 + 1e-12)
+    assert pinned.n_elements == int(np.ceil(DRAKE.length / (loop / 4)))
+    # graded toward the right (clamped) support only, starting inside the boundary layer
+    delta = np.sqrt(DRAKE.conductor.ei / DRAKE.tension)
+    assert clamped.element_lengths[-1] < delta / 4 < clamped.element_lengths[0]
+    np.testing.assert_allclose(clamped.node_positions[[0, -1]], [0.0, DRAKE.length])
+    assert np.all(np.diff(clamped.element_lengths[-20:]) < 0)   # shrinking into the clamp
+
+
+def test_lab_span_default_mesh_is_small_and_accurate():
+    pinned, clamped = plc.LineModel(LAB), plc.LineModel(LAB, bc="clamped")
+    # band top 0.185 * 7 / 0.0105 = 123 Hz, loops 0.455 m: 4 per loop -> 33 uniform elements;
+    # the lab's boundary layer (0.32 m) needs only a few graded ones at each clamp
+    assert pinned.n_elements == 33 and np.ptp(pinned.element_lengths) < 1e-12
+    assert 33 < clamped.n_elements <= 50
+    f = pinned.modes_below(123.0).frequencies
+    np.testing.assert_allclose(f, LAB.pinned_frequencies(f.size), rtol=1e-3)
+    # domain.md 3.3 clamped roots (rad/s); ~1e-4 FE error at 4 elements per 123 Hz loop
+    reference = [49.7021058024, 108.6698996499, 182.9902318474, 275.7629729918, 388.5010006103]
+    np.testing.assert_allclose(2 * np.pi * clamped.natural_frequencies(5), reference, rtol=1e-4)
+
+
+def test_graded_mesh_static_deflection_matches_taut_beam_closed_form():
+    # EI w'''' - T w'' = q, clamped both ends: w = q x (L - x) / 2T + A + C cosh(p (x - L/2)),
+    # p = sqrt(T/EI), C = q L / (2 T p sinh(p L / 2)), A = -C cosh(p L / 2). A 40 m Drake span
+    # (p L / 2 = 505) has a 4 cm boundary layer that only the graded elements resolve.
+    span = plc.Span(length=40.0, tension=DRAKE.tension, conductor=DRAKE.conductor)
+    model = plc.LineModel(span, bc="clamped", max_frequency=30.0)
+    assert model.element_lengths.min() < 0.2 * model.element_length
+    q, t, length = 3.0, span.tension, span.length
+    p = np.sqrt(t / span.conductor.ei)
+
+    def exact(x):
+        # cosh(p (x - L/2)) / sinh(p L / 2) and coth(p L / 2), written without overflow
+        u = np.abs(x - length / 2)
+        ratio = (np.exp(p * (u - length / 2)) + np.exp(-p * (u + length / 2))) / (
+            1 - np.exp(-p * length))
+        coth = (1 + np.exp(-p * length)) / (1 - np.exp(-p * length))
+        return q * x * (length - x) / (2 * t) + q * length / (2 * t * p) * (ratio - coth)
+
+    u = model.solve_flexibility(model.distributed_load(lambda x: np.full_like(x, q)))
+    x_off = np.array([0.011, 0.057, 0.31, 7.77, 20.03, 39.95])   # inside the layer and beyond
+    scale = q * length**2 / (8 * t)
+    # Hermite cubics interpolate the parabola exactly and the layer to ~(h/delta)^4: 1e-6.
+    np.testing.assert_allclose(model.displacement_map() @ u, exact(model.node_positions),
+                               atol=1e-6 * scale)
+    np.testing.assert_allclose(model.displacement_map(x_off) @ u, exact(x_off), atol=1e-6 * scale)
+
+
+def test_resolution_check_follows_the_loop_length():
+    coarse = plc.LineModel(DRAKE, 100)       # 3 m elements; 19.7 Hz loops are 3.33 m
+    assert not coarse.resolves(19.7) and coarse.resolves(5.0)
+    # resolved <=> >= 2 elements per loop (and a small error): the limit from the dispersion
+    # relation with k = pi / (2 h)
+    k = np.pi / (2 * 3.0)
+    limit = np.sqrt((DRAKE.conductor.ei * k**4 + DRAKE.tension * k**2)
+                    / DRAKE.conductor.mass_per_length) / (2 * np.pi)
+    assert coarse.max_resolved_frequency == pytest.approx(limit, rel=1e-9)
+    with pytest.warns(plc.TruncationWarning, match="n_elements"):
+        assert coarse.check_resolution(19.7) is False
+    with pytest.warns(plc.TruncationWarning, match="'n_elements'=100 does not resolve"):
+        plc.LineModel(DRAKE, 100, wind_speeds=(1.0, 7.0))
+    assert plc.LineModel(DRAKE).resolves(46.0)
+
+
+def test_large_mesh_with_robot_stays_sparse():
+    import tracemalloc
+
+    robot = plc.MDR.tuned(123.4, 2.0, 3.0, frequency=20.0, damping_ratio=0.1)
+    tracemalloc.start()
+    model = plc.LineModel(DRAKE, 20000, mdr=robot)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    # A dense 40002^2 matrix would be 12 GiB; sparse assembly is ~2.5 kB per element.
+    assert peak < 200 * 2**20
+    assert model.mass_matrix.nnz < 12 * model.n_dofs
+    # robot coupling: the spring links the line under the robot to the absorber DOF only
+    index, weights = model.shape_entries(123.4)
+    row = model.stiffness_matrix[[model.n_dofs - 1], :].toarray().ravel()
+    np.testing.assert_allclose(row[index], -robot.stiffness * weights)
+    assert np.count_nonzero(row) == index.size + 1
+
+
+@pytest.mark.parametrize(
+    ("make", "name"),
+    [
+        (lambda: plc.LineModel(DRAKE, 10**8), "n_elements"),
+        (lambda: plc.LineModel(DRAKE, max_frequency=1e5, memory_budget=1e8), "max_frequency"),
+        (lambda: plc.LineModel(DRAKE, max_frequency=1e7), "max_frequency"),
+        (lambda: plc.LineModel(DRAKE, max_frequency=-5.0), "max_frequency"),
+        (lambda: plc.LineModel(DRAKE, max_frequency=40.0, wind_speeds=(1, 7)), "max_frequency"),
+        (lambda: plc.LineModel(DRAKE, wind_speeds=(7.0, 1.0)), r"wind_speeds\[1\]"),
+        (lambda: plc.LineModel(DRAKE, wind_speeds=3.0), "wind_speeds"),
+        (lambda: plc.LineModel(DRAKE, wind_speeds="1-7"), "wind_speeds"),
+        (lambda: plc.LineModel(DRAKE, wind_speeds=(float("nan"), 7.0)), r"wind_speeds\[0\]"),
+        (lambda: plc.LineModel(DRAKE, strouhal=0.0), "strouhal"),
+        (lambda: plc.LineModel(DRAKE, elements_per_loop=0.0), "elements_per_loop"),
+        (lambda: plc.LineModel(DRAKE, elements_per_loop=True), "elements_per_loop"),
+        (lambda: plc.LineModel(DRAKE, frequency_tolerance=0.5), "frequency_tolerance"),
+        (lambda: plc.LineModel(DRAKE, 20000).modes(20000), "n_modes"),
+        (lambda: plc.LineModel(DRAKE, 20000).modes(), "n_modes"),
+        (lambda: plc.LineModel(LAB, 10).resolves(float("nan")), "frequency"),
+        (lambda: plc.LineModel(LAB, 10).modes_below(0.0), "max_frequency"),
+        (lambda: plc.LineModel(LAB, 10).shape_entries(3.7), "position"),
+        (lambda: plc.LineModel(LAB, 10).solve_flexibility(np.ones(3)), "load"),
+        (lambda: plc.LineModel(LAB, 10).solve_flexibility(np.ones(20), -1.0), "frequency"),
+        (lambda: plc.LineModel(LAB, 10).distributed_load(lambda x: x * np.nan),
+         "load_per_length"),
+        (lambda: DRAKE.wavenumber(-1.0), "frequency"),
+        (lambda: plc.fem.accuracy_elements_per_loop(0.0), "frequency_tolerance"),
+    ],
+)
+def test_bad_mesh_and_size_arguments_name_the_parameter(make, name):
+    with pytest.raises(InputError, match=name):
+        make()
+
+
+def test_budget_refusal_says_how_much_and_how_to_fix():
+    with pytest.raises(InputError, match=r"GiB.*n_elements.*fewer elements"):
+        plc.LineModel(DRAKE, 10**7)
+    # a raised budget is honoured (and nothing is allocated for the refused call above)
+    assert plc.LineModel(LAB, 50, memory_budget=1e9).n_elements == 50

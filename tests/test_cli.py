@@ -1,0 +1,352 @@
+"""The ``powerline-control`` command, through the installed entry point (subprocess).
+
+The scenarios here are tiny (12-16 elements, 2-3 s of data) so that every verb runs in a few
+seconds; the physics is tested in the modules' own tests.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import powerline_control as plc
+from powerline_control import cli
+from powerline_control.config import load_scenario, shipped_scenarios
+
+_ENTRY = Path(sys.executable).with_name("powerline-control")
+COMMAND = [str(_ENTRY)] if _ENTRY.exists() else [sys.executable, "-m", "powerline_control"]
+
+TINY = """\
+[scenario]
+name = "tiny"
+description = "A 12-element lab span for the command's tests."
+[model]
+n_elements = 12
+[simulation]
+duration = 2.5
+[estimation]
+n_sensors = 2
+[robot]
+start = 1.0
+closed_loop = 1.5
+"""
+
+STAGE_MARK = "[1/"  # the first progress line; absent when validation refused the input
+
+
+def run_cli(*args, cwd=None, timeout=300):
+    env = dict(os.environ)
+    # The command must find this checkout's package (the tests' PYTHONPATH, if any).
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(Path(plc.__file__).parents[1])] + env.get("PYTHONPATH", "").split(os.pathsep))
+    return subprocess.run(COMMAND + [str(a) for a in args], capture_output=True, text=True,
+                          cwd=cwd, env=env, timeout=timeout)
+
+
+@pytest.fixture
+def tiny(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    return path
+
+
+def _json(result):
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+# ------------------------------------------------------------------------ help, version
+
+def test_help_is_plain_text_with_units_and_exit_codes():
+    result = run_cli("--help")
+    assert result.returncode == 0
+    text = result.stdout
+    assert "``" not in text and ":class:" not in text       # no raw reStructuredText
+    for verb in ("demo", "run", "simulate", "identify", "estimate", "sensors", "plan",
+                 "closed-loop", "study", "report", "severity", "scenario"):
+        assert f"    {verb}" in text
+    assert "Units: SI" in text and "Hz" in text and " m " in text
+    assert "0 success" in text and "130 interrupted" in text
+
+
+def test_help_imports_no_numerical_library():
+    # --help must not pay for numpy / SciPy / control / cvxpy / CasADi / matplotlib: checked by
+    # what is imported (not by a stopwatch, which would depend on machine load).
+    code = ("import sys; from powerline_control.cli import _build_parser; "
+            "_build_parser().format_help(); "
+            "print([m for m in ('numpy', 'scipy', 'control', 'cvxpy', 'casadi', 'matplotlib') "
+            "if m in sys.modules])")
+    env = dict(os.environ, PYTHONPATH=str(Path(plc.__file__).parents[1]))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.stdout.strip() == "[]", out.stderr
+
+
+@pytest.mark.parametrize("verb", ["demo", "run", "simulate", "identify", "sensors", "estimate",
+                                  "plan", "closed-loop", "severity", "study", "report",
+                                  "scenario"])
+def test_every_verb_has_help(verb):
+    result = run_cli(verb, "--help")
+    assert result.returncode == 0
+    assert "Exit codes" in result.stdout
+
+
+def test_version():
+    result = run_cli("--version")
+    assert result.returncode == 0
+    assert result.stdout.strip() == f"powerline-control {plc.__version__}"
+
+
+def test_usage_errors_exit_2_without_traceback():
+    for args in (["frobnicate"], ["run", "--frobnicate"], ["study", "x.toml", "--workers", "x"]):
+        result = run_cli(*args)
+        assert result.returncode == 2
+        assert "Traceback" not in result.stderr and "usage:" in result.stderr
+
+
+# ------------------------------------------------------------------------ scenario
+
+def test_scenario_lists_the_shipped_scenarios():
+    result = run_cli("scenario")
+    assert result.returncode == 0
+    for name in ("paper-lab-20", "paper-lab-100", "drake-300m"):
+        assert name in result.stdout
+    assert _json(run_cli("scenario", "--json")) == shipped_scenarios()
+
+
+def test_scenario_prints_a_commented_template_that_loads_back(tmp_path):
+    result = run_cli("scenario", "drake-300m")
+    assert result.returncode == 0
+    assert "# Span length between supports. Unit: m." in result.stdout
+    path = tmp_path / "copy.toml"
+    path.write_text(result.stdout)
+    assert load_scenario(path) == load_scenario("drake-300m")
+
+
+# ------------------------------------------------------------------------ bad input
+
+BAD_FILES = [
+    # (file text or None for a missing file, what the one-line message must name)
+    (None, "Cannot read the scenario file"),
+    ("[model]\nn_elemnts = 20\n", "model.n_elemnts"),
+    ("[span]\npreset = 'conductor'\ntension = -5000.0\n", "span.tension = -5000.0"),
+    ("[simulation]\nduration = 'long'\n", "simulation.duration = \"long\""),
+    ("[model]\nn_elements = 20\n[estimation]\nsensors = [4, 25]\n",
+     "estimation.sensors[1] = 25"),
+    ("[estimation]\nsensor_positions = [1.0, 5.0]\n", "estimation.sensor_positions[1] = 5.0"),
+    ("[robot]\nstart = 10.0\n", "robot.start = 10.0"),
+    ("[span]\npreset = 'paper_lab'\nconductor = 'drake'\n", "span.conductor conflicts"),
+]
+
+
+@pytest.mark.parametrize(("text", "names"), BAD_FILES)
+@pytest.mark.parametrize("verb", ["run", "simulate"])
+def test_bad_scenarios_fail_before_any_computation(tmp_path, verb, text, names):
+    path = tmp_path / "bad.toml"
+    if text is not None:
+        path.write_text(text)
+    result = run_cli(verb, path, "--out", tmp_path / "out")
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr                     # one clear message
+    assert lines[0].startswith("powerline-control: error: ")
+    assert names in lines[0]
+    assert str(path) in lines[0]                               # it names the file
+    assert "Traceback" not in result.stderr
+    assert STAGE_MARK not in result.stderr                     # no stage had started
+    assert not (tmp_path / "out").exists()                     # nothing written
+
+
+def test_bad_input_with_json_gives_a_json_error(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text("[robot]\nstart = -2.0\n")
+    result = run_cli("run", path, "--json")
+    assert result.returncode == 2
+    assert json.loads(result.stdout) == {"error": json.loads(result.stdout)["error"],
+                                         "exit_code": 2}
+    assert "robot.start" in json.loads(result.stdout)["error"]
+
+
+# ------------------------------------------------------------------------ --out safety
+
+def test_out_that_is_a_file_is_refused_before_the_run(tiny, tmp_path):
+    target = tmp_path / "results.txt"
+    target.write_text("mine")
+    result = run_cli("simulate", tiny, "--out", target)
+    assert result.returncode == 2
+    assert "is a file, not a folder" in result.stderr
+    assert STAGE_MARK not in result.stderr and "Traceback" not in result.stderr
+    assert target.read_text() == "mine"
+
+
+def test_out_that_cannot_be_created_is_refused_before_the_run(tiny, tmp_path):
+    blocker = tmp_path / "plain-file"
+    blocker.write_text("")
+    result = run_cli("simulate", tiny, "--out", blocker / "sub")
+    assert result.returncode == 2
+    assert "not a writable folder" in result.stderr
+    assert STAGE_MARK not in result.stderr and "Traceback" not in result.stderr
+
+
+def test_out_never_overwrites_files_it_did_not_write(tiny, tmp_path):
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "summary.json").write_text("the user's own summary")
+    result = run_cli("simulate", tiny, "--out", out)
+    assert result.returncode == 2
+    assert "did not write (summary.json)" in result.stderr and "--force" in result.stderr
+    assert STAGE_MARK not in result.stderr
+    assert (out / "summary.json").read_text() == "the user's own summary"
+    # With --force the user says so explicitly; a file it did not name stays untouched.
+    (out / "notes.txt").write_text("keep me")
+    assert run_cli("simulate", tiny, "--out", out, "--force", "-q").returncode == 0
+    assert (out / "notes.txt").read_text() == "keep me"
+
+
+def test_rerun_into_its_own_folder_is_allowed(tiny, tmp_path):
+    out = tmp_path / "results"
+    assert run_cli("simulate", tiny, "--out", out, "-q").returncode == 0
+    assert run_cli("simulate", tiny, "--out", out, "-q").returncode == 0  # only its own files
+    assert json.loads((out / ".powerline-control.json").read_text())["files"]
+
+
+# ------------------------------------------------------------------------ the verbs
+
+def test_simulate(tiny):
+    numbers = _json(run_cli("simulate", tiny, "--json", "-q"))
+    assert numbers["n_nodes"] == 13 and numbers["scenario"] == "tiny"
+    assert len(numbers["frequencies_hz"]) == 5
+    assert "spectral_radius" not in numbers                  # it stops after the data
+
+
+def test_identify(tiny):
+    numbers = _json(run_cli("identify", tiny, "--json", "-q"))
+    assert 0 < numbers["spectral_radius"] < 1.01
+    assert "sensors" not in numbers
+
+
+def test_sensors_and_progress(tiny):
+    result = run_cli("sensors", tiny, "--json")
+    numbers = _json(result)
+    assert len(numbers["sensors"]) == 2
+    assert all(0 < node < 12 for node in numbers["sensors"])  # off the supports
+    # Progress on stderr says what each stage does; stdout is pure JSON.
+    assert "[1/4] building the finite-element model" in result.stderr  # 4 stages, no --out
+    assert "choosing 2 sensor positions" in result.stderr
+
+
+def test_estimate(tiny):
+    numbers = _json(run_cli("estimate", tiny, "--json", "-q"))
+    assert 0 <= numbers["error_unmeasured"] < 1
+    assert "chosen" in numbers["error_unmeasured_baselines"]
+
+
+def test_plan_with_sensors_from_the_scenario(tmp_path):
+    path = tmp_path / "fixed.toml"
+    path.write_text(TINY.replace("n_sensors = 2", "sensor_positions = [0.9, 2.4]"))
+    numbers = _json(run_cli("plan", path, "--json", "-q"))
+    x = [3.66 * j / 12 for j in range(13)]                    # uniform mesh of the test
+    assert [round(x[i], 6) for i in numbers["sensors"]] == [round(x[3], 6), round(x[8], 6)]
+    assert 0 < numbers["antinode"] < 3.66 and numbers["move_duration"] > 0
+
+
+def test_closed_loop(tiny):
+    numbers = _json(run_cli("closed-loop", tiny, "--json", "-q"))
+    assert numbers["vibration_reduction"] > 0
+    assert 0 < numbers["final_robot_position"] < 3.66
+
+
+def test_severity_verb(tmp_path):
+    path = tmp_path / "sev.toml"
+    path.write_text("[span]\npreset = 'conductor'\n[severity]\nenabled = true\n"
+                    "wind_speeds = [2.0, 4.0]\n")
+    result = run_cli("severity", path, "--json", "-q")
+    if hasattr(plc, "aeolian_severity"):
+        rows = _json(result)["severity"]
+        assert [row["wind_speed"] for row in rows] == [2.0, 4.0]
+        assert all(row["amplitude_m"] > 0 for row in rows)
+    else:  # not in this build: a clear message, not a traceback
+        assert result.returncode == 2
+        assert "aeolian_severity" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_study_runs_a_grid_and_writes_a_table(tiny, tmp_path):
+    out = tmp_path / "study"
+    result = run_cli("study", tiny, "--vary", "estimation.n_sensors=1,2", "--json", "-q",
+                     "--out", out)
+    rows = _json(result)
+    assert [row["estimation.n_sensors"] for row in rows] == [1, 2]
+    assert [len(row["sensors"].split()) for row in rows] == [1, 2]
+    assert (out / "study.csv").read_text().count("\n") == 3    # header + 2 rows
+
+
+def test_study_validates_every_variant_first(tiny):
+    result = run_cli("study", tiny, "--vary", "robot.start=1.0,99.0")
+    assert result.returncode == 2
+    assert "robot.start = 99.0" in result.stderr and "Traceback" not in result.stderr
+    bad = run_cli("study", tiny, "--vary", "n_sensors")
+    assert bad.returncode == 2 and "SECTION.KEY=V1,V2" in bad.stderr
+
+
+def test_run_writes_results_and_report_only_html_for_report(tiny, tmp_path):
+    result = run_cli("run", tiny, "--out", tmp_path / "run")
+    assert result.returncode == 0, result.stderr
+    for stage in ("Span and model", "Identification", "Estimation", "Antinodes",
+                  "Closed loop", "vibration reduction", "Done in"):
+        assert stage in result.stdout
+    for name in ("report.html", "summary.json", "dmd_model.npz", "scenario.toml"):
+        assert (tmp_path / "run" / name).stat().st_size > 0
+    # The saved scenario is the one that ran.
+    assert load_scenario(tmp_path / "run" / "scenario.toml") == load_scenario(tiny)
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["scenario"] == "tiny" and "vibration_reduction" in summary
+    only = run_cli("report", tiny, "--out", tmp_path / "rep", "-q")
+    assert only.returncode == 0, only.stderr
+    assert sorted(p.name for p in (tmp_path / "rep").iterdir()) == [
+        ".powerline-control.json", "report.html"]
+
+
+def test_demo_writes_its_report_into_powerline_demo(tmp_path):
+    result = run_cli("demo", "-q", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    html = (tmp_path / "powerline-demo" / "report.html").read_text()
+    assert "paper-lab-20" in html
+
+
+def test_ctrl_c_ends_with_one_line_and_status_130(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(Path(plc.__file__).parents[1]))
+    process = subprocess.Popen(COMMAND + ["run", "paper-lab-100"], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
+    # Wait for the run to be under way (its first stage printed), then interrupt it.
+    line = process.stderr.readline()
+    assert line.startswith(STAGE_MARK), line
+    time.sleep(0.5)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 130
+    assert "Traceback" not in err
+    assert err.strip().splitlines()[-1] == "powerline-control: interrupted (Ctrl-C); stopped."
+
+
+# ------------------------------------------------------------------------ in-process
+
+def test_numerical_trouble_exits_1_with_one_line(tiny, monkeypatch, capsys):
+    def diverge(self):
+        raise plc.EstimationError("The filter diverged (test).")
+
+    monkeypatch.setattr(cli._Study, "simulate", diverge)
+    assert cli.main(["simulate", str(tiny), "-q"]) == cli.EXIT_NUMERICAL
+    err = capsys.readouterr().err
+    assert err == "powerline-control: numerical trouble: The filter diverged (test).\n"
+
+
+def test_exit_codes_are_documented():
+    assert (cli.EXIT_OK, cli.EXIT_NUMERICAL, cli.EXIT_USAGE, cli.EXIT_INTERRUPTED) == \
+        (0, 1, 2, 130)
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    for code in ("`0`", "`1`", "`2`", "`130`"):
+        assert code in readme
