@@ -144,3 +144,21 @@ def test_which_examples_the_build_runs(monkeypatch, variable, expected):
     if expected == "every":
         expected = {p.stem for p in pages.example_scripts()}
     assert chosen == expected
+
+
+@pytest.mark.parametrize(("line", "expected"), [
+    ("gives |sin(pi x / l)| at both ends", r"gives \|sin(pi x / l)\| at both ends"),
+    ("a literal ``|lambda| < 1`` stays", "a literal ``|lambda| < 1`` stays"),
+    ("math :math:`|y|` and `|z|` stay", "math :math:`|y|` and `|z|` stay"),
+    ("   | a line block stays", "   | a line block stays"),
+    ("+---+---+", "+---+---+"),
+])
+def test_absolute_values_in_docstrings_are_not_substitutions(line, expected):
+    assert pages.escape_bars(line) == expected
+    # And docutils agrees: the escaped text parses without a substitution error.
+    from docutils.core import publish_doctree
+    from docutils.utils import Reporter
+
+    tree = publish_doctree(pages.escape_bars(line), settings_overrides={
+        "report_level": Reporter.SEVERE_LEVEL + 1, "halt_level": Reporter.SEVERE_LEVEL + 1})
+    assert not [n for n in tree.traverse() if n.tagname in ("problematic", "system_message")]

@@ -18,6 +18,7 @@ from __future__ import annotations
 import ast
 import importlib
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -262,6 +263,26 @@ def write_pages(docs: Path = DOCS, execute: set[str] = frozenset(), warn=print) 
     _write_if_changed(gallery / "index.md", gallery_index(scripts))
 
 
+_LITERAL = re.compile(r"(``.+?``|`[^`]+`)")
+
+
+def escape_bars(line: str) -> str:
+    """Escape ``|`` outside literals, so ``|phi|`` (an absolute value) is not a substitution.
+
+    The package's docstrings write absolute values and norms as plain text (``|s| / 2 pi``);
+    reStructuredText reads ``|name|`` as a substitution reference and fails on it. Lines that
+    start with ``|`` or ``+`` (line blocks, grid tables) are left alone.
+    """
+    if line.lstrip().startswith(("|", "+")):
+        return line
+    parts = _LITERAL.split(line)
+    return "".join(part if i % 2 else part.replace("|", "\\|") for i, part in enumerate(parts))
+
+
+def _on_process_docstring(app, what, name, obj, options, lines: list[str]) -> None:
+    lines[:] = [escape_bars(line) for line in lines]
+
+
 OTHER_PAGES = "other-pages"
 
 
@@ -295,4 +316,5 @@ def setup(app):
     # Before Sphinx lists the source files (autosummary then finds api/index.rst).
     app.connect("config-inited", _on_config_inited)
     app.connect("source-read", _on_source_read)
+    app.connect("autodoc-process-docstring", _on_process_docstring)
     return {"parallel_read_safe": True, "parallel_write_safe": True}
