@@ -23,6 +23,9 @@ from .errors import (
     UnstableModelWarning,
 )
 
+import sys as _sys
+from types import ModuleType as _ModuleType
+
 _LAZY_EXPORTS = {
     "excitation": (
         "AeolianForce", "HarmonicForce", "RandomForce", "strouhal_frequency",
@@ -104,6 +107,24 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_MODULE_OF))
+
+
+class _Package(_ModuleType):
+    """The package object, guarding public names that share their module's name.
+
+    Importing a submodule makes the import system bind it as an attribute of its package, so the
+    first ``from .simulate import ...`` anywhere would replace the function ``plc.simulate`` by the
+    module ``powerline_control.simulate``. The eager imports this package once had rebound the
+    function afterwards; lazily, this guard keeps the public function instead.
+    """
+
+    def __setattr__(self, name: str, value: object) -> None:
+        if isinstance(value, _ModuleType) and name in _MODULE_OF:
+            return  # the module stays reachable as sys.modules["powerline_control.<name>"]
+        super().__setattr__(name, value)
+
+
+_sys.modules[__name__].__class__ = _Package
 
 
 __all__ = [
