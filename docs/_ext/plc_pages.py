@@ -44,11 +44,26 @@ def public_names() -> list[str]:
 
 
 def module_of(name: str) -> str:
-    """The short name of the module that defines ``powerline_control.<name>``."""
+    """The short name of the module that defines ``powerline_control.<name>``.
+
+    Functions and classes say it (``__module__``); a constant (a dict, a tuple) does not, so the
+    package's submodules are searched for the very same object.
+    """
     package = importlib.import_module("powerline_control")
     obj = getattr(package, name)
-    module = getattr(obj, "__module__", None) or "powerline_control"
+    module = getattr(obj, "__module__", None)
+    if not (isinstance(module, str) and module.startswith("powerline_control.")):
+        holders = [
+            key for key, mod in sys.modules.items()
+            if key.startswith("powerline_control.") and getattr(mod, name, None) is obj
+        ]
+        module = min(holders, key=_order_key) if holders else "powerline_control"
     return module.removeprefix("powerline_control.").lstrip("_") or "powerline_control"
+
+
+def _order_key(module: str) -> tuple[int, str]:
+    short = module.removeprefix("powerline_control.").lstrip("_")
+    return (MODULE_ORDER.index(short) if short in MODULE_ORDER else len(MODULE_ORDER), short)
 
 
 def api_sections() -> list[tuple[str, str, list[str]]]:
