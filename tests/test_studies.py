@@ -280,3 +280,19 @@ def test_the_first_point_of_a_fresh_process_is_limited_too():
                             check=False)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "[1 1]"
+
+
+def test_a_script_study_function_pickles_with_the_package_in_its_globals():
+    """Dask (cloudpickle) sends a script's function by value, with ``plc`` among its globals;
+    the package must then pickle by name, as modules do."""
+    import pickle
+
+    cloudpickle = pytest.importorskip("cloudpickle")
+    assert pickle.loads(pickle.dumps(plc)) is plc
+
+    def in_a_script(k):
+        return {"f1": float(plc.Span.paper_lab().pinned_frequencies(1)[0] * k)}
+
+    in_a_script.__module__ = "__main__"  # what a function defined in a script looks like
+    again = cloudpickle.loads(cloudpickle.dumps(in_a_script))
+    assert again(2) == in_a_script(2)
