@@ -167,3 +167,10 @@ def test_absolute_values_in_docstrings_are_not_substitutions(line, expected):
     tree = publish_doctree(pages.escape_bars(line), settings_overrides={
         "report_level": Reporter.SEVERE_LEVEL + 1, "halt_level": Reporter.SEVERE_LEVEL + 1})
     assert not [n for n in tree.findall() if n.tagname in ("problematic", "system_message")]
+
+
+def test_the_gallery_names_whole_output_files_only(tmp_path):
+    script = tmp_path / "writes.py"
+    script.write_text('"""Writes."""\nname = "x"\nopen(f"fig_{name}.png", "w")\n'
+                      'open("table.csv", "w")\n')
+    assert pages._figure_names(script) == {"table.csv"}

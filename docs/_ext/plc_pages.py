@@ -214,8 +214,8 @@ def _figure_names(path: Path) -> set[str]:
         if isinstance(node, ast.Constant) and isinstance(node.value, str):
             value = node.value
             if value.endswith((".png", ".svg", ".pdf", ".csv", ".json", ".html")) and (
-                "/" not in value and " " not in value
-            ):
+                "/" not in value and " " not in value and not value.startswith(".")
+            ):  # a whole file name, not the tail of an f-string
                 names.add(value)
     return names
 
