@@ -51,7 +51,14 @@ import scipy.linalg
 import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
-from ._validation import check_indices, check_int, check_real, check_rng, read_only
+from ._validation import (
+    check_budget,
+    check_indices,
+    check_int,
+    check_real,
+    check_rng,
+    read_only,
+)
 from .errors import InputError
 from .fem import MDR, LineModel
 from .line import Span
@@ -886,6 +893,13 @@ def run_closed_loop(
         n_elements = check_int("n_elements", n_elements, low=2)
     if n_elements is not None:  # early, before any model is built
         check_indices("sensors", sensors, n_elements + 1)
+    # The loop records ~4 node histories and ~16 scalars per sample (and the parked comparisons):
+    # refuse a duration / dt that cannot fit before anything is built (n_elements=None: >= 2 nodes).
+    n_samples = int(np.floor(duration / dt + 1e-9)) + 1
+    check_budget(f"run_closed_loop's {n_samples}-sample histories",
+                 nbytes=8.0 * n_samples * (4 * (n_elements + 1 if n_elements else 2) + 16),
+                 parameter="duration", value=duration,
+                 fix=f"shorten duration ({duration:g} s) or increase dt ({dt:g} s)")
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
     obstacles = [

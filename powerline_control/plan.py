@@ -34,7 +34,14 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ._validation import check_array, check_choice, check_int, check_real, read_only
+from ._validation import (
+    check_array,
+    check_budget,
+    check_choice,
+    check_int,
+    check_real,
+    read_only,
+)
 from .errors import InputError, PlanningError
 
 __all__ = ["RobotLimits", "Trajectory", "plan_motion", "MotionPlanner", "MPCStep"]
@@ -1320,6 +1327,11 @@ class MotionPlanner:
         )
         self._scale = _Scale.of(limits)
         order = limits.order
+        # CasADi's two programs take ~16 KB per horizon step (measured: 31 MB at horizon 2000):
+        # refuse before building them (horizon=10**7 ended in std::bad_alloc).
+        check_budget("MotionPlanner's two horizon programs", nbytes=16e3 * self.horizon,
+                     parameter="horizon", value=self.horizon,
+                     fix="use a shorter horizon (a few braking times: horizon * dt of seconds)")
         self._cold = _track_program(self.horizon, order, self.time_budget, self.max_iter, False)
         self._warm = _track_program(self.horizon, order, self.time_budget, self.max_iter, True)
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None

@@ -26,7 +26,14 @@ import numpy as np
 import scipy.interpolate
 import scipy.optimize
 
-from ._validation import check_array, check_choice, check_int, check_real, read_only
+from ._validation import (
+    check_array,
+    check_budget,
+    check_choice,
+    check_int,
+    check_real,
+    read_only,
+)
 from .errors import InputError
 from .excitation import DEFAULT_STROUHAL, AeolianForce
 from .fem import DENSE_EIGEN_LIMIT, MDR, LineModel, ModalDamping
@@ -837,6 +844,18 @@ def _check_wind_speeds(wind_speeds: object) -> np.ndarray:
     return speeds
 
 
+# One energy balance (a bracketed root solve in Python) costs ~3 ms, counted as ~1e7 flops so
+# that WORK_BUDGET (1e12) allows ~1e5 speeds (minutes); each speed keeps ~16 float64 results.
+_WORK_PER_SPEED = 1e7
+
+
+def _check_severity_budget(n_speeds: int) -> None:
+    check_budget("aeolian_severity's energy balances", nbytes=8.0 * 16 * n_speeds,
+                 flops=_WORK_PER_SPEED * n_speeds, parameter="wind_speeds",
+                 value=f"{n_speeds} speeds",
+                 fix="pass fewer wind speeds (a few dozen resolve the 1-7 m/s band)")
+
+
 def _check_span(span: object) -> Span:
     if not isinstance(span, Span):
         raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
@@ -1115,7 +1134,10 @@ def aeolian_severity(
     (array([27.7,  1.5]), [27, 188])
     """
     span = _check_span(span)
+    if isinstance(wind_speeds, np.ndarray):  # refuse before the finiteness checks copy it
+        _check_severity_budget(wind_speeds.size)
     speeds = _check_wind_speeds(wind_speeds)
+    _check_severity_budget(speeds.size)
     dampers = _check_dampers(dampers, span)
     st = check_real("strouhal", strouhal, low=0.0, high=1.0)
     curve = _curve(wind_curve)
