@@ -902,9 +902,14 @@ def run_closed_loop(
                  fix=f"shorten duration ({duration:g} s) or increase dt ({dt:g} s)")
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
-    obstacles = [
-        (check_real("obstacles", a), check_real("obstacles", b)) for a, b in obstacles
-    ]
+    try:
+        pairs = [tuple(pair) for pair in obstacles]
+    except TypeError:
+        pairs = [()]
+    if any(len(pair) != 2 for pair in pairs):
+        raise InputError("The 'obstacles' parameter must be a sequence of (left, right) pairs "
+                         f"in m. Got {obstacles!r}.")
+    obstacles = [(check_real("obstacles", a), check_real("obstacles", b)) for a, b in pairs]
     for left, right in obstacles:
         if not left < right:
             raise InputError(f"Each of 'obstacles' must be (left, right), left < right. Got "

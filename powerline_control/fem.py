@@ -1112,6 +1112,12 @@ class LineModel:
         basis = self.modes(n_modes)
         r = basis.n_modes
         a = np.block([[np.zeros((r, r)), np.eye(r)], [-np.diag(basis.omega**2), -basis.damping]])
+        if isinstance(force_positions, str) or np.ndim(force_positions) != 1 and not (
+                isinstance(force_positions, Sequence) and len(force_positions) == 0):
+            raise InputError(
+                "The 'force_positions' parameter must be a sequence of positions in m (e.g. "
+                f"[1.3]). Got {force_positions!r}."
+            )
         positions = [self._check_position("force_positions", x) for x in force_positions]
         loads = (
             np.column_stack([self.point_load(x) for x in positions])

@@ -227,7 +227,8 @@ def turbulence_factor(turbulence_intensity: float) -> float:
     >>> round(turbulence_factor(0.09), 4)
     0.7071
     """
-    iv = check_real("turbulence_intensity", turbulence_intensity, low=0.0, low_inclusive=True)
+    iv = check_real("turbulence_intensity", turbulence_intensity, low=0.0, low_inclusive=True,
+                    high=10.0)  # 1000 %: beyond any wind, and (iv / 0.09)^2 stays finite
     return 1.0 / math.sqrt(1.0 + (iv / 0.09) ** 2)
 
 
@@ -264,8 +265,8 @@ def wind_power(amplitude: np.ndarray | float, frequency: float, diameter: float,
     1.089
     """
     curve = _curve(wind_curve)
-    frequency = check_real("frequency", frequency, low=0.0)
-    diameter = check_real("diameter", diameter, low=0.0)
+    frequency = _check_frequency(frequency)
+    diameter = check_real("diameter", diameter, low=0.0, high=1.0)  # m: 1 m is no conductor
     a = check_array("amplitude", amplitude) / diameter
     if np.any(a < 0) or np.any(a > curve.max_reduced_amplitude * (1 + 1e-12)):
         raise InputError(
@@ -273,6 +274,23 @@ def wind_power(amplitude: np.ndarray | float, frequency: float, diameter: float,
             f"the {curve.name!r} wind power curve. Got Y/D up to {float(np.max(a)):g}.")
     return turbulence_factor(turbulence_intensity) * frequency**3 * diameter**4 \
         * curve.reduced_power(a)
+
+
+# Upper bounds far above any aeolian case (~1-7 m/s, <= a few hundred Hz) and far below float
+# overflow of f^3, f^5.63 or omega^2 (a frequency of 1e300 Hz raised a raw OverflowError).
+MAX_FREQUENCY = 1e5
+MAX_WIND_SPEED = 100.0
+
+
+def _check_frequency(frequency: object) -> float:
+    return check_real("frequency", frequency, low=0.0, high=MAX_FREQUENCY)
+
+
+def _finite_power(power: np.ndarray, what: str) -> np.ndarray:
+    if not np.all(np.isfinite(power)):
+        raise InputError(f"The 'amplitude' parameter is too large: the {what} overflows. Give "
+                         "antinode amplitudes in m (a few conductor diameters at most).")
+    return power
 
 
 # --------------------------------------------------------------------------- self-damping
@@ -463,9 +481,14 @@ def self_damping_power(amplitude: np.ndarray | float, frequency: float, span: Sp
     >>> round(float(p), 6)     # 1 * 0.01^2 * 20^4 / 28.02^2
     0.020379
     """
-    frequency = check_real("frequency", frequency, low=0.0)
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
     law = _resolve_law(self_damping, self_damping_k, self_damping_exponents)
-    return law.power(check_array("amplitude", amplitude), frequency, span)
+    y = check_array("amplitude", amplitude)
+    if np.any(y < 0):  # Y^2.44 of a negative amplitude is NaN
+        raise InputError("The 'amplitude' parameter must be >= 0 m (a zero-to-peak antinode "
+                         f"amplitude). Got {float(np.min(y)):g}.")
+    return _finite_power(law.power(y, frequency, span), "self-damping power")
 
 
 # --------------------------------------------------------------------------- the standing wave
@@ -507,7 +530,8 @@ def loop_length(span: Span, frequency: float) -> float:
     >>> round(loop_length(Span.at_rts_fraction(300.0, "drake", 0.2), 6.57), 3)   # string: 9.98
     9.985
     """
-    frequency = check_real("frequency", frequency, low=0.0)
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
     return math.pi / _wavenumbers(span, frequency)[0]
 
 
@@ -543,7 +567,8 @@ def standing_wave_shape(span: Span, frequency: float, position: np.ndarray | flo
     >>> round(float(standing_wave_shape(span, 6.57, 0.0)), 12)
     0.0
     """
-    frequency = check_real("frequency", frequency, low=0.0)
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
     bc = check_choice("bc", bc, ("clamped", "pinned"))
     x = check_array("position", position)
     if np.any(x < 0) or np.any(x > span.length):
@@ -753,6 +778,8 @@ def damper_power(damper: MDR | ImpedanceDamper | AtAntinode, span: Span,
     >>> float(damper_power(AtAntinode(robot), span, 0.001, 20.0)) > 0
     True
     """
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
     y = check_array("amplitude", amplitude)
     if isinstance(damper, AtAntinode):
         factor = damper.factor
@@ -765,8 +792,8 @@ def damper_power(damper: MDR | ImpedanceDamper | AtAntinode, span: Span,
                              f"span). Got {damper.position!r}.")
         factor = float(standing_wave_shape(span, frequency, damper.position, bc)) ** 2
     omega = 2 * math.pi * frequency
-    return 0.5 * damper_impedance(damper, frequency).real * omega**2 * y**2 * factor \
-        / span.length
+    return _finite_power(0.5 * damper_impedance(damper, frequency).real * omega**2 * y**2
+                         * factor / span.length, "damper power")
 
 
 def harmonic_mean_position(span: Span, wind_speeds: Sequence[float] | np.ndarray = (1.0, 7.0),
@@ -795,6 +822,7 @@ def harmonic_mean_position(span: Span, wind_speeds: Sequence[float] | np.ndarray
     >>> round(harmonic_mean_position(Span.at_rts_fraction(300.0, "drake", 0.2)), 3)
     1.251
     """
+    span = _check_span(span)
     speeds = _check_wind_speeds(wind_speeds)
     st = check_real("strouhal", strouhal, low=0.0, high=1.0)
     d = span.conductor.diameter
@@ -837,10 +865,12 @@ def _sbl_cycles(stress: np.ndarray, layers: str) -> np.ndarray:
 # --------------------------------------------------------------------------- the energy balance
 def _check_wind_speeds(wind_speeds: object) -> np.ndarray:
     speeds = np.atleast_1d(check_array("wind_speeds", wind_speeds, ndim=(0, 1)))
-    if speeds.size == 0 or np.any(speeds <= 0):
-        bad = speeds[speeds <= 0].tolist() if speeds.size else "an empty list"
-        raise InputError("The 'wind_speeds' parameter must hold wind speeds > 0 m/s (aeolian "
-                         f"vibration occurs at about 1-7 m/s). Got {bad}.")
+    if speeds.size == 0 or np.any(speeds <= 0) or np.any(speeds > MAX_WIND_SPEED):
+        bad = (speeds[(speeds <= 0) | (speeds > MAX_WIND_SPEED)].tolist()[:5] if speeds.size
+               else "an empty list")
+        raise InputError(f"The 'wind_speeds' parameter must hold wind speeds > 0 and <= "
+                         f"{MAX_WIND_SPEED:g} m/s (aeolian vibration occurs at about 1-7 m/s). "
+                         f"Got {bad}.")
     return speeds
 
 
