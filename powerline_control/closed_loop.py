@@ -899,7 +899,8 @@ def run_closed_loop(
     check_budget(f"run_closed_loop's {n_samples}-sample histories",
                  nbytes=8.0 * n_samples * (4 * (n_elements + 1 if n_elements else 2) + 16),
                  parameter="duration", value=duration,
-                 fix=f"shorten duration ({duration:g} s) or increase dt ({dt:g} s)")
+                 fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use fewer "
+                     f"elements (n_elements={n_elements})")
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
     try:

@@ -1559,6 +1559,8 @@ def robot_value(
     ('robot at antinode', True)
     """
     span = _check_span(span)
+    if isinstance(wind_speeds, np.ndarray):  # before the checks and the sort copy it
+        _check_severity_budget(wind_speeds.size)
     speeds = np.sort(_check_wind_speeds(wind_speeds))
     if not isinstance(damper, MDR | ImpedanceDamper):
         raise InputError("The 'damper' parameter must be an MDR or an ImpedanceDamper. Got "
