@@ -233,6 +233,9 @@ class MDR:
         omega = 2 * np.pi * check_real("frequency", frequency, low=0.0)
         ratio = check_real("damping_ratio", damping_ratio, low=0.0, low_inclusive=True)
         mass = check_real("suspended_mass", suspended_mass, low=0.0)
+        if not np.isfinite(mass * omega * omega):  # frequency ~1e300 Hz: stiffness overflows
+            raise InputError(f"The 'frequency' parameter ({frequency!r} Hz) makes the absorber "
+                             "stiffness overflow; give the tuning frequency in Hz.")
         return cls(position, body_mass, mass, mass * omega**2, 2 * ratio * mass * omega)
 
     @property

@@ -131,7 +131,11 @@ class RobotLimits:
             ``velocity**2 / (2 a_max)``, metres.
         """
         velocity = check_real("velocity", velocity)
-        return velocity * velocity / (2.0 * self.a_max)
+        distance = velocity * velocity / (2.0 * self.a_max)
+        if not np.isfinite(distance):  # |velocity| ~ 1e300: v^2 overflows
+            raise InputError(f"The 'velocity' parameter is too large: {velocity!r} m/s squared "
+                             "overflows.")
+        return distance
 
 
 @dataclass(frozen=True)

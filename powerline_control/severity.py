@@ -329,6 +329,10 @@ class SelfDampingLaw:
     k: float | None = None
 
     def __post_init__(self) -> None:
+        for key in ("name", "label"):
+            if not isinstance(getattr(self, key), str):
+                raise InputError(f"The {key!r} parameter must be a string. Got "
+                                 f"{getattr(self, key)!r}.")
         check_real("l", self.l, low=0.0)
         check_real("m", self.m, low=0.0)
         if self.n is not None:
@@ -1717,7 +1721,7 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     True
     """
     span = _check_span(span)
-    speed = check_real("wind_speed", wind_speed, low=0.0)
+    speed = check_real("wind_speed", wind_speed, low=0.0, high=MAX_WIND_SPEED)
     n_elements = check_int("n_elements", n_elements, low=2)
     settle = check_real("settle", settle, low=0.0)
     samples = check_int("samples_per_period", samples_per_period, low=4)
