@@ -73,6 +73,8 @@ def test_seeded_study_is_identical_on_serial_process_pool_and_dask():
         distributed.Client(cluster) as client,
     ):
         on_dask = run_study(noisy_record, grid, client.get_executor(), seed=2026)
+        with_client = run_study(noisy_record, grid, client, seed=2026)  # the Client itself
+    assert with_client == on_dask
     assert serial == pooled == on_dask
     assert serial.table() == pooled.table() == on_dask.table()
     # Seeds are the derivation documented in point_seed, recomputed here point by point.
