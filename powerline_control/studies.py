@@ -453,10 +453,12 @@ def run_study(
                 f"{type(point).__name__}."
             )
         for key in point:
-            if not isinstance(key, str) or not key.isidentifier():
+            # Strings, not necessarily identifiers: a function taking **kwargs accepts dotted
+            # names such as "estimation.n_sensors" (the CLI's study verb varies TOML keys).
+            if not isinstance(key, str) or not key:
                 raise InputError(
                     f"Grid point {index} has the key {key!r}; keys must be parameter names "
-                    "(identifiers)."
+                    "(non-empty strings)."
                 )
         if seed is not None and _SEED_KEY in point:
             raise InputError(
