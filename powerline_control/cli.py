@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import functools
 import json
 import os
@@ -470,12 +471,18 @@ class _Study:
         robot, tuning_text = _tuned_robot(sc, self.model, load_frequency)
         if sensors is None:
             sensors = _default_closed_loop_sensors(sc, self.model)
-        calibration = min(2.0, robot_cfg.closed_loop / 3)
+        # Calibration (robot parked, the estimator identified): a third of the run, at most
+        # 2 s, in whole 50 ms control periods (the loop needs whole steps).
+        dt = sc.simulation.dt
+        period = max(dt, round(0.05 / dt) * dt)
+        calibration = max(1, round(min(2.0, robot_cfg.closed_loop / 3) / period)) * period
+        calibration = round(calibration / dt) * dt
         result = run_closed_loop(
             self.span, self.force, robot, RobotLimits(robot_cfg.v_max, robot_cfg.a_max),
             sensors=list(sensors), n_elements=self.model.n_elements, bc=self.model.bc,
-            duration=robot_cfg.closed_loop, calibration=calibration, dt=sc.simulation.dt,
-            noise_fraction=sc.simulation.noise_fraction, seed=sc.simulation.seed)
+            damping=self.model.damping, duration=robot_cfg.closed_loop,
+            calibration=calibration, dt=dt, noise_fraction=sc.simulation.noise_fraction,
+            seed=sc.simulation.seed)
         self.closed_loop = result
         final = float(result.robot_position[-1])
         reduction = float(result.vibration_reduction)
@@ -483,10 +490,7 @@ class _Study:
         rows = [
             ("robot", f"body {robot.body_mass:g} kg + absorber {robot.suspended_mass:g} kg, "
              f"{tuning_text}; starts at {robot.position:g} m"),
-            ("where it ended", f"{final:.4g} m",
-             "The robot stops where the estimated excited shape of the line is largest near it "
-             "(an antinode), because its absorber dissipates most there; the last target was "
-             f"{float(np.nanmean(result.target[-10:])):.4g} m."),
+            ("where it ended", f"{final:.4g} m", _where_it_ended(result, final)),
             ("RMS displacement, settled window",
              f"{_mm(result.rms_closed_loop)} moving vs {_mm(result.rms_baseline)} parked at "
              "its start"),
@@ -499,6 +503,19 @@ class _Study:
              "Simulated seconds per second of computing: above 1 the loop runs faster than "
              "the line moves, as a controller on the robot must."),
         ]
+        window = getattr(result, "settled_window", None)
+        if window is not None and window[1] > window[0]:
+            rows.insert(2, ("settled window", f"{window[0]:.3g}-{window[1]:.3g} s"
+                            + ("" if getattr(result, "settled", True) else
+                               " (the robot did not settle: the last second)"),
+                            "Every RMS below is over this window, after the robot last "
+                            "arrived, so transients do not count."))
+        for comparison in getattr(result, "comparisons", ()):
+            label = _COMPARISON_WORDS.get(comparison.name, comparison.name)
+            where = "" if not np.isfinite(comparison.position) else \
+                f" at {comparison.position:.4g} m"
+            rows.append((f"RMS: {label}", f"{_mm(comparison.rms)}{where}",
+                         f"peak {_mm(comparison.peak)}"))
         self.report.section(
             "Closed loop (robot driven to the estimated antinode)", rows,
             figures=[
@@ -507,13 +524,11 @@ class _Study:
                         "grey line ends the calibration, robot parked). Bottom: RMS displacement "
                         "over the span, robot moving against parked (mm). Look for the moving "
                         "curve falling below the parked one once the robot arrives."),
-                _Figure("closed_loop_path", functools.partial(
-                    _path_figure, result.x,
-                    np.abs(result.baseline_displacement[:, result.t.size // 2:]).max(axis=1),
-                    result.t, result.robot_position, None, result.target),
-                    "The robot's path in the closed loop (bottom) under the amplitude envelope "
-                    "of the line with the robot parked (top). Look for the path settling under "
-                    "an envelope peak."),
+                _Figure("closed_loop_path", functools.partial(_closed_loop_path_figure, result),
+                        "The robot's path in the closed loop (position across, time down) over "
+                        "the line's moving vibration envelope (colour: largest |y| over 0.1 s), "
+                        "with its target. Look for the path settling where the colour is "
+                        "brightest near it, and staying there."),
             ])
         self.report.numbers.update(vibration_reduction=reduction, final_robot_position=final,
                                    real_time_factor=rtf)
@@ -571,6 +586,36 @@ class _Study:
              "strain_pp": float(bare.strain_pp[i])} for i in range(bare.wind_speed.size)])
 
 
+def _where_it_ended(result, final: float) -> str:
+    """Why the robot ended where it did, in words, from what the closed loop recorded."""
+    import numpy as np
+
+    targets = np.asarray(result.target, dtype=float)
+    targets = targets[np.isfinite(targets)]
+    text = ("The robot steers to where its absorber is predicted to dissipate most: an antinode "
+            "of the line's excited shape, estimated from the sensors.")
+    if targets.size:
+        text += f" Its last target was {targets[-1]:.4g} m."
+    best = getattr(result, "best_position", float("nan"))
+    loop = getattr(result, "loop_length", float("nan"))
+    if np.isfinite(best) and np.isfinite(loop) and loop > 0:
+        text += (f" The best parked position found by a steady-state scan is {best:.4g} m, "
+                 f"{abs(final - best) / loop:.2g} loop lengths ({loop:.3g} m) from where it ended.")
+    if not getattr(result, "settled", True):
+        text += (" It had not settled when the run ended, so the numbers are over the last "
+                 "second; a longer robot.closed_loop lets it arrive.")
+    return text
+
+
+_COMPARISON_WORDS = {
+    "no_robot": "no robot on the line",
+    "near_clamp": "robot parked near a clamp",
+    "start": "robot parked where it started",
+    "best": "robot parked at the best position",
+    "closed_loop": "robot moving (closed loop)",
+}
+
+
 @dataclass
 class _Design:
     """What the estimator recipe produced, and how to report it."""
@@ -611,78 +656,97 @@ class _Design:
         return _plotting().plot_sensor_count(*self.count_curve())
 
 
-def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_sensors=True):
-    """The estimator recipe: DMD (alpha by held-out error), sensor choice, noise model.
+def _certificate_text(selection, k: int) -> str:
+    if selection is None:
+        return ""
+    if selection.certificate == "exhaustive" or selection.gap == 0:
+        return f"{selection.certificate}: proved the best of all layouts of {k} sensors"
+    return (f"{selection.certificate}: the chosen layout's criterion is at most "
+            f"{100 * selection.gap:.2g} % above the best possible layout of {k} sensors")
 
-    The one place with recipe decisions in the command (to be replaced by
-    ``powerline_control.design_estimator`` when it lands).
+
+def _given_sensors(scenario, x):
+    """The scenario's own sensors as node indices (None when they are to be chosen)."""
+    import numpy as np
+
+    est = scenario.estimation
+    if est.sensors is not None:
+        return sorted(int(i) for i in est.sensors), "from the scenario (node indices)"
+    if est.sensor_positions is not None:
+        return (sorted({int(np.argmin(np.abs(x - p))) for p in est.sensor_positions}),
+                "from the scenario (positions, nearest nodes)")
+    return None, ""
+
+
+def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_sensors=True):
+    """The estimator: identified model, sensors and noise model, by the package's recipe.
+
+    With ``powerline_control.design_estimator`` (the one recipe: delays, rank and alpha chosen
+    from held-out data, sensors, filter) the command makes no recipe decision of its own; the
+    scenario's identification keys, when set, are passed to it. Without it (an older package)
+    the previous path runs: ``select_alpha`` then ``fit_dmd`` then ``select_sensors``.
     """
     import numpy as np
 
-    from .identify import fit_dmd, select_alpha
-    from .sensors import select_sensors
+    import powerline_control as plc
+
+    from .identify import fit_dmd
 
     cfg = scenario.identification
     train = snap.displacement[:, :n_train]
-    if cfg.alpha == "auto":
-        curve = select_alpha(train, snap.dt, delays=cfg.delays, rank=cfg.rank)
-        alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None \
-            else curve.best_alpha
-        dmd = fit_dmd(train, snap.dt, alpha=alpha, delays=cfg.delays, rank=cfg.rank,
-                      alpha_mode=curve.alpha_mode)
-        chosen = (f"alpha {alpha:.3g} ({curve.alpha_mode}; {dmd.alpha:.3g} absolute), chosen by "
-                  "held-out prediction error")
+    x = np.asarray(snap.x)
+    n_nodes = x.size
+    k = scenario.estimation.n_sensors
+    # The supports never move: a sensor there would measure only noise.
+    half = 0.5 * float(min(x[1] - x[0], x[-1] - x[-2]))
+    supports = [(0.0, half), (x[-1] - half, x[-1])]
+    given, how = _given_sensors(scenario, x)
+    if given is None and not choose_sensors:
+        given = list(np.linspace(0, n_nodes - 1, k + 2).round().astype(int)[1:-1])
+        how = "evenly spaced (no optimisation in this verb)"
+    count_curve = None
+    if hasattr(plc, "design_estimator"):
+        if given is None:
+            progress.stage(f"choosing {k} sensor positions (Kalman criterion)")
+        options = {key: value for key, value in (("delays", cfg.delays), ("rank", cfg.rank))
+                   if value is not None}
+        if cfg.alpha != "auto":
+            options["alphas"] = [float(cfg.alpha)]
+        design = plc.design_estimator(
+            train, n_sensors=k, dt=snap.dt, noise_std=snap.noise_std or None, sensors=given,
+            positions=x, forbidden=supports, seed=scenario.simulation.seed, **options)
+        dmd = design.model
+        sensors = [int(i) for i in design.sensors]
+        selection = design.sensor_selection
+        noise_var = float(design.noise_std) ** 2
+        curve = design.alpha_curve
+        recipe = (f"the package's recipe (design_estimator): {dmd.delays} time delays, rank "
+                  f"{dmd.rank}, alpha {dmd.alpha:.3g} absolute, chosen on held-out data "
+                  f"({getattr(curve, 'alpha_mode', 'relative')} grid); trained on the first "
+                  f"{n_train} samples; sensor noise std {_mm(design.noise_std)} "
+                  f"({design.noise_source})")
     else:
-        dmd = fit_dmd(train, snap.dt, alpha=float(cfg.alpha), delays=cfg.delays, rank=cfg.rank)
-        chosen = f"alpha {dmd.alpha:.3g} (absolute, from the scenario)"
-    recipe = (f"{cfg.delays} time delay(s), rank {cfg.rank or 'full'}, {chosen}; trained on the "
-              f"first {n_train} samples")
+        dmd, recipe, selection, sensors, noise_var, count_curve = _legacy_estimator(
+            scenario, snap, train, x, supports, given, progress)
+    if given is not None:
+        sensors = list(given)
+    elif selection is not None:
+        how = "optimised (steady-state Kalman criterion)"
+    if noise_var <= 0:
+        # Noise-free data still needs a measurement variance for a well-posed Riccati
+        # equation: assume sensors resolve 0.01 % of the RMS motion.
+        noise_var = (1e-4 * float(np.sqrt(np.mean(snap.true_displacement**2)))) ** 2
+    certificate = _certificate_text(selection, k) if given is None else ""
+    if given is None and count_curve is None and n_nodes <= 201:
+        candidates = dmd.to_statespace(measured=list(range(n_nodes)))
+        # Several more selections: computed only if the report draws the figure.
+        count_curve = functools.partial(_sensor_count_curve, candidates, dmd, noise_var, x,
+                                        supports, k)
     paper = fit_dmd(train, snap.dt, alpha=0.1, delays=1)
     with warnings.catch_warnings(record=True) as caught:
         # On noise-free data plain DMD inverts round-off and says so; here that is the point.
         warnings.simplefilter("always")
         plain = fit_dmd(train, snap.dt, alpha=0.0, delays=1)
-    # Noise-free data still needs a measurement variance for a well-posed Riccati equation:
-    # assume sensors resolve 0.01 % of the RMS motion.
-    rms = float(np.sqrt(np.mean(snap.true_displacement**2)))
-    noise_var = max(snap.noise_std**2, (1e-4 * rms) ** 2)
-    x = np.asarray(snap.x)
-    n_nodes = x.size
-    est = scenario.estimation
-    certificate = ""
-    count_curve = None
-    k = est.n_sensors
-    if est.sensors is not None:
-        sensors = sorted(int(i) for i in est.sensors)
-        how = "from the scenario (node indices)"
-    elif est.sensor_positions is not None:
-        sensors = sorted({int(np.argmin(np.abs(x - p))) for p in est.sensor_positions})
-        how = "from the scenario (positions, nearest nodes)"
-    elif not choose_sensors:
-        sensors = list(np.linspace(0, n_nodes - 1, k + 2).round().astype(int)[1:-1])
-        how = "evenly spaced (no optimisation in this verb)"
-    else:
-        progress.stage(f"choosing {k} sensor positions (Kalman criterion, convex relaxation)")
-        candidates = dmd.to_statespace(measured=list(range(n_nodes)))
-        # The supports never move: a sensor there would measure only noise.
-        half = 0.5 * float(min(x[1] - x[0], x[-1] - x[-2]))
-        supports = [(0.0, half), (x[-1] - half, x[-1])]
-        selection = select_sensors(candidates, k=k, criterion="kalman",
-                                   Q=dmd.residual_covariance, R=noise_var, positions=x,
-                                   forbidden=supports)
-        sensors = [int(i) for i in selection.nodes]
-        how = "optimised (steady-state Kalman criterion)"
-        if selection.certificate == "exhaustive" or selection.gap == 0:
-            certificate = (f"{selection.certificate}: proved the best of all layouts of {k} "
-                           "sensors")
-        else:
-            certificate = (f"{selection.certificate}: the chosen layout's criterion is at most "
-                           f"{100 * selection.gap:.2g} % above the best possible layout of {k} "
-                           "sensors")
-        if n_nodes <= 201:
-            # Several more selections: computed only if the report draws the figure.
-            count_curve = functools.partial(_sensor_count_curve, candidates, dmd, noise_var, x,
-                                            supports, k)
     layouts = {"chosen": sensors}
     notes = {}
     spread = list(np.linspace(0, n_nodes - 1, len(sensors) + 2).round().astype(int)[1:-1])
@@ -707,6 +771,41 @@ def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_s
     return design
 
 
+def _legacy_estimator(scenario, snap, train, x, supports, given, progress):
+    """The command's own recipe, used only when the package has no ``design_estimator``."""
+    import numpy as np
+
+    from .identify import fit_dmd, select_alpha
+    from .sensors import select_sensors
+
+    cfg = scenario.identification
+    delays = cfg.delays or 2
+    if cfg.alpha == "auto":
+        curve = select_alpha(train, snap.dt, delays=delays, rank=cfg.rank)
+        alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None \
+            else curve.best_alpha
+        dmd = fit_dmd(train, snap.dt, alpha=alpha, delays=delays, rank=cfg.rank,
+                      alpha_mode=curve.alpha_mode)
+        chosen = (f"alpha {alpha:.3g} ({curve.alpha_mode}; {dmd.alpha:.3g} absolute), chosen by "
+                  "held-out prediction error")
+    else:
+        dmd = fit_dmd(train, snap.dt, alpha=float(cfg.alpha), delays=delays, rank=cfg.rank,
+                      alpha_mode="relative")
+        chosen = f"alpha {float(cfg.alpha):.3g} relative ({dmd.alpha:.3g} absolute)"
+    recipe = (f"{delays} time delay(s), rank {cfg.rank or 'full'}, {chosen}; trained on the "
+              f"first {train.shape[1]} samples")
+    rms = float(np.sqrt(np.mean(snap.true_displacement**2)))
+    noise_var = max(snap.noise_std**2, (1e-4 * rms) ** 2)
+    if given is not None:
+        return dmd, recipe, None, list(given), noise_var, None
+    k = scenario.estimation.n_sensors
+    progress.stage(f"choosing {k} sensor positions (Kalman criterion, convex relaxation)")
+    candidates = dmd.to_statespace(measured=list(range(x.size)))
+    selection = select_sensors(candidates, k=k, criterion="kalman", Q=dmd.residual_covariance,
+                               R=noise_var, positions=x, forbidden=supports)
+    return dmd, recipe, selection, [int(i) for i in selection.nodes], noise_var, None
+
+
 def _sensor_count_curve(candidates, dmd, noise_var, x, supports, k):
     """Predicted estimation error against the number of sensors (each count optimised)."""
     from .sensors import sensor_count_study
@@ -728,11 +827,19 @@ def _tuned_robot(scenario, model, load_frequency: float):
     frequencies = np.asarray(model.natural_frequencies(min(400, model.n_dofs)))
     mode = int(np.argmin(np.abs(frequencies - load_frequency))) + 1
     if hasattr(plc, "tune_damper"):
-        mdr = plc.tune_damper(model, mode, cfg.start, cfg.suspended_mass,
+        # Tuned for where it will damp: the antinode of that mode nearest the start (the
+        # modal mass seen at a node is infinite), then placed at its start.
+        x = np.asarray(model.node_positions)
+        shape = np.abs(model.mode_shapes(mode)[:, mode - 1])
+        loop = model.span.length / mode
+        near = np.abs(x - cfg.start) <= loop
+        antinode = float(x[near][np.argmax(shape[near])]) if near.any() else cfg.start
+        mdr = plc.tune_damper(model, mode, antinode, cfg.suspended_mass,
                               body_mass=cfg.body_mass)
+        mdr = dataclasses.replace(mdr, position=cfg.start)
         return mdr, (f"absorber tuned (Den Hartog) to mode {mode} "
                      f"({frequencies[mode - 1]:.4g} Hz), the mode nearest the load's "
-                     f"{load_frequency:.4g} Hz")
+                     f"{load_frequency:.4g} Hz, for the antinode at {antinode:.4g} m")
     mdr = plc.MDR.tuned(cfg.start, cfg.body_mass, cfg.suspended_mass, load_frequency,
                         cfg.damping_ratio)
     return mdr, (f"absorber tuned to the load's {load_frequency:.4g} Hz (damping ratio "
@@ -781,8 +888,19 @@ def _envelope_figure(x, envelope, antinodes, sensors):
 
 
 def _path_figure(x, envelope, t, position, target, target_series):
-    return _plotting().plot_robot_path(x, envelope, t, position, target=target,
-                                       target_series=target_series)
+    return _plotting().plot_plan_path(x, envelope, t, position, target=target,
+                                      target_series=target_series)
+
+
+def _closed_loop_path_figure(result):
+    plotting = _plotting()
+    if hasattr(plotting, "plot_robot_path"):      # the closed loop's own figure
+        return plotting.plot_robot_path(result)
+    import numpy as np
+
+    return plotting.plot_plan_path(
+        result.x, np.abs(result.baseline_displacement[:, result.t.size // 2:]).max(axis=1),
+        result.t, result.robot_position, target_series=result.target)
 
 
 def _closed_loop_figure(result):
@@ -984,6 +1102,11 @@ def _load(console, name_or_path):
     return load_scenario(name_or_path)
 
 
+#: Environment variable: BLAS threads of the verbs (default 1; 0 leaves the libraries' own
+#: choice, for benchmarks comparing the two).
+BLAS_THREADS_VARIABLE = "POWERLINE_CONTROL_BLAS_THREADS"
+
+
 @contextlib.contextmanager
 def _numerics():
     """Import the numerical stack, then limit BLAS to one thread for the verb's scope."""
@@ -993,7 +1116,15 @@ def _numerics():
 
     from . import closed_loop  # noqa: F401  (loads control, cvxpy, casadi: all BLAS users)
 
-    with threadpool_limits(limits=1):
+    raw = os.environ.get(BLAS_THREADS_VARIABLE, "1").strip()
+    if not raw.isdigit():
+        raise InputError(f"The environment variable {BLAS_THREADS_VARIABLE} must be a whole "
+                         f"number of threads (0: no limit). Got {raw!r}.")
+    threads = int(raw)
+    if threads == 0:
+        yield
+        return
+    with threadpool_limits(limits=threads):
         yield
 
 
@@ -1059,7 +1190,10 @@ def _verb_scenario(args, console: _Console) -> int:
             print(f"  {name:<16} {description}")
         return EXIT_OK
     scenario = load_scenario(args.name)
-    print(scenario_to_toml(scenario), end="")
+    if console.as_json:
+        print(json.dumps(dataclasses.asdict(scenario), indent=2))
+    else:
+        print(scenario_to_toml(scenario), end="")
     return EXIT_OK
 
 

@@ -202,14 +202,15 @@ class SimulationConfig:
 class IdentificationConfig:
     """DMD: time delays, Tikhonov alpha ("auto" chooses by held-out prediction error), rank."""
 
-    delays: int = _key(2, "", "Snapshots stacked per DMD state (time-delay embedding).",
-                       low=1, high=50)
+    delays: int | None = _key(
+        None, "", "Snapshots stacked per model state (time-delay embedding); unset: the "
+        "package's recipe chooses.", kind="int", low=1, high=50)
     alpha: float | str = _key(
-        "auto", "m^2", "Tikhonov regularisation (the paper's absolute alpha of eq. 14), or "
-        "\"auto\" to choose it by held-out prediction error.", kind="alpha", low=0.0,
-        low_inclusive=True, allowed='"auto" or a real number >= 0')
-    rank: int | None = _key(None, "", "Truncation rank of the DMD model (unset: full rank).",
-                            kind="int", low=1, high=5000)
+        "auto", "", "Tikhonov regularisation as a fraction of the largest squared singular "
+        "value of the training data, or \"auto\" to choose it on held-out data.", kind="alpha",
+        low=0.0, low_inclusive=True, high=1.0, allowed='"auto" or a real number in [0, 1]')
+    rank: int | None = _key(None, "", "Rank of the identified model (the filter's state size); "
+                            "unset: the package's recipe chooses.", kind="int", low=1, high=5000)
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ __all__ = [
     "plot_error_along_span",
     "plot_layouts",
     "plot_sensor_count",
-    "plot_robot_path",
+    "plot_plan_path",
 ]
 
 
@@ -250,7 +250,7 @@ def plot_sensor_count(
     return fig
 
 
-def plot_robot_path(
+def plot_plan_path(
     x: np.ndarray,
     envelope: np.ndarray,
     t: np.ndarray,
@@ -259,9 +259,10 @@ def plot_robot_path(
     target: float | None = None,
     target_series: np.ndarray | None = None,
 ) -> Figure:
-    """The robot's path (position against time) under the amplitude envelope of the line.
+    """The robot's planned path (position against time) under the amplitude envelope.
 
-    The horizontal axis (x, m) is shared and zoomed to where the robot travels, a few loop
+    (For the closed loop's path over the moving envelope see :func:`plot_robot_path`.) The
+    horizontal axis (x, m) is shared and zoomed to where the robot travels, a few loop
     lengths either side.
 
     Parameters
@@ -285,7 +286,7 @@ def plot_robot_path(
     --------
     >>> x = np.linspace(0, 3, 61)
     >>> t = np.linspace(0, 1, 11)
-    >>> fig = plot_robot_path(x, np.abs(np.sin(3 * x)), t, 1.0 + 0.5 * t, target=1.5)
+    >>> fig = plot_plan_path(x, np.abs(np.sin(3 * x)), t, 1.0 + 0.5 * t, target=1.5)
     >>> len(fig.axes)
     2
     """
@@ -454,7 +455,7 @@ def plot_robot_value(value) -> Figure:
 
 # ------------------------------------------------------------------ closed-loop figures
 # (section owned by the closed-loop engineer; appended here so that cli/report can use them)
-__all__ += ["plot_closed_loop_envelope", "plot_robot_path"]  # noqa: PLE0605
+__all__ += ["plot_closed_loop_envelope", "plot_closed_loop_path"]  # noqa: PLE0605
 
 
 def plot_closed_loop_envelope(result, ax=None) -> Figure:
@@ -504,7 +505,7 @@ def plot_closed_loop_envelope(result, ax=None) -> Figure:
     return fig
 
 
-def plot_robot_path(result, ax=None) -> Figure:
+def plot_closed_loop_path(result, ax=None) -> Figure:
     """The robot's path over the line's moving envelope (time down, position across).
 
     The colour is the largest |w| at each node over 0.1 s blocks; the robot's position and its
@@ -528,7 +529,7 @@ def plot_robot_path(result, ax=None) -> Figure:
     >>> fake = SimpleNamespace(t=t, x=np.arange(4.0), displacement=np.ones((4, 201)),
     ...                        robot_position=np.ones(201), target=np.ones(201),
     ...                        retarget_times=(0.5,), calibration_time=0.2)
-    >>> len(plot_robot_path(fake).axes)
+    >>> len(plot_closed_loop_path(fake).axes)
     2
     """
     fig = Figure(figsize=(6, 6)) if ax is None else ax.figure

@@ -136,7 +136,7 @@ def scenarios(draw, numeric_alpha: bool = False) -> config.Scenario:
         forcing = config.ForcingConfig(kind=kind, amplitude=draw(_toml_floats),
                                        position=draw(on_span), bandwidth=draw(_toml_floats),
                                        seed=draw(st.integers(0, 2**31)))
-    alpha = draw(st.one_of(st.just("auto"), reals(1e-8, 10.0))) if numeric_alpha else "auto"
+    alpha = draw(st.one_of(st.just("auto"), reals(1e-8, 1.0))) if numeric_alpha else "auto"
     identification = config.IdentificationConfig(
         delays=draw(st.integers(1, 4)), alpha=alpha,
         rank=draw(st.one_of(st.none(), st.integers(1, 500))))

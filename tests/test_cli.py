@@ -350,3 +350,50 @@ def test_exit_codes_are_documented():
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     for code in ("`0`", "`1`", "`2`", "`130`"):
         assert code in readme
+
+
+def test_debug_shows_the_traceback(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text("[robot]\nstart = -2.0\n")
+    result = run_cli("simulate", path, "--debug")
+    assert result.returncode == 2
+    assert "Traceback" in result.stderr and "robot.start = -2.0" in result.stderr
+
+
+def test_blas_threads_variable_is_checked(tiny):
+    env_bad = dict(os.environ, POWERLINE_CONTROL_BLAS_THREADS="many",
+                   PYTHONPATH=str(Path(plc.__file__).parents[1]))
+    result = subprocess.run(COMMAND + ["simulate", str(tiny)], capture_output=True, text=True,
+                            env=env_bad, timeout=300)
+    assert result.returncode == 2 and "POWERLINE_CONTROL_BLAS_THREADS" in result.stderr
+
+
+def test_verbs_limit_blas_to_one_thread_in_scope_only():
+    from threadpoolctl import threadpool_info
+
+    before = [pool["num_threads"] for pool in threadpool_info()]
+    with cli._numerics():
+        inside = [pool["num_threads"] for pool in threadpool_info()
+                  if pool["user_api"] == "blas"]
+    assert inside and all(n == 1 for n in inside)
+    after = [pool["num_threads"] for pool in threadpool_info()]
+    assert after[: len(before)] == before                      # restored on exit
+
+
+def test_scenario_as_json():
+    data = _json(run_cli("scenario", "drake-300m", "--json"))
+    assert data["span"]["length"] == 300.0 and data["forcing"]["kind"] == "aeolian"
+
+
+@pytest.mark.parametrize("verb", ["identify", "sensors", "estimate", "plan", "closed-loop",
+                                  "severity", "report", "study", "scenario"])
+def test_every_verb_refuses_a_bad_scenario_before_computing(tmp_path, verb):
+    path = tmp_path / "bad.toml"
+    path.write_text("[span]\npreset = 'conductor'\ntension = -1.0\n")
+    extra = {"report": ["--out", tmp_path / "out"],
+             "study": ["--vary", "estimation.n_sensors=1,2"]}.get(verb, [])
+    result = run_cli(verb, path, *extra)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [result.stderr.strip()]   # one line
+    assert "span.tension = -1.0" in result.stderr and "Traceback" not in result.stderr
+    assert STAGE_MARK not in result.stderr

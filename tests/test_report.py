@@ -186,3 +186,25 @@ def test_report_renders_in_headless_chromium(report, tmp_path):
     log = result.stderr
     assert "CONSOLE" not in log and "Uncaught" not in log, log[-2000:]
     assert "ERR_FILE_NOT_FOUND" not in log and "net::ERR" not in log, log[-2000:]
+
+
+def test_severity_section_when_the_scenario_asks_for_it(tmp_path):
+    path = tmp_path / "sev.toml"
+    path.write_text("[scenario]\nname = 'sev'\n[span]\npreset = 'conductor'\nlength = 250.0\n"
+                    "[model]\nn_elements = 150\n[robot]\nstart = 100.0\n[severity]\n"
+                    "enabled = true\nwind_speeds = [1.5, 3.5]\n")
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(Path(plc.__file__).parents[1])] + env.get("PYTHONPATH", "").split(os.pathsep))
+    result = subprocess.run(COMMAND + ["severity", str(path), "--out", str(tmp_path / "out"),
+                                       "-q"], capture_output=True, text=True, env=env,
+                            timeout=600)
+    assert result.returncode == 0, result.stderr
+    page = _Page()
+    page.feed((tmp_path / "out" / "report.html").read_text())
+    assert any(h.startswith("Aeolian severity") for h in page.headings)
+    figure = {f["id"]: f for f in page.figures}["fig-severity"]
+    assert figure["src"].startswith("data:image/svg+xml;base64,") and "µε" in figure["caption"]
+    # The rows name the wind speeds asked for, with units.
+    text = (tmp_path / "out" / "report.html").read_text()
+    assert "wind 1.5 m/s" in text and "wind 3.5 m/s" in text and "µε peak-to-peak" in text
