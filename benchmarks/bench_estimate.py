@@ -11,22 +11,32 @@ relative, d = 1 -> n = 101, d = 2 -> n = 202), same data (an independent simulat
   afterwards), time-varying with ``gain_rtol=0`` (structure only), steady-state (batch), and the
   real-time ``step`` per sample.
 
-Run: python benchmarks/bench_estimate.py [--quick]
+Reduced coordinates (issue 10 item 3, ``--reduced`` runs only this): on rank-20 / rank-80 DMD
+models with 101 / 1,001 outputs, the steady-state gain (ours: doubling in the information form,
+``O(r^3 + p r^2)``; peer: SciPy's QZ ``solve_discrete_are`` on the p-output problem) and the cost
+of ``KalmanFilter.step`` per sample (time-varying while converging, and frozen), with log-log
+slopes. Target: the steady-state gain for 1,001 outputs under 2 s.
+
+Run: python benchmarks/bench_estimate.py [--quick] [--reduced]
 BLAS is pinned to one thread (set below, before numpy loads), as required for comparable numbers
 on this shared machine.
 """
 
 import os
+import sys
+from pathlib import Path
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import argparse  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
 
+import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import numpy as np  # noqa: E402
+import scipy.linalg as sla  # noqa: E402
+from _common import timed  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
 
@@ -82,10 +92,88 @@ def rel(a, b):
     return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
 
 
+# ----------------------------------------------------------------------- reduced coordinates
+CANDIDATES = (101, 1001)
+RANKS = (20, 80)
+
+
+def reduced_model(m: int, r: int, seed: int = 0):
+    """A rank-``r`` DMD model of an ``m``-node field (r/2 string modes, two tones each, 1 %
+    noise): ``r`` states, ``m`` outputs (C = the field map), Q = its residual covariance."""
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, 1.0, m)
+    k = np.arange(1, r // 2 + 1)
+    t = np.arange(3000) * 1e-3
+    modal = np.array([(1e-3 / j) * (np.sin(2 * np.pi * 6.5 * j * t + rng.uniform(0, 6))
+                                    + 0.3 * np.sin(2 * np.pi * 6.5 * 1.01 * j * t))
+                      for j in k])
+    field = np.sin(np.pi * np.outer(x, k)) @ modal
+    noisy = field + 1e-2 * field.std() * rng.standard_normal(field.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", plc.UnstableModelWarning)
+        dmd = plc.fit_dmd(noisy, dt=1e-3, alpha=1e-6, alpha_mode="relative", rank=r)
+    noise_var = float((1e-2 * field.std()) ** 2)
+    return dmd.to_statespace(), dmd.residual_covariance, noise_var
+
+
+def slope(t_small: float, t_large: float, small: int, large: int) -> float:
+    """Log-log slope of cost against size between two sizes."""
+    return float(np.log(t_large / t_small) / np.log(large / small))
+
+
+def reduced_table(repeats: int = 1) -> None:
+    print("\n## Reduced coordinates: steady-state gain and step() cost in r and p\n")
+    print("| rank r | outputs p | steady gain, ours (s) | SciPy QZ DARE + gain (s) | ratio | "
+          "max rel. diff. | step() converging (us) | step() frozen (us) |")
+    print("|---|---|---|---|---|---|---|---|")
+    ours, steps, frozen = {}, {}, {}
+    for r in RANKS:
+        for m in CANDIDATES:
+            sys_, q, noise_var = reduced_model(m, r)
+            a, c = np.asarray(sys_.A), np.asarray(sys_.C)
+            t_ours, gain = timed(lambda s=sys_, q=q, v=noise_var: plc.KalmanFilter(
+                s, q, v, steady_state=True).steady_gain, repeats)
+
+            def peer(a=a, c=c, q=q, v=noise_var):
+                rm = v * np.eye(c.shape[0])
+                p = sla.solve_discrete_are(a.T, c.T, q, rm)
+                return np.linalg.solve(c @ p @ c.T + rm, c @ p).T
+
+            t_peer, gain_peer = timed(peer, 1)
+            diff = float(np.max(np.abs(gain - gain_peer)) / np.max(np.abs(gain_peer)))
+            y = np.asarray(sys_.C) @ np.random.default_rng(1).normal(size=(r, 400)) * 1e-4
+            kf = plc.KalmanFilter(sys_, q, noise_var, gain_rtol=0.0)
+            start = time.perf_counter()
+            for k in range(200):
+                kf.step(y[:, k])
+            t_step = (time.perf_counter() - start) / 200
+            kfs = plc.KalmanFilter(sys_, q, noise_var, steady_state=True)
+            start = time.perf_counter()
+            for k in range(400):
+                kfs.step(y[:, k])
+            t_frozen = (time.perf_counter() - start) / 400
+            ours[r, m], steps[r, m], frozen[r, m] = t_ours, t_step, t_frozen
+            print(f"| {r} | {m} | {t_ours:.3f} | {t_peer:.3f} | {t_peer / t_ours:.1f}x | "
+                  f"{diff:.1e} | {1e6 * t_step:.0f} | {1e6 * t_frozen:.0f} |")
+    for name, table in (("steady gain", ours), ("step converging", steps),
+                        ("step frozen", frozen)):
+        parts = [f"in p (r = {r}): {slope(table[r, 101], table[r, 1001], 101, 1001):.2f}"
+                 for r in RANKS]
+        parts += [f"in r (p = {m}): {slope(table[20, m], table[80, m], 20, 80):.2f}"
+                  for m in CANDIDATES]
+        print(f"\nlog-log slopes of {name}: " + "; ".join(parts), end="")
+    print()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="2e3 samples, 1 repeat")
+    parser.add_argument("--reduced", action="store_true", help="reduced-coordinates table only")
     args = parser.parse_args()
+    if args.reduced:
+        print(_common.PINNED)
+        reduced_table()
+        return
     n_t, repeats = (2000, 1) if args.quick else (10_000, 3)
     slow_repeats = 1  # filterpy and the numpy loop at n = 202 take ~10 s per run
 
@@ -170,6 +258,7 @@ def main() -> None:
                           outputs["plain numpy steady-state loop"])
         print(f"| {n} | {len(sensors)} | (steady-state batch vs plain steady loop: max rel. "
               f"diff. {steady_diff:.1e}) | | | |")
+    reduced_table()
 
 
 if __name__ == "__main__":

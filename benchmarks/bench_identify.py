@@ -1,6 +1,6 @@
 """Benchmark: DMD fit time against PyDMD and a plain numpy evaluation of the paper's eq. (14).
 
-Run: python benchmarks/bench_identify.py [--quick]
+Run: python benchmarks/bench_identify.py [--quick | --recipe]
 
 BLAS is pinned to one thread (set below, before numpy loads) so that timings on the shared
 2-core machine measure the algorithms, not thread contention.
@@ -9,10 +9,13 @@ Data: damped standing waves sin(j pi x / L) of a 3.66 m span at 30 frequencies, 
 1 kHz, plus 0.1 % white noise, on 101 and 2,001 nodes x 5,000 snapshots.
 
 Rows
-* full rank, alpha = 1e-3 relative: ``plc.fit_dmd`` (Cholesky route; also computes the residual
-  covariance and the relative-alpha scale) against numpy ``X1 X0^T inv(X0 X0^T + alpha I)``
-  (eq. 14 literally) and against numpy ``solve`` (the same without the explicit inverse).
-  Agreement: max |A_ours - A_numpy| / max |A_numpy|.
+* full rank, alpha = 1e-3 relative: ``plc.fit_dmd`` (Cholesky route; it always computes the
+  residual covariance Q, from Gram matrices: X X^T and Y Y^T share all but two columns, so the
+  only data products are X X^T and the lag product X Y^T) against numpy
+  ``X1 X0^T inv(X0 X0^T + alpha I)`` (eq. 14 literally), numpy ``solve`` (the same without the
+  explicit inverse, A only) and numpy ``solve`` + Q the straightforward way (residual
+  E = X1 - A X0, then E E^T / N: the third and fourth n^2 N products).
+  Agreement: max |A_ours - A_numpy| / max |A_numpy| (and the same for Q).
 * rank r = 30 (the 30 standing waves; cutting inside the noise floor would make the subspace,
   and so any two implementations' eigenvalues, ill-defined), alpha = 1e-3 relative:
   ``plc.fit_dmd(rank=r)`` against ``pydmd.DMD(svd_rank=r, tikhonov_regularization=alpha /
@@ -86,12 +89,25 @@ def full_rank_rows(X, repeats):
         gram = X0 @ X0.T + alpha * np.eye(X.shape[0])
         return np.linalg.solve(gram, X0 @ X1.T).T
 
+    def naive_solve_with_q():
+        A = naive_solve()
+        E = X1 - A @ X0                     # the residual pass: two more n^2 N products
+        return A, (E @ E.T) / X0.shape[1]
+
     rows = []
-    for label, func in (("numpy eq.14 (inv)", naive_inv), ("numpy eq.14 (solve)", naive_solve)):
+    for label, func in (("numpy eq.14 (inv)", naive_inv), ("numpy eq.14 (solve)", naive_solve),
+                        ("numpy eq.14 (solve) + Q", naive_solve_with_q)):
         peer_t, peer = timed(func, repeats)
-        diff = float(np.abs(ours.A - peer).max() / np.abs(peer).max())
-        rows.append((f"{X.shape[0]} x {X.shape[1]}, full rank", ours_t, label, peer_t,
-                     f"A: {diff:.1e}"))
+        if isinstance(peer, tuple):
+            peer, peer_q = peer
+            q_diff = float(np.abs(ours.residual_covariance - peer_q).max()
+                           / np.abs(peer_q).max())
+            agreement = f"A: {np.abs(ours.A - peer).max() / np.abs(peer).max():.1e}, " \
+                        f"Q: {q_diff:.1e}"
+        else:
+            agreement = f"A: {np.abs(ours.A - peer).max() / np.abs(peer).max():.1e}"
+        rows.append((f"{X.shape[0]} x {X.shape[1]}, full rank, with Q", ours_t, label, peer_t,
+                     agreement))
     return rows
 
 
@@ -123,10 +139,55 @@ def _with_eigs(model):
     return model
 
 
+def recipe_rows():
+    """design_estimator on the lab span (100 elements) and on the real span (1000 elements)."""
+    from powerline_control.estimate import estimation_accuracy
+
+    cases = [
+        ("lab span, 100 el., harmonic + broadband", plc.LineModel(plc.Span.paper_lab(), 100),
+         [plc.HarmonicForce(1.0, 14.2, 2.3), plc.RandomForce(1.0, 1.1, 100.0, seed=17)],
+         plc.RandomForce(1.0, 2.9, 100.0, seed=29), 10.0, 1e-3),
+        ("Drake 300 m, 1000 el., aeolian 3 m/s",
+         plc.LineModel(plc.Span.at_rts_fraction(300.0, "drake", 0.20), 1000),
+         plc.AeolianForce(3.0), plc.AeolianForce(3.0), 20.0, 2e-3),
+    ]
+    rows = []
+    for label, model, train_force, test_force, duration, dt in cases:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", plc.TruncationWarning)
+            start = time.perf_counter()
+            train = plc.simulate(model, train_force, duration=duration, dt=dt,
+                                 noise_fraction=0.01, seed=5)
+            test = plc.simulate(model, test_force, duration=8.0, dt=dt, noise_fraction=0.01,
+                                seed=6, start_time=3.1)
+            simulated = time.perf_counter() - start
+        start = time.perf_counter()
+        design = plc.design_estimator(train, n_sensors=5, seed=0)
+        designed = time.perf_counter() - start
+        field = design.estimate_field(test.displacement[design.sensors],
+                                      noise_std=test.noise_std)
+        acc = estimation_accuracy(field, test.true_displacement, measured=design.sensors,
+                                  discard=500)
+        rows.append((label, train.displacement.shape, simulated, designed,
+                     acc.relative_rms_error_unmeasured))
+    return rows
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="101 nodes only, 1 repeat")
+    parser.add_argument("--recipe", action="store_true",
+                        help="time design_estimator on the lab and real spans instead")
     args = parser.parse_args()
+    if args.recipe:
+        print("BLAS pinned to 1 thread (OPENBLAS/OMP/MKL_NUM_THREADS=1, set before numpy import)")
+        print("| case | training record | simulation (s) | design_estimator (s) | "
+              "unmeasured-node error, new run |")
+        print("|---|---|---:|---:|---:|")
+        for label, shape, simulated, designed, error in recipe_rows():
+            print(f"| {label} | {shape[0]} x {shape[1]} | {simulated:.1f} | {designed:.1f} | "
+                  f"{100 * error:.2f} % |")
+        return
     repeats = 1 if args.quick else 3
     sizes = [101] if args.quick else [101, 2001]
     print("BLAS pinned to 1 thread (OPENBLAS/OMP/MKL_NUM_THREADS=1, set before numpy import)")

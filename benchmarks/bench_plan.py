@@ -1,28 +1,37 @@
-"""Benchmark of plan.py: minimum-time solves and receding-horizon (MPC) steps.
+"""Benchmark of plan.py: the closed-form time-optimal move against IPOPT, and MPC steps.
 
 Rows:
-* plan_motion, minimum time, 100 intervals, cold start (the NLP is built once and cached; each
-  solve starts from a straight-line guess) -- against a plain CasADi Opti/IPOPT problem built and
-  solved from scratch each time (the obvious way, and the issue's reference of 70-120 ms + build).
-* MotionPlanner.step warm-started from the previous step, against a cold solve of the same problem
-  (planner reset before the step), along a closed loop with a target that jumps twice.
+* plan_motion, minimum time: the closed form (default) against the same request solved by IPOPT
+  on 100 intervals (``method="ipopt"``, NLP built once and cached) and against a plain CasADi
+  Opti/IPOPT problem built and solved from scratch each time (the obvious way).
+* One MPC step (MotionPlanner.step, horizon 40 and 100, IPOPT) against evaluating the
+  closed-form move from the same state (what the step is seeded with), along a closed loop whose
+  target (a) jumps twice, (b) jitters by 1 cm every step (as an antinode estimate does), for the
+  three initial guesses: the closed form with the previous multipliers (default), the previous
+  plan shifted by one period (the old warm start), none.  Median IPOPT iterations per step are
+  given too: they, unlike the times, do not depend on the machine's load.
 
-Run: /work/venv/bin/python benchmarks/bench_plan.py
+Run: /work/main/.venv/bin/python benchmarks/bench_plan.py
 """
 
 import os
+import sys
 
-# Single-threaded BLAS before numpy is imported: timings comparable on a shared 2-core machine.
-os.environ["OPENBLAS_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = "1"
-os.environ["MKL_NUM_THREADS"] = "1"
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import statistics  # noqa: E402
 import time  # noqa: E402
 
+import _common  # noqa: E402  (pins BLAS to one thread before numpy is imported)
 import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 
-from powerline_control.plan import MotionPlanner, RobotLimits, plan_motion  # noqa: E402
+from powerline_control.plan import (  # noqa: E402
+    MotionPlanner,
+    RobotLimits,
+    _time_optimal_pieces,
+    plan_motion,
+)
 
 SPAN = 3.66
 LIMITS = RobotLimits(v_max=0.5, a_max=1.0)
@@ -62,62 +71,74 @@ def timed(fn, repeats: int) -> list[float]:
     return times
 
 
+def jumping(k: int) -> float:
+    return 2.0 if k < 80 else (0.6 if k < 160 else 2.4)
+
+
+_JITTER = 0.01 * np.random.default_rng(0).standard_normal(240)
+
+
+def jittering(k: int) -> float:
+    return (2.0 if k < 120 else 0.8) + _JITTER[k]
+
+
+def mpc_run(horizon: int, warm_start: str, targets) -> tuple[list[float], list[int], list[float]]:
+    """240 steps of a closed loop; per optimal step: solve time, iterations, closed-form time."""
+    planner = MotionPlanner(LIMITS, dt=0.05, horizon=horizon, span_length=SPAN,
+                            obstacles=[(2.6, 2.7)], warm_start=warm_start)
+    state = (0.5, 0.0)
+    solve, iterations, closed = [], [], []
+    for k in range(240):
+        step = planner.step(state, targets(k))
+        if step.status == "optimal":
+            solve.append(step.solve_time)
+            iterations.append(step.iterations)
+            started = time.perf_counter()
+            _time_optimal_pieces(state[0], step.target, state[1], LIMITS)
+            closed.append(time.perf_counter() - started)
+        state = step.next_state
+    return solve, iterations, closed
+
+
 def main() -> None:
-    print("Threads: OPENBLAS_NUM_THREADS = OMP_NUM_THREADS = MKL_NUM_THREADS = 1 "
-          "(set before numpy)")
-    print(f"casadi {ca.__version__}, numpy {np.__version__}; times in ms, median over repeats\n")
+    print(_common.PINNED)
+    print(f"casadi {ca.__version__}, numpy {np.__version__}; times in ms, medians; "
+          f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores\n")
 
-    started = time.perf_counter()
-    plan_motion(0.2, 1.8, LIMITS, span_length=SPAN)
-    first_call = time.perf_counter() - started
-
-    rows = []
-    ours, naive, ours_jerk = [], [], []
-    jerk_limits = RobotLimits(v_max=0.5, a_max=1.0, j_max=5.0)
-    plan_motion(0.2, 1.8, jerk_limits, span_length=SPAN)  # build the jerk NLP once
+    plan_motion(0.2, 1.8, LIMITS, span_length=SPAN, method="ipopt")  # build the NLP once
+    closed, ipopt, naive, iterations = [], [], [], []
     for d in DISTANCES:
-        ours += timed(lambda d=d: plan_motion(0.3, 0.3 + d, LIMITS, span_length=SPAN), 5)
+        closed += timed(lambda d=d: plan_motion(0.3, 0.3 + d, LIMITS, span_length=SPAN), 20)
+        ipopt += timed(lambda d=d: plan_motion(0.3, 0.3 + d, LIMITS, span_length=SPAN,
+                                               method="ipopt"), 3)
+        iterations.append(plan_motion(0.3, 0.3 + d, LIMITS, span_length=SPAN,
+                                      method="ipopt").iterations)
         naive += timed(lambda d=d: naive_opti_min_time(0.3, 0.3 + d), 2)
-        ours_jerk += timed(lambda d=d: plan_motion(0.3, 0.3 + d, jerk_limits, span_length=SPAN), 3)
-    med_ours = statistics.median(ours)
-    rows.append(("min time, 100 intervals: plan_motion (built once, cold guess)", med_ours,
-                 max(ours), len(ours)))
-    rows.append(("min time, 100 intervals: fresh Opti build + solve (peer)",
-                 statistics.median(naive), max(naive), len(naive)))
-    rows.append(("min time, 100 intervals, jerk-limited: plan_motion",
-                 statistics.median(ours_jerk), max(ours_jerk), len(ours_jerk)))
-    rows.append(("first plan_motion call (includes the NLP build)", first_call, first_call, 1))
-
-    for horizon in (40, 100):
-        planner = MotionPlanner(LIMITS, dt=0.05, horizon=horizon, span_length=SPAN,
-                                obstacles=[(2.6, 2.7)], time_budget=1.0)
-        cold_planner = MotionPlanner(LIMITS, dt=0.05, horizon=horizon, span_length=SPAN,
-                                     obstacles=[(2.6, 2.7)], time_budget=1.0)
-        state = (0.5, 0.0)
-        warm, cold = [], []
-        for k in range(240):
-            target = 2.0 if k < 80 else (0.6 if k < 160 else 2.4)
-            step = planner.step(state, target)
-            if step.status == "optimal" and k % 80 != 0:
-                warm.append(step.solve_time)
-                if k % 4 == 1:  # a cold solve of the same problem, from the same state
-                    cold_planner.reset()
-                    cold.append(cold_planner.step(state, target).solve_time)
-            state = step.next_state
-        rows.append((f"MPC step, horizon {horizon}: warm-started", statistics.median(warm),
-                     max(warm), len(warm)))
-        rows.append((f"MPC step, horizon {horizon}: cold solve of the same problem",
-                     statistics.median(cold), max(cold), len(cold)))
-
-    base = med_ours
-    print("| case | median (ms) | max (ms) | n | median / plan_motion |")
+    base = statistics.median(closed)
+    print("| minimum-time move, 5 distances 0.1-3 m | median (ms) | max (ms) | n | / closed form |")
     print("|---|---:|---:|---:|---:|")
-    for name, med, worst, n in rows:
-        print(f"| {name} | {med * 1e3:.1f} | {worst * 1e3:.1f} | {n} | {med / base:.2f} |")
-    warm40 = rows[4][1]
-    cold40 = rows[5][1]
-    print(f"\nwarm / cold MPC step (horizon 40): {warm40 / cold40:.2f}")
-    print("Targets: cold minimum-time solve < 200 ms; warm MPC step < 30 ms.")
+    for name, values in (("plan_motion, closed form (default)", closed),
+                         (f"plan_motion, method='ipopt' (100 intervals, median "
+                          f"{statistics.median(iterations):.0f} iterations)", ipopt),
+                         ("fresh CasADi Opti build + IPOPT solve (peer)", naive)):
+        med = statistics.median(values)
+        print(f"| {name} | {med * 1e3:.3f} | {max(values) * 1e3:.3f} | {len(values)} | "
+              f"{med / base:.0f} |")
+
+    print("\n| MPC step (IPOPT) | target | guess | median step (ms) | median iterations | "
+          "max iterations | closed form (ms) | step / closed form |")
+    print("|---|---|---|---:|---:|---:|---:|---:|")
+    for horizon in (40, 100):
+        for target_name, targets in (("jumps", jumping), ("1 cm jitter", jittering)):
+            for guess in ("closed_form", "previous", "none"):
+                solve, its, closed_times = mpc_run(horizon, guess, targets)
+                step_ms = statistics.median(solve) * 1e3
+                closed_ms = statistics.median(closed_times) * 1e3
+                print(f"| horizon {horizon} | {target_name} | {guess} | {step_ms:.1f} | "
+                      f"{statistics.median(its):.0f} | {max(its)} | {closed_ms:.4f} | "
+                      f"{step_ms / closed_ms:.0f} |")
+    print("\nIterations are exact (no wall-clock budget by default); times are of a shared,"
+          " loaded machine: compare ratios.")
 
 
 if __name__ == "__main__":

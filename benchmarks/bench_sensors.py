@@ -13,33 +13,34 @@ Cases
    displacement field): ``select_sensors(k=13)``; target < 60 s.
 4. Reconstruction (log det Psi_S^T Psi_S, k = r = 13) on the same basis as PySensors' QR
    (SSPOR): objective reached and time, n = 101 and n = 1,001.
+5. Reduced coordinates (issue 10 item 3): ``select_sensors(k=5)`` on rank-20 / rank-80 DMD models
+   with 101 / 1,001 candidate outputs; target < 20 s at 1,001 candidates; log-log slopes.
+
+``--reduced`` runs section 5 only.
 """
 
-import os
+import argparse
+import sys
+from pathlib import Path
 
-os.environ["OPENBLAS_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = os.environ[
-    "MKL_NUM_THREADS"
-] = "1"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import statistics  # noqa: E402
-import time  # noqa: E402
+import warnings  # noqa: E402
 
+import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import numpy as np  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
+from _common import timed as _timed  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
-from powerline_control._sensor_criteria import _information, steady_state_batch  # noqa: E402
+from powerline_control._riccati import steady_state_batch  # noqa: E402
+from powerline_control._sensor_criteria import _information  # noqa: E402
 
 REPEATS = 3
 
 
 def timed(fn, repeats=REPEATS):
-    times, out = [], None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), out
+    return _timed(fn, repeats)
 
 
 def paper_model():
@@ -52,9 +53,66 @@ def paper_model():
     return model, snap, dmd, noise_var
 
 
+# ----------------------------------------------------------------------- reduced coordinates
+CANDIDATES = (101, 1001)
+RANKS = (20, 80)
+
+
+def reduced_model(m: int, r: int, seed: int = 0):
+    """A rank-``r`` DMD model of an ``m``-node field (r/2 string modes, two tones each, 1 %
+    noise): ``r`` states, ``m`` outputs (C = the field map), Q = its residual covariance."""
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, 1.0, m)
+    k = np.arange(1, r // 2 + 1)
+    t = np.arange(3000) * 1e-3
+    modal = np.array([(1e-3 / j) * (np.sin(2 * np.pi * 6.5 * j * t + rng.uniform(0, 6))
+                                    + 0.3 * np.sin(2 * np.pi * 6.5 * 1.01 * j * t))
+                      for j in k])
+    field = np.sin(np.pi * np.outer(x, k)) @ modal
+    noisy = field + 1e-2 * field.std() * rng.standard_normal(field.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", plc.UnstableModelWarning)
+        dmd = plc.fit_dmd(noisy, dt=1e-3, alpha=1e-6, alpha_mode="relative", rank=r)
+    noise_var = float((1e-2 * field.std()) ** 2)
+    return dmd.to_statespace(), dmd.residual_covariance, noise_var
+
+
+def slope(t_small: float, t_large: float, small: int, large: int) -> float:
+    """Log-log slope of cost against size between two sizes."""
+    return float(np.log(t_large / t_small) / np.log(large / small))
+
+
+def reduced_table(repeats: int = 1) -> None:
+    print("\n## 5. Reduced coordinates: select_sensors(k=5, 'kalman') on a rank-r DMD model "
+          "with m candidate outputs (target < 20 s at m = 1,001)\n")
+    print("| rank r | candidates m | seconds | certificate | gap | exact evaluations |")
+    print("|---|---|---|---|---|---|")
+    seconds = {}
+    for r in RANKS:
+        for m in CANDIDATES:
+            sys_, q, noise_var = reduced_model(m, r)
+            t, sel = timed(lambda s=sys_, q=q, v=noise_var: plc.select_sensors(
+                s, 5, Q=q, R=v, n_random=0), repeats)
+            seconds[r, m] = t
+            print(f"| {r} | {m} | {t:.2f} | {sel.certificate} | {100 * sel.gap:.1f} % | "
+                  f"{sel.n_exact_evaluations} |")
+    for r in RANKS:
+        print(f"\nlog-log slope in m (r = {r}): "
+              f"{slope(seconds[r, 101], seconds[r, 1001], 101, 1001):.2f}", end="")
+    for m in CANDIDATES:
+        print(f"\nlog-log slope in r (m = {m}): "
+              f"{slope(seconds[20, m], seconds[80, m], 20, 80):.2f}", end="")
+    print()
+
+
 def main() -> None:
-    print("BLAS threads: OPENBLAS_NUM_THREADS=OMP_NUM_THREADS=MKL_NUM_THREADS=1 (set before "
-          f"numpy); median of {REPEATS} runs\n")
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--reduced", action="store_true", help="section 5 only")
+    args = parser.parse_args()
+    print(f"{_common.PINNED}; median of {REPEATS} runs (1 in section 5)\n")
+    if args.reduced:
+        reduced_table()
+        return
     model, snap, dmd, noise_var = paper_model()
     sys, q = dmd.to_statespace(), dmd.residual_covariance
 
@@ -134,6 +192,7 @@ def main() -> None:
         for name, value, bound, t in rows:
             ratio = f"{t / rows[-1][3]:.0f}" if len(rows) > 1 else "-"
             print(f"| {n} | {name} | {value:.2f} | {bound} | {1e3 * t:.1f} | {ratio} |")
+    reduced_table()
 
 
 if __name__ == "__main__":

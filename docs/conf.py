@@ -37,7 +37,11 @@ extensions = [
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "_templates", "_ext", "**/.ipynb_checkpoints"]
+exclude_patterns = ["_build", "_templates", "_ext", "gallery/_figures", "**/.ipynb_checkpoints"]
+
+# Examples run during the build (quick ones only; tests/test_examples.py runs them all).
+# PLC_DOCS_EXECUTE=all (or none) overrides the list.
+plc_gallery_execute = ["simulate_paper_span"]
 templates_path = ["_templates"]
 
 # Markdown: $...$ and $$...$$ math, ::: fences, and anchors for "page.md#section" links.

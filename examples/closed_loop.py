@@ -17,7 +17,7 @@ import powerline_control as plc
 from powerline_control.plotting import (
     plot_closed_loop,
     plot_closed_loop_envelope,
-    plot_robot_path,
+    plot_closed_loop_path,
 )
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out")
@@ -52,7 +52,7 @@ print(f"real-time factor {result.real_time_factor:.1f}; estimator innovation rat
       f"{np.median(result.innovation_ratio):.2f}")
 plot_closed_loop(result).savefig(out / "closed_loop.png", dpi=110)
 plot_closed_loop_envelope(result).savefig(out / "closed_loop_envelope.png", dpi=110)
-plot_robot_path(result).savefig(out / "closed_loop_path.png", dpi=110)
+plot_closed_loop_path(result).savefig(out / "closed_loop_path.png", dpi=110)
 
 # --- the wind change: near mode 4, then (at 8 s) near mode 3
 schedule = [(0.0, force), (8.0, plc.HarmonicForce(1.0, 1.008 * f[2], 0.43 * span.length))]
@@ -64,8 +64,9 @@ final = wind.t >= wind.t[-1] - 2.0
 rms = {name: 1e3 * np.sqrt(np.mean(wind.displacement[:, m] ** 2))
        for name, m in (("before", before), ("after", just_after), ("final", final))}
 print(f"wind change at 8 s: retargeted at {wind.retarget_times[-1]:.2f} s, settled "
-      f"{wind.settle_times[-1]:.2f} s later at {wind.robot_position[-1]:.3f} m (best "
+      f"{wind.settle_times[-1]:.2f} s later ({wind.follow_times[0]:.2f} s after the change) at "
+      f"{wind.robot_position[-1]:.3f} m (best "
       f"{wind.best_position:.3f} m); RMS {rms['before']:.3f} -> {rms['after']:.3f} -> "
       f"{rms['final']:.3f} mm")
-plot_robot_path(wind).savefig(out / "closed_loop_wind_change.png", dpi=110)
+plot_closed_loop_path(wind).savefig(out / "closed_loop_wind_change.png", dpi=110)
 print(f"figures: {out}/closed_loop*.png")

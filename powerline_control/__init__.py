@@ -123,6 +123,13 @@ class _Package(_ModuleType):
             return  # the module stays reachable as sys.modules["powerline_control.<name>"]
         super().__setattr__(name, value)
 
+    def __reduce__(self):
+        # Pickle by name, as modules are: cloudpickle (Dask) pickles a script's functions by
+        # value with their globals, and `plc` is one of them.
+        import importlib
+
+        return importlib.import_module, (self.__name__,)
+
 
 _sys.modules[__name__].__class__ = _Package
 

@@ -370,7 +370,8 @@ def check_covariance(
     if index is not None:
         out = out[np.ix_(index, index)]
     out = (out + out.T) / 2
-    if definite and out.ndim == 2 and out.size:
+    # Scalars and vectors were checked > 0 above; only a full matrix needs the factorisation.
+    if definite and not np.isscalar(value) and np.ndim(value) == 2 and out.size:
         try:
             np.linalg.cholesky(out)
         except np.linalg.LinAlgError:

@@ -81,8 +81,9 @@ class Antinode:
     fit_samples : int
         Number of samples the position was fitted to (3 for a three-point interpolation).
     uncertainty : str
-        Where ``position_std`` comes from: ``"variances"`` (propagated from those given) or
-        ``"estimated"`` (from the field's estimated noise and the fit's residual).
+        Where ``position_std`` comes from: ``"variances"`` (propagated from those given),
+        ``"estimated"`` (from the field's estimated noise and the fit's residual) or ``"none"``
+        (an ``Antinode`` built by hand without one).
 
     Examples
     --------
@@ -102,7 +103,7 @@ class Antinode:
     frequency: float | None = None
     noise_std: float | None = None
     fit_samples: int = 0
-    uncertainty: str = "variances"
+    uncertainty: str = "none"
 
     @property
     def loop_length(self) -> float:
@@ -362,7 +363,9 @@ def _sine_parameters(
         a, b, k = a + step[0], b + step[1], k + step[2]
         if not k0 / 3 <= k <= 3 * k0:
             return None
-        if abs(step[2]) <= 1e-13 * k and abs(step[0]) + abs(step[1]) <= 1e-13 * math.hypot(a, b):
+        # Converged when the steps are round-off for the position (1e-10 of the loop) and the
+        # amplitude; with noise Gauss-Newton converges linearly, so the test is not 1e-16.
+        if abs(step[2]) <= 1e-10 * k and abs(step[0]) + abs(step[1]) <= 1e-10 * math.hypot(a, b):
             return float(a), float(b), float(k)
     return None
 

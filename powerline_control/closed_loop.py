@@ -1,4 +1,4 @@
-"""The whole chain in closed loop: sensors -> Kalman estimate -> target -> motion -> robot moves.
+"""The whole chain in closed loop: sensors -> estimate -> target -> motion -> robot moves.
 
 The plant
 ---------
@@ -22,19 +22,21 @@ at its mid-block value over blocks of ``plant_period``.
 The policy (docs/closed_loop.md)
 --------------------------------
 Chasing the antinode of the field the robot is damping is unstable: the damped loop's maximum
-moves away from the robot. Here the robot targets the antinode of the *robot-free* excited shape:
-from the estimated field's phasor ``W`` at the dominant frequency and the robot's own measured
-motion ``W_r``, the robot's reaction is removed with the bare line's receptance,
+moves away from the robot. Here the robot targets something its damping does not move. From the
+sensors' and its own motion's phasors at the dominant frequency it removes its own reaction with
+the bare line's receptance,
 
     W_bare(x) = W(x) - H(x, x_r; omega) D_r(omega) W_r,
     D_r = omega^2 m_b + omega^2 m_a (k + i omega c) / (k + i omega c - omega^2 m_a),
 
-which in steady state does not depend on where the robot is. The target is chosen once (the
-largest antinode within 3/4 of a loop of the robot), refined once after the robot has settled
-there (only inside a gate of a quarter loop around that first choice: the gate is anchored, it
-does not move with the goal), and chosen anew only when the dominant frequency changes (a wind
-change). The motion law is the closed-form time-optimal approach of a double integrator (or the
-MPC planner on request).
+(the robot-free excited shape, fitted on the bare modes), which in steady state is the same
+wherever the robot is; then it predicts the span's RMS with itself parked at every p,
+``W_p = W_bare + H(., p) D_r W_bare(p) / (1 - H(p, p) D_r)``, and goes to the best (the nearest
+of the near-best minima). The choice is confirmed once the robot has settled and the window is
+steady: a refinement inside a quarter loop of the *anchor* (the gate does not move with the
+goal), or at most two moves to another loop; a new target only when the dominant frequency
+changes (a wind change). The motion law is the closed-form time-optimal approach of a double
+integrator (or the MPC planner on request).
 """
 
 from __future__ import annotations
@@ -51,11 +53,10 @@ from threadpoolctl import threadpool_limits
 
 from ._validation import check_indices, check_int, check_real, check_rng, read_only
 from .errors import InputError
-from .estimate import KalmanFilter
 from .fem import MDR, LineModel
-from .identify import fit_dmd, select_alpha
 from .line import Span
 from .plan import MotionPlanner, RobotLimits
+from .recipe import design_estimator
 
 __all__ = ["ClosedLoopResult", "Comparison", "run_closed_loop"]
 
@@ -72,6 +73,8 @@ MAX_STATIC_SLOPE = 0.05
 UNSTEADY_LIMIT = 0.25
 MAX_WAIT = 3.0
 MAX_CHOICES = 3
+# The plant keeps every mode below 8x the load frequency up to this many, else a band of modes.
+SMALL_PLANT_MODES = 48
 # Local minima of the predicted RMS within this fraction of the lowest count as equally good:
 # the robot takes the nearest (equal loops of a resonant mode need no long trip).
 NEAR_OPTIMAL = 0.03
@@ -161,6 +164,10 @@ class ClosedLoopResult:
     retarget_times, settle_times : tuple of float
         When the controller chose a new target (s), and how long the robot then took to arrive
         and stay within 1 % of a loop (s; NaN if it did not).
+    follow_times : tuple of float
+        For every change of load in a schedule (a wind change): the time from the change until
+        the robot arrived at its new target and stayed (detection, retarget and move), s; NaN
+        when it did not.
     innovation_ratio : ndarray, shape (n_steps,)
         RMS one-step prediction error of the sensors over the last window, relative to its value
         on the calibration record: the estimator's model is taken as valid below 3.
@@ -174,7 +181,8 @@ class ClosedLoopResult:
         Wall-clock seconds spent in: setup (modes, calibration, identification), plant (sample
         stepping and sensing), plant update (re-discretising after a move), filter (Kalman
         steps), policy and motion, comparisons (parked runs and the steady-state scan); and
-        "loop cpu", the process time of the loop (less sensitive to the machine's load).
+        "loop cpu", the process time of the loop (less sensitive to the machine's load), and
+        "modes", the number of bare-line modes the plant kept.
 
     Examples
     --------
@@ -215,6 +223,7 @@ class ClosedLoopResult:
     damper_power: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     predictions: tuple = field(default=(), repr=False)
     timings: dict = field(default_factory=dict, repr=False)
+    follow_times: tuple = ()
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""
@@ -230,6 +239,11 @@ class ClosedLoopResult:
     def window_mask(self) -> np.ndarray:
         """Boolean mask of the samples in :attr:`settled_window`."""
         return (self.t >= self.settled_window[0]) & (self.t <= self.settled_window[1])
+
+    @property
+    def estimator_valid(self) -> np.ndarray:
+        """Per control step: the estimator's model still fits (innovation ratio below 3)."""
+        return self.innovation_ratio < 3.0
 
     @property
     def rms_closed_loop(self) -> float:
@@ -267,18 +281,24 @@ class ClosedLoopResult:
 
 # ---------------------------------------------------------------------------------- the plant
 class _ModalPlant:
-    """The bare line's lowest modes with the robot coupled at its position (see module doc)."""
+    """Bare-line modes with the robot coupled at its position (see module doc).
 
-    def __init__(self, model: LineModel, robot: MDR | None, n_modes: int, dt: float):
-        basis = model.modes(n_modes)
+    ``modes``: how many of the lowest modes, or the indices (0-based) of a band of them.
+    """
+
+    def __init__(self, model: LineModel, robot: MDR | None, modes, dt: float):
+        index = np.arange(modes) if np.ndim(modes) == 0 else np.asarray(modes)
+        basis = model.modes(int(index.max()) + 1)
         self.model, self.dt = model, dt
         active = robot is not None and (robot.body_mass > 0 or robot.has_absorber)
         self.robot = robot if active else None
-        self.shapes = np.asarray(basis.shapes)
-        self.omega2 = np.asarray(basis.omega) ** 2
-        self.line_damping = np.asarray(basis.damping)
+        self.shapes = np.asarray(basis.shapes)[:, index]
+        self.omega2 = np.asarray(basis.omega)[index] ** 2
+        self.line_damping = np.asarray(basis.damping)[np.ix_(index, index)]
         self.nodal = model.displacement_map() @ self.shapes  # (n_nodes, r)
-        self.r = basis.n_modes
+        self.r = index.size
+        off_diagonal = self.line_damping - np.diag(np.diag(self.line_damping))
+        self._diagonal = not np.any(off_diagonal)
         self.absorber = self.robot is not None and self.robot.has_absorber
         self.n_q = self.r + (1 if self.absorber else 0)
         self._cache: dict[float, tuple] = {}
@@ -344,11 +364,32 @@ class _ModalPlant:
         rhs[: self.r] = modal_force
         return np.linalg.solve(stiff - omega**2 * mass + 1j * omega * damp, rhs)
 
+    def modal_response(self, load: np.ndarray, omega: float) -> np.ndarray:
+        """Bare line's modal amplitudes under a harmonic modal load (diagonal when it can)."""
+        if self._diagonal:
+            return load / (self.omega2 - omega**2 + 1j * omega * np.diag(self.line_damping))
+        dynamic = np.diag(self.omega2 - omega**2) + 1j * omega * self.line_damping
+        return np.linalg.solve(dynamic, load)
+
     def receptance(self, x: float, omega: float) -> np.ndarray:
         """Bare line's displacement at every node per unit harmonic force at x (modal sum)."""
-        n = self.coupling(x)
-        dynamic = np.diag(self.omega2 - omega**2) + 1j * omega * self.line_damping
-        return self.nodal @ np.linalg.solve(dynamic, n)
+        return self.nodal @ self.modal_response(self.coupling(x), omega)
+
+
+def _default_modes(span: Span, bare: LineModel, frequencies: list, dt: float):
+    """The plant's modes: every mode below 8x the highest load frequency when that is a few
+    dozen (short spans: the robot's local flexibility converges), else the band
+    [0.6 f_min, 1.4 f_max] (long spans: ~100 modes near the load; the others respond weakly and
+    the loads' part of them is the quasi-static residual)."""
+    f_max = max(frequencies) if frequencies else 0.125 / dt
+    f_min = min(frequencies) if frequencies else 0.0
+    estimate = span.pinned_frequencies(bare.n_dofs)
+    below = int(np.count_nonzero(estimate <= 8 * f_max))
+    if below <= SMALL_PLANT_MODES:
+        return int(min(bare.n_dofs, max(12, below + 2)))
+    first = int(np.count_nonzero(estimate < 0.6 * f_min))
+    last = int(min(bare.n_dofs, np.count_nonzero(estimate <= 1.4 * f_max) + 1))
+    return np.arange(first, last)
 
 
 def _robot_dynamic_stiffness(robot: MDR, omega: float) -> complex:
@@ -520,11 +561,10 @@ def _kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
     two, the mix the few measurements support.
     """
     n_r = plant.coupling(x_r)
-    dynamic = np.diag(plant.omega2 - omega**2) + 1j * omega * plant.line_damping
     rows = np.vstack([sensor_rows, n_r])  # (p + 1, r)
     values = np.append(sensed, at_robot)
     reaction = _robot_dynamic_stiffness(robot, omega) * at_robot
-    values = values - rows @ np.linalg.solve(dynamic, n_r) * reaction
+    values = values - rows @ plant.modal_response(n_r, omega) * reaction
     # A floor of 0.1 % damping keeps the prior finite on an undamped line at resonance.
     floor = 2e-3 * np.sqrt(plant.omega2) * omega
     variance = 1.0 / (np.abs(plant.omega2 - omega**2) ** 2 + floor**2)
@@ -545,8 +585,7 @@ def _predicted_rms(bare_shape, plant, robot, omega, positions, weights):
     for i, p in enumerate(positions):
         h = plant.receptance(p, omega)
         n = plant.coupling(p)
-        at_robot = complex(n @ np.linalg.solve(
-            np.diag(plant.omega2 - omega**2) + 1j * omega * plant.line_damping, n))
+        at_robot = complex(n @ plant.modal_response(n, omega))
         w_bare_p = complex(np.interp(p, plant.model.node_positions, bare_shape.real)
                            + 1j * np.interp(p, plant.model.node_positions, bare_shape.imag))
         shape = bare_shape + h * reaction * w_bare_p / (1 - at_robot * reaction)
@@ -666,16 +705,18 @@ def _check_multiple(name: str, value: float, dt: float) -> int:
     return steps
 
 
-def _calibrated_filter(record, dt, sensors, delays, noise_var):
-    """Steady-state Kalman filter on a DMD model of the calibration record (alpha from data)."""
-    curve = select_alpha(record, dt, delays=delays)
-    alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None else curve.best_alpha
-    dmd = fit_dmd(record, dt, alpha=alpha, delays=delays, alpha_mode=curve.alpha_mode)
-    sys = dmd.to_statespace(measured=list(sensors))
-    kf = KalmanFilter(
-        sys, Q=dmd.residual_covariance, R=noise_var, steady_state=True, field_map=dmd.field_map
-    )
-    return kf, np.asarray(dmd.field_map), np.asarray(sys.C) @ np.asarray(sys.A)
+def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
+    """The estimator recipe (:func:`~powerline_control.recipe.design_estimator`) on the
+    calibration record with the given sensors: filter, field map and the one-step sensor
+    predictor C A (for the innovation check)."""
+    options = {} if delays is None else {"delays": delays}
+    if rank is not None:
+        options["rank"] = rank
+    design = design_estimator(record, len(sensors), dt=dt, sensors=list(sensors),
+                              noise_std=noise_std if noise_std > 0 else None, **options)
+    sys = design.model.to_statespace(measured=list(sensors))
+    return (design.filter, np.asarray(design.model.field_map),
+            np.asarray(sys.C) @ np.asarray(sys.A))
 
 
 # Thousands of small products per simulated second: one BLAS thread is several times faster than
@@ -688,16 +729,17 @@ def run_closed_loop(
     limits: RobotLimits | None = None,
     *,
     sensors: Sequence[int],
-    n_elements: int = 100,
+    n_elements: int | None = 100,
     bc: object = "pinned",
     damping: object = None,
     duration: float = 10.0,
     calibration: float = 2.0,
     dt: float = 1e-3,
     control_period: float = 0.05,
-    plant_period: float = 0.01,
+    plant_period: float | None = None,
     noise_fraction: float = 0.01,
-    delays: int = 2,
+    delays: int | None = None,
+    estimator_rank: int | None = None,
     antinode_window: float = 1.0,
     frequency_window: float = 2.0,
     retarget_threshold: float = 0.05,
@@ -706,7 +748,7 @@ def run_closed_loop(
     clamp_distance: float | None = None,
     obstacles: Sequence[tuple[float, float]] = (),
     motion: str = "closed_form",
-    planner_time_budget: float | None = 1.0,
+    planner_time_budget: float | None = None,
     seed: int | np.random.Generator | None = 0,
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
@@ -724,8 +766,9 @@ def run_closed_loop(
         Speed and acceleration limits (default v_max = 0.5 m/s, a_max = 1 m/s^2).
     sensors : sequence of int
         Measured node indices (not at a pinned support, where the line never moves).
-    n_elements : int
-        Elements of the FE model whose modes play the real line.
+    n_elements : int or None
+        Elements of the FE model whose modes play the real line (None: the mesh the physics
+        chooses for the aeolian band, see :class:`~powerline_control.fem.LineModel`).
     bc : str or (str, str)
         Supports.
     damping : None, ModalDamping or RayleighDamping
@@ -733,19 +776,24 @@ def run_closed_loop(
     duration : float
         Total simulated time, s, calibration included.
     calibration : float
-        Initial window with the robot parked, used to identify the estimator's model, s.
+        Initial window with the robot parked, used to identify the estimator's model, s
+        (floored to whole samples, like ``duration``).
     dt : float
         Sample interval, s.
     control_period : float
         Interval between control steps, s (a multiple of ``dt``).
-    plant_period : float
+    plant_period : float or None
         Interval over which the plant holds the robot's (mid-block) position, s (a multiple of
-        ``dt``).
+        ``dt``). None: 10 ms, or the control period when the plant keeps a band of more than 48
+        modes (a long span: each new position costs a matrix exponential of the band).
     noise_fraction : float
         Sensor noise as a fraction of the RMS displacement of the calibration window (0: none;
         the filter then assumes a 1e-4 floor so that its Riccati equation stays regular).
-    delays : int
-        Time delays of the DMD model (2 makes the displacement model exact for a linear line).
+    delays : int or None
+        Time delays of the estimator's DMD model (None: the recipe's default).
+    estimator_rank : int or None
+        Rank of the estimator's model (None: the recipe's default). The filter's cost grows
+        with it, not with the mesh.
     antinode_window : float
         Length of the window the excited shape is fitted on, s.
     frequency_window : float
@@ -757,8 +805,9 @@ def run_closed_loop(
     settle_margin : float
         Time after the robot's arrival before the settled window starts, s.
     n_modes : int or None
-        Bare-line modes of the plant; None keeps those below 8x the highest load frequency (at
-        least 12; all of a small model).
+        Lowest bare-line modes kept by the plant; None keeps those below 8x the highest load
+        frequency (at least 12) when they are at most 48, else the band from 0.6x the lowest to
+        1.4x the highest load frequency (long spans).
     clamp_distance : float or None
         Where the "near clamp" comparison parks the robot, m from the left support; default
         min(0.05 L, 1.5 m), where fixed dampers sit.
@@ -767,7 +816,8 @@ def run_closed_loop(
     motion : {"closed_form", "mpc"}
         Motion law: the closed-form time-optimal approach, or the receding-horizon planner.
     planner_time_budget : float or None
-        Wall-clock budget of one MPC step, s (``motion="mpc"`` only).
+        Wall-clock budget of one MPC step, s (``motion="mpc"`` only); None (default): the
+        planner's iteration limits, so results do not depend on the machine's load.
     seed : int, Generator or None
         Sensor noise.
 
@@ -808,20 +858,34 @@ def run_closed_loop(
     )
     dt = check_real("dt", dt, low=0.0)
     control_period = check_real("control_period", control_period, low=0.0)
-    plant_period = check_real("plant_period", plant_period, low=0.0)
+    if plant_period is not None:
+        plant_period = check_real("plant_period", plant_period, low=0.0)
     steps_per_period = _check_multiple("control_period", control_period, dt)
-    plant_steps = _check_multiple("plant_period", plant_period, dt)
-    n_cal = _check_multiple("calibration", calibration, dt) + 1
+    plant_steps = (
+        _check_multiple("plant_period", plant_period, dt) if plant_period is not None else None
+    )
+    # Durations are sampled (floored to whole samples, as simulate does); rates must divide.
+    n_cal = int(np.floor(calibration / dt + 1e-9)) + 1
+    if n_cal < 3:
+        raise InputError(
+            f"The 'calibration' parameter ({calibration:g} s) must hold at least 2 samples of "
+            f"dt ({dt:g} s)."
+        )
     noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True)
     antinode_window = check_real("antinode_window", antinode_window, low=0.0)
     frequency_window = check_real("frequency_window", frequency_window, low=0.0)
     retarget_threshold = check_real("retarget_threshold", retarget_threshold, low=0.0)
     settle_margin = check_real("settle_margin", settle_margin, low=0.0, low_inclusive=True)
-    delays = check_int("delays", delays, low=1)
+    if delays is not None:
+        delays = check_int("delays", delays, low=1)
+    if estimator_rank is not None:
+        estimator_rank = check_int("estimator_rank", estimator_rank, low=1)
     if motion not in ("closed_form", "mpc"):
         raise InputError(f"The 'motion' parameter must be 'closed_form' or 'mpc'. Got {motion!r}.")
-    n_elements = check_int("n_elements", n_elements, low=2)
-    sensors = tuple(check_indices("sensors", sensors, n_elements + 1).tolist())
+    if n_elements is not None:
+        n_elements = check_int("n_elements", n_elements, low=2)
+    if n_elements is not None:  # early, before any model is built
+        check_indices("sensors", sensors, n_elements + 1)
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
     obstacles = [
@@ -841,6 +905,8 @@ def run_closed_loop(
 
     setup_start = time.perf_counter()
     bare = LineModel(span, n_elements, bc, damping=damping)
+    # Sorted: the estimator's outputs follow the node order.
+    sensors = tuple(sorted(check_indices("sensors", sensors, bare.n_nodes).tolist()))
     fixed_nodes = [j for j in sensors if bare.displacement_map()[[j]].nnz == 0]
     if fixed_nodes:
         raise InputError(
@@ -852,18 +918,28 @@ def run_closed_loop(
         if clamp_distance is None
         else check_real("clamp_distance", clamp_distance, low=0.0, high=span.length)
     )
-    t = dt * np.arange(_check_multiple("duration", duration, dt) + 1)
+    t = dt * np.arange(int(np.floor(duration / dt + 1e-9)) + 1)
     n_t = t.size
-    top_frequency = max(
-        (float(f.frequency) for _, loads in segments for f in loads if hasattr(f, "frequency")),
-        default=0.5 / dt / 4,
-    )
+    load_frequencies = [
+        float(b.frequency)
+        for _, loads in segments
+        for f in loads
+        for b in [f.bind(bare) if hasattr(f, "bind") else f]
+        if hasattr(b, "frequency")
+    ]
     if n_modes is None:
-        below = int(np.count_nonzero(span.pinned_frequencies(bare.n_dofs) <= 8 * top_frequency))
-        n_modes = int(min(bare.n_dofs, max(12, below + 2)))
+        n_modes = _default_modes(span, bare, load_frequencies, dt)
     else:
         n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
     plant = _ModalPlant(bare, robot, n_modes, dt)
+    if plant_steps is None:
+        # 10 ms blocks, or one block per control period for a long span's band of ~100 modes
+        # (each new position costs an exponential of a (4r + 2)-square matrix).
+        plant_steps = (
+            steps_per_period
+            if plant.r > SMALL_PLANT_MODES
+            else max(1, min(steps_per_period, int(round(0.01 / dt))))
+        )
     free_plant = _ModalPlant(bare, None, n_modes, dt)
     modal_force, residual, harmonic = _load_histories(bare, plant, segments, t)
     nodal = plant.nodal
@@ -877,9 +953,8 @@ def run_closed_loop(
     calib_rms = float(np.sqrt(np.mean(calib_true**2)))
     noise_std = noise_fraction * calib_rms
     calib_noisy = calib_true + noise_std * rng.standard_normal(calib_true.shape)
-    filter_var = max(noise_std, 1e-4 * calib_rms) ** 2
     kf, field_map, predict_sensors = _calibrated_filter(
-        calib_noisy, dt, sensor_list, delays, filter_var
+        calib_noisy, dt, sensor_list, delays, noise_std, estimator_rank
     )
     states = np.empty((n_t, field_map.shape[1]))
     warm = kf.filter(calib_noisy[sensor_list], update_state=True)
@@ -943,7 +1018,7 @@ def run_closed_loop(
         return bare_shape(lo, end, frequency), unsteady
 
     timings = {"setup": time.perf_counter() - setup_start, "plant": 0.0, "plant update": 0.0,
-               "filter": 0.0}
+               "filter": 0.0, "modes": plant.r}
     wall_start, cpu_start = time.perf_counter(), time.process_time()
     k = n_cal - 1
     while k < n_t - 1:
@@ -1072,6 +1147,15 @@ def run_closed_loop(
     for begin, stop in zip(target_starts, bounds, strict=True):
         arrival = _arrival_index(position[: stop + 1], begin, tolerance)
         settle_times.append(float(t[arrival] - t[begin]) if arrival is not None else float("nan"))
+    follow_times = []
+    for change in (start for start, _ in segments[1:]):
+        later = [i for i, begin in enumerate(target_starts) if t[begin] >= change]
+        if not later:
+            follow_times.append(float("nan"))
+            continue
+        begin, stop = target_starts[later[0]], bounds[later[0]]
+        arrival = _arrival_index(position[: stop + 1], begin, tolerance)
+        follow_times.append(float(t[arrival] - change) if arrival is not None else float("nan"))
     last_begin = target_starts[-1] if target_starts else n_cal - 1
     arrival = _arrival_index(position, last_begin, tolerance)
     window_start = t[arrival] + settle_margin if arrival is not None else np.inf
@@ -1127,7 +1211,7 @@ def run_closed_loop(
             shape = nodal @ amplitude[:r] + static_amplitude
             return float(np.sqrt(0.5 * weights @ np.abs(shape) ** 2))
 
-        coarse = np.linspace(0.0, span.length, 4 * n_elements + 1)[1:-1]
+        coarse = np.linspace(0.0, span.length, 4 * bare.n_elements + 1)[1:-1]
         coarse_rms = np.array([steady_rms(x) for x in coarse])
         i = int(np.argmin(coarse_rms))
         step = coarse[1] - coarse[0]
@@ -1186,4 +1270,5 @@ def run_closed_loop(
         damper_power=read_only(loop_power),
         predictions=tuple(predictions),
         timings=timings,
+        follow_times=tuple(follow_times),
     )

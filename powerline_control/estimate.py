@@ -38,11 +38,13 @@ import scipy.stats as sstats
 
 from ._riccati import (
     describe_modes,
-    field_variances as mapped_variances,
     filter_gain,
     posterior_from_predicted,
     solve_filter_dare,
     undetectable_modes,
+)
+from ._riccati import (
+    field_variances as mapped_variances,
 )
 from ._validation import (
     check_array,

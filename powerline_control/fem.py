@@ -138,7 +138,8 @@ def physics_mesh(span: Span, bc: tuple[str, str], max_frequency: float,
     (871, 0.0078, 0.358)
     """
     length = span.length
-    interior = float(span.loop_length(max_frequency)) / elements_per_loop
+    # at least 4 interior elements, so a band below the first mode still gets a usable model
+    interior = min(float(span.loop_length(max_frequency)) / elements_per_loop, length / 4)
     # The clamp's layer exp(-x / delta) is resolved 4x finer than the shortest loop
     # (k h = pi / (4 N)): measured, coarser first elements let the clamp's error (which converges
     # pre-asymptotically, ~h^3.3) dominate the low modes; 4x keeps it below the interior's at a
@@ -147,17 +148,16 @@ def physics_mesh(span: Span, bc: tuple[str, str], max_frequency: float,
     layers = []
     for side in bc:
         sizes: list[float] = []
-        if side == "clamped" and first * GRADING_RATIO < interior:
-            size = first
-            while size < interior:
+        # (a string, EI = 0, has no layer: delta = 0 and no grading; a graded layer never takes
+        # more than a quarter of the span)
+        if side == "clamped" and 0.0 < first and first * GRADING_RATIO < interior:
+            size, total = first, 0.0
+            while size < interior and total + size <= length / 4:
                 sizes.append(size)
+                total += size
                 size *= GRADING_RATIO
         layers.append(np.array(sizes))
     graded = sum(float(layer.sum()) for layer in layers)
-    if graded >= 0.5 * length:
-        # A span only a few boundary layers long: uniform elements of the finest size.
-        n = max(2, int(np.ceil(length / min(first, interior))))
-        return np.linspace(0.0, length, n + 1)
     n_interior = max(1, int(np.ceil((length - graded) / interior)))
     widths = np.concatenate([layers[0], np.full(n_interior, (length - graded) / n_interior),
                              layers[1][::-1]])
@@ -539,7 +539,12 @@ class LineModel:
                          fix="use fewer elements (n_elements=None picks what the band needs)",
                          memory_budget=memory_budget)
             self.node_positions = read_only(np.linspace(0.0, span.length, self.n_elements + 1))
-        self.element_lengths = read_only(np.diff(self.node_positions))
+        if n_elements is None:
+            self.element_lengths = read_only(np.diff(self.node_positions))
+        else:
+            # exactly L / n (np.diff of the nodes differs in the last bit from element to element)
+            uniform = np.full(self.n_elements, span.length / self.n_elements)
+            self.element_lengths = read_only(uniform)
         if mdr is not None:
             if not isinstance(mdr, MDR):
                 raise InputError(f"The 'mdr' parameter must be an MDR. Got {type(mdr).__name__}.")

@@ -33,7 +33,15 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 
-from ._validation import check_array, check_choice, check_indices, check_int, check_real, read_only
+from ._validation import (
+    check_array,
+    check_budget,
+    check_choice,
+    check_indices,
+    check_int,
+    check_real,
+    read_only,
+)
 from .errors import IdentificationError, IllConditionedWarning, InputError, UnstableModelWarning
 
 __all__ = [
@@ -58,6 +66,8 @@ _GRAM_RANK_RATIO = 1e-6
 #: Models with at most this many regressors (states + inputs) keep their Gram matrix for
 #: DMDModel.damping_report (2 MB at the limit).
 _KEEP_GRAM_LIMIT = 500
+#: to_statespace checks detectability of unit-circle modes for models up to this size.
+_DETECTABILITY_CHECK_LIMIT = 1000
 #: |lambda| above 1 + this counts as outside the unit circle (round-off of a marginal mode).
 _UNIT_CIRCLE_TOL = 1e-9
 
@@ -575,6 +585,12 @@ class DMDModel:
 
     # --- export -------------------------------------------------------------------------------
 
+    def _warn_if_python_control_refuses(self, C: np.ndarray, nodes: list[int]) -> None:
+        message = _python_control_trouble(self, C)
+        if message is not None:
+            warnings.warn(f"to_statespace(measured={_short_list(nodes)}): {message}",
+                          UnstableModelWarning, stacklevel=3)
+
     @property
     def state_names(self) -> list[str]:
         """Names of the states: ``x{node}_lag{l}`` for a window, ``pod{i}`` for POD coordinates."""
@@ -612,6 +628,13 @@ class DMDModel:
         InputError
             Node indices out of range, repeated or not integers; wrong number of input names.
 
+        Warns
+        -----
+        UnstableModelWarning
+            The model is one python-control's Riccati functions (``dlqe``, ``dlqr``) will
+            refuse: unstable, or a unit-circle mode invisible to the measured nodes; the message
+            says what to change.
+
         Examples
         --------
         >>> import numpy as np, powerline_control as plc
@@ -623,6 +646,7 @@ class DMDModel:
         """
         nodes = _check_nodes("measured", measured, self.n_nodes)
         C = self.field_map[nodes]
+        self._warn_if_python_control_refuses(C, nodes)
         B = np.zeros((self.n_states, 0)) if self.B is None else self.B
         if inputs is None:
             input_names = [f"u{i}" for i in range(self.n_inputs)]
@@ -651,9 +675,39 @@ class DMDModel:
         )
 
 
+def _python_control_trouble(model: DMDModel, C: np.ndarray) -> str | None:
+    """Why python-control's Riccati-based functions would refuse this model, or None."""
+    if model.n_states == 0:
+        return None
+    advice = ("Refit with a larger alpha (select_alpha's stable_alpha / best_stable_alpha), a "
+              "rank, or more delays; or use plc.KalmanFilter / plc.steady_state_covariance, "
+              "whose Riccati solver handles it.")
+    if not model.is_stable:
+        return (f"The model is unstable (spectral radius {model.spectral_radius:.6g} >= 1): "
+                "python-control's dlqe / dlqr / dare may refuse it (SciPy: 'Reordering of "
+                "(A, B) failed') or return a non-stabilising gain. " + advice)
+    if model.n_states > _DETECTABILITY_CHECK_LIMIT or C.shape[0] == 0:
+        return None
+    marginal = np.abs(model.eigenvalues) >= 1.0 - 1e-9
+    if not marginal.any():
+        return None
+    seen = np.linalg.norm(C @ model.modes[:, marginal], axis=0)
+    scale = max(float(np.abs(C).max()), np.finfo(float).tiny)
+    if np.any(seen <= 1e-10 * scale):
+        return ("The model is undetectable from these outputs: a mode on the unit circle is "
+                "invisible to every measured node, so no Kalman filter converges and "
+                "python-control's dlqe fails. Measure other nodes, or " + advice[0].lower() +
+                advice[1:])
+    return None
+
+
 def _spectral_order(values: np.ndarray) -> np.ndarray:
     """Decreasing magnitude; a conjugate pair with positive imaginary part first."""
     return np.lexsort((-values.imag, -np.round(np.abs(values), 12)))
+
+
+def _short_list(items: list[int]) -> str:
+    return str(items) if len(items) <= 8 else f"[{items[0]}, ..., {items[-1]}] ({len(items)})"
 
 
 def _check_nodes(name: str, nodes: object, n_nodes: int) -> list[int]:
@@ -1048,6 +1102,16 @@ def _check_common(
     delays = check_int("delays", delays, low=1, high=max(1, n_samples - 2))
     if rank is not None:
         rank = check_int("rank", rank, low=1, high=X.shape[0] * delays)
+    rows = X.shape[0] * delays
+    # The delay-embedded data (a copy, plus shifted views and a projection) and the Gram matrix
+    # of its rows: estimated before anything is allocated.
+    check_budget(
+        "The DMD fit", nbytes=8.0 * (2 * rows * n_samples + rows**2),
+        flops=2.0 * rows**2 * n_samples, parameter="delays", value=delays,
+        fix=(f"use fewer delays or nodes ({X.shape[0]} nodes x {delays} delays = {rows} rows; "
+             "design_estimator first projects the nodes on a few spatial POD modes), or a "
+             "shorter record"),
+    )
     return X, dt, delays, rank, _check_inputs(inputs, n_samples)
 
 
@@ -1457,6 +1521,10 @@ class OnlineDMD:
     ----------
     n_updates : int
         Samples added with :meth:`update` since the batch start.
+    n_windup_clips : int
+        Updates at which the covariance ``P`` had wound up (``forgetting < 1`` and directions
+        the data no longer excite) and its eigenvalues were capped at 1e8 times its initial
+        trace, so ``A`` stays finite instead of drifting to NaN.
 
     Raises
     ------
@@ -1509,6 +1577,9 @@ class OnlineDMD:
             )
         # RLS needs the inverse information matrix itself; eigh keeps it symmetric and exact.
         self._P = (vec / lam) @ vec.T
+        # Wind-up cap: 1e8 times the initial uncertainty, far beyond what excited data reach.
+        self._p_cap = 1e8 * float(np.trace(self._P))
+        self.n_windup_clips = 0
         self._coef, _ = _ridge(problem.target, problem.regressor, alpha)
         residual = problem.target - self._coef @ problem.regressor
         self._residual_sum = residual @ residual.T
@@ -1537,6 +1608,8 @@ class OnlineDMD:
         ------
         InputError
             Wrong shapes or non-finite values.
+        IdentificationError
+            The recursion diverged (non-finite covariance or coefficients).
         """
         x = check_array("x", x, shape=(self._n_nodes,))
         w = self._window[:, ::-1].T.reshape(-1)
@@ -1554,7 +1627,22 @@ class OnlineDMD:
         self._coef += gain * np.outer(error, Pw)
         rho = self.forgetting
         P = (self._P - gain * np.outer(Pw, Pw)) / rho
-        self._P = (P + P.T) / 2
+        P = (P + P.T) / 2
+        if rho < 1 and np.trace(P) > self._p_cap:
+            # Covariance wind-up: with forgetting, directions the data stop exciting grow like
+            # rho^-k until they overflow. Cap P's eigenvalues (an information floor of
+            # 1 / cap per direction, i.e. a constant Tikhonov term): the estimate of excited
+            # directions is untouched, unexcited ones stop drifting.
+            lam, vec = sla.eigh(P)
+            P = (vec * np.minimum(lam, self._p_cap / lam.size)) @ vec.T
+            self.n_windup_clips += 1
+        if not (np.all(np.isfinite(P)) and np.all(np.isfinite(self._coef))):
+            raise IdentificationError(
+                f"OnlineDMD diverged at update {self.n_updates + 1} (non-finite covariance or "
+                "coefficients): the data are not finite-energy or far from the model. Restart "
+                "from a new batch, or use forgetting closer to 1 and alpha > 0."
+            )
+        self._P = P
         self._residual_sum = rho * self._residual_sum + np.outer(error, error)
         self._weight = rho * self._weight + 1.0
         self._window = np.column_stack([self._window[:, 1:], x])

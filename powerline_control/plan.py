@@ -1454,7 +1454,14 @@ class MotionPlanner:
     ) -> str:
         """Set the solver's initial guess (scaled); return which one it is."""
         n, opti, scale, order = program.n, program.opti, self._scale, program.order
-        if use_previous:
+        pieces = None
+        if self.warm_start == "closed_form" and (
+            order == 2 or (state[1] == 0.0 and state[2] == 0.0)
+        ):
+            pieces = _time_optimal_pieces(state[0], target, state[1], self.limits)
+        # With a jerk limit the closed form starts at rest; moving, the shifted previous plan is
+        # the next best guess.
+        if use_previous or (pieces is None and program is self._warm):
             states, inputs, lam_g = self._previous
             # Shift by one period; the previous plan ends at rest, so repeating its end is valid.
             guess = np.hstack([states[:, 1:], states[:, -1:]])
@@ -1464,10 +1471,6 @@ class MotionPlanner:
             opti.set_initial(program.inputs, scale.derivative(shifted, order).reshape(1, n))
             opti.set_initial(opti.lam_g, lam_g)
             return "previous"
-        pieces = None
-        if self.warm_start == "closed_form":
-            if order == 2 or (state[1] == 0.0 and state[2] == 0.0):
-                pieces = _time_optimal_pieces(state[0], target, state[1], self.limits)
         if pieces:
             times = self.dt * np.arange(n + 1)
             guess = _sample_pieces(state[:order], pieces, times, order)

@@ -455,7 +455,7 @@ def plot_robot_value(value) -> Figure:
 
 # ------------------------------------------------------------------ closed-loop figures
 # (section owned by the closed-loop engineer; appended here so that cli/report can use them)
-__all__ += ["plot_closed_loop_envelope", "plot_robot_path"]  # noqa: PLE0605
+__all__ += ["plot_closed_loop_envelope", "plot_closed_loop_path"]  # noqa: PLE0605
 
 
 def plot_closed_loop_envelope(result, ax=None) -> Figure:
@@ -505,7 +505,7 @@ def plot_closed_loop_envelope(result, ax=None) -> Figure:
     return fig
 
 
-def plot_robot_path(result, ax=None) -> Figure:
+def plot_closed_loop_path(result, ax=None) -> Figure:
     """The robot's path over the line's moving envelope (time down, position across).
 
     The colour is the largest |w| at each node over 0.1 s blocks; the robot's position and its
@@ -529,7 +529,7 @@ def plot_robot_path(result, ax=None) -> Figure:
     >>> fake = SimpleNamespace(t=t, x=np.arange(4.0), displacement=np.ones((4, 201)),
     ...                        robot_position=np.ones(201), target=np.ones(201),
     ...                        retarget_times=(0.5,), calibration_time=0.2)
-    >>> len(plot_robot_path(fake).axes)
+    >>> len(plot_closed_loop_path(fake).axes)
     2
     """
     fig = Figure(figsize=(6, 6)) if ax is None else ax.figure

@@ -5,12 +5,12 @@
 with defaults measured to generalise (``docs/identification.md``, "The estimator recipe"):
 
 1. **Spatial reduction.**  The snapshots are projected on their leading spatial POD modes
-   (those above the noise floor estimated from the singular values, at most ``spatial_rank``),
+   (at most ``spatial_rank``),
    so that nothing later costs more than ``O(n_nodes)`` per sample: the ``n`` nodes enter only
    through output maps (``DMDModel.field_map``).
 2. **Time-delay DMD with rank truncation** (``delays``, ``rank``) on those coordinates, with the
-   Tikhonov ``alpha`` chosen on held-out data (:func:`~powerline_control.identify.select_alpha`,
-   smallest held-out free-run error among stable models; alpha = 0 is on the grid).
+   Tikhonov ``alpha`` chosen on held-out data by what matters here: the error of the resulting
+   estimator at the nodes it does not measure (alpha = 0 is on the grid).
 3. **Sensors** by :func:`~powerline_control.sensors.select_sensors` on the identified model's
    node outputs (Kalman criterion, supports and other motionless nodes excluded).
 4. **Filter**: a steady-state :class:`~powerline_control.estimate.KalmanFilter` on the measured
@@ -22,28 +22,71 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
 
-from ._validation import check_array, check_budget, check_choice, check_int, check_real, read_only
-from .errors import IdentificationError, InputError
+from ._validation import (
+    check_array,
+    check_budget,
+    check_choice,
+    check_indices,
+    check_int,
+    check_real,
+    read_only,
+)
+from .errors import EstimationError, IdentificationError, IllConditionedWarning, InputError
 from .estimate import KalmanFilter
-from .identify import DMDModel, fit_dmd, select_alpha
+from .identify import DMDModel, fit_dmd
 from .sensors import select_sensors
 
-__all__ = ["EstimatorDesign", "design_estimator"]
+__all__ = ["AlphaSweep", "EstimatorDesign", "design_estimator"]
 
 #: Default number of stacked snapshots (the model state spans delays * dt of history).
 DEFAULT_DELAYS = 8
 #: Default POD rank of the delay-embedded model.
-DEFAULT_RANK = 20
+DEFAULT_RANK = 30
 #: Largest number of spatial POD coordinates kept before delay embedding.
 DEFAULT_SPATIAL_RANK = 24
+#: Relative alphas of the held-out sweep (0 first: exact on clean data, no damping bias).
+_DEFAULT_ALPHAS = np.array([0.0, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2])
+#: Radius that eigenvalues outside the unit circle are pulled to (see _stabilise).
+_STABLE_RADIUS = 1.0 - 1e-6
+#: Spatial POD coordinates below this fraction of the largest singular value are round-off.
+_ROUND_OFF_FRACTION = 1e-7
 #: Nodes whose training RMS is below this fraction of the largest never move (supports).
 _MOTIONLESS_FRACTION = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class AlphaSweep:
+    """How :func:`design_estimator` chose alpha: the estimator's own held-out error per alpha.
+
+    Attributes
+    ----------
+    alphas : ndarray
+        Relative Tikhonov alphas tried.
+    held_out_error : ndarray
+        Relative RMS error at the unmeasured moving nodes on the held-out part of the record,
+        noise-corrected, with the provisional ``layout`` (``inf``: unstable model or failed filter).
+    layout : ndarray of int
+        Provisional sensors used for the sweep (evenly spread over the moving nodes, or the
+        given sensors).
+    n_fit : int
+        Samples that trained each model of the sweep; the rest were held out.
+
+    Examples
+    --------
+    See :class:`EstimatorDesign`.
+    """
+
+    alphas: np.ndarray
+    held_out_error: np.ndarray
+    layout: np.ndarray
+    n_fit: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,14 +107,17 @@ class EstimatorDesign:
         Sensor noise standard deviation used for ``R``, m.
     noise_source : str
         Where ``noise_std`` came from: "given", "snapshots" or "estimated".
-    alpha_curve : AlphaCurve
-        The held-out alpha sweep that chose ``model.alpha``.
+    alpha_sweep : AlphaSweep
+        The held-out sweep that chose ``model.alpha``.
     spatial_rank : int
         Spatial POD coordinates kept before delay embedding.
     sensor_selection : SensorSelection or None
         The sensor optimisation result (``None`` when ``sensors`` were given).
     n_train : int
         Samples used for the final fit.
+    n_stabilised : int
+        Eigenvalues of the least-squares fit that lay outside the unit circle and were pulled
+        radially to 1 - 1e-6 (0 for a stable fit).
 
     Examples
     --------
@@ -89,23 +135,28 @@ class EstimatorDesign:
     filter: KalmanFilter
     noise_std: float
     noise_source: str
-    alpha_curve: object
+    alpha_sweep: AlphaSweep
     spatial_rank: int
     sensor_selection: object
     n_train: int
+    n_stabilised: int = 0
 
     @property
     def n_nodes(self) -> int:
         """Number of nodes of the field the filter reconstructs."""
         return self.model.n_nodes
 
-    def estimate_field(self, measurements: object) -> np.ndarray:
+    def estimate_field(self, measurements: object, *, noise_std: float | None = None
+                       ) -> np.ndarray:
         """Filter a record of the sensors and return the whole field.
 
         Parameters
         ----------
         measurements : array_like, shape (n_sensors, n_t)
             Displacements measured at :attr:`sensors` (in that order), m; NaN = missing.
+        noise_std : float, optional
+            Sensor noise standard deviation of this record, m, when it differs from the
+            design's :attr:`noise_std` (e.g. other sensors); a filter with that ``R`` is used.
 
         Returns
         -------
@@ -128,7 +179,12 @@ class EstimatorDesign:
                 f"The 'measurements' parameter must have one row per sensor ({self.sensors.size}:"
                 f" nodes {self.sensors.tolist()}), time along columns. Got shape {y.shape}."
             )
-        return read_only(self.filter.filter(y).field)
+        kf = self.filter
+        if noise_std is not None:
+            noise_std = check_real("noise_std", noise_std, low=0.0)
+            if noise_std != self.noise_std:
+                kf = _steady_filter(self.model, self.sensors, noise_std)
+        return read_only(kf.filter(y).field)
 
     def summary(self) -> str:
         """A few lines in words: model, alpha, sensors and the filter's predicted accuracy.
@@ -151,9 +207,14 @@ class EstimatorDesign:
             f"history), {m.n_states} POD coordinates of {self.spatial_rank} spatial ones, "
             f"trained on {self.n_train} samples at dt = {m.dt:g} s.",
             f"Tikhonov alpha {m.alpha_relative:.3g} relative ({m.alpha:.3g} absolute), chosen "
-            "by held-out free-run error; " + report.message,
+            f"by the estimator's error at unmeasured nodes on held-out data "
+            f"({100 * float(np.nanmin(self.alpha_sweep.held_out_error)):.3g} %); "
+            + report.message,
             f"Sensor noise std {self.noise_std:.3g} m ({self.noise_source}).",
         ]
+        if self.n_stabilised:
+            lines.insert(3, f"{self.n_stabilised} eigenvalue(s) of the least-squares fit lay just "
+                            "outside the unit circle and were pulled to radius 1 - 1e-6.")
         if self.sensor_selection is not None:
             sel = self.sensor_selection
             lines.append(
@@ -168,6 +229,66 @@ class EstimatorDesign:
             " m (from the model's own Riccati solution; check it on held-out data)."
         )
         return "\n".join(lines)
+
+
+def _stabilise(model: DMDModel) -> DMDModel:
+    """Pull eigenvalues outside the unit circle to radius ``_STABLE_RADIUS``, nothing else.
+
+    A finite noisy record cannot tell an undamped mode (or a slow drift) from one that grows by
+    1e-4 per sample; least squares lands on either side.  The filter does not care, but an
+    unstable model is refused by python-control's Riccati solvers and grows in free runs, so the
+    few eigenvalues outside are moved radially onto the circle of radius 1 - 1e-6 (frequency
+    and mode shape kept; the held-out sweep scores the model after this step).
+    """
+    if model.is_stable:
+        return model
+    values, vectors = sla.eig(model.A)
+    magnitude = np.abs(values)
+    scale = np.where(magnitude > _STABLE_RADIUS, _STABLE_RADIUS / magnitude, 1.0)
+    A = vectors @ np.diag(values * scale) @ sla.inv(vectors)
+    if np.abs(A.imag).max() > 1e-8 * max(np.abs(A.real).max(), 1e-300):
+        raise IdentificationError(  # pragma: no cover - conjugate pairs scale alike
+            "internal: stabilising the identified model broke its conjugate symmetry")
+    return dataclasses.replace(model, A=read_only(A.real.copy()), regressor_gram=None)
+
+
+def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: float,
+                    alpha: float, delays: int, rank: int, layout: np.ndarray,
+                    candidates: np.ndarray, noise: float) -> float:
+    """Relative RMS error of the estimator at unmeasured nodes on held-out data (inf: unusable).
+
+    The held-out truth is itself noisy; its white noise adds ``noise**2`` to the mean square
+    error at every unmeasured node (the filter never sees those nodes), so it is subtracted.
+    """
+    try:
+        with warnings.catch_warnings():
+            # Expected along the sweep: plain DMD (alpha = 0) may be ill-conditioned.
+            warnings.simplefilter("ignore", IllConditionedWarning)
+            reduced = fit_dmd(train, dt, alpha=alpha, alpha_mode="relative", delays=delays,
+                              rank=min(rank, train.shape[0] * delays))
+        model = _stabilise(_lift(reduced, spatial))
+        field = _steady_filter(model, layout, noise).filter(held[layout]).field
+    except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError):
+        return math.inf
+    unmeasured = np.setdiff1d(candidates, layout)
+    skip = min(held.shape[1] // 4, 10 * delays + 100)  # the filter's start-up transient
+    truth = held[unmeasured, skip:]
+    mse = float(np.mean((field[unmeasured, skip:] - truth) ** 2)) - noise**2
+    power = float(np.mean(truth**2)) - noise**2
+    if not math.isfinite(mse) or power <= 0:
+        return math.inf
+    return math.sqrt(max(mse, 0.0) / power)
+
+
+def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float) -> KalmanFilter:
+    """Steady-state filter on the measured rows, Q = residual covariance, R = noise_std^2."""
+    return KalmanFilter(
+        model.to_statespace(measured=sensors.tolist()),
+        Q=model.residual_covariance,
+        R=noise_std**2,
+        steady_state=True,
+        field_map=model.field_map,
+    )
 
 
 def _snapshot_matrix(snapshots: object, dt: object) -> tuple[np.ndarray, float, float, object]:
@@ -263,7 +384,6 @@ def design_estimator(
     forbidden: object = None,
     criterion: str = "kalman",
     train_fraction: float = 0.7,
-    horizon: int = 100,
     seed: int | np.random.Generator | None = None,
 ) -> EstimatorDesign:
     """Identify a reduced model, select sensors and build the Kalman filter, in one call.
@@ -279,13 +399,14 @@ def design_estimator(
         Sample time in seconds; required for an array, taken from Snapshots otherwise.
     delays : int, default 8
         Stacked snapshots of the model state.
-    rank : int, default 20
+    rank : int, default 30
         POD coordinates of the delay-embedded model (the filter's state size).
     spatial_rank : int, default 24
         At most this many spatial POD coordinates (fewer when the data's noise floor says so)
         are kept before the delay embedding; cost grows with it, not with ``n_nodes``.
     alphas : sequence of float, optional
-        Relative Tikhonov alphas to try (default: 0 and 25 values from 1e-12 to 1).
+        Relative Tikhonov alphas to try (default: 0 and 1e-10, 1e-8, ..., 1e-2); the one whose
+        estimator has the smallest error at unmeasured nodes on the held-out data wins.
     noise_std : float, optional
         Sensor noise standard deviation, m.  Default: from Snapshots, else estimated from the
         noise floor of the data's singular values.
@@ -298,10 +419,9 @@ def design_estimator(
     criterion : str, default "kalman"
         Sensor-selection criterion (see :func:`~powerline_control.sensors.select_sensors`).
     train_fraction : float, default 0.7
-        Fraction of the record that trains the models of the alpha sweep; the rest is held out.
-        The final model is fitted on the whole record.
-    horizon : int, default 100
-        Held-out free-run length of the alpha sweep, samples.
+        Fraction of the record that trains the models of the alpha sweep; the rest is held out
+        (filtered from the provisional layout, scored at every other moving node).  The final
+        model is fitted on the whole record.
     seed : int, Generator or None
         Seed of the sensor selection's random baseline.
 
@@ -330,6 +450,8 @@ def design_estimator(
     rank = check_int("rank", rank, low=1, high=spatial_rank * delays)
     criterion = check_choice("criterion", criterion, ("kalman", "gramian", "min-eig",
                                                       "reconstruction"))
+    train_fraction = check_real("train_fraction", train_fraction, low=0.0, high=1.0,
+                                high_inclusive=False)
     if noise_std is not None:
         noise_std = check_real("noise_std", noise_std, low=0.0)
     check_budget(
@@ -344,26 +466,17 @@ def design_estimator(
             "The 'snapshots' are all zeros: there are no dynamics to identify."
         )
 
-    # 1. Spatial POD: the coordinates above the noise floor (at most spatial_rank).
+    # 1. Spatial POD: the coordinates above round-off (at most spatial_rank).
     spatial, s = _spatial_basis(X, min(spatial_rank, n_nodes))
-    sigma_est, threshold = _noise_floor(s, X.shape)
-    above = int(np.count_nonzero(s > 1e-7 * s[0]))  # round-off only, for now
+    sigma_est, _ = _noise_floor(s, X.shape)
+    above = int(np.count_nonzero(s > _ROUND_OFF_FRACTION * s[0]))
     k = max(1, min(spatial_rank, above, n_nodes))
-    # The delay model needs enough coordinates for its rank.
-    k = min(max(k, math.ceil(rank / delays)), spatial.shape[1])
+    k = min(max(k, math.ceil(rank / delays)), spatial.shape[1])  # enough for the rank
     spatial = spatial[:, :k]
     rank = min(rank, k * delays)
     coords = spatial.T @ X
 
-    # 2. Delay DMD with rank truncation; alpha from held-out data (alpha = 0 included).
-    grid = np.concatenate([[0.0], np.logspace(-12, 0, 25)]) if alphas is None else alphas
-    curve = select_alpha(coords, dt, grid, delays=delays, rank=rank,
-                         train_fraction=train_fraction, horizon=horizon)
-    alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None else curve.best_alpha
-    reduced = fit_dmd(coords, dt, alpha=alpha, alpha_mode="relative", delays=delays, rank=rank)
-    model = _lift(reduced, spatial)
-
-    # 3. Noise level.
+    # 2. Noise level (R of the filter, and the held-out score's noise correction).
     if noise_std is not None:
         source, noise = "given", noise_std
     elif math.isfinite(snap_noise):
@@ -373,20 +486,56 @@ def design_estimator(
     rms = float(np.sqrt(np.mean(X**2)))
     noise = max(noise, 1e-4 * rms)  # noise-free data still needs a well-posed Riccati equation
 
-    # 4. Sensors: every node that moves is a candidate.
+    # 3. Candidates: every node that moves; a provisional layout for the alpha sweep.
     node_rms = np.sqrt(np.mean(X**2, axis=1))
+    candidates = np.flatnonzero(node_rms > _MOTIONLESS_FRACTION * node_rms.max())
     if sensors is not None:
-        from ._validation import check_indices
-
-        chosen = np.sort(check_indices("sensors", sensors, n_nodes))
-        selection = None
+        given = np.sort(check_indices("sensors", sensors, n_nodes))
+        provisional = given
     else:
-        candidates = np.flatnonzero(node_rms > _MOTIONLESS_FRACTION * node_rms.max())
+        given = None
         if candidates.size < n_sensors:
             raise InputError(
                 f"The 'n_sensors' parameter ({n_sensors}) exceeds the {candidates.size} nodes "
                 "that move in the training record."
             )
+        provisional = candidates[np.linspace(0, candidates.size - 1, n_sensors + 2)
+                                 .round().astype(int)[1:-1]]
+        provisional = np.unique(provisional)
+
+    # 4. Alpha from held-out data: the error of the estimator itself at unmeasured nodes.
+    grid = _DEFAULT_ALPHAS if alphas is None else check_array("alphas", alphas, ndim=1)
+    if grid.size == 0 or np.any(grid < 0):
+        raise InputError(f"The 'alphas' parameter must be a non-empty list of values >= 0. "
+                         f"Got {alphas!r}.")
+    n_fit = int(round(train_fraction * n_samples))
+    if n_fit < 4 * delays or n_samples - n_fit < 4 * delays:
+        raise InputError(
+            f"The record of {n_samples} samples is too short for delays={delays} with "
+            f"train_fraction={train_fraction}: both parts need at least {4 * delays} samples."
+        )
+    errors = np.array([
+        _held_out_error(coords[:, :n_fit], X[:, n_fit:], spatial, dt, float(a), delays, rank,
+                        provisional, candidates, noise)
+        for a in grid
+    ])
+    if not np.isfinite(errors).any():
+        raise IdentificationError(
+            "No alpha of the sweep gives a usable estimator on the held-out data (every model "
+            "was unstable or its filter failed). Try larger alphas, fewer delays or a lower rank."
+        )
+    alpha = float(grid[int(np.nanargmin(np.where(np.isfinite(errors), errors, np.nan)))])
+    sweep = AlphaSweep(alphas=read_only(np.array(grid, dtype=float)),
+                       held_out_error=read_only(errors), layout=read_only(provisional),
+                       n_fit=n_fit)
+    reduced = fit_dmd(coords, dt, alpha=alpha, alpha_mode="relative", delays=delays, rank=rank)
+    lifted = _lift(reduced, spatial)
+    model = _stabilise(lifted)
+
+    # 5. Sensors on the final model.
+    if given is not None:
+        chosen, selection = given, None
+    else:
         if positions is None:
             positions = snap_positions
         cand_positions = None
@@ -405,21 +554,16 @@ def design_estimator(
         )
         chosen = np.sort(candidates[list(selection.nodes)])
 
-    kf = KalmanFilter(
-        model.to_statespace(measured=chosen.tolist()),
-        Q=model.residual_covariance,
-        R=noise**2,
-        steady_state=True,
-        field_map=model.field_map,
-    )
+    kf = _steady_filter(model, chosen, noise)
     return EstimatorDesign(
         model=model,
         sensors=read_only(chosen),
         filter=kf,
         noise_std=float(noise),
         noise_source=source,
-        alpha_curve=curve,
+        alpha_sweep=sweep,
         spatial_rank=k,
         sensor_selection=selection,
         n_train=n_samples,
+        n_stabilised=lifted.n_unstable,
     )

@@ -113,6 +113,21 @@ class WindPowerCurve:
     amplitudes: tuple = ()
     powers: tuple = ()
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise InputError(f"The 'name' parameter must be a non-empty string. Got {self.name!r}.")
+        if bool(self.coefficients) == bool(self.amplitudes):
+            raise InputError("A WindPowerCurve needs either 'coefficients' (a polynomial) or "
+                             "'amplitudes' and 'powers' (digitised points), not both or neither.")
+        if self.coefficients:
+            check_array("coefficients", self.coefficients, ndim=1)
+        else:
+            a = check_array("amplitudes", self.amplitudes, ndim=1)
+            check_array("powers", self.powers, shape=(a.size,))
+            if np.any(np.diff(a) <= 0) or a[0] <= 0:
+                raise InputError("The 'amplitudes' parameter must be ascending values > 0 "
+                                 f"(reduced amplitudes Y/D). Got {self.amplitudes!r}.")
+
     @property
     def max_reduced_amplitude(self) -> float:
         """Largest Y/D at which the curve is defined (the CIGRE cubic: its first zero)."""
@@ -131,15 +146,17 @@ class WindPowerCurve:
         return _pchip(self)(a)
 
 
-_PCHIP_CACHE: dict[str, scipy.interpolate.PchipInterpolator] = {}
+_PCHIP_CACHE: dict[tuple, scipy.interpolate.PchipInterpolator] = {}
 
 
 def _pchip(curve: WindPowerCurve) -> scipy.interpolate.PchipInterpolator:
-    if curve.name not in _PCHIP_CACHE:
-        _PCHIP_CACHE[curve.name] = scipy.interpolate.PchipInterpolator(
+    # Keyed by the points, not the name: a user's curve may reuse a built-in curve's name.
+    key = (curve.amplitudes, curve.powers)
+    if key not in _PCHIP_CACHE:
+        _PCHIP_CACHE[key] = scipy.interpolate.PchipInterpolator(
             np.concatenate([[0.0], curve.amplitudes]), np.concatenate([[0.0], curve.powers]),
             extrapolate=False)
-    return _PCHIP_CACHE[curve.name]
+    return _PCHIP_CACHE[key]
 
 
 _DIGITISED = ("digitised points as tabulated in rte-france/pallas-dohl wind_power_data.yaml "
@@ -285,6 +302,14 @@ class SelfDampingLaw:
     m: float
     n: float | None
     k: float | None = None
+
+    def __post_init__(self) -> None:
+        check_real("l", self.l, low=0.0)
+        check_real("m", self.m, low=0.0)
+        if self.n is not None:
+            check_real("n", self.n, low=0.0, low_inclusive=True)
+        if self.k is not None:
+            check_real("k", self.k, low=0.0)
 
     def coefficient(self, span: Span) -> float:
         """The k of this law on ``span`` (the Lilien normalisation when ``k`` is None).
@@ -1171,6 +1196,20 @@ def aeolian_severity(
 
 
 # --------------------------------------------------------------------------- wind climate
+def _check_histogram(e: np.ndarray, p: np.ndarray, rtol: float) -> None:
+    """Raise unless ``p`` is a density on the bins ``e`` that integrates to 1 (to ``rtol``)."""
+    if e.size != p.size + 1 or e.size < 2 or np.any(np.diff(e) <= 0) or e[0] < 0:
+        raise InputError("The 'edges' parameter must be n + 1 ascending values >= 0 for n "
+                         f"densities. Got {e.size} edges and {p.size} densities.")
+    if np.any(p < 0):
+        raise InputError(f"The 'density' parameter must be >= 0. Got min {p.min():g}.")
+    total = float(np.sum(p * np.diff(e)))
+    if abs(total - 1.0) > rtol:
+        raise InputError(
+            "The 'density' parameter must integrate to 1 over the bins (sum of density * "
+            f"bin width), to {rtol:g}. Got {total:.6g}; divide by that to normalise it.")
+
+
 @dataclass(frozen=True)
 class WindDistribution:
     """Distribution of the (10-minute mean) wind speed across the conductor.
@@ -1222,8 +1261,7 @@ class WindDistribution:
         >>> WindDistribution.weibull(2.0, 5.0).scale
         5.0
         """
-        return cls("weibull", shape=check_real("shape", shape, low=0.0),
-                   scale=check_real("scale", scale, low=0.0))
+        return cls("weibull", shape=shape, scale=scale)
 
     @classmethod
     def histogram(cls, edges: Sequence[float], density: Sequence[float],
@@ -1255,17 +1293,18 @@ class WindDistribution:
         """
         e = check_array("edges", edges, ndim=1)
         p = check_array("density", density, ndim=1)
-        if e.size != p.size + 1 or e.size < 2 or np.any(np.diff(e) <= 0) or e[0] < 0:
-            raise InputError("The 'edges' parameter must be n + 1 ascending values >= 0 for n "
-                             f"densities. Got {e.size} edges and {p.size} densities.")
-        if np.any(p < 0):
-            raise InputError(f"The 'density' parameter must be >= 0. Got min {p.min():g}.")
-        total = float(np.sum(p * np.diff(e)))
-        if abs(total - 1.0) > rtol:
-            raise InputError(
-                "The 'density' parameter must integrate to 1 over the bins (sum of density * "
-                f"bin width), to {rtol:g}. Got {total:.6g}; divide by that to normalise it.")
+        _check_histogram(e, p, rtol)
         return cls("histogram", edges=tuple(map(float, e)), density=tuple(map(float, p)))
+
+    def __post_init__(self) -> None:
+        # Direct construction is checked as strictly as the two factories.
+        check_choice("kind", self.kind, ("weibull", "histogram"))
+        if self.kind == "weibull":
+            object.__setattr__(self, "shape", check_real("shape", self.shape, low=0.0))
+            object.__setattr__(self, "scale", check_real("scale", self.scale, low=0.0))
+        else:
+            _check_histogram(check_array("edges", self.edges, ndim=1),
+                             check_array("density", self.density, ndim=1), 1e-6)
 
     def cdf(self, speed: np.ndarray | float) -> np.ndarray:
         """Probability that the wind speed is below ``speed``.

@@ -9,8 +9,10 @@ propagated exactly:
   hold), one complex recursion per mode run by ``scipy.signal.lfilter``.
 
 No small-step explicit integration is involved, so the only approximations are the modal
-truncation (none for models up to :data:`~powerline_control.fem.DENSE_EIGEN_LIMIT` DOFs) and, for
-non-harmonic loads, the linear interpolation of the load between samples.
+truncation (none for models up to :data:`~powerline_control.fem.DENSE_EIGEN_LIMIT` DOFs; above,
+the dropped modes' quasi-static response is added back by sparse factorisation, so only their
+dynamic part is lost) and, for non-harmonic loads, the linear interpolation of the load between
+samples.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ class Snapshots:
     dt : float
         Sample interval, s.
     x : ndarray, shape (n_nodes,)
-        Node positions, m.
+        Node positions, m (or the ``outputs`` positions asked of simulate).
     displacement : ndarray, shape (n_nodes, n_t)
         Measured nodal displacements, m (noise included).
     true_displacement : ndarray, shape (n_nodes, n_t)
@@ -171,6 +173,7 @@ def simulate(
     n_modes: int | None = None,
     quasi_static: bool = True,
     memory_budget: float | None = None,
+    outputs: Sequence[float] | np.ndarray | None = None,
 ) -> Snapshots:
     """Simulate nodal displacement snapshots, (n_nodes, n_samples).
 
@@ -216,6 +219,10 @@ def simulate(
     memory_budget : float or None
         Bytes the output and work arrays may take (default 4 GiB, see
         :func:`~powerline_control._validation.check_budget`).
+    outputs : sequence of float or None
+        Positions (m) where displacement is recorded; None (default) records every node. A
+        few positions on a large mesh keep the output (n_outputs, n_t) small; ``Snapshots.x``
+        then holds these positions.
 
     Returns
     -------
@@ -282,14 +289,21 @@ def simulate(
         n_modes = check_int("n_modes", n_modes, low=1, high=model.n_dofs)
     # Before anything of size n_t exists: the output (noise-free and measured), the rotating
     # phasors and the homogeneous part (kept modes x n_t, complex).
-    n_out = model.n_nodes
+    if outputs is None:
+        out_map, out_x = model.displacement_map(), model.node_positions
+    else:
+        out_x = check_array("outputs", outputs, ndim=1)
+        for x in out_x:
+            check_real("outputs", float(x), low=0.0, low_inclusive=True, high=model.span.length)
+        out_map = model.displacement_map(out_x)
+    n_out = out_x.size
     n_kept = 2 * min(n_modes, model.n_dofs)
     nbytes = 8.0 * n_t * (4 * n_out + 2 * n_kept + 8 * max(1, len(forces)))
     check_budget(
         f"simulate's {n_out} x {n_t} output", nbytes=nbytes, parameter="duration",
         value=duration,
-        fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use fewer nodes "
-        f"(n_elements; {n_out} now)",
+        fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or record fewer "
+        f"positions (outputs=[...], {n_out} now)",
         memory_budget=memory_budget,
     )
     t = dt * np.arange(n_t)
@@ -309,12 +323,12 @@ def simulate(
     # rotating phasor per node, so it never needs the (modes x samples) matrix. Every homogeneous
     # part (initial state, and what cancels each particular solution at t = 0) is collected in
     # one coefficient and costs one exponential matrix.
-    gains = complex_modes.output_gains(model.displacement_map() @ basis.shapes)  # (n_nodes, kept)
+    gains = complex_modes.output_gains(out_map @ basis.shapes)  # (n_outputs, kept)
     homogeneous = complex_modes.project(q0)
-    clean = np.zeros((model.n_nodes, t.size))
+    clean = np.zeros((n_out, t.size))
     final = np.zeros_like(homogeneous)  # complex modal state at the last sample
     inputs = []
-    nodal = model.displacement_map()
+    nodal = out_map
     truncated = quasi_static and basis.n_modes < model.n_dofs
     residual_state = [np.zeros(model.n_dofs), np.zeros(model.n_dofs)]
     for i, f in enumerate(forces):
@@ -354,7 +368,7 @@ def simulate(
     return Snapshots(
         t=start_time + t,
         dt=dt,
-        x=model.node_positions.copy(),
+        x=np.array(out_x, dtype=float),
         displacement=noisy,
         true_displacement=clean,
         final_state=tuple(part + extra for part, extra in
@@ -457,6 +471,8 @@ def _complex_modes_of(model: LineModel, basis) -> _ComplexModes:
 def _complex_modes(basis) -> _ComplexModes:
     r = basis.n_modes
     omega = basis.omega
+    check_budget(f"The complex modes of {r} modes", nbytes=16.0 * 3 * (2 * r) ** 2,
+                 parameter="n_modes", value=r, fix="keep fewer modes (n_modes)")
     system = np.block([[np.zeros((r, r)), np.diag(omega)], [-np.diag(omega), -basis.damping]])
     if np.count_nonzero(basis.damping - np.diag(np.diag(basis.damping))) == 0:
         # Proportional damping: each mode is an independent 2x2 block with closed-form eigen-pair.

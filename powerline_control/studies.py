@@ -321,6 +321,10 @@ class _BlasThreads:
             return
         with _BLAS_LOCK:
             if _BLAS_STATE["depth"] == 0:
+                # threadpoolctl limits the libraries loaded when the limit is set: load SciPy's
+                # BLAS (numpy's is loaded already) first, or a study whose first point imports
+                # scipy.linalg would run that point with the default thread count.
+                import scipy.linalg  # noqa: F401
                 from threadpoolctl import threadpool_limits
 
                 _BLAS_STATE["limiter"] = threadpool_limits(limits=self.n, user_api="blas")

@@ -65,7 +65,7 @@ def den_hartog_optimum(mass_ratio: float) -> tuple[float, float]:
 
 
 def tune_damper(
-    model: LineModel, mode: int, position: float, mass: float, *, body_mass: float = 0.0
+    model: LineModel, mode: int, position: float | None, mass: float, *, body_mass: float = 0.0
 ) -> MDR:
     """The robot with its suspended mass tuned to ``mode`` by Den Hartog's optimum at ``position``.
 
@@ -83,9 +83,11 @@ def tune_damper(
         The bare line (without a robot: the robot's own masses are accounted for here).
     mode : int
         Mode number, 1 = fundamental.
-    position : float
+    position : float or None
         Attachment point, m from the left support (where the robot will damp: an antinode of the
-        mode is best).
+        mode is best). None: the mode's largest antinode (the node of the mesh where the mode
+        moves most), which is also the returned robot's position; a robot that starts elsewhere
+        is ``dataclasses.replace(robot, position=start)``.
     mass : float
         Suspended (absorber) mass, kg (> 0).
     body_mass : float
@@ -109,6 +111,8 @@ def tune_damper(
     >>> robot = tune_damper(model, mode=2, position=0.915, mass=0.04, body_mass=0.03)
     >>> round(robot.stiffness, 1), round(robot.damping, 3)
     (244.7, 1.197)
+    >>> tune_damper(model, mode=2, position=None, mass=0.04).position   # its antinode, L/4
+    0.915
     """
     if not isinstance(model, LineModel):
         raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
@@ -120,16 +124,20 @@ def tune_damper(
             f"accounted for by tune_damper. Got a model with a robot at {model.mdr.position:g} m."
         )
     mode = check_int("mode", mode, low=1, high=model.n_dofs)
-    position = check_real(
-        "position", position, low=0.0, low_inclusive=True, high=model.span.length
-    )
     mass = check_real("mass", mass, low=0.0)
     body_mass = check_real("body_mass", body_mass, low=0.0, low_inclusive=True)
     basis = model.modes(mode)
     shape = basis.shapes[:, mode - 1]
-    row = model.shape_vector(position)
-    phi = float(row @ shape)
-    peak = float(np.max(np.abs(model.displacement_map() @ shape)))
+    nodal = model.displacement_map() @ shape
+    peak = float(np.max(np.abs(nodal)))
+    if position is None:
+        # Equal antinodes (a symmetric span) tie to round-off: take the leftmost of them.
+        largest = np.flatnonzero(np.abs(nodal) >= (1 - 1e-6) * peak)[0]
+        position = float(model.node_positions[largest])
+    position = check_real(
+        "position", position, low=0.0, low_inclusive=True, high=model.span.length
+    )
+    phi = float(model.shape_vector(position) @ shape)
     if abs(phi) < NODE_TOLERANCE * peak:
         raise InputError(
             f"The 'position' parameter ({position:g} m) is at a node of mode {mode} "

@@ -729,3 +729,93 @@ def test_construction_parameters_and_results_are_read_only():
     steady = KalmanFilter(sys, Q=1e-3, R=1e-2, steady_state=True)
     assert not steady.steady_gain.flags.writeable
     assert not steady.steady_covariance.flags.writeable
+
+
+# ------------------------------------------------------------------------- bad input, one table
+def _kf():
+    return KalmanFilter(_good(), 1e-3, 1e-2)
+
+
+def _est():
+    return KalmanFilter(_good(), 1e-3, 1e-2).filter(np.zeros((2, 10)))
+
+
+_NAN_SYS = ct.ss(np.diag([0.5, np.nan]), np.zeros((2, 1)), np.eye(2), 0, dt=1.0)
+_INF_B = ct.ss(np.diag([0.5, 0.5]), np.array([[np.inf], [0.0]]), np.eye(2), 0, dt=1.0)
+I = InputError
+
+BAD_INPUT = [
+    ("KF.sys NaN A", lambda: KalmanFilter(_NAN_SYS, 1.0, 1.0), I, "'sys'"),
+    ("KF.sys inf B", lambda: KalmanFilter(_INF_B, 1.0, 1.0), I, "'sys'"),
+    ("KF.sys list", lambda: KalmanFilter([[1.0]], 1.0, 1.0), I, "'sys'"),
+    ("KF.Q nan", lambda: KalmanFilter(_good(), float("nan"), 1.0), I, "'Q'"),
+    ("KF.Q vector shape", lambda: KalmanFilter(_good(), np.ones(3), 1.0), I, "'Q'"),
+    ("KF.Q vector <0", lambda: KalmanFilter(_good(), -np.ones(4), 1.0), I, "'Q'"),
+    ("KF.Q str", lambda: KalmanFilter(_good(), "big", 1.0), I, "'Q'"),
+    ("KF.Q bool", lambda: KalmanFilter(_good(), True, 1.0), I, "'Q'"),
+    ("KF.R=0", lambda: KalmanFilter(_good(), 1.0, 0.0), I, "'R'"),
+    ("KF.R<0", lambda: KalmanFilter(_good(), 1.0, -1.0), I, "'R'"),
+    ("KF.R inf", lambda: KalmanFilter(_good(), 1.0, float("inf")), I, "'R'"),
+    ("KF.R vector shape", lambda: KalmanFilter(_good(), 1.0, np.ones(3)), I, "'R'"),
+    ("KF.R vector zero", lambda: KalmanFilter(_good(), 1.0, [1.0, 0.0]), I, "'R'"),
+    ("KF.R matrix shape", lambda: KalmanFilter(_good(), 1.0, np.eye(4)), I, "'R'"),
+    ("KF.R singular", lambda: KalmanFilter(_good(), 1.0, np.ones((2, 2))), I, "'R'"),
+    ("KF.R indefinite", lambda: KalmanFilter(_good(), 1.0, [[1.0, 2.0], [2.0, 1.0]]), I,
+     "'R'"),
+    ("KF.R 3-d", lambda: KalmanFilter(_good(), 1.0, np.ones((2, 2, 2))), I, "'R'"),
+    ("KF.P0 shape", lambda: KalmanFilter(_good(), 1.0, 1.0, P0=np.eye(3)), I, "'P0'"),
+    ("KF.P0 <0", lambda: KalmanFilter(_good(), 1.0, 1.0, P0=-1.0), I, "'P0'"),
+    ("KF.x0 nan", lambda: KalmanFilter(_good(), 1.0, 1.0, x0=[np.nan] * 4), I, "'x0'"),
+    ("KF.epsilon nan", lambda: KalmanFilter(_good(), 1.0, 1.0, epsilon=float("nan")), I,
+     "'epsilon'"),
+    ("KF.epsilon str", lambda: KalmanFilter(_good(), 1.0, 1.0, epsilon="0"), I, "'epsilon'"),
+    ("KF.gain_rtol inf", lambda: KalmanFilter(_good(), 1.0, 1.0, gain_rtol=float("inf")), I,
+     "'gain_rtol'"),
+    ("KF.gain_rtol<0", lambda: KalmanFilter(_good(), 1.0, 1.0, gain_rtol=-1e-9), I,
+     "'gain_rtol'"),
+    ("KF.field_map cols", lambda: KalmanFilter(_good(), 1.0, 1.0, field_map=np.ones((3, 5))),
+     I, "'field_map'"),
+    ("KF.steady_state 1", lambda: KalmanFilter(_good(), 1.0, 1.0, steady_state=1), I,
+     "'steady_state'"),
+    ("filter.inputs shape", lambda: _kf().filter(np.zeros((2, 5)), np.zeros((2, 5))), I,
+     "'inputs'"),
+    ("filter.inputs nan", lambda: _kf().filter(np.zeros((2, 5)), np.full((1, 5), np.nan)), I,
+     "'inputs'"),
+    ("filter.measurements 3-d", lambda: _kf().filter(np.zeros((2, 5, 1))), I,
+     "'measurements'"),
+    ("filter.measurements str", lambda: _kf().filter("data"), I, "'measurements'"),
+    ("filter.update_state", lambda: _kf().filter(np.zeros((2, 5)), update_state=1), I,
+     "'update_state'"),
+    ("step.y_k inf", lambda: _kf().step([np.inf, 0.0]), I, "'y_k'"),
+    ("step.u_k shape", lambda: _kf().step([0.0, 0.0], [1.0, 2.0]), I, "'u_k'"),
+    ("reset.P0 shape", lambda: _kf().reset(P0=np.eye(2)), I, "'P0'"),
+    ("reset.x0 shape", lambda: _kf().reset(x0=np.zeros(2)), I, "'x0'"),
+    ("accuracy.measured float", lambda: estimation_accuracy(
+        np.ones((3, 4)), np.ones((3, 4)), measured=[0.7]), I, "'measured'"),
+    ("accuracy.measured out of range", lambda: estimation_accuracy(
+        np.ones((3, 4)), np.ones((3, 4)), measured=[3]), I, "'measured'"),
+    ("accuracy.measured repeated", lambda: estimation_accuracy(
+        np.ones((3, 4)), np.ones((3, 4)), measured=[1, 1]), I, "'measured'"),
+    ("accuracy.measured bare int", lambda: estimation_accuracy(
+        np.ones((3, 4)), np.ones((3, 4)), measured=1), I, "'measured'"),
+    ("accuracy.estimate nan", lambda: estimation_accuracy(
+        np.full((3, 4), np.nan), np.ones((3, 4))), I, "'estimate'"),
+    ("accuracy.truth zero", lambda: estimation_accuracy(np.ones((3, 4)), np.zeros((3, 4))), I,
+     "'truth'"),
+    ("accuracy.discard all", lambda: estimation_accuracy(
+        np.ones((3, 4)), np.ones((3, 4)), discard=4), I, "'discard'"),
+    ("consistency.estimate type", lambda: filter_consistency(np.ones((2, 3))), I,
+     "'estimate'"),
+    ("consistency.truth shape", lambda: filter_consistency(_est(), np.ones((3, 3))), I,
+     "'truth'"),
+    ("consistency.discard", lambda: filter_consistency(_est(), discard=10), I, "'discard'"),
+]
+
+
+@pytest.mark.parametrize(("name", "call", "error", "parameter"), BAD_INPUT,
+                         ids=[row[0] for row in BAD_INPUT])
+def test_bad_input_table(name, call, error, parameter):
+    with pytest.raises(Exception) as info:
+        call()
+    assert type(info.value) is error, (name, type(info.value), info.value)
+    assert parameter in str(info.value), (name, str(info.value))

@@ -489,3 +489,26 @@ def test_budget_refusal_says_how_much_and_how_to_fix():
         plc.LineModel(DRAKE, 10**7)
     # a raised budget is honoured (and nothing is allocated for the refused call above)
     assert plc.LineModel(LAB, 50, memory_budget=1e9).n_elements == 50
+
+
+def test_physics_mesh_of_a_string_or_a_slack_beam():
+    # EI = 0: no boundary layer (delta = 0), no grading; clamping a string's slope is an extra
+    # constraint of relative size ~h/L, inside the 1 % the mesh promises.
+    string = plc.Span(100.0, 1e4, plc.Conductor(mass_per_length=1.0, diameter=0.02, ei=0.0))
+    model = plc.LineModel(string, bc="clamped")
+    np.testing.assert_allclose(model.natural_frequencies(3), string.pinned_frequencies(3),
+                               rtol=1e-3)
+    # T = 0: the whole beam is "boundary layer" (delta = inf), uniform mesh; beta L = 4.7300407
+    beam_span = plc.Span(10.0, 0.0, plc.Conductor(mass_per_length=1.0, diameter=0.02, ei=10.0))
+    omega = (4.7300407 / 10.0) ** 2 * np.sqrt(10.0)
+    f1 = plc.LineModel(beam_span, bc="clamped").natural_frequencies(1)[0]
+    assert 2 * np.pi * f1 == pytest.approx(omega, rel=1e-6)
+
+
+def test_band_below_the_first_mode_still_gives_a_small_usable_model():
+    # max_frequency below f1: at least 4 interior elements, graded layers capped at L/4 each
+    model = plc.LineModel(DRAKE, bc="clamped", max_frequency=0.05)
+    assert model.n_elements < 200
+    # domain.md 3.3: clamped Drake f1 = 0.21871101711 Hz (root finder); 4 interior elements of
+    # 75 m still give mode 1 to ~(k h)^6 / 60480 ~ 1e-6
+    assert model.natural_frequencies(1)[0] == pytest.approx(0.21871101711, rel=1e-4)

@@ -727,3 +727,50 @@ def test_predict_on_an_unstable_model_warns_and_refuses_overflow():
     with pytest.warns(UnstableModelWarning), pytest.raises(IdentificationError,
                                                            match="overflows at step"):
         dmd.predict([[1.0]], 2000)                                      # 1.5^1751 > 1.8e308
+
+
+def test_online_forgetting_without_excitation_does_not_wind_up_to_nan():
+    """rho = 0.9 and data that stop exciting: P would grow as 0.9^-k (overflow near k = 6700)."""
+    rng = np.random.default_rng(41)
+    A_true = random_stable_system(3, rng, radius=0.9)
+    X = simulate_discrete(A_true, rng.standard_normal(3), 40, rng=rng, noise=1e-3)
+    online = plc.OnlineDMD(X, dt=0.01, forgetting=0.9, alpha=1e-6)
+    A_before = online.A
+    for _ in range(8000):
+        online.update(np.zeros(3))  # x = 0 after a zero window: no information at all
+    # No information: the coefficients must not move (the error of every update is exactly 0).
+    assert np.all(np.isfinite(online.A)) and np.array_equal(online.A, A_before)
+    assert online.n_windup_clips > 0
+    # And when excitation returns, the estimate still learns: a pair from the zero window
+    # carries no information (P w = 0), then exact pairs x -> A x pin A down.
+    x = rng.standard_normal(3)
+    online.update(x)
+    for _ in range(30):
+        x = A_true @ x
+        online.update(x)
+    # Noise-free pairs spanning R^3, regularised by at most 1 / cap: A to 1e-6.
+    assert np.allclose(online.A, A_true, atol=1e-6)
+
+
+def test_size_limits_refuse_before_allocating():
+    X = np.zeros((2001, 600))
+    X[0, 1] = 1.0
+    with pytest.raises(InputError, match="'delays' parameter is 50.*fewer delays"):
+        plc.fit_dmd(X, 1e-3, alpha=1e-3, delays=50)   # 100,050 rows: a 80 GB Gram matrix
+    with pytest.raises(InputError, match="'delays'"):
+        plc.select_alpha(X, 1e-3, delays=50, rank=4, horizon=2)
+
+
+def test_to_statespace_warns_what_to_change_for_models_python_control_refuses():
+    unstable = plc.fit_dmd(np.array([[1.00026**k for k in range(30)]]), dt=0.1)
+    with pytest.warns(UnstableModelWarning, match="spectral radius 1.00026.*larger alpha"):
+        unstable.to_statespace()
+    # An undamped rotation seen in one coordinate and a marginal mode no node sees:
+    t = np.arange(200)
+    X = np.vstack([np.cos(0.3 * t), np.sin(0.3 * t), np.ones(200)])
+    marginal = plc.fit_dmd(X, dt=0.01)
+    with pytest.warns(UnstableModelWarning, match="undetectable"):
+        marginal.to_statespace(measured=[0, 1])         # node 2 carries the constant mode
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        marginal.to_statespace(measured=[0, 2])          # every unit-circle mode is seen

@@ -7,6 +7,11 @@ Riccati recursion iterated to convergence.
 
 from __future__ import annotations
 
+import ast
+import dataclasses
+import pathlib
+import re
+
 import control as ct
 import numpy as np
 import pytest
@@ -15,6 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import powerline_control as plc
+from powerline_control import _riccati
 from powerline_control.errors import EstimationError, InputError
 from powerline_control.observability import (
     analyze_observability,
@@ -176,10 +182,27 @@ def test_unobservable_unstable_mode_is_reported():
         steady_state_covariance(sys, np.eye(2), 1.0)
 
 
-def test_singular_r_is_reported():
+def test_singular_r_is_refused_by_the_one_rule():
     sys = string_modal_system(2, 5)
-    with pytest.raises(EstimationError, match="R"):
+    with pytest.raises(InputError, match="'R' parameter must be a finite positive variance"):
         steady_state_covariance(sys, np.eye(4), 0.0, [1])
+    with pytest.raises(InputError, match="'R' parameter must be positive definite"):
+        steady_state_covariance(sys, np.eye(4), np.ones((5, 5)), [1, 2])
+
+
+def test_full_correlated_r_matches_scipy():
+    """The one rule for R: a full matrix is used with its correlations (SciPy's DARE on it)."""
+    sys = string_modal_system(3, 7, zeta=0.03)
+    rng = np.random.default_rng(77)
+    l = rng.normal(size=(7, 7))
+    r = 1e-3 * (l @ l.T / 7 + 0.2 * np.eye(7))
+    sensors = [1, 3, 4]
+    q = 1e-4 * np.eye(6)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)[sensors]
+    want = sla.solve_discrete_are(a.T, c.T, q, r[np.ix_(sensors, sensors)])
+    got = steady_state_covariance(sys, q, r, sensors, form="predicted")
+    # Two backward-stable solvers of a well-conditioned DARE: 1e-9 relative.
+    np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-10 * np.abs(want).max())
 
 
 # -------------------------------------------------------------------------------- reports
@@ -252,18 +275,35 @@ def test_public_names_exported():
 
 
 @pytest.mark.parametrize("radius", [0.99, 1.0, 1.3])
-def test_doubling_fallback_matches_scipy(radius):
-    """The doubling algorithm (used when SciPy's QZ reordering fails) gives the same solution."""
-    from powerline_control.observability import _doubling_dare
-
+@pytest.mark.parametrize("route", ["doubling", "qz-fallback"])
+def test_solve_filter_dare_matches_scipy_by_both_routes(radius, route, monkeypatch):
+    """The doubling solver (first) and the QZ fallback give SciPy's stabilising solution."""
     rng = np.random.default_rng(3)
     a = rng.normal(size=(10, 10))
     a *= radius / np.abs(np.linalg.eigvals(a)).max()
     c, q, r = rng.normal(size=(3, 10)), 0.1 * np.eye(10), np.eye(3)
     reference = sla.solve_discrete_are(a.T, c.T, q, r)
+    if route == "qz-fallback":
+        monkeypatch.setattr(_riccati, "_doubling", lambda a_, q_, g: np.full_like(g, np.nan))
     # Two different algorithms on a well-conditioned problem: 1e-10 relative.
-    np.testing.assert_allclose(_doubling_dare(a, c, q, r), reference, rtol=0,
+    np.testing.assert_allclose(_riccati.solve_filter_dare(a, c, q, r), reference, rtol=0,
                                atol=1e-10 * np.abs(reference).max())
+
+
+def test_many_outputs_cost_what_the_states_cost():
+    """1,001 outputs of a 6-state model: the information form gives SciPy's answer (SciPy
+    itself on the full p x p problem is the independent truth here)."""
+    sys = string_modal_system(3, 1001, zeta=0.02)
+    q = 1e-6 * np.eye(6)
+    r = np.linspace(1e-4, 3e-4, 1001)
+    a, c = np.asarray(sys.A), np.asarray(sys.C)
+    want = sla.solve_discrete_are(a.T, c.T, q, np.diag(r))
+    got = steady_state_covariance(sys, q, r, form="predicted")
+    np.testing.assert_allclose(got, want, rtol=1e-7, atol=1e-9 * np.abs(want).max())
+    s = c @ want @ c.T + np.diag(r)
+    gain = plc.KalmanFilter(sys, q, r, steady_state=True).steady_gain
+    np.testing.assert_allclose(gain, np.linalg.solve(s, c @ want).T, rtol=1e-6,
+                               atol=1e-9 * np.abs(gain).max())
 
 
 @settings(max_examples=25, deadline=None)
@@ -296,5 +336,193 @@ def test_undetectable_random_walk_has_no_steady_state_even_through_the_fallback(
 
     monkeypatch.setattr(scipy.linalg, "solve_discrete_are", refuse)
     sys = ct.ss(np.diag([1.0, 0.5]), np.zeros((2, 1)), [[0.0, 1.0]], [[0.0]], dt=1.0)
-    with pytest.raises(EstimationError, match="stabilising"):
+    with pytest.raises(EstimationError, match=r"stabilising.*\[1\+0j\]"):
         steady_state_covariance(sys, Q=np.eye(2), R=1.0)
+    monkeypatch.undo()  # and with SciPy's QZ available: the same refusal by the same rule
+    with pytest.raises(EstimationError, match=r"stabilising.*\[1\+0j\]"):
+        steady_state_covariance(sys, Q=np.eye(2), R=1.0)
+
+
+# ----------------------------------------------------------------- overflow and NaN are reported
+
+
+def test_rank_of_a_strongly_unstable_model_does_not_overflow():
+    """A = 1e20 x (an orthogonal matrix), n = 30: A^29 ~ 1e580 overflows the observability
+    matrix; the rank is a property of the pair, unchanged by scaling A, and the orthogonal pair
+    with a generic C is well-conditioned: full rank (SVD of obsv(R, C) as the truth)."""
+    n = 30
+    rng = np.random.default_rng(8)
+    rotation = np.linalg.qr(rng.normal(size=(n, n)))[0]
+    c = rng.normal(size=(2, n))
+    truth = np.linalg.matrix_rank(ct.obsv(rotation, c))
+    assert truth == n
+    with np.errstate(all="ignore"):
+        assert not np.all(np.isfinite(ct.obsv(1e20 * rotation, c)))  # the naive route fails
+    sys = ct.ss(1e20 * rotation, np.zeros((n, 1)), c, 0, dt=1.0)
+    assert plc.observability_rank(sys) == truth
+    report = plc.analyze_observability(sys, horizon=1)
+    assert report.observable and report.rank == n
+    assert np.isfinite(report.gramian_min_singular_value)
+
+
+def test_gramian_over_a_long_horizon_of_an_unstable_model_is_refused():
+    sys = ct.ss([[1.5]], [[0.0]], [[1.0]], 0, dt=1.0)
+    # 1.5^(2N) passes 1e300 near N = 852: N = 10**6 must not silently return inf.
+    with pytest.raises(EstimationError, match="horizon=1000000 overflows.*up to about 85"):
+        observability_gramian(sys, 10**6)
+    with pytest.raises(EstimationError, match="horizon"):
+        analyze_observability(sys, horizon=10**6)
+    # A short horizon is the exact finite sum: 1 + 1.5^2 + 1.5^4.
+    assert observability_gramian(sys, 3)[0, 0] == pytest.approx(1 + 2.25 + 5.0625)
+
+
+def test_analyze_observability_never_reports_observable_with_nan():
+    # 1e200 overflows any Gramian beyond one step; the report must refuse rather than claim.
+    sys = ct.ss(np.diag([1e200, 0.5]), np.zeros((2, 1)), np.eye(2), 0, dt=1.0)
+    with pytest.raises(EstimationError):
+        analyze_observability(sys)
+    report = analyze_observability(sys, horizon=1)
+    assert report.observable and np.isfinite(report.gramian_min_singular_value)
+
+
+# --------------------------------------------------------------------- architecture (issue 12)
+PACKAGE = pathlib.Path(plc.__file__).parent
+
+
+def _private_imports(path: pathlib.Path) -> list[tuple[str, str]]:
+    """(module, name) pairs of private names imported from another module of the package."""
+    tree = ast.parse(path.read_text())
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level == 1 and node.module:
+            module = node.module.split(".")[0]
+        elif node.module and node.module.startswith("powerline_control."):
+            module = node.module.split(".")[1]
+        else:
+            continue
+        if module == path.stem:
+            continue
+        found += [(module, alias.name) for alias in node.names
+                  if alias.name.startswith("_") and not alias.name.startswith("__")]
+    return found
+
+
+# Imports of other modules' private names that exist in code owned by other engineers (reported
+# to the lead); the test fails on any new one, and on these too once they are gone from the list.
+KNOWN_PRIVATE_IMPORTS = {"cli": {("config", "_toml_value"), ("config", "_resolve")}}
+
+
+@pytest.mark.parametrize("path", sorted(PACKAGE.glob("*.py")), ids=lambda p: p.stem)
+def test_no_module_imports_another_modules_private_names(path):
+    """Shared helpers live in _validation (checks) or _riccati (the filter Riccati solver)."""
+    found = set(_private_imports(path)) - KNOWN_PRIVATE_IMPORTS.get(path.stem, set())
+    assert not found, f"{path.name} imports private names of other modules: {sorted(found)}"
+
+
+def test_the_private_import_walker_would_catch_one(tmp_path):
+    bad = tmp_path / "estimate.py"
+    bad.write_text("from .observability import _solve_filter_dare\nfrom ._riccati import x\n")
+    assert _private_imports(bad) == [("observability", "_solve_filter_dare")]
+
+
+def _arrays_of(result):
+    for field in dataclasses.fields(result):
+        value = getattr(result, field.name)
+        if isinstance(value, np.ndarray):
+            yield field.name, value
+
+
+def test_every_result_array_of_the_estimation_modules_is_read_only():
+    sys = string_modal_system(2, 6, zeta=0.05)
+    n = sys.nstates
+    q = 1e-4 * np.eye(n)
+    report = analyze_observability(sys, [1, 4], Q=q, R=1e-3, field_map=np.asarray(sys.C))
+    table = compare_sensor_sets(sys, {"a": [1], "b": [2, 4]}, Q=q, R=1e-3)
+    selection = plc.select_sensors(sys, 2, Q=q, R=1e-3, n_random=2)
+    study = plc.sensor_count_study(sys, [1, 2], Q=q, R=1e-3, n_steps=20)
+    y = np.random.default_rng(1).normal(size=(6, 40)) * 1e-3
+    est = plc.KalmanFilter(sys, q, 1e-3, field_map=np.asarray(sys.C)).filter(y)
+    acc = plc.estimation_accuracy(est.field, est.field + 1.0, measured=[0])
+    cons = plc.filter_consistency(est, est.states)
+    results = [report, *table.reports, selection, study, est, acc, cons,
+               *selection.baselines.values()]
+    seen = 0
+    for result in results:
+        for name, value in _arrays_of(result):
+            assert not value.flags.writeable, (type(result).__name__, name)
+            seen += 1
+    assert seen >= 20
+    for array in (steady_state_covariance(sys, q, 1e-3), observability_gramian(sys, 4)):
+        assert not array.flags.writeable
+
+
+# ------------------------------------------------------------------------- bad input, one table
+def _sys():
+    return string_modal_system(2, 5)
+
+
+_Q = 1e-4 * np.eye(4)
+_NAN_A = ct.ss(np.diag([np.nan, 0.5, 0.5, 0.5]), np.zeros((4, 1)), np.eye(4), 0, dt=1.0)
+I, E = InputError, EstimationError
+
+BAD_INPUT = [
+    # observability_rank / gramian
+    ("rank.sys type", lambda: observability_rank(np.eye(2)), I, "'sys'"),
+    ("rank.sys NaN", lambda: observability_rank(_NAN_A), I, "'sys'"),
+    ("rank.tol<0", lambda: observability_rank(_sys(), tol=-1.0), I, "'tol'"),
+    ("rank.tol nan", lambda: observability_rank(_sys(), tol=float("nan")), I, "'tol'"),
+    ("rank.tol str", lambda: observability_rank(_sys(), tol="1e-9"), I, "'tol'"),
+    ("rank.sensors str", lambda: observability_rank(_sys(), "01"), I, "'sensors'"),
+    ("rank.sensors bool", lambda: observability_rank(_sys(), [True]), I, "'sensors'"),
+    ("rank.sensors missing output", lambda: observability_rank(_sys(), [5]), I, "'sensors'"),
+    ("gramian.horizon float", lambda: observability_gramian(_sys(), 2.0), I, "'horizon'"),
+    ("gramian.horizon<1", lambda: observability_gramian(_sys(), -3), I, "'horizon'"),
+    ("gramian.sensors", lambda: observability_gramian(_sys(), 3, [7]), I, "'sensors'"),
+    ("gramian.sys NaN", lambda: observability_gramian(_NAN_A, 3), I, "'sys'"),
+    ("gramian.overflow", lambda: observability_gramian(
+        ct.ss([[3.0]], [[0.0]], [[1.0]], 0, dt=1.0), 10**8), E, "'horizon'|horizon="),
+    # steady_state_covariance: the one rule for Q and R
+    ("ssc.R<0", lambda: steady_state_covariance(_sys(), _Q, -1.0), I, "'R'"),
+    ("ssc.R=0", lambda: steady_state_covariance(_sys(), _Q, 0.0), I, "'R'"),
+    ("ssc.R nan", lambda: steady_state_covariance(_sys(), _Q, float("nan")), I, "'R'"),
+    ("ssc.R vector shape", lambda: steady_state_covariance(_sys(), _Q, np.ones(3)), I, "'R'"),
+    ("ssc.R vector zero", lambda: steady_state_covariance(
+        _sys(), _Q, np.array([1.0, 0.0, 1.0, 1.0, 1.0])), I, "'R'"),
+    ("ssc.R matrix shape", lambda: steady_state_covariance(_sys(), _Q, np.eye(4)), I, "'R'"),
+    ("ssc.R nonsymmetric", lambda: steady_state_covariance(
+        _sys(), _Q, np.eye(5) + np.triu(np.ones((5, 5)), 1)), I, "'R'"),
+    ("ssc.R indefinite", lambda: steady_state_covariance(_sys(), _Q, -np.eye(5)), I, "'R'"),
+    ("ssc.R 3-d", lambda: steady_state_covariance(_sys(), _Q, np.ones((5, 5, 1))), I, "'R'"),
+    ("ssc.R str", lambda: steady_state_covariance(_sys(), _Q, "0.1"), I, "'R'"),
+    ("ssc.R bool", lambda: steady_state_covariance(_sys(), _Q, True), I, "'R'"),
+    ("ssc.Q<0", lambda: steady_state_covariance(_sys(), -_Q, 1.0), I, "'Q'"),
+    ("ssc.Q nan", lambda: steady_state_covariance(_sys(), _Q * np.nan, 1.0), I, "'Q'"),
+    ("ssc.Q inf", lambda: steady_state_covariance(_sys(), float("inf"), 1.0), I, "'Q'"),
+    ("ssc.sensors", lambda: steady_state_covariance(_sys(), _Q, 1.0, [9]), I, "'sensors'"),
+    ("ssc.sys continuous", lambda: steady_state_covariance(
+        ct.ss(-np.eye(2), np.zeros((2, 1)), np.eye(2), 0), np.eye(2), 1.0), I, "'sys'"),
+    ("ssc.undetectable", lambda: steady_state_covariance(
+        ct.ss(np.diag([1.2, 0.5]), np.zeros((2, 1)), [[0.0, 1.0]], 0, dt=1.0), np.eye(2), 1.0),
+     E, "1.2"),
+    # analyze_observability / compare_sensor_sets
+    ("analyze.horizon 0", lambda: analyze_observability(_sys(), horizon=0), I, "'horizon'"),
+    ("analyze.field_map 1-d", lambda: analyze_observability(_sys(), field_map=np.ones(4)), I,
+     "'field_map'"),
+    ("analyze.field_map nan", lambda: analyze_observability(
+        _sys(), field_map=np.full((3, 4), np.nan)), I, "'field_map'"),
+    ("analyze.R only", lambda: analyze_observability(_sys(), R=1.0), I, "'Q' and 'R'"),
+    ("analyze.sys NaN", lambda: analyze_observability(_NAN_A), I, "'sys'"),
+    ("compare.empty", lambda: compare_sensor_sets(_sys(), {}), I, "'sensor_sets'"),
+    ("compare.bad set", lambda: compare_sensor_sets(_sys(), [[0, 0]]), I, "'sensors'"),
+]
+
+
+@pytest.mark.parametrize(("name", "call", "error", "parameter"), BAD_INPUT,
+                         ids=[row[0] for row in BAD_INPUT])
+def test_bad_input_table(name, call, error, parameter):
+    with pytest.raises(Exception) as info:
+        call()
+    assert type(info.value) is error, (name, type(info.value), info.value)
+    assert re.search(parameter, str(info.value)), (name, str(info.value))

@@ -7,6 +7,8 @@ and sensors), a plain-numpy filter loop written here, and independent FE simulat
 
 from __future__ import annotations
 
+import warnings
+
 import control as ct
 import numpy as np
 import pytest
@@ -118,3 +120,72 @@ def test_estimate_field_rejects_wrong_shape(small_design):
     _, _, design = small_design
     with pytest.raises(InputError, match="measurements"):
         design.estimate_field(np.zeros((design.sensors.size + 1, 10)))
+
+
+# ------------------------------------------------------------------ generalisation (issue 10.4)
+# Lab span, 100 elements, 1 % noise. The training run is a harmonic load near mode 2
+# (14.39 Hz) plus a broadband load elsewhere on the span: richer excitation than the harmonic
+# alone (with the harmonic alone the record holds every other mode only as a free transient at
+# about the noise level per node, and no recipe can estimate what it never saw; see
+# docs/identification.md, "The estimator recipe"). The new runs shift the harmonic by -/+10 %
+# or are broadband with other seeds, start from rest at another time and have their own noise.
+
+LAB_HARMONIC = plc.HarmonicForce(1.0, 14.2, 2.3)
+
+
+@pytest.fixture(scope="module")
+def lab_design():
+    model = plc.LineModel(plc.Span.paper_lab(), n_elements=100)
+    train = plc.simulate(model, [LAB_HARMONIC, plc.RandomForce(1.0, 1.1, 100.0, seed=17)],
+                         duration=10.0, dt=1e-3, noise_fraction=0.01, seed=4)
+    return model, plc.design_estimator(train, n_sensors=5, seed=0)
+
+
+def _new_run_error(model, design, force, seed):
+    test = plc.simulate(model, force, duration=4.0, dt=1e-3, noise_fraction=0.01, seed=seed,
+                        start_time=2.9)
+    field = design.estimate_field(test.displacement[design.sensors], noise_std=test.noise_std)
+    acc = estimation_accuracy(field, test.true_displacement, measured=design.sensors,
+                              discard=500)
+    return acc.relative_rms_error_unmeasured
+
+
+@pytest.mark.parametrize("shift", [0.9, 1.1], ids=["-10%", "+10%"])
+def test_lab_design_generalises_to_shifted_harmonic_forcing(lab_design, shift):
+    model, design = lab_design
+    force = plc.HarmonicForce(1.0, LAB_HARMONIC.frequency * shift, LAB_HARMONIC.position)
+    error = _new_run_error(model, design, force, seed=11)
+    print(f"harmonic x{shift}: unmeasured-node error {error:.2%}")
+    # Issue 10 item 4: under 2 % on a new run with the frequency shifted by 10 %.
+    assert error < 0.02
+
+
+@pytest.mark.parametrize("position, seed", [(1.1, 23), (2.9, 29)])
+def test_lab_design_generalises_to_new_broadband_forcing(lab_design, position, seed):
+    model, design = lab_design
+    error = _new_run_error(model, design, plc.RandomForce(1.0, position, 100.0, seed=seed),
+                           seed=seed)
+    print(f"broadband at {position} m: unmeasured-node error {error:.2%}")
+    # Issue 10 item 4: under 5 % for broadband forcing (a new load history, at the training
+    # position and at another one).
+    assert error < 0.05
+
+
+@pytest.mark.slow
+def test_real_span_design_estimates_a_new_aeolian_run():
+    """Drake 300 m at 20 % RTS, 1000 elements, 5 sensors, 1 % noise, aeolian wind 3 m/s."""
+    span = plc.Span.at_rts_fraction(300.0, "drake", 0.20)
+    model = plc.LineModel(span, n_elements=1000)
+    wind = plc.AeolianForce(3.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", plc.TruncationWarning)  # the modes kept are reported
+        train = plc.simulate(model, wind, duration=20.0, dt=2e-3, noise_fraction=0.01, seed=5)
+        test = plc.simulate(model, wind, duration=8.0, dt=2e-3, noise_fraction=0.01, seed=6,
+                            start_time=3.1)
+    design = plc.design_estimator(train, n_sensors=5, seed=0)
+    field = design.estimate_field(test.displacement[design.sensors], noise_std=test.noise_std)
+    acc = estimation_accuracy(field, test.true_displacement, measured=design.sensors,
+                              discard=500)
+    print(f"real span: unmeasured-node error {acc.relative_rms_error_unmeasured:.2%}")
+    # Issue 10 Must-show: under 3 % on held-out data (the time is in bench_identify.py).
+    assert acc.relative_rms_error_unmeasured < 0.03

@@ -11,13 +11,12 @@ import itertools
 import math
 
 import control as ct
+import cvxpy as cp
 import numpy as np
 import pytest
 import scipy.linalg as sla
 
 import powerline_control as plc
-import cvxpy as cp
-
 from powerline_control import _riccati
 from powerline_control._riccati import steady_state_batch
 from powerline_control._sensor_criteria import KalmanCriterion, _information
@@ -548,3 +547,137 @@ def test_random_constraints_feasible_iff_brute_force_finds_a_layout(seed):
     optimum = constrained_brute_force(sys, q, r, k, ok)
     assert sel.bound <= optimum * (1 + 1e-9)
     assert sel.objective == pytest.approx(optimum, rel=1e-9)
+
+
+# ------------------------------------------------------------------------- bad input, one table
+def _problem():
+    model, sys, q, r = line_problem(0, n_modes=2)
+    return sys, q, r, model.node_positions
+
+
+def _select(**kwargs):
+    sys, q, r, x = _problem()
+    args = dict(k=2, Q=q, R=r, n_random=0) | kwargs
+    return plc.select_sensors(sys, **args)
+
+
+_I, _S = InputError, SensorSelectionError
+BAD_INPUT = [
+    ("R=0", lambda: _select(R=0.0), _I, "'R'"),
+    ("R nan", lambda: _select(R=float("nan")), _I, "'R'"),
+    ("R str", lambda: _select(R="1e-6"), _I, "'R'"),
+    ("R vector zero", lambda: _select(R=np.r_[0.0, np.ones(20)]), _I, "'R'"),
+    ("R vector negative", lambda: _select(R=-np.ones(21)), _I, "'R'"),
+    ("R matrix shape", lambda: _select(R=np.eye(20)), _I, "'R'"),
+    ("R matrix indefinite", lambda: _select(R=-np.eye(21)), _I, "'R'"),
+    ("R matrix singular", lambda: _select(R=np.ones((21, 21))), _I, "'R'"),
+    ("R correlated for gramian", lambda: _select(
+        criterion="gramian", R=np.eye(21) + 0.1 * np.ones((21, 21))), _I, "'R'"),
+    ("Q shape", lambda: _select(Q=np.eye(3)), _I, "'Q'"),
+    ("Q nan", lambda: _select(Q=np.full((4, 4), np.nan)), _I, "'Q'"),
+    ("Q indefinite", lambda: _select(Q=-np.eye(4)), _I, "'Q'"),
+    ("k > candidates", lambda: _select(k=22), _I, "'k'"),
+    ("k bool", lambda: _select(k=True), _I, "'k'"),
+    ("sys NaN", lambda: plc.select_sensors(
+        ct.ss(np.diag([np.nan, 0.5]), np.zeros((2, 0)), np.eye(2), np.zeros((2, 0)), 1.0), 1,
+        Q=np.eye(2)), _I, "'sys'"),
+    ("sys continuous", lambda: plc.select_sensors(
+        ct.ss(-np.eye(2), np.zeros((2, 0)), np.eye(2), np.zeros((2, 0))), 1, Q=np.eye(2)), _I,
+     "'sys'"),
+    ("sys not a system", lambda: plc.select_sensors(np.eye(2), 1, Q=np.eye(2)), _I, "'sys'"),
+    ("required missing sensor", lambda: _select(required=[21]), _I, "'required'"),
+    ("required float", lambda: _select(required=[1.0]), _I, "'required'"),
+    ("positions shape", lambda: _select(positions=np.ones(5)), _I, "'positions'"),
+    ("positions nan", lambda: _select(positions=np.full(21, np.nan)), _I, "'positions'"),
+    ("min_spacing nan", lambda: _select(min_spacing=float("nan")), _I, "'min_spacing'"),
+    ("forbidden reversed", lambda: _select(forbidden=[(2.0, 1.0)],
+                                           positions=np.linspace(0, 3.66, 21)), _I,
+     "'forbidden'"),
+    ("cost shape", lambda: _select(cost=np.ones(3), budget=1.0), _I, "'cost'"),
+    ("budget<0", lambda: _select(cost=np.ones(21), budget=-1.0), _I, "'budget'"),
+    ("horizon 0", lambda: _select(horizon=0), _I, "'horizon'"),
+    ("horizon float", lambda: _select(horizon=10.0), _I, "'horizon'"),
+    ("horizon 1e18 unstable overflows", lambda: plc.select_sensors(
+        ct.ss(np.diag([1.1, 0.5]), np.zeros((2, 0)), np.eye(2), np.zeros((2, 0)), 1.0), 1,
+        "gramian", horizon=10**18), _I, "'horizon'"),
+    ("horizon work over budget", lambda: plc.select_sensors(
+        ct.ss(0.5 * np.eye(120), np.zeros((120, 0)), np.ones((3000, 120)) / 120,
+              np.zeros((3000, 0)), 1.0), 1, "min-eig", horizon=10**9), _I, "'horizon'"),
+    ("relaxation_rank 0", lambda: _select(relaxation_rank=0), _I, "'relaxation_rank'"),
+    ("n_random<0", lambda: _select(n_random=-1), _I, "'n_random'"),
+    ("brute_force_limit<0", lambda: _select(brute_force_limit=-1), _I, "'brute_force_limit'"),
+    ("solver not a string", lambda: _select(solver=3), _I, "'solver'"),
+    ("seed negative", lambda: _select(seed=-4), _I, "'seed'"),
+    ("error_weight shape", lambda: _select(error_weight=np.ones((2, 3))), _I,
+     "'error_weight'"),
+    ("error_weight choice", lambda: _select(error_weight="nodes"), _I, "'error_weight'"),
+    ("basis rows", lambda: _select(criterion="reconstruction", basis=np.ones((3, 2))), _I,
+     "'basis'"),
+    ("count study empty", lambda: plc.sensor_count_study(_problem()[0], [], Q=_problem()[1]),
+     _I, "'k_values'"),
+    ("count study descending", lambda: plc.sensor_count_study(
+        _problem()[0], [2, 1], Q=_problem()[1]), _I, "'k_values'"),
+    ("count study n_steps", lambda: plc.sensor_count_study(
+        _problem()[0], [1], Q=_problem()[1], n_steps=0), _I, "'n_steps'"),
+    ("count study R", lambda: plc.sensor_count_study(
+        _problem()[0], [1], Q=_problem()[1], R=-1.0), _I, "'R'"),
+    ("count study target", lambda: plc.sensor_count_study(
+        _problem()[0], [1], Q=_problem()[1], target_error=float("nan")), _I, "'target_error'"),
+]
+
+
+@pytest.mark.parametrize(("name", "call", "error", "parameter"), BAD_INPUT,
+                         ids=[row[0] for row in BAD_INPUT])
+def test_bad_input_table(name, call, error, parameter):
+    with pytest.raises(Exception) as info:
+        call()
+    assert type(info.value) is error, (name, type(info.value), info.value)
+    assert parameter in str(info.value), (name, str(info.value))
+
+
+def test_correlated_noise_exhaustive_equals_brute_force_and_relaxation_bounds_it():
+    """A full R (correlated neighbours): the exact criterion is each layout's own DARE with
+    R_SS, checked on every layout with SciPy (through steady_state_covariance)."""
+    sys, q = random_system(31, n=4, m=7)
+    rng = np.random.default_rng(32)
+    l = rng.normal(size=(7, 7))
+    r = 0.1 * (l @ l.T / 7 + 0.3 * np.eye(7))
+    values = {lay: exact_trace(sys, q, r, lay) for lay in itertools.combinations(range(7), 2)}
+    optimum = min(values.values())
+    sel = plc.select_sensors(sys, k=2, Q=q, R=r, n_random=0)
+    check_certificate(sel, optimum)
+    assert sel.certificate == "exhaustive" and values[sel.nodes] == pytest.approx(optimum,
+                                                                                  rel=1e-8)
+    relaxed = plc.select_sensors(sys, k=2, Q=q, R=r, n_random=0, brute_force_limit=0)
+    check_certificate(relaxed, optimum)
+
+
+def test_a_huge_horizon_costs_its_logarithm_not_its_length():
+    """horizon=10**8 used to loop 1e8 times: the Gramians now double (log2 1e8 = 27 steps) and
+    on a stable model equal the infinite-horizon ones (SciPy's Lyapunov solver as the truth)."""
+    sys, q, r, x = _problem()
+    a, c = np.asarray(sys.A), np.asarray(sys.C)
+    sel = plc.select_sensors(sys, 2, "min-eig", Q=q, R=r, horizon=10**8, n_random=0)
+    cs = c[list(sel.nodes)] / np.sqrt(r)
+    lyap = sla.solve_discrete_lyapunov(a.T, cs.T @ cs)
+    # The finite sum to 1e8 steps of a damped model equals the Lyapunov solution to round-off.
+    assert sel.objective == pytest.approx(np.linalg.eigvalsh(lyap)[0], rel=1e-6)
+
+
+def test_the_fresh_machine_failure_falls_back_to_the_next_solver(monkeypatch):
+    """The issue's failure, reproduced: CLARABEL raises on the cut 'kalman' relaxation. The next
+    installed solver takes over; the certificate is checked against brute force."""
+    model, sys, q, r = line_problem(13, "clamped", n_modes=3)
+    optimum = brute_force_optimum(sys, 3, "kalman", Q=q, R=r)
+    original = cp.Problem.solve
+
+    def clarabel_fails(self, *args, **kwargs):
+        if kwargs.get("solver") == "CLARABEL":
+            raise cp.error.SolverError("Solver 'CLARABEL' failed. Try another solver.")
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(cp.Problem, "solve", clarabel_fails)
+    sel = plc.select_sensors(sys, k=3, Q=q, R=r, relaxation_rank=3, n_random=0,
+                             brute_force_limit=0)
+    assert sel.solver_attempts[0].startswith("CLARABEL: failed") and sel.solver != "CLARABEL"
+    check_certificate(sel, optimum)

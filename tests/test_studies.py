@@ -250,3 +250,49 @@ def test_bad_grids_columns_and_files_are_refused(tmp_path):
     (tmp_path / "partial.json").write_text('{"format": "powerline_control.study"}')
     with pytest.raises(plc.FileFormatError, match="incomplete or damaged"):
         StudyResult.from_json(tmp_path / "partial.json")
+
+
+FIRST_STUDY_SCRIPT = """
+import sys
+from powerline_control.studies import parameter_grid, run_study
+
+def threads_after_importing_scipy(k):
+    import scipy.linalg  # loads SciPy's own BLAS, possibly for the first time here
+    from threadpoolctl import threadpool_info
+    return {"threads": max(p["num_threads"] for p in threadpool_info()
+                           if p["user_api"] == "blas")}
+
+assert "scipy.linalg" not in sys.modules
+print(run_study(threads_after_importing_scipy, parameter_grid(k=[1, 2])).column("threads"))
+"""
+
+
+def test_the_first_point_of_a_fresh_process_is_limited_too():
+    """A library loaded by the first point must not escape the limit (threadpoolctl limits only
+    the libraries loaded when the limit is set)."""
+    import os
+    import subprocess
+    import sys
+
+    root = str(__import__("pathlib").Path(__file__).resolve().parents[1])
+    result = subprocess.run([sys.executable, "-c", FIRST_STUDY_SCRIPT], capture_output=True,
+                            text=True, env={**os.environ, "PYTHONPATH": root}, timeout=300,
+                            check=False)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[1 1]"
+
+
+def test_a_script_study_function_pickles_with_the_package_in_its_globals():
+    """Dask (cloudpickle) sends a script's function by value, with ``plc`` among its globals;
+    the package must then pickle by name, as modules do."""
+    import pickle
+
+    cloudpickle = pytest.importorskip("cloudpickle")
+    assert pickle.loads(pickle.dumps(plc)) is plc
+
+    def in_a_script(k):
+        return {"f1": float(plc.Span.paper_lab().pinned_frequencies(1)[0] * k)}
+
+    in_a_script.__module__ = "__main__"  # what a function defined in a script looks like
+    again = cloudpickle.loads(cloudpickle.dumps(in_a_script))
+    assert again(2) == in_a_script(2)

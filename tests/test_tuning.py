@@ -130,3 +130,14 @@ def test_model_with_a_robot_is_refused():
     model = plc.LineModel(LAB, 20, mdr=plc.MDR(1.0, 0.03))
     with pytest.raises(plc.InputError, match="model"):
         tune_damper(model, 2, 0.9, 0.04)
+
+
+def test_position_none_tunes_at_the_largest_antinode():
+    # Mode 3 of a pinned string: antinodes at L/6, L/2, 5L/6, all of unit |sin|; the mesh node
+    # nearest one of them is chosen and the tuning equals the one asked for there.
+    model = plc.LineModel(LAB, n_elements=60)
+    robot = tune_damper(model, 3, None, 0.04, body_mass=0.03)
+    antinodes = LAB.length * np.array([1, 3, 5]) / 6
+    assert np.min(np.abs(robot.position - antinodes)) <= LAB.length / 120 + 1e-12
+    again = tune_damper(model, 3, robot.position, 0.04, body_mass=0.03)
+    assert (again.stiffness, again.damping) == (robot.stiffness, robot.damping)

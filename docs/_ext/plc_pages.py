@@ -3,8 +3,11 @@
 - ``api/index.rst``: every name in ``powerline_control.__all__``, one section per module in the
   package's data-flow order, each name an autosummary entry (numpydoc renders its page).
 - ``gallery/<example>.md``: one page per script in ``examples/`` (its docstring, how to run it,
-  its source), and ``gallery/index.md`` listing them. The examples are executed by
-  ``tests/test_examples.py``, not by the docs build, which stays fast.
+  its source), and ``gallery/index.md`` listing them. The examples named in the
+  ``plc_gallery_execute`` setting of conf.py (the quick ones) run during the build, in their own
+  process, and their pages show the printed output and the figures; the environment variable
+  ``PLC_DOCS_EXECUTE`` (``all`` or ``none``) overrides the list. ``tests/test_examples.py`` runs
+  every example in CI, so the build stays fast.
 
 Both run on Sphinx's ``config-inited`` event and are plain functions, so tests call them too
 (``tests/test_docs.py``).
@@ -14,6 +17,11 @@ from __future__ import annotations
 
 import ast
 import importlib
+import os
+import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 DOCS = Path(__file__).resolve().parents[1]
@@ -36,11 +44,26 @@ def public_names() -> list[str]:
 
 
 def module_of(name: str) -> str:
-    """The short name of the module that defines ``powerline_control.<name>``."""
+    """The short name of the module that defines ``powerline_control.<name>``.
+
+    Functions and classes say it (``__module__``); a constant (a dict, a tuple) does not, so the
+    package's submodules are searched for the very same object.
+    """
     package = importlib.import_module("powerline_control")
     obj = getattr(package, name)
-    module = getattr(obj, "__module__", None) or "powerline_control"
+    module = getattr(obj, "__module__", None)
+    if not (isinstance(module, str) and module.startswith("powerline_control.")):
+        holders = [
+            key for key, mod in sys.modules.items()
+            if key.startswith("powerline_control.") and getattr(mod, name, None) is obj
+        ]
+        module = min(holders, key=_order_key) if holders else "powerline_control"
     return module.removeprefix("powerline_control.").lstrip("_") or "powerline_control"
+
+
+def _order_key(module: str) -> tuple[int, str]:
+    short = module.removeprefix("powerline_control.").lstrip("_")
+    return (MODULE_ORDER.index(short) if short in MODULE_ORDER else len(MODULE_ORDER), short)
 
 
 def api_sections() -> list[tuple[str, str, list[str]]]:
@@ -114,8 +137,30 @@ def example_title(path: Path) -> str:
     return sentence
 
 
-def example_page(path: Path) -> str:
-    """MyST Markdown for one example: title, docstring (verbatim), command, source."""
+def run_example(path: Path, figures: Path) -> tuple[str, list[str]]:
+    """Run one example into ``figures/<stem>/``: its printed output and the PNGs it wrote.
+
+    Raises RuntimeError (with the script's stderr) when the script fails.
+    """
+    out = figures / path.stem
+    if out.exists():
+        shutil.rmtree(out)
+    figures.mkdir(parents=True, exist_ok=True)
+    command = [sys.executable, str(path), path.stem]
+    if "--fast" in path.read_text():
+        command.append("--fast")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg"}
+    # cwd is the figures folder, so the paths the script prints are short and machine-free.
+    result = subprocess.run(command, cwd=figures, env=env, capture_output=True, text=True,
+                            timeout=600, check=False)
+    if result.returncode != 0:
+        raise RuntimeError(f"examples/{path.name} failed:\n{result.stderr[-2000:]}")
+    pngs = sorted(p.name for p in out.glob("*.png")) if out.exists() else []
+    return result.stdout, pngs
+
+
+def example_page(path: Path, executed: tuple[str, list[str]] | None = None) -> str:
+    """MyST Markdown for one example: title, docstring (verbatim), command, output, source."""
     doc = _docstring(path)
     figures = sorted(_figure_names(path))
     lines = [
@@ -140,6 +185,17 @@ def example_page(path: Path) -> str:
         doc.strip() or "(no docstring)",
         "```",
         "",
+    ]
+    if executed is not None:
+        stdout, pngs = executed
+        shown = stdout.strip().splitlines()
+        if len(shown) > 80:
+            shown = [*shown[:80], f"... ({len(shown) - 80} more lines)"]
+        lines += ["## Output", "", "Printed when the documentation was built:", "",
+                  "```text", *shown, "```", ""]
+        for png in pngs:
+            lines += [f"```{{image}} _figures/{path.stem}/{png}", f":alt: {png}", "```", ""]
+    lines += [
         "## Source",
         "",
         f"```{{literalinclude}} ../../examples/{path.name}",
@@ -158,8 +214,8 @@ def _figure_names(path: Path) -> set[str]:
         if isinstance(node, ast.Constant) and isinstance(node.value, str):
             value = node.value
             if value.endswith((".png", ".svg", ".pdf", ".csv", ".json", ".html")) and (
-                "/" not in value and " " not in value
-            ):
+                "/" not in value and " " not in value and not value.startswith(".")
+            ):  # a whole file name, not the tail of an f-string
                 names.add(value)
     return names
 
@@ -190,17 +246,56 @@ def _write_if_changed(path: Path, text: str) -> None:
         path.write_text(text)
 
 
-def write_pages(docs: Path = DOCS) -> None:
-    """Generate ``api/index.rst`` and ``gallery/*.md`` under ``docs``."""
+def executed_examples(configured: list[str]) -> set[str]:
+    """The example stems to run: ``PLC_DOCS_EXECUTE`` (all, none) or the configured list."""
+    choice = os.environ.get("PLC_DOCS_EXECUTE", "").strip().lower()
+    if choice == "all":
+        return {p.stem for p in example_scripts()}
+    if choice == "none":
+        return set()
+    return set(configured)
+
+
+def write_pages(docs: Path = DOCS, execute: set[str] = frozenset(), warn=print) -> None:
+    """Generate ``api/index.rst`` and ``gallery/*.md`` under ``docs``, running ``execute``."""
     _write_if_changed(docs / "api" / "index.rst", api_page())
     scripts = example_scripts()
     gallery = docs / "gallery"
     for stale in gallery.glob("*.md"):
         if stale.stem != "index" and stale.stem not in {p.stem for p in scripts}:
             stale.unlink()
+    unknown = execute - {p.stem for p in scripts}
+    if unknown:
+        warn(f"plc_gallery_execute names examples that do not exist: {sorted(unknown)}")
     for path in scripts:
-        _write_if_changed(gallery / f"{path.stem}.md", example_page(path))
+        executed = None
+        if path.stem in execute:
+            try:
+                executed = run_example(path, gallery / "_figures")
+            except (RuntimeError, subprocess.TimeoutExpired) as error:
+                warn(str(error))
+        _write_if_changed(gallery / f"{path.stem}.md", example_page(path, executed))
     _write_if_changed(gallery / "index.md", gallery_index(scripts))
+
+
+_LITERAL = re.compile(r"(``.+?``|`[^`]+`)")
+
+
+def escape_bars(line: str) -> str:
+    """Escape ``|`` outside literals, so ``|phi|`` (an absolute value) is not a substitution.
+
+    The package's docstrings write absolute values and norms as plain text (``|s| / 2 pi``);
+    reStructuredText reads ``|name|`` as a substitution reference and fails on it. Lines that
+    start with ``|`` or ``+`` (line blocks, grid tables) are left alone.
+    """
+    if line.lstrip().startswith(("|", "+")):
+        return line
+    parts = _LITERAL.split(line)
+    return "".join(part if i % 2 else part.replace("|", "\\|") for i, part in enumerate(parts))
+
+
+def _on_process_docstring(app, what, name, obj, options, lines: list[str]) -> None:
+    lines[:] = [escape_bars(line) for line in lines]
 
 
 OTHER_PAGES = "other-pages"
@@ -213,7 +308,11 @@ def other_pages(index_source: str, top_level_docs: set[str]) -> list[str]:
 
 
 def _on_config_inited(app, config) -> None:
-    write_pages(Path(app.srcdir))
+    from sphinx.util import logging
+
+    logger = logging.getLogger("plc_pages")
+    write_pages(Path(app.srcdir), executed_examples(list(config.plc_gallery_execute)),
+                warn=logger.warning)
 
 
 def _on_source_read(app, docname: str, source: list[str]) -> None:
@@ -228,7 +327,9 @@ def _on_source_read(app, docname: str, source: list[str]) -> None:
 
 
 def setup(app):
+    app.add_config_value("plc_gallery_execute", ["simulate_paper_span"], "env")
     # Before Sphinx lists the source files (autosummary then finds api/index.rst).
     app.connect("config-inited", _on_config_inited)
     app.connect("source-read", _on_source_read)
+    app.connect("autodoc-process-docstring", _on_process_docstring)
     return {"parallel_read_safe": True, "parallel_write_safe": True}
