@@ -719,12 +719,15 @@ def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_s
         sensors = [int(i) for i in design.sensors]
         selection = design.sensor_selection
         noise_var = float(design.noise_std) ** 2
-        curve = design.alpha_curve
-        recipe = (f"the package's recipe (design_estimator): {dmd.delays} time delays, rank "
-                  f"{dmd.rank}, alpha {dmd.alpha:.3g} absolute, chosen on held-out data "
-                  f"({getattr(curve, 'alpha_mode', 'relative')} grid); trained on the first "
-                  f"{n_train} samples; sensor noise std {_mm(design.noise_std)} "
-                  f"({design.noise_source})")
+        if hasattr(design, "summary"):
+            # The recipe's own account of what it chose (model, alpha, noise), in words.
+            said = [line for line in design.summary().splitlines()[1:]
+                    if not line.startswith(("Sensors chosen", "Predicted steady-state"))]
+            recipe = "the package's recipe (design_estimator). " + " ".join(said)
+        else:
+            recipe = (f"the package's recipe (design_estimator): {dmd.delays} time delays, "
+                      f"alpha {dmd.alpha:.3g} absolute, chosen on held-out data; trained on "
+                      f"the first {n_train} samples")
     else:
         dmd, recipe, selection, sensors, noise_var, count_curve = _legacy_estimator(
             scenario, snap, train, x, supports, given, progress)
