@@ -719,12 +719,15 @@ def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_s
         sensors = [int(i) for i in design.sensors]
         selection = design.sensor_selection
         noise_var = float(design.noise_std) ** 2
-        curve = design.alpha_curve
-        recipe = (f"the package's recipe (design_estimator): {dmd.delays} time delays, rank "
-                  f"{dmd.rank}, alpha {dmd.alpha:.3g} absolute, chosen on held-out data "
-                  f"({getattr(curve, 'alpha_mode', 'relative')} grid); trained on the first "
-                  f"{n_train} samples; sensor noise std {_mm(design.noise_std)} "
-                  f"({design.noise_source})")
+        if hasattr(design, "summary"):
+            # The recipe's own account of what it chose (model, alpha, noise), in words.
+            said = [line for line in design.summary().splitlines()[1:]
+                    if not line.startswith(("Sensors chosen", "Predicted steady-state"))]
+            recipe = "the package's recipe (design_estimator). " + " ".join(said)
+        else:
+            recipe = (f"the package's recipe (design_estimator): {dmd.delays} time delays, "
+                      f"alpha {dmd.alpha:.3g} absolute, chosen on held-out data; trained on "
+                      f"the first {n_train} samples")
     else:
         dmd, recipe, selection, sensors, noise_var, count_curve = _legacy_estimator(
             scenario, snap, train, x, supports, given, progress)
@@ -1210,6 +1213,8 @@ def _study_point(scenario_text: str, **overrides) -> dict:
     """One point of a ``study``: the scenario with ``overrides`` (dotted keys), estimation only."""
     from .config import load_scenario
 
+    # Grid keys are identifiers (section__key) so that any executor can pass them on.
+    overrides = {key.replace("__", "."): value for key, value in overrides.items()}
     scenario = load_scenario(text=_override_toml(scenario_text, overrides), source="study")
     console = _Console(quiet=True)
     report = _Report(console)
@@ -1254,30 +1259,32 @@ def _verb_study(args, console: _Console) -> int:
         raise InputError("study needs at least one --vary SECTION.KEY=V1,V2 option.")
     from .studies import parameter_grid, run_study
 
-    grid = parameter_grid(**axes)
-    for point in grid:  # every variant is validated before anything runs
+    for point in parameter_grid(**axes):  # every variant is validated before anything runs
         load_scenario(text=_override_toml(text, point), source=f"{source} with {point}")
+    grid = parameter_grid(**{key.replace(".", "__"): values for key, values in axes.items()})
     output = _Output(args.out, force=args.force) if args.out else None
     func = functools.partial(_study_point, text)
     console.note(f"Study: {len(grid)} variants of {source}")
     with _numerics():
+        progress = not console.quiet
         if args.workers > 1:
             from concurrent.futures import ProcessPoolExecutor
 
             with ProcessPoolExecutor(args.workers) as pool:
-                result = run_study(func, grid, pool)
+                result = run_study(func, grid, pool, progress=progress,
+                                   description="scenario variants")
         else:
-            from tqdm import tqdm
-
-            from .studies import StudyResult
-
-            results = [func(**point) for point in tqdm(grid, file=sys.stderr, desc="variants",
-                                                       disable=console.quiet)]
-            result = StudyResult(tuple(grid), tuple(results))
-    rows = result.rows()
+            result = run_study(func, grid, progress=progress, description="scenario variants")
+    rows = [{key.replace("__", "."): value for key, value in row.items()}
+            for row in result.rows()]
     written = []
     if output is not None:
-        result.to_csv(output.file("study.csv"))
+        import csv
+
+        with output.file("study.csv").open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
         output.file("study.json").write_text(json.dumps(rows, indent=2, default=float))
         written = output.written
     if console.as_json:
