@@ -1131,8 +1131,42 @@ def _numerics():
         yield
 
 
+def _browser() -> str | None:
+    import shutil
+
+    for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
+        found = shutil.which(name)
+        if found:
+            return found
+    return None
+
+
+def _print_pdf(browser: str, html: Path, pdf: Path) -> None:
+    """Print the report with headless Chromium (no network: the page fetches nothing)."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as profile:
+        result = subprocess.run(
+            [browser, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={profile}", "--no-pdf-header-footer",
+             f"--print-to-pdf={pdf}", html.resolve().as_uri()],
+            capture_output=True, text=True, timeout=300)
+    if result.returncode != 0 or not pdf.is_file():
+        raise InputError(f"Chromium could not print {html} to PDF (exit {result.returncode}).")
+
+
 def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
     scenario = _load(console, args.scenario)
+    browser = None
+    if getattr(args, "pdf", False):
+        if not getattr(args, "out", None):
+            raise InputError("--pdf needs --out (the folder the report is written to).")
+        browser = _browser()
+        if browser is None:
+            raise InputError("--pdf needs Chromium (chromium, chromium-browser or "
+                             "google-chrome on the PATH); report.html alone needs nothing.")
     output = _Output(args.out, force=args.force) if getattr(args, "out", None) else None
     stages = _STAGES[args.command]
     report = _Report(console)
@@ -1145,6 +1179,9 @@ def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
         if output is not None:
             progress.stage("drawing the figures and writing the report")
             written = _write_outputs(output, study, report, full=full)
+            if browser is not None:
+                _print_pdf(browser, output.path / "report.html", output.file("report.pdf"))
+                written = output.written
     report.numbers["elapsed_s"] = round(time.perf_counter() - start, 2)
     _finish(console, report.numbers, output, written)
     return EXIT_OK
@@ -1356,6 +1393,8 @@ def _build_parser() -> argparse.ArgumentParser:
                              "or hold only this command's files)")
             sub.add_argument("--force", action="store_true",
                              help="write into an --out folder that holds other files")
+            sub.add_argument("--pdf", action="store_true",
+                             help="also print report.html to report.pdf (needs Chromium)")
         _common(sub, suppress=True)
         return sub
 
