@@ -864,9 +864,10 @@ def run_closed_loop(
         "calibration", calibration, low=0.0, high=duration, high_inclusive=False
     )
     dt = check_real("dt", dt, low=0.0)
-    control_period = check_real("control_period", control_period, low=0.0)
+    # A period longer than the run would never act (1e300 was accepted and ignored).
+    control_period = check_real("control_period", control_period, low=0.0, high=duration)
     if plant_period is not None:
-        plant_period = check_real("plant_period", plant_period, low=0.0)
+        plant_period = check_real("plant_period", plant_period, low=0.0, high=duration)
     steps_per_period = _check_multiple("control_period", control_period, dt)
     plant_steps = (
         _check_multiple("plant_period", plant_period, dt) if plant_period is not None else None
@@ -878,7 +879,12 @@ def run_closed_loop(
             f"The 'calibration' parameter ({calibration:g} s) must hold at least 2 samples of "
             f"dt ({dt:g} s)."
         )
-    noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True)
+    # < 1 as in scenarios (config): noise larger than the signal it measures is no experiment,
+    # and 1e300 overflowed into a raw NumPy "infs or NaNs" error.
+    noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True,
+                                high=1.0, high_inclusive=False)
+    if planner_time_budget is not None:  # checked even when motion="closed_form" ignores it
+        planner_time_budget = check_real("planner_time_budget", planner_time_budget, low=0.0)
     antinode_window = check_real("antinode_window", antinode_window, low=0.0)
     frequency_window = check_real("frequency_window", frequency_window, low=0.0)
     retarget_threshold = check_real("retarget_threshold", retarget_threshold, low=0.0)
