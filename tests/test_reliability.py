@@ -757,6 +757,10 @@ BAD_INPUT_ISSUE_12 = [
     ("compare_sensor_sets.sensor_sets=str",
      lambda s: plc.compare_sensor_sets(s["sys_all"], "ab"), I, "sensor_sets",
      "observability: compare_sensor_sets(sys, 'ab') raises a raw ValueError from int('a')"),
+    ("steady_state_covariance.form=array",
+     lambda s: plc.steady_state_covariance(s["sys"], s["q"], 1e-4, form=np.empty(0)), I, "form",
+     "observability: form=np.empty(0) raises a raw ValueError 'truth value of an empty array' "
+     "(observability.py:289; should be check_choice)"),
     ("sensor_count_study.k_values=3",
      lambda s: plc.sensor_count_study(s["sys_all"], 3, Q=s["q"]), I, "k_values",
      "sensors: sensor_count_study(sys, 3, Q=q) raises TypeError 'int' object is not iterable"),
