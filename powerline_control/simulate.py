@@ -384,18 +384,15 @@ def _residual_shape(model: LineModel, basis, load: np.ndarray, frequency: float 
                     ) -> np.ndarray:
     """Quasi-static response (free DOFs, per unit time factor) of the modes not kept.
 
-    Mode acceleration: the full flexibility minus the kept modes' share, so only the dropped
-    modes remain. For a sine the dynamic flexibility (K - omega^2 M)^-1 is exact for undamped
-    dropped modes; otherwise the static K^-1 (dropped modes far above the load's band).
+    :meth:`~powerline_control.fem.LineModel.residual_response`: for a sine the dynamic
+    flexibility, exact for undamped dropped modes; otherwise (or exactly on a kept resonance,
+    where the split is singular) the static one (dropped modes far above the load's band).
     """
     f = 0.0 if frequency is None else float(frequency)
-    omega2 = (2 * np.pi * f) ** 2
-    gaps = basis.omega**2 - omega2
+    gaps = basis.omega**2 - (2 * np.pi * f) ** 2
     if f > 0.0 and np.min(np.abs(gaps)) < 1e-9 * basis.omega.max() ** 2:
-        f, omega2, gaps = 0.0, 0.0, basis.omega**2   # on a kept resonance: the static split
-    full = model.solve_flexibility(load, f)
-    kept = basis.shapes @ ((basis.shapes.T @ load) / gaps)
-    return full - kept
+        f = 0.0
+    return model.residual_response(load, basis.shapes, basis.omega, f)
 
 
 def _warn_unresolved(load_frequencies: Sequence[float], nyquist: float, top_mode: float) -> None:
