@@ -56,6 +56,7 @@ from .fem import MDR, LineModel
 from .line import Span
 from .plan import MotionPlanner, RobotLimits
 from .recipe import design_estimator
+from .severity import damper_impedance
 
 __all__ = ["ClosedLoopResult", "Comparison", "run_closed_loop"]
 
@@ -394,14 +395,15 @@ def _default_modes(span: Span, bare: LineModel, frequencies: list, dt: float):
 
 
 def _robot_dynamic_stiffness(robot: MDR, omega: float) -> complex:
-    """D_r: the robot's force on the line per unit line displacement at omega (body + absorber)."""
-    value = omega**2 * robot.body_mass
-    if robot.has_absorber:
-        spring = robot.stiffness + 1j * omega * robot.damping
-        value = value + omega**2 * robot.suspended_mass * spring / (
-            spring - omega**2 * robot.suspended_mass
-        )
-    return complex(value)
+    """D_r: the robot's force on the line per unit line displacement at omega (body + absorber).
+
+    D_r = -i omega Z with Z the robot's mechanical impedance
+    (:func:`~powerline_control.severity.damper_impedance`, the same physics in one place);
+    zero at omega = 0 (every term carries omega^2).
+    """
+    if omega == 0.0:
+        return 0j
+    return complex(-1j * omega * damper_impedance(robot, omega / (2 * np.pi)))
 
 
 def _run_parked(plant, x, modal_force, n_t, z0=None):

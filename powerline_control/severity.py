@@ -465,18 +465,12 @@ def self_damping_power(amplitude: np.ndarray | float, frequency: float, span: Sp
 def _wavenumbers(span: Span, frequency: float) -> tuple[float, float]:
     """(beta, alpha): the travelling and the evanescent wavenumber of the taut beam at f.
 
-    From m omega^2 = EI k^4 + T k^2: beta^2 = (-T + sqrt(T^2 + 4 EI m omega^2)) / (2 EI) and
-    alpha^2 = beta^2 + T / EI (domain.md 2.3, NOT dohl's dimensionally wrong _wavelength).
+    beta from m omega^2 = EI k^4 + T k^2 (:meth:`Span.wavenumber`, domain.md 2.3, NOT dohl's
+    dimensionally wrong _wavelength); alpha^2 = beta^2 + T / EI (inf for a string).
     """
-    cond = span.conductor
-    omega = 2 * math.pi * frequency
-    tension, ei, mass = span.tension, cond.ei, cond.mass_per_length
-    if ei == 0.0:
-        return omega * math.sqrt(mass / tension), math.inf
-    root = math.sqrt(tension**2 + 4 * ei * mass * omega**2)
-    # Stable form of (-T + root) / (2 EI) for T^2 >> 4 EI m omega^2 (real spans).
-    beta2 = 2 * mass * omega**2 / (tension + root)
-    return math.sqrt(beta2), math.sqrt(beta2 + tension / ei)
+    beta = float(span.wavenumber(frequency))
+    ei = span.conductor.ei
+    return beta, (math.sqrt(beta**2 + span.tension / ei) if ei > 0 else math.inf)
 
 
 def loop_length(span: Span, frequency: float) -> float:
