@@ -27,7 +27,7 @@ import scipy.linalg
 import scipy.signal
 from threadpoolctl import threadpool_limits
 
-from ._validation import check_array, check_budget, check_int, check_real, check_rng
+from ._validation import check_array, check_budget, check_int, check_real, check_rng, read_only
 from .errors import InputError, ModelError, TruncationWarning
 from .excitation import BoundAeolianForce, HarmonicForce, RandomForce
 from .fem import LineModel
@@ -365,18 +365,19 @@ def simulate(
     if noise_fraction is not None:
         noise_std = noise_fraction * float(np.sqrt(np.mean(clean**2)))
     noisy = clean + noise_std * rng.standard_normal(clean.shape) if noise_std > 0 else clean.copy()
+    # Read-only results: a caller editing one snapshot array must not change another's data.
     return Snapshots(
-        t=start_time + t,
+        t=read_only(start_time + t),
         dt=dt,
-        x=np.array(out_x, dtype=float),
-        displacement=noisy,
-        true_displacement=clean,
-        final_state=tuple(part + extra for part, extra in
+        x=read_only(np.array(out_x, dtype=float)),
+        displacement=read_only(noisy),
+        true_displacement=read_only(clean),
+        final_state=tuple(read_only(part + extra) for part, extra in
                           zip(complex_modes.to_dofs(basis, final), residual_state, strict=True)),
-        inputs=np.array(inputs) if inputs else np.zeros((0, t.size)),
+        inputs=read_only(np.array(inputs) if inputs else np.zeros((0, t.size))),
         force_positions=tuple(f.position for f in forces),
         noise_std=noise_std,
-        mode_frequencies=basis.frequencies,
+        mode_frequencies=read_only(np.array(basis.frequencies)),
     )
 
 
