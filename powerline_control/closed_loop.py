@@ -2,8 +2,9 @@
 
 The plant
 ---------
-The line is simulated in the modal coordinates of the *bare* line (its lowest ``r`` modes, plus
-the quasi-static residual of the dropped modes for the loads), and the robot is coupled to them
+The line is simulated in the modal coordinates of the *bare* line (its lowest ``r`` modes or a
+band of them, plus the residual response of the dropped modes to the loads: dynamic for a sine,
+so modes below a band count with 1 / (omega_k^2 - omega^2)), and the robot is coupled to them
 through the shape functions at its current position: with ``n = Phi^T N(x_r)`` (the bare modes'
 displacements at the robot, ``model.shape_vector(x)`` restricted to the modal basis)
 

@@ -1356,22 +1356,6 @@ def _bin_edges(speeds: np.ndarray) -> np.ndarray:
                            [speeds[-1] + (speeds[-1] - mid[-1])]]).clip(min=0.0)
 
 
-def _rest_to_rest_time(distance: float, limits: RobotLimits) -> float:
-    """Time-optimal rest-to-rest move at v_max, a_max (bang-coast-bang), plus a_max / j_max
-    per acceleration phase pair when a jerk limit is set (exact when both v_max and a_max are
-    reached; an upper bound otherwise)."""
-    v, a = limits.v_max, limits.a_max
-    if distance <= 0:
-        return 0.0
-    if distance <= v * v / a:
-        t = 2.0 * math.sqrt(distance / a)
-    else:
-        t = distance / v + v / a
-    if limits.j_max is not None:
-        t += a / limits.j_max
-    return t
-
-
 @dataclass(frozen=True)
 class RobotValue:
     """Fatigue and endurance over a wind climate for three configurations.
@@ -1532,7 +1516,7 @@ def robot_value(
                                   label="robot moving", **severity_options)
     else:
         moving = none
-    move = np.array([_rest_to_rest_time(0.5 * loop, limits) for loop in robot.loop_length])
+    move = np.array([limits.rest_to_rest_time(0.5 * loop) for loop in robot.loop_length])
     at_antinode = np.clip(1.0 - move / persistence, 0.0, 1.0)
     probability = distribution.probability_of(speeds)
     layers = none.parameters["layers"]
