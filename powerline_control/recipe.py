@@ -254,11 +254,12 @@ def _stabilise(model: DMDModel) -> DMDModel:
 
 def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: float,
                     alpha: float, delays: int, rank: int, layout: np.ndarray,
-                    candidates: np.ndarray, noise: float) -> float:
+                    candidates: np.ndarray, noise: float, data_noise: float) -> float:
     """Relative RMS error of the estimator at unmeasured nodes on held-out data (inf: unusable).
 
-    The held-out truth is itself noisy; its white noise adds ``noise**2`` to the mean square
-    error at every unmeasured node (the filter never sees those nodes), so it is subtracted.
+    The held-out truth is itself noisy; its white noise adds ``data_noise**2`` to the mean
+    square error at every unmeasured node (the filter never sees those nodes), so it is
+    subtracted.  ``noise`` is the filter's R (floored for noise-free data).
     """
     try:
         with warnings.catch_warnings():
@@ -273,8 +274,8 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
     unmeasured = np.setdiff1d(candidates, layout)
     skip = min(held.shape[1] // 4, 10 * delays + 100)  # the filter's start-up transient
     truth = held[unmeasured, skip:]
-    mse = float(np.mean((field[unmeasured, skip:] - truth) ** 2)) - noise**2
-    power = float(np.mean(truth**2)) - noise**2
+    mse = float(np.mean((field[unmeasured, skip:] - truth) ** 2)) - data_noise**2
+    power = float(np.mean(truth**2)) - data_noise**2
     if not math.isfinite(mse) or power <= 0:
         return math.inf
     return math.sqrt(max(mse, 0.0) / power)
@@ -484,6 +485,7 @@ def design_estimator(
     else:
         source, noise = "estimated", sigma_est
     rms = float(np.sqrt(np.mean(X**2)))
+    data_noise = noise  # what the held-out measurements actually carry
     noise = max(noise, 1e-4 * rms)  # noise-free data still needs a well-posed Riccati equation
 
     # 3. Candidates: every node that moves; a provisional layout for the alpha sweep.
@@ -516,7 +518,7 @@ def design_estimator(
         )
     errors = np.array([
         _held_out_error(coords[:, :n_fit], X[:, n_fit:], spatial, dt, float(a), delays, rank,
-                        provisional, candidates, noise)
+                        provisional, candidates, noise, data_noise)
         for a in grid
     ])
     if not np.isfinite(errors).any():
