@@ -503,7 +503,7 @@ def _load_histories(model, plant, segments, t):
             modal[mask] += np.outer(values, g)
             residual[:, mask] += np.outer(static, values)
             harmonic_parts.append((load, g, static))
-        if all(hasattr(load, "frequency") for load, _, _ in harmonic_parts):
+        if all(getattr(load, "frequency", None) is not None for load, _, _ in harmonic_parts):
             frequencies = {round(float(load.frequency), 9) for load, _, _ in harmonic_parts}
             if len(frequencies) == 1:
                 harmonic = (float(harmonic_parts[0][0].frequency), harmonic_parts)
@@ -936,7 +936,7 @@ def run_closed_loop(
         for _, loads in segments
         for f in loads
         for b in [f.bind(bare) if hasattr(f, "bind") else f]
-        if hasattr(b, "frequency")
+        if getattr(b, "frequency", None) is not None   # a user's load may say None: not a sine
     ]
     if n_modes is None:
         n_modes = _default_modes(span, bare, load_frequencies, dt)

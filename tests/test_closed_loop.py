@@ -360,3 +360,25 @@ def test_long_span_no_robot_rms_matches_the_closed_form_steady_state():
     # 3 %: start-up transients of the band's modes (zeta omega >= 0.57 /s) have decayed to
     # e^-2.9 of their start by the 5-6 s window and are driven off resonance; measured 0.7 %.
     assert result.comparison("no_robot").rms == pytest.approx(expected, rel=0.03)
+
+
+class _UserLoad:
+    """A user's own load (the protocol simulate accepts) that declares no frequency."""
+
+    frequency = None
+    position = 1.0
+
+    def values(self, t):
+        return np.sin(2 * np.pi * 11.0 * np.asarray(t))
+
+    def load_vector(self, model):
+        return model.point_load(self.position)
+
+
+def test_user_load_without_a_frequency_runs():
+    # Review finding: float(load.frequency) raised a raw TypeError for frequency = None.
+    result = run_closed_loop(LAB, _UserLoad(), plc.MDR(1.0, 0.03, 0.04, 1500.0, 2.0),
+                             sensors=[5, 9, 14], n_elements=20, duration=1.5, calibration=1.0,
+                             seed=6)
+    assert np.all(np.isfinite(result.displacement))
+    assert result.scan_rms.size == 0          # not declared a sine: no steady-state scan
