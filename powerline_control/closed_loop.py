@@ -308,7 +308,9 @@ class _ModalPlant:
 
     def coupling(self, x: float) -> np.ndarray:
         """The bare modes' displacements at x (shape functions restricted to the basis)."""
-        return self.shapes.T @ self.model.shape_vector(x)
+        # the <= 4 non-zero shape-function entries: O(r) per call, not O(n_dofs r)
+        index, weights = self.model.shape_entries(x)
+        return weights @ self.shapes[index]
 
     def matrices(self, x: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """M, C, K over (q, y): O(r^2) rank-one updates of the bare line's diagonal ones."""
