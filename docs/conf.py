@@ -41,7 +41,7 @@ exclude_patterns = ["_build", "_templates", "_ext", "gallery/_figures", "**/.ipy
 
 # Examples run during the build (quick ones only; tests/test_examples.py runs them all).
 # PLC_DOCS_EXECUTE=all (or none) overrides the list.
-plc_gallery_execute = ["simulate_paper_span"]
+plc_gallery_execute = ["simulate_paper_span", "wind_speed_study"]
 templates_path = ["_templates"]
 
 # Markdown: $...$ and $$...$$ math, ::: fences, and anchors for "page.md#section" links.

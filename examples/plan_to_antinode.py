@@ -9,7 +9,7 @@
    limit, not a clock, so the run is the same on an idle and a busy machine; a step that cannot
    be solved brakes and says so (status "safe_stop"), and the summary below copes with any mix.
 
-Run: /work/main/.venv/bin/python examples/plan_to_antinode.py [OUT]
+Run: python examples/plan_to_antinode.py [OUT]
 (writes OUT/plan_to_antinode.png, default folder ./out)
 """
 

@@ -719,12 +719,15 @@ def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_s
         sensors = [int(i) for i in design.sensors]
         selection = design.sensor_selection
         noise_var = float(design.noise_std) ** 2
-        curve = design.alpha_curve
-        recipe = (f"the package's recipe (design_estimator): {dmd.delays} time delays, rank "
-                  f"{dmd.rank}, alpha {dmd.alpha:.3g} absolute, chosen on held-out data "
-                  f"({getattr(curve, 'alpha_mode', 'relative')} grid); trained on the first "
-                  f"{n_train} samples; sensor noise std {_mm(design.noise_std)} "
-                  f"({design.noise_source})")
+        if hasattr(design, "summary"):
+            # The recipe's own account of what it chose (model, alpha, noise), in words.
+            said = [line for line in design.summary().splitlines()[1:]
+                    if not line.startswith(("Sensors chosen", "Predicted steady-state"))]
+            recipe = "the package's recipe (design_estimator). " + " ".join(said)
+        else:
+            recipe = (f"the package's recipe (design_estimator): {dmd.delays} time delays, "
+                      f"alpha {dmd.alpha:.3g} absolute, chosen on held-out data; trained on "
+                      f"the first {n_train} samples")
     else:
         dmd, recipe, selection, sensors, noise_var, count_curve = _legacy_estimator(
             scenario, snap, train, x, supports, given, progress)
@@ -1128,8 +1131,42 @@ def _numerics():
         yield
 
 
+def _browser() -> str | None:
+    import shutil
+
+    for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
+        found = shutil.which(name)
+        if found:
+            return found
+    return None
+
+
+def _print_pdf(browser: str, html: Path, pdf: Path) -> None:
+    """Print the report with headless Chromium (no network: the page fetches nothing)."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as profile:
+        result = subprocess.run(
+            [browser, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             f"--user-data-dir={profile}", "--no-pdf-header-footer",
+             f"--print-to-pdf={pdf}", html.resolve().as_uri()],
+            capture_output=True, text=True, timeout=300)
+    if result.returncode != 0 or not pdf.is_file():
+        raise InputError(f"Chromium could not print {html} to PDF (exit {result.returncode}).")
+
+
 def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
     scenario = _load(console, args.scenario)
+    browser = None
+    if getattr(args, "pdf", False):
+        if not getattr(args, "out", None):
+            raise InputError("--pdf needs --out (the folder the report is written to).")
+        browser = _browser()
+        if browser is None:
+            raise InputError("--pdf needs Chromium (chromium, chromium-browser or "
+                             "google-chrome on the PATH); report.html alone needs nothing.")
     output = _Output(args.out, force=args.force) if getattr(args, "out", None) else None
     stages = _STAGES[args.command]
     report = _Report(console)
@@ -1142,6 +1179,9 @@ def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
         if output is not None:
             progress.stage("drawing the figures and writing the report")
             written = _write_outputs(output, study, report, full=full)
+            if browser is not None:
+                _print_pdf(browser, output.path / "report.html", output.file("report.pdf"))
+                written = output.written
     report.numbers["elapsed_s"] = round(time.perf_counter() - start, 2)
     _finish(console, report.numbers, output, written)
     return EXIT_OK
@@ -1210,6 +1250,8 @@ def _study_point(scenario_text: str, **overrides) -> dict:
     """One point of a ``study``: the scenario with ``overrides`` (dotted keys), estimation only."""
     from .config import load_scenario
 
+    # Grid keys are identifiers (section__key) so that any executor can pass them on.
+    overrides = {key.replace("__", "."): value for key, value in overrides.items()}
     scenario = load_scenario(text=_override_toml(scenario_text, overrides), source="study")
     console = _Console(quiet=True)
     report = _Report(console)
@@ -1254,30 +1296,32 @@ def _verb_study(args, console: _Console) -> int:
         raise InputError("study needs at least one --vary SECTION.KEY=V1,V2 option.")
     from .studies import parameter_grid, run_study
 
-    grid = parameter_grid(**axes)
-    for point in grid:  # every variant is validated before anything runs
+    for point in parameter_grid(**axes):  # every variant is validated before anything runs
         load_scenario(text=_override_toml(text, point), source=f"{source} with {point}")
+    grid = parameter_grid(**{key.replace(".", "__"): values for key, values in axes.items()})
     output = _Output(args.out, force=args.force) if args.out else None
     func = functools.partial(_study_point, text)
     console.note(f"Study: {len(grid)} variants of {source}")
     with _numerics():
+        progress = not console.quiet
         if args.workers > 1:
             from concurrent.futures import ProcessPoolExecutor
 
             with ProcessPoolExecutor(args.workers) as pool:
-                result = run_study(func, grid, pool)
+                result = run_study(func, grid, pool, progress=progress,
+                                   description="scenario variants")
         else:
-            from tqdm import tqdm
-
-            from .studies import StudyResult
-
-            results = [func(**point) for point in tqdm(grid, file=sys.stderr, desc="variants",
-                                                       disable=console.quiet)]
-            result = StudyResult(tuple(grid), tuple(results))
-    rows = result.rows()
+            result = run_study(func, grid, progress=progress, description="scenario variants")
+    rows = [{key.replace("__", "."): value for key, value in row.items()}
+            for row in result.rows()]
     written = []
     if output is not None:
-        result.to_csv(output.file("study.csv"))
+        import csv
+
+        with output.file("study.csv").open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
         output.file("study.json").write_text(json.dumps(rows, indent=2, default=float))
         written = output.written
     if console.as_json:
@@ -1349,6 +1393,8 @@ def _build_parser() -> argparse.ArgumentParser:
                              "or hold only this command's files)")
             sub.add_argument("--force", action="store_true",
                              help="write into an --out folder that holds other files")
+            sub.add_argument("--pdf", action="store_true",
+                             help="also print report.html to report.pdf (needs Chromium)")
         _common(sub, suppress=True)
         return sub
 

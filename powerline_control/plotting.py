@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import matplotlib.ticker
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -123,9 +124,14 @@ def plot_envelope(
     ax = fig.add_subplot()
     for label, values in envelopes.items():
         ax.plot(x, 1e3 * np.asarray(values), label=label)
-    for (label, positions), style in zip(
+    for row, ((label, positions), style) in enumerate(zip(
         (markers or {}).items(), ("k:", "g--", "m-."), strict=False
-    ):
+    )):
+        if len(positions) > 30:
+            # Dozens of vertical lines would hide the envelope: ticks along the top instead.
+            ax.plot(positions, np.full(len(positions), 1.0 - 0.04 * row), "|", color=style[0],
+                    ms=8, transform=ax.get_xaxis_transform(), label=label)
+            continue
         for i, position in enumerate(positions):
             ax.axvline(
                 position, color=style[0], ls=style[1:], lw=1, label=label if i == 0 else None
@@ -201,10 +207,17 @@ def plot_layouts(
     left, right = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 2]})
     names = list(errors)
     rows = np.arange(len(names))
-    left.barh(rows, [errors[n] for n in names], color=["C0"] + ["C7"] * (len(names) - 1))
+    values = np.asarray([errors[n] for n in names], dtype=float)
+    left.barh(rows, values, color=["C0"] + ["C7"] * (len(names) - 1))
     left.set_yticks(rows, names, fontsize=8)
     left.invert_yaxis()
-    left.set_xscale("log")
+    if values.min() > 0 and values.max() / values.min() > 30:
+        left.set_xscale("log")  # errors decades apart; a linear axis would hide the smallest
+        left.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    left.set_xlim(right=values.max() * (3.0 if left.get_xscale() == "log" else 1.35))
+    for row, value in zip(rows, values, strict=True):
+        left.annotate(f"{value:.2g} %", (value, row), xytext=(3, 0), textcoords="offset points",
+                      va="center", fontsize=8)
     left.set_xlabel("error at unmeasured nodes (%)")
     for row, name in zip(rows, names, strict=True):
         right.plot(positions[name], np.full(len(positions[name]), row), "|", ms=12, mew=2)

@@ -379,7 +379,8 @@ def run_study(
         Grid points, e.g. from :func:`parameter_grid`.
     executor : concurrent.futures.Executor or None
         Where to run: None runs serially in this process; a ``ProcessPoolExecutor``, a
-        ``ThreadPoolExecutor`` or a Dask ``Client.get_executor()`` runs the points in parallel.
+        ``ThreadPoolExecutor`` or a Dask ``Client.get_executor()`` runs the points in parallel
+        (a Dask ``Client`` itself is accepted too: its ``get_executor()`` is used).
     seed : int or None
         Base seed. When given, each point is called with ``seed=point_seed(seed, point)``, which
         depends only on the point's values: the results are identical on every executor.
@@ -424,6 +425,8 @@ def run_study(
     """
     if not callable(func):
         raise InputError(f"The 'func' parameter must be callable. Got {type(func).__name__}.")
+    if executor is not None and callable(getattr(executor, "get_executor", None)):
+        executor = executor.get_executor()  # a dask.distributed.Client: its futures executor
     if executor is not None and not callable(getattr(executor, "submit", None)):
         raise InputError(
             "The 'executor' parameter must be a concurrent.futures.Executor (with "
@@ -450,10 +453,12 @@ def run_study(
                 f"{type(point).__name__}."
             )
         for key in point:
-            if not isinstance(key, str) or not key.isidentifier():
+            # Strings, not necessarily identifiers: a function taking **kwargs accepts dotted
+            # names such as "estimation.n_sensors" (the CLI's study verb varies TOML keys).
+            if not isinstance(key, str) or not key:
                 raise InputError(
                     f"Grid point {index} has the key {key!r}; keys must be parameter names "
-                    "(identifiers)."
+                    "(non-empty strings)."
                 )
         if seed is not None and _SEED_KEY in point:
             raise InputError(

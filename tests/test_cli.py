@@ -397,3 +397,11 @@ def test_every_verb_refuses_a_bad_scenario_before_computing(tmp_path, verb):
     assert result.stderr.strip().splitlines() == [result.stderr.strip()]   # one line
     assert "span.tension = -1.0" in result.stderr and "Traceback" not in result.stderr
     assert STAGE_MARK not in result.stderr
+
+
+def test_study_on_a_process_pool_gives_the_serial_results(tiny):
+    args = ("study", tiny, "--vary", "estimation.n_sensors=1,2", "--json", "-q")
+    serial = _json(run_cli(*args))
+    pooled = _json(run_cli(*args, "--workers", "2"))
+    # Seeds come from the scenario, not from the executor: identical rows.
+    assert pooled == serial

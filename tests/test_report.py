@@ -208,3 +208,21 @@ def test_severity_section_when_the_scenario_asks_for_it(tmp_path):
     # The rows name the wind speeds asked for, with units.
     text = (tmp_path / "out" / "report.html").read_text()
     assert "wind 1.5 m/s" in text and "wind 3.5 m/s" in text and "µε peak-to-peak" in text
+
+
+def test_pdf_export_or_a_clear_refusal(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(SCENARIO.replace("closed_loop = 1.5", "closed_loop = 0"))
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(Path(plc.__file__).parents[1])] + env.get("PYTHONPATH", "").split(os.pathsep))
+    out = tmp_path / "out"
+    result = subprocess.run(COMMAND + ["report", str(path), "--out", str(out), "--pdf", "-q"],
+                            capture_output=True, text=True, env=env, timeout=600)
+    if _chromium() is None and os.environ.get("POWERLINE_CONTROL_REQUIRE_BROWSER") != "1":
+        # Refused before the run, in one line.
+        assert result.returncode == 2 and "--pdf needs Chromium" in result.stderr
+        assert not out.exists()
+        return
+    assert result.returncode == 0, result.stderr
+    assert (out / "report.pdf").read_bytes()[:5] == b"%PDF-"

@@ -73,6 +73,8 @@ def test_seeded_study_is_identical_on_serial_process_pool_and_dask():
         distributed.Client(cluster) as client,
     ):
         on_dask = run_study(noisy_record, grid, client.get_executor(), seed=2026)
+        with_client = run_study(noisy_record, grid, client, seed=2026)  # the Client itself
+    assert with_client == on_dask
     assert serial == pooled == on_dask
     assert serial.table() == pooled.table() == on_dask.table()
     # Seeds are the derivation documented in point_seed, recomputed here point by point.
@@ -223,6 +225,7 @@ def ok(k):
         (ok, {"k": 1}, {}, "'grid' parameter must be a sequence of dicts"),
         (ok, [3], {}, "point 0 is a int"),
         (ok, [{1: 2}], {}, "keys must be parameter names"),
+        (ok, [{"": 2}], {}, "keys must be parameter names"),
         (ok, [{"k": 1, "seed": 3}], {"seed": 1}, "has a 'seed' key"),
         (ok, [{"k": np.zeros(3)}], {}, "grid value 'k' must be a scalar"),
         (lambda k: k, [{"k": 1}], {}, "must return a dict"),
@@ -296,3 +299,13 @@ def test_a_script_study_function_pickles_with_the_package_in_its_globals():
     in_a_script.__module__ = "__main__"  # what a function defined in a script looks like
     again = cloudpickle.loads(cloudpickle.dumps(in_a_script))
     assert again(2) == in_a_script(2)
+
+
+def test_dotted_keys_reach_a_function_that_takes_keyword_arguments():
+    """The CLI's study verb varies TOML keys such as "estimation.n_sensors"."""
+    def point(**keys):
+        return {"n": keys["estimation.n_sensors"] * 10}
+
+    study = run_study(point, parameter_grid(**{"estimation.n_sensors": [2, 3]}), seed=1)
+    assert list(study.column("n")) == [20, 30]
+    assert study.columns == ["estimation.n_sensors", "seed", "n"]
