@@ -499,18 +499,12 @@ def self_damping_power(amplitude: np.ndarray | float, frequency: float, span: Sp
 def _wavenumbers(span: Span, frequency: float) -> tuple[float, float]:
     """(beta, alpha): the travelling and the evanescent wavenumber of the taut beam at f.
 
-    From m omega^2 = EI k^4 + T k^2: beta^2 = (-T + sqrt(T^2 + 4 EI m omega^2)) / (2 EI) and
-    alpha^2 = beta^2 + T / EI (domain.md 2.3, NOT dohl's dimensionally wrong _wavelength).
+    beta from m omega^2 = EI k^4 + T k^2 (:meth:`Span.wavenumber`, domain.md 2.3, NOT dohl's
+    dimensionally wrong _wavelength); alpha^2 = beta^2 + T / EI (inf for a string).
     """
-    cond = span.conductor
-    omega = 2 * math.pi * frequency
-    tension, ei, mass = span.tension, cond.ei, cond.mass_per_length
-    if ei == 0.0:
-        return omega * math.sqrt(mass / tension), math.inf
-    root = math.sqrt(tension**2 + 4 * ei * mass * omega**2)
-    # Stable form of (-T + root) / (2 EI) for T^2 >> 4 EI m omega^2 (real spans).
-    beta2 = 2 * mass * omega**2 / (tension + root)
-    return math.sqrt(beta2), math.sqrt(beta2 + tension / ei)
+    beta = float(span.wavenumber(frequency))
+    ei = span.conductor.ei
+    return beta, (math.sqrt(beta**2 + span.tension / ei) if ei > 0 else math.inf)
 
 
 def loop_length(span: Span, frequency: float) -> float:
@@ -1418,22 +1412,6 @@ def _bin_edges(speeds: np.ndarray) -> np.ndarray:
                            [speeds[-1] + (speeds[-1] - mid[-1])]]).clip(min=0.0)
 
 
-def _rest_to_rest_time(distance: float, limits: RobotLimits) -> float:
-    """Time-optimal rest-to-rest move at v_max, a_max (bang-coast-bang), plus a_max / j_max
-    per acceleration phase pair when a jerk limit is set (exact when both v_max and a_max are
-    reached; an upper bound otherwise)."""
-    v, a = limits.v_max, limits.a_max
-    if distance <= 0:
-        return 0.0
-    if distance <= v * v / a:
-        t = 2.0 * math.sqrt(distance / a)
-    else:
-        t = distance / v + v / a
-    if limits.j_max is not None:
-        t += a / limits.j_max
-    return t
-
-
 @dataclass(frozen=True)
 class RobotValue:
     """Fatigue and endurance over a wind climate for three configurations.
@@ -1596,7 +1574,7 @@ def robot_value(
                                   label="robot moving", **severity_options)
     else:
         moving = none
-    move = np.array([_rest_to_rest_time(0.5 * loop, limits) for loop in robot.loop_length])
+    move = np.array([limits.rest_to_rest_time(0.5 * loop) for loop in robot.loop_length])
     at_antinode = np.clip(1.0 - move / persistence, 0.0, 1.0)
     probability = distribution.probability_of(speeds)
     layers = none.parameters["layers"]
