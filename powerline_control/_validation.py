@@ -18,8 +18,10 @@ from .errors import InputError
 __all__ = [
     "check_real",
     "check_int",
+    "check_bool",
     "check_choice",
     "check_array",
+    "check_snapshot_matrix",
     "check_square",
     "check_psd",
     "check_rng",
@@ -89,6 +91,24 @@ def check_int(name: str, value: object, *, low: int | None = None, high: int | N
     return value
 
 
+def check_bool(name: str, value: object) -> bool:
+    """Return ``value`` if it is a bool (``True``/``False`` or a NumPy bool), else refuse.
+
+    A flag given as ``'no'``, ``0`` or ``None`` would be silently truthy or falsy.
+
+    Examples
+    --------
+    >>> check_bool("warn", False)
+    False
+    """
+    if not isinstance(value, bool | np.bool_):
+        raise InputError(
+            f"The {name!r} parameter must be True or False. Got {_describe(value)} "
+            f"of type {type(value).__name__} instead."
+        )
+    return bool(value)
+
+
 def check_choice(name: str, value: object, choices: Sequence[str]) -> str:
     """Return ``value`` if it is one of the allowed strings."""
     if not isinstance(value, str) or value not in choices:
@@ -111,10 +131,44 @@ def check_array(
     """Return ``value`` as a float (or complex) ndarray after checking dimensions and finiteness.
 
     ``shape`` entries that are ``None`` are free. NaN is allowed only when ``allow_nan`` (for
-    missing measurements); infinity never is.
+    missing measurements); infinity never is. Where a real array is asked for (``dtype=float``,
+    the default) complex input is refused rather than cast (the cast would silently drop the
+    imaginary part), and so is a boolean array (a mask passed by mistake would become 0/1 data).
+
+    Examples
+    --------
+    >>> check_array("x", [1, 2]).tolist()
+    [1.0, 2.0]
+    >>> check_array("x", [1 + 2j])
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: The 'x' parameter must be real...
     """
+    real_wanted = not np.issubdtype(np.dtype(dtype), np.complexfloating)
     try:
-        array = np.asarray(value, dtype=dtype)
+        raw = value if isinstance(value, np.ndarray) else np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise InputError(
+            f"The {name!r} parameter must be a numeric array. Got {_describe(value)} instead."
+        ) from exc
+    if real_wanted and np.iscomplexobj(raw):
+        raise InputError(
+            f"The {name!r} parameter must be real: got a complex array of shape {raw.shape}, "
+            "whose imaginary part would be lost. Pass its real part (x.real), or stack the real "
+            "and imaginary parts (np.vstack([x.real, x.imag])) if both carry data."
+        )
+    if raw.dtype.kind in "US":
+        raise InputError(
+            f"The {name!r} parameter must be a numeric array. Got {_describe(value)} (text) "
+            "instead."
+        )
+    if raw.dtype == np.bool_:
+        raise InputError(
+            f"The {name!r} parameter must be a numeric array. Got a boolean array of shape "
+            f"{raw.shape} (a mask?); convert it explicitly (x.astype(float)) if 0/1 is meant."
+        )
+    try:
+        array = np.asarray(raw, dtype=dtype)
     except (TypeError, ValueError) as exc:
         raise InputError(
             f"The {name!r} parameter must be a numeric array. Got {_describe(value)} instead."
@@ -144,6 +198,37 @@ def check_array(
             "all entries must be finite."
         )
     return array
+
+
+def check_snapshot_matrix(name: str, value: object) -> np.ndarray:
+    """Return a real ``(n_nodes, n_samples)`` snapshot matrix; refuse one that looks transposed.
+
+    Far more rows than columns with few columns (``n_rows >= 10 n_cols`` and ``n_cols < 100``)
+    is a record of a few nodes passed with time along the rows: fitted as given it would make a
+    model of thousands of states from a handful of pairs.
+
+    Examples
+    --------
+    >>> check_snapshot_matrix("X", np.ones((2, 50))).shape
+    (2, 50)
+    >>> check_snapshot_matrix("X", np.ones((50, 2)))
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: The 'X' parameter has 50 rows (states) but only 2 ...
+    """
+    X = check_array(name, value, ndim=2)
+    if X.shape[0] >= 10 * X.shape[1] and X.shape[1] < 100:
+        raise InputError(
+            f"The {name!r} parameter has {X.shape[0]} rows (states) but only {X.shape[1]} "
+            "columns (samples): it looks transposed. The layout is (n_nodes, n_samples), one "
+            "column per sample; pass its transpose (.T) if the rows are samples."
+        )
+    if X.shape[0] < 1 or X.shape[1] < 2:
+        raise InputError(
+            f"The {name!r} parameter must be a (n_nodes, n_samples) snapshot matrix with at "
+            f"least one row and two samples. Got shape {X.shape} instead."
+        )
+    return X
 
 
 def check_square(name: str, value: object, n: int | None = None) -> np.ndarray:
@@ -232,6 +317,11 @@ def _format_bytes(n: float) -> str:
     return f"{n:.3g} TiB"  # pragma: no cover
 
 
+# Passed by callers whose public signature has no ``memory_budget``/``work_budget`` argument
+# (the default): the refusal then must not suggest an argument the user cannot give.
+_NOT_GIVEN = object()
+
+
 def check_budget(
     what: str,
     *,
@@ -240,15 +330,17 @@ def check_budget(
     parameter: str,
     value: object,
     fix: str,
-    memory_budget: float | None = None,
-    work_budget: float | None = None,
+    memory_budget: float | None | object = _NOT_GIVEN,
+    work_budget: float | None | object = _NOT_GIVEN,
 ) -> None:
     """Refuse, before allocating, a call whose estimated memory or work exceeds the budget.
 
     ``nbytes`` and ``flops`` are estimates made from the arguments alone; ``parameter`` and
     ``value`` name what drives them and ``fix`` says how to reduce it. Budgets default to
     :data:`MEMORY_BUDGET_BYTES` (4 GiB) and :data:`WORK_BUDGET` (1e12 floating-point operations,
-    minutes on one core), each overridable per call.
+    minutes on one core). A caller whose public signature takes ``memory_budget`` (or
+    ``work_budget``) passes it on, even when ``None``; the refusal then names that argument, and
+    otherwise only the environment variable (read when the package is imported).
 
     Examples
     --------
@@ -260,22 +352,29 @@ def check_budget(
     ...
     powerline_control.errors.InputError: ...
     """
-    memory_budget = MEMORY_BUDGET_BYTES if memory_budget is None else memory_budget
-    work_budget = WORK_BUDGET if work_budget is None else work_budget
+    memory_hint = _budget_hint("memory_budget", memory_budget, "POWERLINE_CONTROL_MEMORY_BUDGET")
+    work_hint = _budget_hint("work_budget", work_budget, "POWERLINE_CONTROL_WORK_BUDGET")
+    memory_budget = (MEMORY_BUDGET_BYTES if memory_budget is None or memory_budget is _NOT_GIVEN
+                     else memory_budget)
+    work_budget = WORK_BUDGET if work_budget is None or work_budget is _NOT_GIVEN else work_budget
     if nbytes > memory_budget:
         raise InputError(
             f"{what} would need about {_format_bytes(nbytes)} of memory (the {parameter!r} "
             f"parameter is {_describe(value)}), over the budget of {_format_bytes(memory_budget)}. "
-            f"To fix: {fix}, or raise the budget (memory_budget=... or the environment variable "
-            "POWERLINE_CONTROL_MEMORY_BUDGET)."
+            f"To fix: {fix}, or raise the budget ({memory_hint})."
         )
     if flops > work_budget:
         raise InputError(
             f"{what} would need about {flops:.2g} floating-point operations (the {parameter!r} "
             f"parameter is {_describe(value)}), over the budget of {work_budget:.2g}. "
-            f"To fix: {fix}, or raise the budget (work_budget=... or the environment variable "
-            "POWERLINE_CONTROL_WORK_BUDGET)."
+            f"To fix: {fix}, or raise the budget ({work_hint})."
         )
+
+
+def _budget_hint(argument: str, given: object, variable: str) -> str:
+    if given is _NOT_GIVEN:
+        return f"the environment variable {variable}, set before importing powerline_control"
+    return f"{argument}=... or the environment variable {variable}"
 
 
 # --------------------------------------------------------------------------- systems and noise

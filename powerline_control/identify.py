@@ -35,11 +35,13 @@ import scipy.linalg as sla
 
 from ._validation import (
     check_array,
+    check_bool,
     check_budget,
     check_choice,
     check_indices,
     check_int,
     check_real,
+    check_snapshot_matrix,
     read_only,
 )
 from .errors import IdentificationError, IllConditionedWarning, InputError, UnstableModelWarning
@@ -354,6 +356,7 @@ class DMDModel:
         >>> np.round(report.damping_ratio, 6).tolist(), report.trusted.tolist()
         ([0.02, 0.02], [True, True])
         """
+        warn = check_bool("warn", warn)
         zeta = np.asarray(self.damping_ratios, dtype=float)
         s = np.asarray(self.continuous_eigenvalues)
         decay = np.abs(s.real) * self.n_pairs * self.dt
@@ -444,6 +447,7 @@ class DMDModel:
         >>> plc.fit_dmd(X, dt=0.1).stability_report().is_stable
         True
         """
+        warn = check_bool("warn", warn)
         rho, unstable = self.spectral_radius, self.n_unstable
         if unstable == 0:
             message = (
@@ -488,12 +492,16 @@ class DMDModel:
         >>> plc.fit_dmd(X, dt=0.1, delays=2).window_to_state([[2.0, 1.0]])
         array([1., 2.])
         """
-        window = check_array("window", window, ndim=(1, 2))
+        return self._state_of("window", window)
+
+    def _state_of(self, name: str, window: object) -> np.ndarray:
+        """:meth:`window_to_state`, naming the caller's parameter in its refusals."""
+        window = check_array(name, window, ndim=(1, 2))
         if window.ndim == 1:
             window = window[:, None]
         if window.shape != (self.n_nodes, self.delays):
             raise InputError(
-                f"The 'window' parameter has the wrong shape: expected ({self.n_nodes}, "
+                f"The {name!r} parameter has the wrong shape: expected ({self.n_nodes}, "
                 f"{self.delays}) (n_nodes, delays) but found {window.shape}."
             )
         stacked = window[:, ::-1].T.reshape(-1)
@@ -538,7 +546,16 @@ class DMDModel:
         array([[0.5  , 0.25 , 0.125]])
         """
         n_steps = check_int("n_steps", n_steps, low=1)
+        z0 = self._state_of("initial", initial)
         u = self._check_prediction_inputs(inputs, n_steps)
+        # The state run (n_states, n_steps) and its nodal image (n_nodes, n_steps), before the
+        # loop allocates them (n_steps=10**10 asked for 298 GiB and ended in MemoryError).
+        check_budget(
+            "predict's free run", nbytes=8.0 * n_steps * (self.n_states + self.n_nodes),
+            flops=2.0 * n_steps * self.n_states * (self.n_states + self.n_nodes),
+            parameter="n_steps", value=n_steps,
+            fix="predict fewer steps (in chunks: restart from the last predicted window)",
+        )
         if not self.is_stable:
             warnings.warn(
                 f"predict: the model is unstable (spectral radius {self.spectral_radius:.6g}); "
@@ -546,7 +563,7 @@ class DMDModel:
                 UnstableModelWarning, stacklevel=2,
             )
         with np.errstate(over="ignore", invalid="ignore"):
-            field_run = self._free_run(self.window_to_state(initial), n_steps, u)
+            field_run = self._free_run(z0, n_steps, u)
         bad = ~np.isfinite(field_run).all(axis=0)
         if bad.any():
             raise IdentificationError(
@@ -1059,24 +1076,8 @@ def _fit_problem(
 
 
 def _check_snapshots(X: object) -> np.ndarray:
-    if np.iscomplexobj(X):
-        raise InputError(
-            "The 'X' parameter must be real: complex snapshots would lose their imaginary part. "
-            "Stack real and imaginary parts as rows (np.vstack([X.real, X.imag])) instead."
-        )
-    X = check_array("X", X, ndim=2)
-    if X.shape[0] >= 10 * X.shape[1] and X.shape[1] < 100:
-        raise InputError(
-            f"The 'X' parameter has {X.shape[0]} rows (states) but only {X.shape[1]} columns "
-            "(samples): it looks transposed. The layout is (n_nodes, n_samples), one column per "
-            "sample; pass X.T if the rows are samples."
-        )
-    if X.shape[0] < 1 or X.shape[1] < 2:
-        raise InputError(
-            "The 'X' parameter must be a (n_nodes, n_samples) snapshot matrix with at least one "
-            f"row and two samples. Got shape {X.shape} instead."
-        )
-    return X
+    # Refuses complex (the imaginary part would be lost), boolean (a mask) and transposed data.
+    return check_snapshot_matrix("X", X)
 
 
 def _check_inputs(inputs: object, n_samples: int) -> np.ndarray | None:

@@ -1289,6 +1289,9 @@ class MotionPlanner:
         IPOPT iterations allowed per solve (>= 1); a solve that needs more brakes instead.
     warm_start : {"closed_form", "previous", "none"}
         Initial guess of each solve (see above).
+    memory_budget : float or None
+        Bytes the two horizon programs may take (about 16 KB per horizon step), or None for the
+        package default (4 GiB, or the environment variable POWERLINE_CONTROL_MEMORY_BUDGET).
 
     Raises
     ------
@@ -1316,6 +1319,7 @@ class MotionPlanner:
         tolerance: float = 1e-3,
         max_iter: int = 200,
         warm_start: str = "closed_form",
+        memory_budget: float | None = None,
     ) -> None:
         if not isinstance(limits, RobotLimits):
             raise InputError(
@@ -1354,13 +1358,16 @@ class MotionPlanner:
         self.warm_start = check_choice(
             "warm_start", warm_start, ("closed_form", "previous", "none")
         )
+        if memory_budget is not None:
+            memory_budget = check_real("memory_budget", memory_budget, low=0.0)
         self._scale = _Scale.of(limits)
         order = limits.order
         # CasADi's two programs take ~16 KB per horizon step (measured: 31 MB at horizon 2000):
         # refuse before building them (horizon=10**7 ended in std::bad_alloc).
         check_budget("MotionPlanner's two horizon programs", nbytes=16e3 * self.horizon,
                      parameter="horizon", value=self.horizon,
-                     fix="use a shorter horizon (a few braking times: horizon * dt of seconds)")
+                     fix="use a shorter horizon (a few braking times: horizon * dt of seconds)",
+                     memory_budget=memory_budget)
         self._cold = _track_program(self.horizon, order, self.time_budget, self.max_iter, False)
         self._warm = _track_program(self.horizon, order, self.time_budget, self.max_iter, True)
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None

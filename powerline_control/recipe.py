@@ -36,6 +36,7 @@ from ._validation import (
     check_indices,
     check_int,
     check_real,
+    check_snapshot_matrix,
     read_only,
 )
 from .errors import EstimationError, IdentificationError, IllConditionedWarning, InputError
@@ -55,6 +56,10 @@ DEFAULT_SPATIAL_RANK = 24
 _DEFAULT_ALPHAS = np.array([0.0, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2])
 #: Process-noise floor of the filter, as a fraction of the data's mean square (see _steady_filter).
 _Q_FLOOR_FRACTION = 1e-10
+# A sensor noise a million times the record's RMS carries no information, and its square (R)
+# would overflow long before the bound (noise_std=1e300 raised a raw OverflowError).
+_NOISE_TO_RMS_MAX = 1e6
+_NOISE_STD_MAX = 1e100  # without a record's RMS to compare with: R = noise_std**2 stays finite
 #: Radius that eigenvalues outside the unit circle are pulled to (see _stabilise).
 _STABLE_RADIUS = 1.0 - 1e-6
 #: Spatial POD coordinates below this fraction of the largest singular value are round-off.
@@ -195,7 +200,8 @@ class EstimatorDesign:
             )
         kf = self.filter
         if noise_std is not None:
-            noise_std = check_real("noise_std", noise_std, low=0.0)
+            rms = math.sqrt(self.q_floor / _Q_FLOOR_FRACTION) if self.q_floor > 0 else math.nan
+            noise_std = _check_noise_std(noise_std, rms)
             if noise_std != self.noise_std:
                 kf = _steady_filter(self.model, self.sensors, noise_std, self.q_floor)
         return read_only(kf.filter(y).field)
@@ -315,10 +321,27 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
     )
 
 
+def _check_noise_std(noise_std: object, rms: float) -> float:
+    """A positive sensor noise std, at most ``_NOISE_TO_RMS_MAX`` times the data's RMS."""
+    noise_std = check_real("noise_std", noise_std, low=0.0)
+    if rms > 0 and noise_std > _NOISE_TO_RMS_MAX * rms:
+        raise InputError(
+            f"The 'noise_std' parameter must be <= {_NOISE_TO_RMS_MAX * rms:.3g} m "
+            f"({_NOISE_TO_RMS_MAX:g} times the training record's RMS {rms:.3g} m: a larger noise "
+            f"carries no information). Got {noise_std!r}."
+        )
+    if not rms > 0 and noise_std > _NOISE_STD_MAX:
+        raise InputError(
+            f"The 'noise_std' parameter must be <= {_NOISE_STD_MAX:g} m (its square is the "
+            f"filter's R). Got {noise_std!r}."
+        )
+    return noise_std
+
+
 def _snapshot_matrix(snapshots: object, dt: object) -> tuple[np.ndarray, float, float, object]:
     """(X, dt, noise_std or nan, positions or None) from Snapshots or an array."""
     if hasattr(snapshots, "displacement") and hasattr(snapshots, "dt"):
-        X = check_array("snapshots.displacement", snapshots.displacement, ndim=2)
+        X = check_snapshot_matrix("snapshots.displacement", snapshots.displacement)
         given_dt = float(snapshots.dt)
         if dt is not None and check_real("dt", dt, low=0.0) != given_dt:
             raise InputError(
@@ -332,7 +355,7 @@ def _snapshot_matrix(snapshots: object, dt: object) -> tuple[np.ndarray, float, 
         raise InputError(
             "The 'dt' parameter is required when 'snapshots' is an array (n_nodes, n_samples)."
         )
-    X = check_array("snapshots", snapshots, ndim=2)
+    X = check_snapshot_matrix("snapshots", snapshots)
     return X, check_real("dt", dt, low=0.0), math.nan, None
 
 
@@ -485,7 +508,7 @@ def design_estimator(
     train_fraction = check_real("train_fraction", train_fraction, low=0.0, high=1.0,
                                 high_inclusive=False)
     if noise_std is not None:
-        noise_std = check_real("noise_std", noise_std, low=0.0)
+        noise_std = _check_noise_std(noise_std, float(np.sqrt(np.mean(X**2))))
     check_budget(
         "design_estimator's spatial Gram matrix and projection",
         nbytes=8.0 * (min(n_nodes, n_samples) ** 2 + 3 * spatial_rank * delays * n_samples),

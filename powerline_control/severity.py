@@ -1711,6 +1711,15 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     strouhal = severity_options.get("strouhal", DEFAULT_STROUHAL)
     cond = span.conductor
     target = strouhal * speed / cond.diameter
+    # Two DOFs per node less at most four at the supports: checked before the model is built,
+    # so that a huge mesh is refused with this function's limit (not LineModel's budget, whose
+    # memory_budget argument this function does not take).
+    if 2 * (n_elements + 1) - 4 > DENSE_EIGEN_LIMIT:
+        raise InputError(
+            f"The 'n_elements' parameter ({n_elements}) gives at least {2 * n_elements - 2} DOFs; "
+            f"the time-domain check solves all modes densely and accepts up to "
+            f"{DENSE_EIGEN_LIMIT} DOFs (n_elements <= {(DENSE_EIGEN_LIMIT + 2) // 2}). Use a "
+            "shorter span (tens of metres) or fewer elements.")
     bare = LineModel(span, n_elements=n_elements, bc=bc)
     if bare.n_dofs > DENSE_EIGEN_LIMIT:
         raise InputError(

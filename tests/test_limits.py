@@ -121,16 +121,15 @@ REFUSALS = [
     ("robot_value 1e8 wind speeds",
      lambda s: plc.robot_value(DRAKE, s["robot"], s["limits"], wind_speeds=s["speeds_1e8"]),
      "wind_speeds", "100000000"),
+    # 8 bytes x 1e10 steps x (4 states + 4 nodes) = 596 GiB (MemoryError before the budget).
+    ("DMDModel.predict n_steps=1e10",
+     lambda s: s["dmd"].predict(s["dmd"].initial_state, 10**10), "n_steps", "10000000000"),
 ]
 
 # Would-be allocations the owners still have to limit (routed; not run: each allocates or asks
 # for hundreds of GiB before failing, which a shared test machine must not see).
 NOT_YET = [
-    pytest.param(lambda s: s["dmd"].predict(s["dmd"].initial_state, 10**10), "n_steps",
-                 "10000000000", id="DMDModel.predict n_steps=1e10",
-                 marks=pytest.mark.xfail(run=False, strict=True, reason=(
-                     "identify: predict allocates (n, n_steps) with no check_budget (MemoryError "
-                     "for 298 GiB)"))),
+
     pytest.param(lambda s: plc.parameter_grid(a=range(10**5), b=range(10**5), c=range(10**4)),
                  "axes", "10", id="parameter_grid 1e14 points",
                  marks=pytest.mark.xfail(run=False, strict=True, reason=(
@@ -179,6 +178,42 @@ def test_a_raised_budget_lets_the_same_call_through(small):
         plc.LineModel(LAB, n_elements=2000, mdr=small["robot"], memory_budget=2**20)
     model = plc.LineModel(LAB, n_elements=2000, mdr=small["robot"])
     assert model.n_nodes == 2001
+
+
+def _entry_point(row_id: str):
+    """The public callable a REFUSALS row is named after ('LineModel', 'DMDModel.predict', ...)."""
+    target: object = plc if hasattr(plc, row_id.split()[0].split(".")[0]) else config
+    for part in row_id.split()[0].split("."):
+        target = getattr(target, part)
+    return target
+
+
+@pytest.mark.parametrize("row", REFUSALS, ids=lambda r: r[0])
+def test_a_refusal_suggests_only_budget_arguments_the_call_has(small, row):
+    """"raise the budget (memory_budget=...)" only where the signature takes memory_budget."""
+    import inspect
+
+    outcome, _ = traced(row[1], small)
+    message = str(outcome)
+    parameters = inspect.signature(_entry_point(row[0])).parameters
+    for argument in ("memory_budget", "work_budget"):
+        if f"{argument}=" in message:
+            assert argument in parameters, (row[0], message)
+    # Every budget refusal still says how to raise the budget: the environment variable.
+    if "over the budget" in message:
+        assert "POWERLINE_CONTROL_" in message, message
+
+
+def test_motion_planner_takes_the_memory_budget_its_refusal_suggests(small):
+    # 16 kB per step (the planner's own estimate) x 100 steps = 1.6 MB > a 1 MB budget.
+    with pytest.raises(InputError, match=r"memory_budget=\.\.\.") as info:
+        plc.MotionPlanner(small["limits"], horizon=100, span_length=3.66, memory_budget=2**20)
+    assert "'horizon'" in str(info.value)
+    planner = plc.MotionPlanner(small["limits"], horizon=100, span_length=3.66,
+                                memory_budget=2**22)  # 4 MB: the same call goes through
+    assert planner.horizon == 100
+    with pytest.raises(InputError, match="'memory_budget'"):
+        plc.MotionPlanner(small["limits"], memory_budget="big")
 
 
 # Entries with a fast path: the huge size parameter is legitimate and must stay cheap.

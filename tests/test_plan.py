@@ -667,6 +667,9 @@ def test_results_identical_on_idle_and_loaded_machine():
         ({"obstacles": [(5.0, 6.0)], "span_length": SPAN}, "'obstacles'"),
         ({"limits": (0.5, 1.0)}, "RobotLimits"),
         ({"dt": math.inf}, "'dt'"),
+        ({"memory_budget": -1.0}, "'memory_budget'"),
+        ({"memory_budget": "4 GiB"}, "'memory_budget'"),
+        ({"horizon": 100, "memory_budget": 1e5}, "'horizon'"),  # 1.6 MB > 100 kB
     ],
 )
 def test_planner_construction_bad_input_names_the_parameter(kwargs, name):
