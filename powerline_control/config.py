@@ -26,6 +26,7 @@ import textwrap
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
+from os import PathLike
 from pathlib import Path
 
 from .errors import InputError
@@ -609,6 +610,22 @@ def load_scenario(path: str | Path | None = None, *, text: str | None = None,
     powerline_control.errors.InputError: <text>: robot.start = 10.0 is not allowed. The robot \
 must be on the span. Allowed: 0 < x < 3.66 m (the span length).
     """
+    if text is not None and not isinstance(text, str):
+        # tomllib would fail with a raw AttributeError/TypeError ('float' has no 'replace').
+        raise InputError(
+            f"The 'text' parameter must be TOML text (a str) or None. Got {text!r:.60} of type "
+            f"{type(text).__name__}; read a file with load_scenario(path) instead."
+        )
+    if path is not None and not isinstance(path, str | PathLike):
+        raise InputError(
+            f"The 'path' parameter must be a file path, a shipped scenario name or None. Got "
+            f"{path!r:.60} of type {type(path).__name__}."
+        )
+    if source is not None and not isinstance(source, str):
+        raise InputError(
+            f"The 'source' parameter must be a str (a name for messages) or None. Got "
+            f"{type(source).__name__}."
+        )
     if text is None:
         if path is None:
             return default_scenario()

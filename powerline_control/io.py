@@ -89,7 +89,7 @@ def save_model(path: str | os.PathLike[str], model: DMDModel) -> None:
     Raises
     ------
     InputError
-        ``model`` is not a supported result type.
+        ``path`` is not a path or an open file, or ``model`` is not a supported result type.
 
     Examples
     --------
@@ -100,6 +100,15 @@ def save_model(path: str | os.PathLike[str], model: DMDModel) -> None:
     >>> bool(np.array_equal(plc.load_model(path).A, dmd.A))
     True
     """
+    # np.savez also takes an open binary file; anything else (an int is read as a file
+    # descriptor by some paths, a model passed first by mistake) is refused before writing.
+    if not (isinstance(path, str | bytes | os.PathLike) or hasattr(path, "write")):
+        raise InputError(
+            f"The 'path' parameter must be a file path (str or os.PathLike) or an open binary "
+            f"file. Got {path!r:.60} of type {type(path).__name__} instead."
+        )
+    if isinstance(path, str | bytes) and not path:
+        raise InputError("The 'path' parameter must not be empty: give a file name.")
     if not isinstance(model, DMDModel):
         raise InputError(
             f"The 'model' parameter must be a DMDModel. Got {type(model).__name__} instead."

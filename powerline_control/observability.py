@@ -32,6 +32,7 @@ import numpy as np
 from ._riccati import field_variances, posterior_from_predicted, solve_filter_dare
 from ._validation import (
     check_budget,
+    check_choice,
     check_covariance,
     check_discrete_system,
     check_field_map,
@@ -286,10 +287,7 @@ def steady_state_covariance(
     >>> round(float(P[0, 0]), 6)   # (sqrt(5) - 1) / 2, the golden-ratio closed form
     0.618034
     """
-    if form not in ("filter", "predicted"):
-        raise InputError(
-            f"The 'form' parameter must be one of 'filter', 'predicted'. Got {form!r} instead."
-        )
+    form = check_choice("form", form, ("filter", "predicted"))
     sys = check_discrete_system("sys", sys)
     index = _check_sensors(sensors, sys.noutputs)
     n = sys.nstates
@@ -548,12 +546,26 @@ def compare_sensor_sets(
     >>> [r.rank for r in table.reports]
     [1, 2]
     """
+    sys = check_discrete_system("sys", sys)
     if isinstance(sensor_sets, dict):
         names = tuple(str(name) for name in sensor_sets)
         sets = list(sensor_sets.values())
-    else:
+    elif isinstance(sensor_sets, Sequence | np.ndarray) and not isinstance(sensor_sets, str):
         sets = list(sensor_sets)
-        names = tuple(str(list(map(int, s))) for s in sets)
+        names = None
+    else:
+        raise InputError(
+            "The 'sensor_sets' parameter must be a dict of name -> sensor indices or a sequence "
+            f"of sensor-index sequences. Got {sensor_sets!r} of type "
+            f"{type(sensor_sets).__name__}."
+        )
+    # Each set is checked here, so that a bad one is named by its key or position.
+    labels = (tuple(f'"{name}"' for name in names) if names is not None
+              else tuple(range(len(sets))))
+    sets = [check_indices(f"sensor_sets[{label}]", s, sys.noutputs).tolist()
+            for label, s in zip(labels, sets, strict=True)]
+    if names is None:
+        names = tuple(str(s) for s in sets)
     if not sets:
         raise InputError("The 'sensor_sets' parameter must contain at least one sensor set.")
     reports = tuple(

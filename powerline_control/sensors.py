@@ -1241,7 +1241,13 @@ def sensor_count_study(
     ((1, 2), True)
     """
     sys = check_discrete_system("sys", sys)
-    ks = [check_int("k_values", k, low=1) for k in k_values]
+    if isinstance(k_values, str) or not isinstance(k_values, Sequence | np.ndarray):
+        raise InputError(
+            "The 'k_values' parameter must be a sequence of sensor counts, e.g. [1, 2, 3]. "
+            f"Got {k_values!r} of type {type(k_values).__name__}."
+        )
+    items = np.ravel(k_values).tolist() if isinstance(k_values, np.ndarray) else list(k_values)
+    ks = [check_int("k_values", k, low=1) for k in items]
     if not ks or sorted(set(ks)) != ks:
         raise InputError(
             f"The 'k_values' parameter must be a non-empty ascending sequence of distinct "

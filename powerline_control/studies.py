@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validation import check_int
+from ._validation import check_budget, check_int
 from .errors import FileFormatError, InputError
 
 __all__ = ["parameter_grid", "point_seed", "run_study", "StudyResult"]
@@ -60,7 +60,9 @@ def parameter_grid(**axes: Iterable) -> list[dict]:
     Raises
     ------
     InputError
-        If an axis is empty.
+        If an axis is empty, is not a collection of values (a number, or a string, which would
+        be split into characters), or the grid would exceed the memory budget (the number of
+        points is the product of the axis lengths; checked before any point is built).
 
     Examples
     --------
@@ -68,10 +70,29 @@ def parameter_grid(**axes: Iterable) -> list[dict]:
     [{'k': 1, 'noise': 0.01}, {'k': 2, 'noise': 0.01}]
     """
     names = list(axes)
-    values = [list(axes[name]) for name in names]
+    values = []
+    for name in names:
+        options = axes[name]
+        if isinstance(options, str | bytes | Mapping) or not isinstance(options, Iterable):
+            raise InputError(
+                f"The grid axis {name!r} must be a list (or other iterable) of values, e.g. "
+                f"{name}=[{options!r:.40}]. Got {options!r:.60} of type "
+                f"{type(options).__name__}."
+            )
+        values.append(list(options))
     for name, options in zip(names, values, strict=True):
         if not options:
             raise InputError(f"The grid axis {name!r} has no values.")
+    lengths = [len(options) for options in values]
+    n_points = math.prod(lengths)
+    # One dict per point (~200 bytes plus ~16 per key in CPython) and its list slot: a grid of
+    # 1e14 points once filled the memory for minutes before a MemoryError.
+    check_budget(
+        f"parameter_grid's {n_points:.3g} points", nbytes=n_points * (208.0 + 16 * len(names)),
+        parameter="axes", value=" x ".join(f"{name}: {n}" for name, n in zip(names, lengths,
+                                                                             strict=True)),
+        fix="use fewer values per axis, or evaluate the points lazily with itertools.product",
+    )
     return [
         dict(zip(names, combination, strict=True)) for combination in itertools.product(*values)
     ]
@@ -136,6 +157,11 @@ def point_seed(seed: int, point: Mapping) -> int:
     True
     """
     seed = check_int("seed", seed, low=0)
+    if not isinstance(point, Mapping):
+        raise InputError(
+            f"The 'point' parameter must be a dict of parameter name -> value (one grid point). "
+            f"Got {point!r:.60} of type {type(point).__name__}."
+        )
     digest = hashlib.sha256(_canonical(point).encode()).digest()
     words = [int.from_bytes(digest[i : i + 4], "little") for i in range(0, 32, 4)]
     state = np.random.SeedSequence(entropy=seed, spawn_key=words).generate_state(1, np.uint64)
@@ -440,7 +466,7 @@ def run_study(
         raise InputError(
             f"The 'progress' parameter must be True, False or None. Got {progress!r}."
         )
-    if isinstance(grid, Mapping) or isinstance(grid, str):
+    if isinstance(grid, Mapping | str) or not isinstance(grid, Iterable):
         raise InputError(
             "The 'grid' parameter must be a sequence of dicts (one per grid point), e.g. from "
             f"parameter_grid(). Got a {type(grid).__name__}."

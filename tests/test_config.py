@@ -157,6 +157,19 @@ def test_missing_file_and_unknown_name_are_clear_errors(tmp_path):
         load_scenario("drake-301m")
 
 
+@pytest.mark.parametrize(("kwargs", "parameter"), [
+    ({"text": float("nan")}, "'text'"),          # tomllib raised AttributeError
+    ({"text": b"[model]\nn_elements = 20"}, "'text'"),  # bytes: decode it first
+    ({"text": ["[model]"]}, "'text'"),
+    ({"path": 3}, "'path'"),                     # Path(3) raised TypeError
+    ({"path": 2.5}, "'path'"),
+    ({"text": "", "source": 3}, "'source'"),
+])
+def test_wrong_argument_types_are_input_errors(kwargs, parameter):
+    with pytest.raises(InputError, match=parameter):
+        load_scenario(**kwargs)
+
+
 def test_file_errors_name_the_file(tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text("[robot]\nstart = -1.0\n")

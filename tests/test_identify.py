@@ -564,6 +564,19 @@ def test_model_methods_reject_bad_input():
     model = plc.fit_dmd(GOOD, 0.01, delays=2, alpha=0.1)
     with pytest.raises(InputError, match="expected \\(3, 2\\)"):
         model.predict(GOOD[:, :3], 5)
+    # predict's window is its 'initial' parameter (not window_to_state's 'window').
+    with pytest.raises(InputError, match="'initial' parameter must be a 1 or 2-d array"):
+        model.predict(0.0, 5)
+    with pytest.raises(InputError, match="'initial' parameter must be real"):
+        model.predict(GOOD[:, :2] + 0j, 5)
+    # 8 bytes x 1e12 steps x (n_states + n_nodes): refused before the run is allocated.
+    with pytest.raises(InputError, match="'n_steps' parameter is 1000000000000"):
+        model.predict(GOOD[:, :2], 10**12)
+    for report in (model.stability_report, model.damping_report):
+        with pytest.raises(InputError, match="'warn' parameter must be True or False"):
+            report(warn="no")
+        with pytest.raises(InputError, match="'warn' parameter must be True or False"):
+            report(warn=1)
     with pytest.raises(InputError, match="'inputs'.*None"):
         model.predict(GOOD[:, :2], 5, inputs=np.ones((1, 5)))
     with pytest.raises(InputError, match="'measured'.*\\[0, 2\\]"):
@@ -707,6 +720,8 @@ def test_damping_report_flags_a_record_too_short_for_the_decay():
         (np.ones((300, 12)), "looks transposed"),
         (np.ones((3, 40)) * (1 + 1j), "must be real"),    # never drop the imaginary part
         (np.array([[1 + 0j, 2, 3, 4]]), "must be real"),
+        (np.ones((3, 40)) > 0, "boolean"),                # a mask is not data
+        (np.full((3, 40), "1.0"), "text"),
     ],
 )
 @pytest.mark.parametrize("entry", ["fit_dmd", "select_alpha", "OnlineDMD"])

@@ -196,6 +196,20 @@ def test_zip_bomb_is_refused_from_its_directory_without_memory(tmp_path):
     assert peak < 20 * 2**20  # far below the 490 MB it would unpack to
 
 
+@pytest.mark.parametrize("path", [3, 2.5, None, ["model.npz"], ""])
+def test_save_model_refuses_a_path_that_is_not_one(path):
+    # np.savez raised a raw TypeError (or wrote '.npz' for an empty name).
+    with pytest.raises(plc.InputError, match="'path' parameter"):
+        plc.save_model(path, small_model())
+
+
+def test_save_model_still_writes_to_an_open_binary_file(tmp_path):
+    model = small_model()
+    with open(tmp_path / "open.npz", "wb") as handle:
+        plc.save_model(handle, model)
+    assert np.array_equal(plc.load_model(tmp_path / "open.npz").A, model.A)  # exact copy
+
+
 def test_declared_sizes_over_max_bytes_are_refused(tmp_path):
     path = tmp_path / "model.npz"
     plc.save_model(path, small_model())

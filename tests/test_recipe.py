@@ -109,6 +109,13 @@ def test_design_estimator_rejects_bad_input(small_design, kwargs, error, match):
         (np.zeros((4, 200)), {"dt": 1e-3}, "all zeros"),
         (np.full((4, 200), np.nan), {"dt": 1e-3}, "NaN"),
         (np.ones(200), {"dt": 1e-3}, "2-d"),
+        # the shared rules of fit_dmd: transposed, complex, a boolean mask
+        (np.ones((400, 4)), {"dt": 1e-3}, "'snapshots' parameter .* looks transposed"),
+        (np.ones((4, 200)) * 1j, {"dt": 1e-3}, "'snapshots' parameter must be real"),
+        (np.ones((4, 200)) > 0, {"dt": 1e-3}, "'snapshots' .* boolean"),
+        # noise over 1e6 x the record's RMS (here RMS 1): no information, and R overflowed
+        (np.ones((4, 200)), {"dt": 1e-3, "noise_std": 2e6}, "'noise_std' .* <= 1e\\+06"),
+        (np.ones((4, 200)), {"dt": 1e-3, "noise_std": 1e300}, "'noise_std'"),
     ],
 )
 def test_design_estimator_rejects_bad_snapshots(snapshots, kwargs, match):

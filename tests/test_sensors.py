@@ -615,6 +615,12 @@ BAD_INPUT = [
      "'basis'"),
     ("count study empty", lambda: plc.sensor_count_study(_problem()[0], [], Q=_problem()[1]),
      _I, "'k_values'"),
+    ("count study int", lambda: plc.sensor_count_study(_problem()[0], 3, Q=_problem()[1]),
+     _I, "'k_values'"),
+    ("count study str", lambda: plc.sensor_count_study(_problem()[0], "12", Q=_problem()[1]),
+     _I, "'k_values'"),
+    ("count study float", lambda: plc.sensor_count_study(_problem()[0], [1.5],
+                                                         Q=_problem()[1]), _I, "'k_values'"),
     ("count study descending", lambda: plc.sensor_count_study(
         _problem()[0], [2, 1], Q=_problem()[1]), _I, "'k_values'"),
     ("count study n_steps", lambda: plc.sensor_count_study(

@@ -244,6 +244,21 @@ def test_bad_grids_columns_and_files_are_refused(tmp_path):
         run_study(ok, parameter_grid(k=[1])).column("w")
     with pytest.raises(plc.InputError, match="'seed' parameter must be >= 0"):
         point_seed(-3, {"k": 1})
+    with pytest.raises(plc.InputError, match="'point' parameter must be a dict"):
+        point_seed(1, [("k", 1)])
+    # An axis is a collection of values: a bare number, a string (its characters) or a dict
+    # (its keys) is refused, not iterated.
+    for axis in (3, 2.5, "xy", b"xy", {"x": 1}, None):
+        with pytest.raises(plc.InputError, match="grid axis 'k' must be a list"):
+            parameter_grid(k=axis)
+    assert parameter_grid(k=range(2), s=("xy",)) == [{"k": 0, "s": "xy"}, {"k": 1, "s": "xy"}]
+    assert len(parameter_grid(k=np.arange(3), j=iter([1, 2]))) == 6
+    # 1e6 x 1e6 points: refused from the axis lengths, naming them, before any point is built.
+    with pytest.raises(plc.InputError, match="'axes' parameter is 'a: 1000000 x b: 1000000'"):
+        parameter_grid(a=range(10**6), b=range(10**6))
+    for grid in (float("nan"), 3, None):
+        with pytest.raises(plc.InputError, match="'grid' parameter must be a sequence of dicts"):
+            run_study(ok, grid)
     (tmp_path / "other.json").write_text('{"format": "something else"}')
     with pytest.raises(plc.FileFormatError, match="not a study written by"):
         StudyResult.from_json(tmp_path / "other.json")
