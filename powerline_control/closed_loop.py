@@ -78,6 +78,11 @@ SMALL_PLANT_MODES = 48
 # Local minima of the predicted RMS within this fraction of the lowest count as equally good:
 # the robot takes the nearest (equal loops of a resonant mode need no long trip).
 NEAR_OPTIMAL = 0.03
+# ... but only among the minima the robot reaches spending at most this fraction of the remaining
+# run travelling: a far loop predicted slightly better is not worth a trip that leaves the line
+# vibrating at the start's level for most of the run (on a long span the few sensors cannot rank
+# ~100 loops to 3 % anyway).
+TRAVEL_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -593,9 +598,11 @@ def _predicted_rms(bare_shape, plant, robot, omega, positions, weights):
     return out
 
 
-def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high):
-    """The predicted best parked position: among the local minima of the predicted RMS within
-    NEAR_OPTIMAL of the lowest, the one nearest the robot.
+def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high,
+                   reach=np.inf):
+    """The predicted best parked position within reach: among the local minima of the predicted
+    RMS no farther than ``reach`` from the robot, those within NEAR_OPTIMAL of the lowest of
+    them, the one nearest the robot (all minima when none is within reach).
 
     Returns (position, loop length, grid, predicted RMS on the grid), or None without a loop.
     """
@@ -608,7 +615,9 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
     minima = [i for i in range(grid.size)
               if (i == 0 or predicted[i] <= predicted[i - 1])
               and (i == grid.size - 1 or predicted[i] <= predicted[i + 1])]
-    good = [i for i in minima if predicted[i] <= (1 + NEAR_OPTIMAL) * predicted.min()]
+    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach] or minima
+    lowest = min(predicted[i] for i in reachable)
+    good = [i for i in reachable if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
     pick = min(good, key=lambda i: abs(grid[i] - robot_position))
     if 0 < pick < grid.size - 1:
         # Parabola through the grid minimum and its neighbours (uniform grid).
@@ -620,6 +629,16 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
         position = float(grid[pick])
     loop = min(antinodes, key=lambda a: abs(a[0] - position))[2]
     return position, loop, read_only(grid), read_only(predicted)
+
+
+def _reach(limits: RobotLimits, time_budget: float) -> float:
+    """Longest rest-to-rest move within ``time_budget`` s (triangle or trapezoid profile), m."""
+    a, v = limits.a_max, limits.v_max
+    if time_budget <= 0:
+        return 0.0
+    if time_budget <= 2 * v / a:
+        return 0.25 * a * time_budget**2
+    return v * (time_budget - v / a)
 
 
 def _half_wavelength(span: Span, frequency: float) -> float:
@@ -1063,7 +1082,9 @@ def run_closed_loop(
         if retarget or confirm:
             low, high = _free_interval(x_r, obstacles, span.length, margin)
             omega_now = 2 * np.pi * frequency
-            choice = _choose_target(shape, plant, robot, omega_now, weights, x_r, low, high)
+            reach = _reach(limits, TRAVEL_FRACTION * (t[-1] - t[k]))
+            choice = _choose_target(shape, plant, robot, omega_now, weights, x_r, low, high,
+                                    reach)
             if choice is not None:
                 position_choice, loop_choice, grid, predicted = choice
                 predictions.append((float(t[k]), grid, predicted, read_only(shape)))
