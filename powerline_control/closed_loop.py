@@ -602,7 +602,7 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
                    reach=np.inf):
     """The predicted best parked position within reach: among the local minima of the predicted
     RMS no farther than ``reach`` from the robot, those within NEAR_OPTIMAL of the lowest of
-    them, the one nearest the robot (all minima when none is within reach).
+    them, the one nearest the robot (the nearest minimum when none is within reach).
 
     Returns (position, loop length, grid, predicted RMS on the grid), or None without a loop.
     """
@@ -615,7 +615,8 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
     minima = [i for i in range(grid.size)
               if (i == 0 or predicted[i] <= predicted[i - 1])
               and (i == grid.size - 1 or predicted[i] <= predicted[i + 1])]
-    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach] or minima
+    nearest = min(minima, key=lambda i: abs(grid[i] - robot_position))
+    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach] or [nearest]
     lowest = min(predicted[i] for i in reachable)
     good = [i for i in reachable if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
     pick = min(good, key=lambda i: abs(grid[i] - robot_position))
