@@ -31,8 +31,10 @@ the bare line's receptance,
 
 (the robot-free excited shape, fitted on the bare modes), which in steady state is the same
 wherever the robot is; then it predicts the span's RMS with itself parked at every p,
-``W_p = W_bare + H(., p) D_r W_bare(p) / (1 - H(p, p) D_r)``, and goes to the best (the nearest
-of the near-best minima). The choice is confirmed once the robot has settled and the window is
+``W_p = W_bare + H(., p) D_r W_bare(p) / (1 - H(p, p) D_r)``, and goes to the best it can reach
+spending at most half the remaining run travelling (the nearest of the near-best minima within
+that reach: on a long span every loop is about as good, and a far one is not worth the trip).
+The choice is confirmed once the robot has settled and the window is
 steady: a refinement inside a quarter loop of the *anchor* (the gate does not move with the
 goal), or at most two moves to another loop; a new target only when the dominant frequency
 changes (a wind change). The motion law is the closed-form time-optimal approach of a double

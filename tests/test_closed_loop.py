@@ -10,7 +10,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import powerline_control as plc
-from powerline_control.closed_loop import _ModalPlant, run_closed_loop
+from powerline_control.closed_loop import _ModalPlant, _reach, run_closed_loop
 from powerline_control.tuning import tune_damper
 
 LAB = plc.Span.paper_lab()
@@ -297,6 +297,33 @@ def test_results_do_not_depend_on_the_machine_load():
     np.testing.assert_array_equal(idle.robot_position, loaded.robot_position)
     np.testing.assert_array_equal(idle.displacement, loaded.displacement)
     assert idle.statuses == loaded.statuses
+
+
+@pytest.mark.parametrize(("v_max", "a_max", "budget"),
+                         [(1.0, 2.0, 5.0), (0.5, 1.0, 0.7), (0.3, 0.8, 0.75), (2.0, 0.5, 3.0)])
+def test_reach_is_the_longest_rest_to_rest_move_in_the_budget(v_max, a_max, budget):
+    # Brute force: bisect on the distance, each tried by integrating the bang-coast-bang profile
+    # (accelerate, cruise at v_max if reached, brake) at 1e-4 s; the move fits when it stops
+    # within the budget. 3e-3 relative: one integration step of overshoot at the braking point
+    # (~v dt / distance, < 1e-3 here) and the bisection (2^-25).
+    def stop_time(distance):
+        dt, x, v, t = 1e-4, 0.0, 0.0, 0.0
+        while True:
+            braking = v * v / (2 * a_max)
+            accel = -a_max if x + braking >= distance else (a_max if v < v_max else 0.0)
+            v = min(max(v + accel * dt, 0.0), v_max)
+            x += v * dt
+            t += dt
+            if v == 0.0 and accel < 0:
+                return t
+
+    low, high = 0.0, v_max * budget
+    for _ in range(25):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if stop_time(mid) <= budget else (low, mid)
+    limits = plc.RobotLimits(v_max=v_max, a_max=a_max)
+    assert _reach(limits, budget) == pytest.approx(low, rel=3e-3)
+    assert _reach(limits, 0.0) == 0.0
 
 
 # ---------------------------------------------------------------------------- a long real span
