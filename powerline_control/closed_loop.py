@@ -1082,6 +1082,11 @@ def run_closed_loop(
             # MAX_WAIT s) for a steady one, except for the very first target.
             if unsteady > UNSTEADY_LIMIT and waited < MAX_WAIT and not np.isnan(goal):
                 retarget = confirm = False
+            elif confirm and unsteady > UNSTEADY_LIMIT:
+                # Still beating after MAX_WAIT s: its steady-state prediction is no better than
+                # the anchor's (a long, lightly damped span rings for tens of seconds after the
+                # robot arrives). Keep the goal and stop.
+                confirm, confirmed = False, True
         if retarget or confirm:
             low, high = _free_interval(x_r, obstacles, span.length, margin)
             omega_now = 2 * np.pi * frequency
