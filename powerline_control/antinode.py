@@ -659,7 +659,13 @@ def _node_variances(variances: object, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def _check_antinodes(antinodes: Sequence[Antinode]) -> list[Antinode]:
-    items = list(antinodes)
+    if isinstance(antinodes, Antinode):
+        antinodes = [antinodes]
+    try:
+        items = list(antinodes)
+    except TypeError:
+        raise InputError("The 'antinodes' parameter must be a list of Antinode objects (from "
+                         f"locate_antinodes). Got {type(antinodes).__name__}.") from None
     if not items:
         raise InputError(
             "The 'antinodes' parameter is empty: no antinode was found (is the field zero, or "

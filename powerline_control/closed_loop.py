@@ -2,8 +2,9 @@
 
 The plant
 ---------
-The line is simulated in the modal coordinates of the *bare* line (its lowest ``r`` modes, plus
-the quasi-static residual of the dropped modes for the loads), and the robot is coupled to them
+The line is simulated in the modal coordinates of the *bare* line (its lowest ``r`` modes or a
+band of them, plus the residual response of the dropped modes to the loads: dynamic for a sine,
+so modes below a band count with 1 / (omega_k^2 - omega^2)), and the robot is coupled to them
 through the shape functions at its current position: with ``n = Phi^T N(x_r)`` (the bare modes'
 displacements at the robot, ``model.shape_vector(x)`` restricted to the modal basis)
 
@@ -50,15 +51,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
-import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
-from ._validation import check_indices, check_int, check_real, check_rng, read_only
+from ._validation import (
+    check_budget,
+    check_indices,
+    check_int,
+    check_real,
+    check_rng,
+    read_only,
+)
 from .errors import InputError
 from .fem import MDR, LineModel
 from .line import Span
 from .plan import MotionPlanner, RobotLimits
 from .recipe import design_estimator
+from .severity import damper_impedance
 
 __all__ = ["ClosedLoopResult", "Comparison", "run_closed_loop"]
 
@@ -297,6 +305,8 @@ class _ModalPlant:
         index = np.arange(modes) if np.ndim(modes) == 0 else np.asarray(modes)
         basis = model.modes(int(index.max()) + 1)
         self.model, self.dt = model, dt
+        # every mode up to the top of the plant's (possibly band of) modes, for the residual
+        self.lowest = basis
         active = robot is not None and (robot.body_mass > 0 or robot.has_absorber)
         self.robot = robot if active else None
         self.shapes = np.asarray(basis.shapes)[:, index]
@@ -312,7 +322,9 @@ class _ModalPlant:
 
     def coupling(self, x: float) -> np.ndarray:
         """The bare modes' displacements at x (shape functions restricted to the basis)."""
-        return self.shapes.T @ self.model.shape_vector(x)
+        # the <= 4 non-zero shape-function entries: O(r) per call, not O(n_dofs r)
+        index, weights = self.model.shape_entries(x)
+        return weights @ self.shapes[index]
 
     def matrices(self, x: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """M, C, K over (q, y): O(r^2) rank-one updates of the bare line's diagonal ones."""
@@ -400,14 +412,15 @@ def _default_modes(span: Span, bare: LineModel, frequencies: list, dt: float):
 
 
 def _robot_dynamic_stiffness(robot: MDR, omega: float) -> complex:
-    """D_r: the robot's force on the line per unit line displacement at omega (body + absorber)."""
-    value = omega**2 * robot.body_mass
-    if robot.has_absorber:
-        spring = robot.stiffness + 1j * omega * robot.damping
-        value = value + omega**2 * robot.suspended_mass * spring / (
-            spring - omega**2 * robot.suspended_mass
-        )
-    return complex(value)
+    """D_r: the robot's force on the line per unit line displacement at omega (body + absorber).
+
+    D_r = -i omega Z with Z the robot's mechanical impedance
+    (:func:`~powerline_control.severity.damper_impedance`, the same physics in one place);
+    zero at omega = 0 (every term carries omega^2).
+    """
+    if omega == 0.0:
+        return 0j
+    return complex(-1j * omega * damper_impedance(robot, omega / (2 * np.pi)))
 
 
 def _run_parked(plant, x, modal_force, n_t, z0=None):
@@ -465,12 +478,30 @@ def _segments(force: object, duration: float) -> list[tuple[float, list]]:
     return segments
 
 
+def _residual_of_load(model: LineModel, plant: _ModalPlant, vector: np.ndarray,
+                      frequency: float | None) -> np.ndarray:
+    """Nodal response, per unit time factor, of the bare modes the plant does not keep.
+
+    A plant of a band of modes (long spans) leaves out modes *below* the band as well as above
+    it. Under a sine those respond with 1 / (omega_k^2 - omega^2) < 0, so the residual is the
+    dynamic one (exact for the undamped modes left out); the static K^-1 residual would count
+    them with their static flexibility 1 / omega_k^2, on a 300 m span a spurious field ~100x
+    the vibration. Other loads (or a sine exactly on a kept resonance): the static residual of
+    the modes above the plant's top only (the modes below a band are then left out).
+    """
+    f = 0.0 if frequency is None else float(frequency)
+    omega2 = (2 * np.pi * f) ** 2
+    if f > 0.0 and np.min(np.abs(plant.omega2 - omega2)) >= 1e-9 * plant.omega2.max():
+        dofs = model.residual_response(vector, plant.shapes, np.sqrt(plant.omega2), f)
+    else:
+        dofs = model.residual_response(vector, plant.lowest.shapes, plant.lowest.omega)
+    return model.displacement_map() @ dofs
+
+
 def _load_histories(model, plant, segments, t):
     """Modal force (n_t, r), nodal quasi-static residual (n_nodes, n_t), last harmonic load."""
     modal = np.zeros((t.size, plant.r))
     residual = np.zeros((model.n_nodes, t.size))
-    stiffness = model.stiffness_matrix.tocsc()
-    solve = spla.factorized(stiffness)
     harmonic = None
     bounds = [s for s, _ in segments] + [np.inf]
     for (start, loads), end in zip(segments, bounds[1:], strict=True):
@@ -484,13 +515,11 @@ def _load_histories(model, plant, segments, t):
             vector = np.asarray(load.load_vector(model), dtype=float)
             values = np.asarray(load.values(t[mask]), dtype=float)
             g = plant.shapes.T @ vector
-            static = model.displacement_map() @ (
-                solve(vector) - plant.shapes @ (g / plant.omega2)
-            )
+            static = _residual_of_load(model, plant, vector, getattr(load, "frequency", None))
             modal[mask] += np.outer(values, g)
             residual[:, mask] += np.outer(static, values)
             harmonic_parts.append((load, g, static))
-        if all(hasattr(load, "frequency") for load, _, _ in harmonic_parts):
+        if all(getattr(load, "frequency", None) is not None for load, _, _ in harmonic_parts):
             frequencies = {round(float(load.frequency), 9) for load, _, _ in harmonic_parts}
             if len(frequencies) == 1:
                 harmonic = (float(harmonic_parts[0][0].frequency), harmonic_parts)
@@ -642,15 +671,6 @@ def _reach(limits: RobotLimits, time_budget: float) -> float:
     if time_budget <= 2 * v / a:
         return 0.25 * a * time_budget**2
     return v * (time_budget - v / a)
-
-
-def _half_wavelength(span: Span, frequency: float) -> float:
-    """Loop length at f: pi / k with m omega^2 = EI k^4 + T k^2 (taut beam)."""
-    cond = span.conductor
-    omega2 = (2 * np.pi * frequency) ** 2
-    t, ei, m = span.tension, cond.ei, cond.mass_per_length
-    k2 = (-t + np.sqrt(t**2 + 4 * ei * m * omega2)) / (2 * ei) if ei > 0 else m * omega2 / t
-    return float(np.pi / np.sqrt(k2))
 
 
 def _time_optimal_accel(position, velocity, goal, limits: RobotLimits, period: float) -> float:
@@ -879,9 +899,10 @@ def run_closed_loop(
         "calibration", calibration, low=0.0, high=duration, high_inclusive=False
     )
     dt = check_real("dt", dt, low=0.0)
-    control_period = check_real("control_period", control_period, low=0.0)
+    # A period longer than the run would never act (1e300 was accepted and ignored).
+    control_period = check_real("control_period", control_period, low=0.0, high=duration)
     if plant_period is not None:
-        plant_period = check_real("plant_period", plant_period, low=0.0)
+        plant_period = check_real("plant_period", plant_period, low=0.0, high=duration)
     steps_per_period = _check_multiple("control_period", control_period, dt)
     plant_steps = (
         _check_multiple("plant_period", plant_period, dt) if plant_period is not None else None
@@ -893,7 +914,12 @@ def run_closed_loop(
             f"The 'calibration' parameter ({calibration:g} s) must hold at least 2 samples of "
             f"dt ({dt:g} s)."
         )
-    noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True)
+    # < 1 as in scenarios (config): noise larger than the signal it measures is no experiment,
+    # and 1e300 overflowed into a raw NumPy "infs or NaNs" error.
+    noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True,
+                                high=1.0, high_inclusive=False)
+    if planner_time_budget is not None:  # checked even when motion="closed_form" ignores it
+        planner_time_budget = check_real("planner_time_budget", planner_time_budget, low=0.0)
     antinode_window = check_real("antinode_window", antinode_window, low=0.0)
     frequency_window = check_real("frequency_window", frequency_window, low=0.0)
     retarget_threshold = check_real("retarget_threshold", retarget_threshold, low=0.0)
@@ -908,11 +934,24 @@ def run_closed_loop(
         n_elements = check_int("n_elements", n_elements, low=2)
     if n_elements is not None:  # early, before any model is built
         check_indices("sensors", sensors, n_elements + 1)
+    # The loop records ~4 node histories and ~16 scalars per sample (and the parked comparisons):
+    # refuse a duration / dt that cannot fit before anything is built (n_elements=None: >= 2 nodes).
+    n_samples = int(np.floor(duration / dt + 1e-9)) + 1
+    check_budget(f"run_closed_loop's {n_samples}-sample histories",
+                 nbytes=8.0 * n_samples * (4 * (n_elements + 1 if n_elements else 2) + 16),
+                 parameter="duration", value=duration,
+                 fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use fewer "
+                     f"elements (n_elements={n_elements})")
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
-    obstacles = [
-        (check_real("obstacles", a), check_real("obstacles", b)) for a, b in obstacles
-    ]
+    try:
+        pairs = [tuple(pair) for pair in obstacles]
+    except TypeError:
+        pairs = [()]
+    if any(len(pair) != 2 for pair in pairs):
+        raise InputError("The 'obstacles' parameter must be a sequence of (left, right) pairs "
+                         f"in m. Got {obstacles!r}.")
+    obstacles = [(check_real("obstacles", a), check_real("obstacles", b)) for a, b in pairs]
     for left, right in obstacles:
         if not left < right:
             raise InputError(f"Each of 'obstacles' must be (left, right), left < right. Got "
@@ -947,7 +986,7 @@ def run_closed_loop(
         for _, loads in segments
         for f in loads
         for b in [f.bind(bare) if hasattr(f, "bind") else f]
-        if hasattr(b, "frequency")
+        if getattr(b, "frequency", None) is not None   # a user's load may say None: not a sine
     ]
     if n_modes is None:
         n_modes = _default_modes(span, bare, load_frequencies, dt)
@@ -1169,7 +1208,7 @@ def run_closed_loop(
     # ---- what happened, over a settled window
     displacement = nodal @ z_hist[:, :r].T + residual
     final_frequency = frequencies[-1] if frequencies else float("nan")
-    loop_length = _half_wavelength(span, final_frequency) if frequencies else float("nan")
+    loop_length = float(span.loop_length(final_frequency)) if frequencies else float("nan")
     tolerance = 0.01 * loop_length
     settle_times = []
     bounds = target_starts[1:] + [n_t - 1]

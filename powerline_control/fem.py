@@ -233,6 +233,9 @@ class MDR:
         omega = 2 * np.pi * check_real("frequency", frequency, low=0.0)
         ratio = check_real("damping_ratio", damping_ratio, low=0.0, low_inclusive=True)
         mass = check_real("suspended_mass", suspended_mass, low=0.0)
+        if not np.isfinite(mass * omega * omega):  # frequency ~1e300 Hz: stiffness overflows
+            raise InputError(f"The 'frequency' parameter ({frequency!r} Hz) makes the absorber "
+                             "stiffness overflow; give the tuning frequency in Hz.")
         return cls(position, body_mass, mass, mass * omega**2, 2 * ratio * mass * omega)
 
     @property
@@ -903,6 +906,45 @@ class LineModel:
             raise ModelError(f"The flexibility solve at {f:g} Hz is not finite (singular K).")
         return solution
 
+    def residual_response(self, load: np.ndarray, shapes: np.ndarray, omega: np.ndarray,
+                          frequency: float = 0.0) -> np.ndarray:
+        """Response to ``load`` at ``frequency`` Hz of every mode except ``shapes``.
+
+        Mode acceleration (residual flexibility): ``(K - w^2 M)^-1 load - sum_k phi_k phi_k^T
+        load / (omega_k^2 - w^2)`` over the given mass-normalised modes, exact for the undamped
+        modes left out. ``frequency`` 0 gives the static residual, right only for modes left
+        out that lie far *above* the load; modes left out *below* a sine respond with
+        ``1 / (omega_k^2 - w^2) < 0``, which only the dynamic form gives.
+
+        Parameters
+        ----------
+        load : ndarray, shape (n_dofs,)
+            Load over the free DOFs (per unit time factor).
+        shapes : ndarray, shape (n_dofs, r)
+            The mass-normalised modes accounted for elsewhere (any subset of the model's).
+        omega : ndarray, shape (r,)
+            Their natural frequencies, rad/s.
+        frequency : float
+            Load frequency, Hz (not a frequency of ``shapes``).
+
+        Returns
+        -------
+        ndarray, shape (n_dofs,)
+
+        Examples
+        --------
+        >>> from powerline_control import Span
+        >>> model = LineModel(Span.paper_lab(), n_elements=20)
+        >>> basis = model.modes(40)              # every mode: nothing is left out
+        >>> load = model.point_load(1.1)
+        >>> r = model.residual_response(load, basis.shapes, basis.omega, 9.0)
+        >>> bool(np.abs(r).max() < 1e-9 * np.abs(model.solve_flexibility(load)).max())
+        True
+        """
+        full = self.solve_flexibility(load, frequency)
+        gaps = np.asarray(omega, dtype=float) ** 2 - (2 * np.pi * float(frequency)) ** 2
+        return full - shapes @ ((shapes.T @ load) / gaps)
+
     # ------------------------------------------------------------------ modal analysis
     def modes(self, n_modes: int | None = None) -> ModalBasis:
         """The lowest ``n_modes`` undamped modes (all modes if None and the model is small).
@@ -1112,6 +1154,12 @@ class LineModel:
         basis = self.modes(n_modes)
         r = basis.n_modes
         a = np.block([[np.zeros((r, r)), np.eye(r)], [-np.diag(basis.omega**2), -basis.damping]])
+        if isinstance(force_positions, str) or np.ndim(force_positions) != 1 and not (
+                isinstance(force_positions, Sequence) and len(force_positions) == 0):
+            raise InputError(
+                "The 'force_positions' parameter must be a sequence of positions in m (e.g. "
+                f"[1.3]). Got {force_positions!r}."
+            )
         positions = [self._check_position("force_positions", x) for x in force_positions]
         loads = (
             np.column_stack([self.point_load(x) for x in positions])

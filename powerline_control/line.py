@@ -197,6 +197,11 @@ class Span:
         28020
         """
         cond = conductors[conductor] if isinstance(conductor, str) else conductor
+        if not isinstance(cond, Conductor):
+            raise InputError(
+                "The 'conductor' parameter must be a preset name (see conductors) or a "
+                f"Conductor. Got {type(conductor).__name__}."
+            )
         return cls(length=length, tension=cond.tension_at(fraction_of_rts), conductor=cond)
 
     @property

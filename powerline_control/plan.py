@@ -34,7 +34,14 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ._validation import check_array, check_choice, check_int, check_real, read_only
+from ._validation import (
+    check_array,
+    check_budget,
+    check_choice,
+    check_int,
+    check_real,
+    read_only,
+)
 from .errors import InputError, PlanningError
 
 __all__ = ["RobotLimits", "Trajectory", "plan_motion", "MotionPlanner", "MPCStep"]
@@ -124,7 +131,42 @@ class RobotLimits:
             ``velocity**2 / (2 a_max)``, metres.
         """
         velocity = check_real("velocity", velocity)
-        return velocity * velocity / (2.0 * self.a_max)
+        distance = velocity * velocity / (2.0 * self.a_max)
+        if not np.isfinite(distance):  # |velocity| ~ 1e300: v^2 overflows
+            raise InputError(f"The 'velocity' parameter is too large: {velocity!r} m/s squared "
+                             "overflows.")
+        return distance
+
+    def rest_to_rest_time(self, distance: float) -> float:
+        """Minimum time (s) to move ``distance`` m from rest to rest within these limits.
+
+        The closed-form time-optimal move: bang-coast-bang, T = d / v + v / a (or 2 sqrt(d / a)
+        when v_max is not reached), or with a jerk limit the seven-segment S-curve,
+        T = d / v + v / a + a / j when both v_max and a_max are reached.
+
+        Parameters
+        ----------
+        distance : float
+            Length of the move, m (its sign is ignored).
+
+        Returns
+        -------
+        float
+            Seconds.
+
+        Examples
+        --------
+        >>> RobotLimits(v_max=0.5, a_max=1.0).rest_to_rest_time(2.0)
+        4.5
+        >>> RobotLimits(v_max=0.5, a_max=1.0, j_max=2.0).rest_to_rest_time(2.0)
+        5.0
+        """
+        d = abs(check_real("distance", distance))
+        if self.j_max is None:
+            pieces = _bang_coast_bang(d, 0.0, self.v_max, self.a_max)
+        else:
+            pieces = _s_curve(d, self.v_max, self.a_max, self.j_max)
+        return float(sum(duration for duration, _ in pieces))
 
 
 @dataclass(frozen=True)
@@ -338,13 +380,6 @@ def _check_target_reachable(
             f"the robot's centre (length {length:g} m) to <= {high:g} m, and the robot cannot "
             "cross obstacles."
         )
-
-
-def _rest_to_rest_time(distance: float, v_max: float, a_max: float) -> float:
-    """Minimum time of a double integrator from rest to rest (bang-coast-bang or bang-bang)."""
-    if distance >= v_max * v_max / a_max:
-        return distance / v_max + v_max / a_max
-    return 2.0 * math.sqrt(distance / a_max)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -953,13 +988,14 @@ def plan_motion(
 
     distance = abs(target - start)
     at_rest = start_velocity == 0.0 and end_velocity == 0.0
-    lower_bound = _rest_to_rest_time(distance, limits.v_max, limits.a_max) if at_rest else 0.0
+    lower_bound = limits.rest_to_rest_time(distance) if at_rest else 0.0
     if duration is not None and duration < lower_bound * (1 - 1e-9):
         active = "a_max" if distance < limits.v_max**2 / limits.a_max else "v_max and a_max"
+        jerk = "" if limits.j_max is None else f", j_max={limits.j_max:g} m/s^3"
         raise PlanningError(
             f"The duration {duration:g} s is too short: moving {distance:g} m from rest to rest "
             f"takes at least {lower_bound:.6g} s with {active} (v_max={limits.v_max:g} m/s, "
-            f"a_max={limits.a_max:g} m/s^2). Allow more time or raise the limits."
+            f"a_max={limits.a_max:g} m/s^2{jerk}). Allow more time or raise the limits."
         )
     if objective == "time" and at_rest and distance <= _GEOMETRY_TOL:
         return _stationary(start, limits, (low, high))
@@ -1320,6 +1356,11 @@ class MotionPlanner:
         )
         self._scale = _Scale.of(limits)
         order = limits.order
+        # CasADi's two programs take ~16 KB per horizon step (measured: 31 MB at horizon 2000):
+        # refuse before building them (horizon=10**7 ended in std::bad_alloc).
+        check_budget("MotionPlanner's two horizon programs", nbytes=16e3 * self.horizon,
+                     parameter="horizon", value=self.horizon,
+                     fix="use a shorter horizon (a few braking times: horizon * dt of seconds)")
         self._cold = _track_program(self.horizon, order, self.time_budget, self.max_iter, False)
         self._warm = _track_program(self.horizon, order, self.time_budget, self.max_iter, True)
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None

@@ -53,6 +53,8 @@ DEFAULT_RANK = 30
 DEFAULT_SPATIAL_RANK = 24
 #: Relative alphas of the held-out sweep (0 first: exact on clean data, no damping bias).
 _DEFAULT_ALPHAS = np.array([0.0, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2])
+#: Process-noise floor of the filter, as a fraction of the data's mean square (see _steady_filter).
+_Q_FLOOR_FRACTION = 1e-10
 #: Radius that eigenvalues outside the unit circle are pulled to (see _stabilise).
 _STABLE_RADIUS = 1.0 - 1e-6
 #: Spatial POD coordinates below this fraction of the largest singular value are round-off.
@@ -77,6 +79,8 @@ class AlphaSweep:
         given sensors).
     n_fit : int
         Samples that trained each model of the sweep; the rest were held out.
+    alpha_mode : str
+        Always "relative" (alphas are fractions of the largest squared singular value).
 
     Examples
     --------
@@ -87,6 +91,7 @@ class AlphaSweep:
     held_out_error: np.ndarray
     layout: np.ndarray
     n_fit: int
+    alpha_mode: str = "relative"
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,6 +123,9 @@ class EstimatorDesign:
     n_stabilised : int
         Eigenvalues of the least-squares fit that lay outside the unit circle and were pulled
         radially to 1 - 1e-6 (0 for a stable fit).
+    q_floor : float
+        Variance (m^2) added to every diagonal entry of the filter's ``Q`` (1e-10 of the data's
+        mean square): it keeps the Riccati equation solvable on noise-free data.
 
     Examples
     --------
@@ -140,6 +148,12 @@ class EstimatorDesign:
     sensor_selection: object
     n_train: int
     n_stabilised: int = 0
+    q_floor: float = 0.0
+
+    @property
+    def alpha_curve(self) -> AlphaSweep:
+        """The same as :attr:`alpha_sweep` (the name of the first version of the recipe)."""
+        return self.alpha_sweep
 
     @property
     def n_nodes(self) -> int:
@@ -183,7 +197,7 @@ class EstimatorDesign:
         if noise_std is not None:
             noise_std = check_real("noise_std", noise_std, low=0.0)
             if noise_std != self.noise_std:
-                kf = _steady_filter(self.model, self.sensors, noise_std)
+                kf = _steady_filter(self.model, self.sensors, noise_std, self.q_floor)
         return read_only(kf.filter(y).field)
 
     def summary(self) -> str:
@@ -254,7 +268,8 @@ def _stabilise(model: DMDModel) -> DMDModel:
 
 def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: float,
                     alpha: float, delays: int, rank: int, layout: np.ndarray,
-                    candidates: np.ndarray, noise: float, data_noise: float) -> float:
+                    candidates: np.ndarray, noise: float, data_noise: float,
+                    q_floor: float) -> float:
     """Relative RMS error of the estimator at unmeasured nodes on held-out data (inf: unusable).
 
     The held-out truth is itself noisy; its white noise adds ``data_noise**2`` to the mean
@@ -268,7 +283,7 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
             reduced = fit_dmd(train, dt, alpha=alpha, alpha_mode="relative", delays=delays,
                               rank=min(rank, train.shape[0] * delays))
         model = _stabilise(_lift(reduced, spatial))
-        field = _steady_filter(model, layout, noise).filter(held[layout]).field
+        field = _steady_filter(model, layout, noise, q_floor).filter(held[layout]).field
     except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError):
         return math.inf
     unmeasured = np.setdiff1d(candidates, layout)
@@ -281,11 +296,19 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
     return math.sqrt(max(mse, 0.0) / power)
 
 
-def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float) -> KalmanFilter:
-    """Steady-state filter on the measured rows, Q = residual covariance, R = noise_std^2."""
+def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
+                   q_floor: float) -> KalmanFilter:
+    """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2.
+
+    The floor (1e-10 of the data's mean square per coordinate, far below any noisy record's
+    residual) keeps the Riccati equation solvable on noise-free data, whose residual covariance
+    is round-off: undamped modes without process noise have no stabilising solution.
+    """
+    q = np.array(model.residual_covariance)
+    q[np.diag_indices_from(q)] += q_floor
     return KalmanFilter(
         model.to_statespace(measured=sensors.tolist()),
-        Q=model.residual_covariance,
+        Q=q,
         R=noise_std**2,
         steady_state=True,
         field_map=model.field_map,
@@ -353,6 +376,14 @@ def _spatial_basis(X: np.ndarray, max_rank: int) -> tuple[np.ndarray, np.ndarray
         return V[:, order[:max_rank]], s
     U, s, _ = sla.svd(X, full_matrices=False)
     return U[:, :max_rank], s
+
+
+def _delay_rank(coords: np.ndarray, delays: int) -> int:
+    """Directions of the delay-embedded coordinates above 1e-6 of the largest singular value."""
+    k, n = coords.shape
+    rows = np.vstack([coords[:, delays - 1 - i: n - i - 1] for i in range(delays)])
+    eig = sla.eigvalsh(rows @ rows.T)
+    return int(np.count_nonzero(eig > 1e-12 * eig[-1])) if eig[-1] > 0 else 0
 
 
 def _lift(model: DMDModel, spatial: np.ndarray) -> DMDModel:
@@ -486,6 +517,7 @@ def design_estimator(
         source, noise = "estimated", sigma_est
     rms = float(np.sqrt(np.mean(X**2)))
     data_noise = noise  # what the held-out measurements actually carry
+    q_floor = _Q_FLOOR_FRACTION * rms**2
     noise = max(noise, 1e-4 * rms)  # noise-free data still needs a well-posed Riccati equation
 
     # 3. Candidates: every node that moves; a provisional layout for the alpha sweep.
@@ -511,6 +543,9 @@ def design_estimator(
         raise InputError(f"The 'alphas' parameter must be a non-empty list of values >= 0. "
                          f"Got {alphas!r}.")
     n_fit = int(round(train_fraction * n_samples))
+    # The rank cannot exceed what the (training part of the) delay embedding holds above
+    # round-off: a clean harmonic record has two directions per sinusoid.
+    rank = max(1, min(rank, _delay_rank(coords[:, :n_fit], delays)))
     if n_fit < 4 * delays or n_samples - n_fit < 4 * delays:
         raise InputError(
             f"The record of {n_samples} samples is too short for delays={delays} with "
@@ -518,7 +553,7 @@ def design_estimator(
         )
     errors = np.array([
         _held_out_error(coords[:, :n_fit], X[:, n_fit:], spatial, dt, float(a), delays, rank,
-                        provisional, candidates, noise, data_noise)
+                        provisional, candidates, noise, data_noise, q_floor)
         for a in grid
     ])
     if not np.isfinite(errors).any():
@@ -556,7 +591,7 @@ def design_estimator(
         )
         chosen = np.sort(candidates[list(selection.nodes)])
 
-    kf = _steady_filter(model, chosen, noise)
+    kf = _steady_filter(model, chosen, noise, q_floor)
     return EstimatorDesign(
         model=model,
         sensors=read_only(chosen),
@@ -568,4 +603,5 @@ def design_estimator(
         sensor_selection=selection,
         n_train=n_samples,
         n_stabilised=lifted.n_unstable,
+        q_floor=q_floor,
     )

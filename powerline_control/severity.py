@@ -26,7 +26,14 @@ import numpy as np
 import scipy.interpolate
 import scipy.optimize
 
-from ._validation import check_array, check_choice, check_int, check_real, read_only
+from ._validation import (
+    check_array,
+    check_budget,
+    check_choice,
+    check_int,
+    check_real,
+    read_only,
+)
 from .errors import InputError
 from .excitation import DEFAULT_STROUHAL, AeolianForce
 from .fem import DENSE_EIGEN_LIMIT, MDR, LineModel, ModalDamping
@@ -220,7 +227,8 @@ def turbulence_factor(turbulence_intensity: float) -> float:
     >>> round(turbulence_factor(0.09), 4)
     0.7071
     """
-    iv = check_real("turbulence_intensity", turbulence_intensity, low=0.0, low_inclusive=True)
+    iv = check_real("turbulence_intensity", turbulence_intensity, low=0.0, low_inclusive=True,
+                    high=10.0)  # 1000 %: beyond any wind, and (iv / 0.09)^2 stays finite
     return 1.0 / math.sqrt(1.0 + (iv / 0.09) ** 2)
 
 
@@ -257,8 +265,8 @@ def wind_power(amplitude: np.ndarray | float, frequency: float, diameter: float,
     1.089
     """
     curve = _curve(wind_curve)
-    frequency = check_real("frequency", frequency, low=0.0)
-    diameter = check_real("diameter", diameter, low=0.0)
+    frequency = _check_frequency(frequency)
+    diameter = check_real("diameter", diameter, low=0.0, high=1.0)  # m: 1 m is no conductor
     a = check_array("amplitude", amplitude) / diameter
     if np.any(a < 0) or np.any(a > curve.max_reduced_amplitude * (1 + 1e-12)):
         raise InputError(
@@ -266,6 +274,23 @@ def wind_power(amplitude: np.ndarray | float, frequency: float, diameter: float,
             f"the {curve.name!r} wind power curve. Got Y/D up to {float(np.max(a)):g}.")
     return turbulence_factor(turbulence_intensity) * frequency**3 * diameter**4 \
         * curve.reduced_power(a)
+
+
+# Upper bounds far above any aeolian case (~1-7 m/s, <= a few hundred Hz) and far below float
+# overflow of f^3, f^5.63 or omega^2 (a frequency of 1e300 Hz raised a raw OverflowError).
+MAX_FREQUENCY = 1e5
+MAX_WIND_SPEED = 100.0
+
+
+def _check_frequency(frequency: object) -> float:
+    return check_real("frequency", frequency, low=0.0, high=MAX_FREQUENCY)
+
+
+def _finite_power(power: np.ndarray, what: str) -> np.ndarray:
+    if not np.all(np.isfinite(power)):
+        raise InputError(f"The 'amplitude' parameter is too large: the {what} overflows. Give "
+                         "antinode amplitudes in m (a few conductor diameters at most).")
+    return power
 
 
 # --------------------------------------------------------------------------- self-damping
@@ -304,6 +329,10 @@ class SelfDampingLaw:
     k: float | None = None
 
     def __post_init__(self) -> None:
+        for key in ("name", "label"):
+            if not isinstance(getattr(self, key), str):
+                raise InputError(f"The {key!r} parameter must be a string. Got "
+                                 f"{getattr(self, key)!r}.")
         check_real("l", self.l, low=0.0)
         check_real("m", self.m, low=0.0)
         if self.n is not None:
@@ -456,27 +485,26 @@ def self_damping_power(amplitude: np.ndarray | float, frequency: float, span: Sp
     >>> round(float(p), 6)     # 1 * 0.01^2 * 20^4 / 28.02^2
     0.020379
     """
-    frequency = check_real("frequency", frequency, low=0.0)
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
     law = _resolve_law(self_damping, self_damping_k, self_damping_exponents)
-    return law.power(check_array("amplitude", amplitude), frequency, span)
+    y = check_array("amplitude", amplitude)
+    if np.any(y < 0):  # Y^2.44 of a negative amplitude is NaN
+        raise InputError("The 'amplitude' parameter must be >= 0 m (a zero-to-peak antinode "
+                         f"amplitude). Got {float(np.min(y)):g}.")
+    return _finite_power(law.power(y, frequency, span), "self-damping power")
 
 
 # --------------------------------------------------------------------------- the standing wave
 def _wavenumbers(span: Span, frequency: float) -> tuple[float, float]:
     """(beta, alpha): the travelling and the evanescent wavenumber of the taut beam at f.
 
-    From m omega^2 = EI k^4 + T k^2: beta^2 = (-T + sqrt(T^2 + 4 EI m omega^2)) / (2 EI) and
-    alpha^2 = beta^2 + T / EI (domain.md 2.3, NOT dohl's dimensionally wrong _wavelength).
+    beta from m omega^2 = EI k^4 + T k^2 (:meth:`Span.wavenumber`, domain.md 2.3, NOT dohl's
+    dimensionally wrong _wavelength); alpha^2 = beta^2 + T / EI (inf for a string).
     """
-    cond = span.conductor
-    omega = 2 * math.pi * frequency
-    tension, ei, mass = span.tension, cond.ei, cond.mass_per_length
-    if ei == 0.0:
-        return omega * math.sqrt(mass / tension), math.inf
-    root = math.sqrt(tension**2 + 4 * ei * mass * omega**2)
-    # Stable form of (-T + root) / (2 EI) for T^2 >> 4 EI m omega^2 (real spans).
-    beta2 = 2 * mass * omega**2 / (tension + root)
-    return math.sqrt(beta2), math.sqrt(beta2 + tension / ei)
+    beta = float(span.wavenumber(frequency))
+    ei = span.conductor.ei
+    return beta, (math.sqrt(beta**2 + span.tension / ei) if ei > 0 else math.inf)
 
 
 def loop_length(span: Span, frequency: float) -> float:
@@ -500,7 +528,8 @@ def loop_length(span: Span, frequency: float) -> float:
     >>> round(loop_length(Span.at_rts_fraction(300.0, "drake", 0.2), 6.57), 3)   # string: 9.98
     9.985
     """
-    frequency = check_real("frequency", frequency, low=0.0)
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
     return math.pi / _wavenumbers(span, frequency)[0]
 
 
@@ -536,7 +565,8 @@ def standing_wave_shape(span: Span, frequency: float, position: np.ndarray | flo
     >>> round(float(standing_wave_shape(span, 6.57, 0.0)), 12)
     0.0
     """
-    frequency = check_real("frequency", frequency, low=0.0)
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
     bc = check_choice("bc", bc, ("clamped", "pinned"))
     x = check_array("position", position)
     if np.any(x < 0) or np.any(x > span.length):
@@ -746,6 +776,8 @@ def damper_power(damper: MDR | ImpedanceDamper | AtAntinode, span: Span,
     >>> float(damper_power(AtAntinode(robot), span, 0.001, 20.0)) > 0
     True
     """
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
     y = check_array("amplitude", amplitude)
     if isinstance(damper, AtAntinode):
         factor = damper.factor
@@ -758,8 +790,8 @@ def damper_power(damper: MDR | ImpedanceDamper | AtAntinode, span: Span,
                              f"span). Got {damper.position!r}.")
         factor = float(standing_wave_shape(span, frequency, damper.position, bc)) ** 2
     omega = 2 * math.pi * frequency
-    return 0.5 * damper_impedance(damper, frequency).real * omega**2 * y**2 * factor \
-        / span.length
+    return _finite_power(0.5 * damper_impedance(damper, frequency).real * omega**2 * y**2
+                         * factor / span.length, "damper power")
 
 
 def harmonic_mean_position(span: Span, wind_speeds: Sequence[float] | np.ndarray = (1.0, 7.0),
@@ -788,6 +820,7 @@ def harmonic_mean_position(span: Span, wind_speeds: Sequence[float] | np.ndarray
     >>> round(harmonic_mean_position(Span.at_rts_fraction(300.0, "drake", 0.2)), 3)
     1.251
     """
+    span = _check_span(span)
     speeds = _check_wind_speeds(wind_speeds)
     st = check_real("strouhal", strouhal, low=0.0, high=1.0)
     d = span.conductor.diameter
@@ -830,11 +863,25 @@ def _sbl_cycles(stress: np.ndarray, layers: str) -> np.ndarray:
 # --------------------------------------------------------------------------- the energy balance
 def _check_wind_speeds(wind_speeds: object) -> np.ndarray:
     speeds = np.atleast_1d(check_array("wind_speeds", wind_speeds, ndim=(0, 1)))
-    if speeds.size == 0 or np.any(speeds <= 0):
-        bad = speeds[speeds <= 0].tolist() if speeds.size else "an empty list"
-        raise InputError("The 'wind_speeds' parameter must hold wind speeds > 0 m/s (aeolian "
-                         f"vibration occurs at about 1-7 m/s). Got {bad}.")
+    if speeds.size == 0 or np.any(speeds <= 0) or np.any(speeds > MAX_WIND_SPEED):
+        bad = (speeds[(speeds <= 0) | (speeds > MAX_WIND_SPEED)].tolist()[:5] if speeds.size
+               else "an empty list")
+        raise InputError(f"The 'wind_speeds' parameter must hold wind speeds > 0 and <= "
+                         f"{MAX_WIND_SPEED:g} m/s (aeolian vibration occurs at about 1-7 m/s). "
+                         f"Got {bad}.")
     return speeds
+
+
+# One energy balance (a bracketed root solve in Python) costs ~3 ms, counted as ~1e7 flops so
+# that WORK_BUDGET (1e12) allows ~1e5 speeds (minutes); each speed keeps ~16 float64 results.
+_WORK_PER_SPEED = 1e7
+
+
+def _check_severity_budget(n_speeds: int) -> None:
+    check_budget("aeolian_severity's energy balances", nbytes=8.0 * 16 * n_speeds,
+                 flops=_WORK_PER_SPEED * n_speeds, parameter="wind_speeds",
+                 value=f"{n_speeds} speeds",
+                 fix="pass fewer wind speeds (a few dozen resolve the 1-7 m/s band)")
 
 
 def _check_span(span: object) -> Span:
@@ -1115,7 +1162,10 @@ def aeolian_severity(
     (array([27.7,  1.5]), [27, 188])
     """
     span = _check_span(span)
+    if isinstance(wind_speeds, np.ndarray):  # refuse before the finiteness checks copy it
+        _check_severity_budget(wind_speeds.size)
     speeds = _check_wind_speeds(wind_speeds)
+    _check_severity_budget(speeds.size)
     dampers = _check_dampers(dampers, span)
     st = check_real("strouhal", strouhal, low=0.0, high=1.0)
     curve = _curve(wind_curve)
@@ -1362,22 +1412,6 @@ def _bin_edges(speeds: np.ndarray) -> np.ndarray:
                            [speeds[-1] + (speeds[-1] - mid[-1])]]).clip(min=0.0)
 
 
-def _rest_to_rest_time(distance: float, limits: RobotLimits) -> float:
-    """Time-optimal rest-to-rest move at v_max, a_max (bang-coast-bang), plus a_max / j_max
-    per acceleration phase pair when a jerk limit is set (exact when both v_max and a_max are
-    reached; an upper bound otherwise)."""
-    v, a = limits.v_max, limits.a_max
-    if distance <= 0:
-        return 0.0
-    if distance <= v * v / a:
-        t = 2.0 * math.sqrt(distance / a)
-    else:
-        t = distance / v + v / a
-    if limits.j_max is not None:
-        t += a / limits.j_max
-    return t
-
-
 @dataclass(frozen=True)
 class RobotValue:
     """Fatigue and endurance over a wind climate for three configurations.
@@ -1507,6 +1541,8 @@ def robot_value(
     ('robot at antinode', True)
     """
     span = _check_span(span)
+    if isinstance(wind_speeds, np.ndarray):  # before the checks and the sort copy it
+        _check_severity_budget(wind_speeds.size)
     speeds = np.sort(_check_wind_speeds(wind_speeds))
     if not isinstance(damper, MDR | ImpedanceDamper):
         raise InputError("The 'damper' parameter must be an MDR or an ImpedanceDamper. Got "
@@ -1538,7 +1574,7 @@ def robot_value(
                                   label="robot moving", **severity_options)
     else:
         moving = none
-    move = np.array([_rest_to_rest_time(0.5 * loop, limits) for loop in robot.loop_length])
+    move = np.array([limits.rest_to_rest_time(0.5 * loop) for loop in robot.loop_length])
     at_antinode = np.clip(1.0 - move / persistence, 0.0, 1.0)
     probability = distribution.probability_of(speeds)
     layers = none.parameters["layers"]
@@ -1663,7 +1699,7 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     True
     """
     span = _check_span(span)
-    speed = check_real("wind_speed", wind_speed, low=0.0)
+    speed = check_real("wind_speed", wind_speed, low=0.0, high=MAX_WIND_SPEED)
     n_elements = check_int("n_elements", n_elements, low=2)
     settle = check_real("settle", settle, low=0.0)
     samples = check_int("samples_per_period", samples_per_period, low=4)

@@ -27,7 +27,7 @@ import scipy.linalg
 import scipy.signal
 from threadpoolctl import threadpool_limits
 
-from ._validation import check_array, check_budget, check_int, check_real, check_rng
+from ._validation import check_array, check_budget, check_int, check_real, check_rng, read_only
 from .errors import InputError, ModelError, TruncationWarning
 from .excitation import BoundAeolianForce, HarmonicForce, RandomForce
 from .fem import LineModel
@@ -365,18 +365,19 @@ def simulate(
     if noise_fraction is not None:
         noise_std = noise_fraction * float(np.sqrt(np.mean(clean**2)))
     noisy = clean + noise_std * rng.standard_normal(clean.shape) if noise_std > 0 else clean.copy()
+    # Read-only results: a caller editing one snapshot array must not change another's data.
     return Snapshots(
-        t=start_time + t,
+        t=read_only(start_time + t),
         dt=dt,
-        x=np.array(out_x, dtype=float),
-        displacement=noisy,
-        true_displacement=clean,
-        final_state=tuple(part + extra for part, extra in
+        x=read_only(np.array(out_x, dtype=float)),
+        displacement=read_only(noisy),
+        true_displacement=read_only(clean),
+        final_state=tuple(read_only(part + extra) for part, extra in
                           zip(complex_modes.to_dofs(basis, final), residual_state, strict=True)),
-        inputs=np.array(inputs) if inputs else np.zeros((0, t.size)),
+        inputs=read_only(np.array(inputs) if inputs else np.zeros((0, t.size))),
         force_positions=tuple(f.position for f in forces),
         noise_std=noise_std,
-        mode_frequencies=basis.frequencies,
+        mode_frequencies=read_only(np.array(basis.frequencies)),
     )
 
 
@@ -384,18 +385,15 @@ def _residual_shape(model: LineModel, basis, load: np.ndarray, frequency: float 
                     ) -> np.ndarray:
     """Quasi-static response (free DOFs, per unit time factor) of the modes not kept.
 
-    Mode acceleration: the full flexibility minus the kept modes' share, so only the dropped
-    modes remain. For a sine the dynamic flexibility (K - omega^2 M)^-1 is exact for undamped
-    dropped modes; otherwise the static K^-1 (dropped modes far above the load's band).
+    :meth:`~powerline_control.fem.LineModel.residual_response`: for a sine the dynamic
+    flexibility, exact for undamped dropped modes; otherwise (or exactly on a kept resonance,
+    where the split is singular) the static one (dropped modes far above the load's band).
     """
     f = 0.0 if frequency is None else float(frequency)
-    omega2 = (2 * np.pi * f) ** 2
-    gaps = basis.omega**2 - omega2
+    gaps = basis.omega**2 - (2 * np.pi * f) ** 2
     if f > 0.0 and np.min(np.abs(gaps)) < 1e-9 * basis.omega.max() ** 2:
-        f, omega2, gaps = 0.0, 0.0, basis.omega**2   # on a kept resonance: the static split
-    full = model.solve_flexibility(load, f)
-    kept = basis.shapes @ ((basis.shapes.T @ load) / gaps)
-    return full - kept
+        f = 0.0
+    return model.residual_response(load, basis.shapes, basis.omega, f)
 
 
 def _warn_unresolved(load_frequencies: Sequence[float], nyquist: float, top_mode: float) -> None:

@@ -61,7 +61,8 @@ def den_hartog_optimum(mass_ratio: float) -> tuple[float, float]:
     (0.9091, 0.1679)
     """
     mu = check_real("mass_ratio", mass_ratio, low=0.0)
-    return 1.0 / (1.0 + mu), float(np.sqrt(3 * mu / (8 * (1 + mu) ** 3)))
+    # sqrt(3 mu / (8 (1 + mu)^3)) written so that (1 + mu)^3 cannot overflow (mu = 1e300).
+    return 1.0 / (1.0 + mu), float(np.sqrt(3.0 / 8.0 * (mu / (1.0 + mu))) / (1.0 + mu))
 
 
 def tune_damper(

@@ -729,3 +729,29 @@ def test_plan_motion_more_bad_input(kwargs, error, words):
     with pytest.raises(error) as info:
         plan_motion(**args)
     assert words in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("distance", "v_max", "a_max", "j_max", "expected"),
+    [
+        # Textbook closed forms, written out here (not the planner's pieces):
+        (3.7, 0.4, 0.9, None, 3.7 / 0.4 + 0.4 / 0.9),            # v_max reached: d/v + v/a
+        (0.05, 0.4, 0.9, None, 2 * math.sqrt(0.05 / 0.9)),        # bang-bang: 2 sqrt(d/a)
+        (3.7, 0.4, 0.9, 6.0, 3.7 / 0.4 + 0.4 / 0.9 + 0.9 / 6.0),  # both reached: + a/j
+        (0.004, 0.4, 0.9, 6.0, 4 * (0.004 / (2 * 6.0)) ** (1 / 3)),  # pure jerk: 4 (d/2j)^(1/3)
+    ],
+)
+def test_rest_to_rest_time_is_the_textbook_time(distance, v_max, a_max, j_max, expected):
+    # Review: severity and plan each had a copy of the bang-coast-bang formula, severity's
+    # jerk-limited time an upper bound (T + a/j whatever the regime); one exact method now.
+    limits = RobotLimits(v_max, a_max, j_max)
+    assert limits.rest_to_rest_time(distance) == pytest.approx(expected, rel=1e-12)
+    assert limits.rest_to_rest_time(-distance) == limits.rest_to_rest_time(distance)
+
+
+def test_jerk_limited_duration_below_the_s_curve_time_is_refused_up_front():
+    # A duration between the jerk-free time and the S-curve's (3.7/0.4 + 0.4/0.9 = 9.694 s and
+    # 9.844 s here) is refused by name, with the jerk limit in the message.
+    limits = RobotLimits(0.4, 0.9, 6.0)
+    with pytest.raises(PlanningError, match="too short.*j_max"):
+        plan_motion(0.0, 3.7, limits, duration=9.75)

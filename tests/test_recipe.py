@@ -33,7 +33,7 @@ def test_filter_gain_equals_python_control_dlqe(small_design):
     m = design.model
     C = np.asarray(m.field_map)[design.sensors]
     R = design.noise_std**2 * np.eye(design.sensors.size)
-    Q = np.asarray(m.residual_covariance)
+    Q = np.asarray(m.residual_covariance) + design.q_floor * np.eye(m.n_states)
     # dlqe returns the predictor gain L = A P C^T (C P C^T + R)^-1 = A K (filter form K).
     L, P, _ = ct.dlqe(np.asarray(m.A), np.eye(m.n_states), C, Q, R)
     K = design.filter.steady_gain

@@ -368,3 +368,15 @@ def test_outputs_at_chosen_positions_interpolate_the_field():
                                atol=1e-12 * np.abs(full.displacement).max())
     with pytest.raises(InputError, match="outputs"):
         plc.simulate(model, force, duration=0.1, dt=5e-3, outputs=[301.0])
+
+
+def test_snapshot_arrays_are_read_only():
+    # Review finding: Snapshots handed out writable arrays (the project's rule: results are
+    # read-only), so one caller's in-place edit would silently change the data another reads.
+    snap = plc.simulate(MODEL20, plc.HarmonicForce(1.0, 10.0, 0.5), duration=0.02, dt=1e-3,
+                        noise_std=1e-6, seed=3)
+    arrays = [snap.t, snap.x, snap.displacement, snap.true_displacement, snap.inputs,
+              snap.mode_frequencies, *snap.final_state]
+    for array in arrays:
+        with pytest.raises(ValueError, match="read-only"):
+            array[..., 0] = 1.0

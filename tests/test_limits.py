@@ -1,0 +1,207 @@
+"""Size limits: every public entry given a huge size parameter refuses before it allocates.
+
+Issue 12, "No public call given the size parameters above allocates more than its budget before
+refusing". Each row calls one public entry with an element count, duration, time step,
+bandwidth, delay count, horizon, rank, TOML value or array length that would need gigabytes to
+terabytes (or hours), and checks, with ``tracemalloc`` (numpy reports its buffers to it):
+
+* the documented error (``InputError``) is raised,
+* the peak traced allocation during the call stays under 200 MB, far below both the would-be
+  size and ``_validation.MEMORY_BUDGET_BYTES`` (4 GiB): the refusal comes from an estimate, not
+  from a failed allocation,
+* the message names the parameter, gives its value and says how to reduce it.
+
+A few entries have a fast path instead of a limit (the doubling Gramian over ``10**8`` steps):
+for those the call must succeed within the same memory. No wall-clock assertions (results never
+depend on machine load); the peaks are printed with ``-s``.
+"""
+
+from __future__ import annotations
+
+import tracemalloc
+import warnings
+
+import numpy as np
+import pytest
+
+import powerline_control as plc
+from powerline_control import _validation, config
+from powerline_control.errors import InputError
+
+LAB = plc.Span.paper_lab()
+DRAKE = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
+I = InputError
+
+# 200 MB: the largest legitimate working set of these refusals is the 100 MB boolean mask of a
+# 1e8-element finiteness check; a call that started to allocate its would-be size (>= 4 GiB) is
+# 20x over it.
+PEAK_LIMIT = 200 * 2**20
+
+
+@pytest.fixture(scope="module")
+def small():
+    """Small valid objects (built outside the traced window)."""
+    rng = np.random.default_rng(12)
+    X = rng.standard_normal((4, 80))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        dmd = plc.fit_dmd(X, dt=1e-3, alpha=1e-3)
+    return dict(model=plc.LineModel(LAB, n_elements=10), X=X, dmd=dmd,
+                sys=dmd.to_statespace(), big=np.zeros((2000, 3000)),
+                snapshots=rng.standard_normal((11, 400)), limits=plc.RobotLimits(0.5, 1.0),
+                robot=plc.MDR(1.2, 0.02), force=plc.HarmonicForce(1.0, 9.0, 1.1),
+                speeds_1e8=np.broadcast_to(3.0, (10**8,)))  # a 0-byte view of 1e8 speeds
+
+
+def traced(call, small):
+    """Run ``call(small)``; return (exception or result, peak traced bytes)."""
+    tracemalloc.start()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            outcome = call(small)
+    except Exception as exc:  # noqa: BLE001 (the row decides what was expected)
+        outcome = exc
+    finally:
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    return outcome, peak
+
+
+# (id, call, parameter named in the message, value the message must quote)
+REFUSALS = [
+    ("LineModel n_elements=1e7", lambda s: plc.LineModel(LAB, n_elements=10**7), "n_elements",
+     "10000000"),
+    ("LineModel n_elements=1e7 with mdr",
+     lambda s: plc.LineModel(LAB, n_elements=10**7, mdr=s["robot"]), "n_elements", "10000000"),
+    ("LineModel modes(1e7)", lambda s: s["model"].modes(10**7), "n_modes", "10000000"),
+    ("simulate duration=1e6", lambda s: plc.simulate(s["model"], duration=1e6), "duration",
+     "1e+06"),
+    ("simulate dt=1e-9", lambda s: plc.simulate(s["model"], duration=1.0, dt=1e-9), "dt",
+     "1e-09"),
+    ("simulate RandomForce bandwidth=1e12",
+     lambda s: plc.simulate(s["model"], plc.RandomForce(1.0, 1.1, bandwidth=1e12, seed=1),
+                            duration=1.0), "bandwidth", "1000000000000"),
+    ("fit_dmd delays=1e6", lambda s: plc.fit_dmd(s["X"], 1e-3, delays=10**6), "delays",
+     "1000000"),
+    ("fit_dmd 2000 nodes x 500 delays", lambda s: plc.fit_dmd(s["big"], 1e-3, delays=500),
+     "delays", "500"),
+    ("select_alpha horizon=1e9", lambda s: plc.select_alpha(s["snapshots"], 1e-3,
+                                                            horizon=10**9), "horizon",
+     "1000000001"),
+    ("design_estimator rank=1e6",
+     lambda s: plc.design_estimator(s["snapshots"], 2, dt=1e-3, rank=10**6), "rank", "1000000"),
+    ("design_estimator delays=1e6",
+     lambda s: plc.design_estimator(s["snapshots"], 2, dt=1e-3, delays=10**6), "delays",
+     "1000000"),
+    ("MotionPlanner horizon=1e7",
+     lambda s: plc.MotionPlanner(s["limits"], horizon=10**7, span_length=3.66), "horizon",
+     "10000000"),
+    ("run_closed_loop duration=1e7",
+     lambda s: plc.run_closed_loop(LAB, s["force"], s["robot"], s["limits"], sensors=[3, 7],
+                                   n_elements=10, duration=1e7), "duration", "1e+07"),
+    ("run_closed_loop dt=1e-9",
+     lambda s: plc.run_closed_loop(LAB, s["force"], s["robot"], s["limits"], sensors=[3, 7],
+                                   n_elements=10, duration=10.0, dt=1e-9), "dt", "1e-09"),
+    ("run_closed_loop n_elements=1e7",
+     lambda s: plc.run_closed_loop(LAB, s["force"], s["robot"], s["limits"], sensors=[3, 7],
+                                   n_elements=10**7), "n_elements", "10000000"),
+    ("time_domain_check n_elements=1e7",
+     lambda s: plc.time_domain_check(DRAKE, 3.0, n_elements=10**7), "n_elements", "10000000"),
+    ("load_scenario n_elements=1e9",
+     lambda s: config.load_scenario(text="[model]\nn_elements = 1000000000"), "n_elements",
+     "1000000000"),
+    ("load_scenario duration=1e9",
+     lambda s: config.load_scenario(text="[simulation]\nduration = 1e9"), "duration",
+     "1000000000"),
+    ("aeolian_severity 1e8 wind speeds",
+     lambda s: plc.aeolian_severity(DRAKE, s["speeds_1e8"]), "wind_speeds", "100000000"),
+    ("aeolian_severity 2e5 wind speeds (work)",
+     lambda s: plc.aeolian_severity(DRAKE, [3.0] * 200_000), "wind_speeds", "200000"),
+    ("robot_value 1e8 wind speeds",
+     lambda s: plc.robot_value(DRAKE, s["robot"], s["limits"], wind_speeds=s["speeds_1e8"]),
+     "wind_speeds", "100000000"),
+]
+
+# Would-be allocations the owners still have to limit (routed; not run: each allocates or asks
+# for hundreds of GiB before failing, which a shared test machine must not see).
+NOT_YET = [
+    pytest.param(lambda s: s["dmd"].predict(s["dmd"].initial_state, 10**10), "n_steps",
+                 "10000000000", id="DMDModel.predict n_steps=1e10",
+                 marks=pytest.mark.xfail(run=False, strict=True, reason=(
+                     "identify: predict allocates (n, n_steps) with no check_budget (MemoryError "
+                     "for 298 GiB)"))),
+    pytest.param(lambda s: plc.parameter_grid(a=range(10**5), b=range(10**5), c=range(10**4)),
+                 "axes", "10", id="parameter_grid 1e14 points",
+                 marks=pytest.mark.xfail(run=False, strict=True, reason=(
+                     "studies: parameter_grid builds the whole product list (MemoryError after "
+                     "GBs) with no size limit"))),
+]
+
+
+def _refusal_params():
+    for row in REFUSALS:
+        yield pytest.param(*row[1:], id=row[0])
+
+
+@pytest.mark.parametrize(("call", "parameter", "value"), [*_refusal_params(), *NOT_YET])
+def test_huge_size_is_refused_before_allocating(small, call, parameter, value):
+    outcome, peak = traced(call, small)
+    print(f"peak {peak / 2**20:.1f} MB: {type(outcome).__name__}")
+    assert isinstance(outcome, InputError), repr(outcome)
+    assert peak < PEAK_LIMIT, f"{peak / 2**20:.0f} MB traced before refusing"
+    message = str(outcome)
+    assert parameter in message and value in message, message
+    # How to reduce it: a budget refusal says "To fix", a range refusal gives the allowed bound.
+    assert any(hint in message for hint in ("To fix", "<=", "Allowed", "fewer", "shorter")), \
+        message
+
+
+def test_budget_refusal_states_the_estimate_and_the_budget(small):
+    """The budget numbers in the message are the documented defaults (4 GiB, 1e12 flops)."""
+    assert _validation.MEMORY_BUDGET_BYTES == 4 * 2**30
+    assert _validation.WORK_BUDGET == 10**12
+    with pytest.raises(InputError) as info:
+        plc.MotionPlanner(small["limits"], horizon=10**7, span_length=3.66)
+    message = str(info.value)
+    # 16 kB per horizon step (the planner's measured cost) x 1e7 steps = 1.6e11 B = 149 GiB.
+    assert "149 GiB" in message and "budget of 4 GiB" in message, message
+    with pytest.raises(InputError) as info:
+        plc.aeolian_severity(DRAKE, [3.0] * 200_000)
+    # 1e7 flops per energy balance x 2e5 speeds = 2e12 > 1e12.
+    assert "2e+12" in str(info.value) and "1e+12" in str(info.value), str(info.value)
+
+
+def test_a_raised_budget_lets_the_same_call_through(small):
+    """The limit is a budget, not a wall: the documented per-call override is honoured."""
+    # 2000 elements with a robot: refused under a 1 MB budget, built under the default one.
+    with pytest.raises(InputError, match="n_elements"):
+        plc.LineModel(LAB, n_elements=2000, mdr=small["robot"], memory_budget=2**20)
+    model = plc.LineModel(LAB, n_elements=2000, mdr=small["robot"])
+    assert model.n_nodes == 2001
+
+
+# Entries with a fast path: the huge size parameter is legitimate and must stay cheap.
+FAST_PATHS = [
+    # 20000 elements with a robot once assembled a dense 12 GiB matrix; sparse now (measured
+    # peak ~100 MB: the sparse matrices and their factorisation-free assembly).
+    ("LineModel 20000 elements with mdr",
+     lambda s: plc.LineModel(LAB, n_elements=20000, mdr=s["robot"]).n_nodes == 20001),
+    # Binary doubling of the Gramian: O(n^3 log N), a few matrices of n = 4.
+    ("select_sensors gramian horizon=1e8",
+     lambda s: len(plc.select_sensors(s["sys"], 2, "gramian", Q=s["dmd"].residual_covariance,
+                                      horizon=10**8, n_random=0).nodes) == 2),
+    ("observability_gramian horizon=1e9",
+     lambda s: bool(np.all(np.isfinite(plc.observability_gramian(s["sys"], 10**9))))),
+    # Closed form: a 1e9 m move is three phases, not a sampled program.
+    ("plan_motion over 1e9 m",
+     lambda s: plc.plan_motion(0.0, 1e9, s["limits"]).duration > 1e9 / 0.5),
+]
+
+
+@pytest.mark.parametrize("call", [row[1] for row in FAST_PATHS], ids=[row[0] for row in FAST_PATHS])
+def test_huge_size_on_a_fast_path_stays_within_memory(small, call):
+    outcome, peak = traced(call, small)
+    print(f"peak {peak / 2**20:.1f} MB")
+    assert outcome is True, repr(outcome)
+    assert peak < PEAK_LIMIT, f"{peak / 2**20:.0f} MB traced"
