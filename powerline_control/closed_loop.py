@@ -32,8 +32,10 @@ the bare line's receptance,
 
 (the robot-free excited shape, fitted on the bare modes), which in steady state is the same
 wherever the robot is; then it predicts the span's RMS with itself parked at every p,
-``W_p = W_bare + H(., p) D_r W_bare(p) / (1 - H(p, p) D_r)``, and goes to the best (the nearest
-of the near-best minima). The choice is confirmed once the robot has settled and the window is
+``W_p = W_bare + H(., p) D_r W_bare(p) / (1 - H(p, p) D_r)``, and goes to the best it can reach
+spending at most half the remaining run travelling (the nearest of the near-best minima within
+that reach: on a long span every loop is about as good, and a far one is not worth the trip).
+The choice is confirmed once the robot has settled and the window is
 steady: a refinement inside a quarter loop of the *anchor* (the gate does not move with the
 goal), or at most two moves to another loop; a new target only when the dominant frequency
 changes (a wind change). The motion law is the closed-form time-optimal approach of a double
@@ -86,6 +88,11 @@ SMALL_PLANT_MODES = 48
 # Local minima of the predicted RMS within this fraction of the lowest count as equally good:
 # the robot takes the nearest (equal loops of a resonant mode need no long trip).
 NEAR_OPTIMAL = 0.03
+# ... but only among the minima the robot reaches spending at most this fraction of the remaining
+# run travelling: a far loop predicted slightly better is not worth a trip that leaves the line
+# vibrating at the start's level for most of the run (on a long span the few sensors cannot rank
+# ~100 loops to 3 % anyway).
+TRAVEL_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -622,9 +629,11 @@ def _predicted_rms(bare_shape, plant, robot, omega, positions, weights):
     return out
 
 
-def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high):
-    """The predicted best parked position: among the local minima of the predicted RMS within
-    NEAR_OPTIMAL of the lowest, the one nearest the robot.
+def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high,
+                   reach=np.inf):
+    """The predicted best parked position within reach: among the local minima of the predicted
+    RMS no farther than ``reach`` from the robot, those within NEAR_OPTIMAL of the lowest of
+    them, the one nearest the robot (the nearest minimum when none is within reach).
 
     Returns (position, loop length, grid, predicted RMS on the grid), or None without a loop.
     """
@@ -637,7 +646,10 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
     minima = [i for i in range(grid.size)
               if (i == 0 or predicted[i] <= predicted[i - 1])
               and (i == grid.size - 1 or predicted[i] <= predicted[i + 1])]
-    good = [i for i in minima if predicted[i] <= (1 + NEAR_OPTIMAL) * predicted.min()]
+    nearest = min(minima, key=lambda i: abs(grid[i] - robot_position))
+    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach] or [nearest]
+    lowest = min(predicted[i] for i in reachable)
+    good = [i for i in reachable if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
     pick = min(good, key=lambda i: abs(grid[i] - robot_position))
     if 0 < pick < grid.size - 1:
         # Parabola through the grid minimum and its neighbours (uniform grid).
@@ -649,6 +661,16 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
         position = float(grid[pick])
     loop = min(antinodes, key=lambda a: abs(a[0] - position))[2]
     return position, loop, read_only(grid), read_only(predicted)
+
+
+def _reach(limits: RobotLimits, time_budget: float) -> float:
+    """Longest rest-to-rest move within ``time_budget`` s (triangle or trapezoid profile), m."""
+    a, v = limits.a_max, limits.v_max
+    if time_budget <= 0:
+        return 0.0
+    if time_budget <= 2 * v / a:
+        return 0.25 * a * time_budget**2
+    return v * (time_budget - v / a)
 
 
 def _time_optimal_accel(position, velocity, goal, limits: RobotLimits, period: float) -> float:
@@ -1099,10 +1121,17 @@ def run_closed_loop(
             # MAX_WAIT s) for a steady one, except for the very first target.
             if unsteady > UNSTEADY_LIMIT and waited < MAX_WAIT and not np.isnan(goal):
                 retarget = confirm = False
+            elif confirm and unsteady > UNSTEADY_LIMIT:
+                # Still beating after MAX_WAIT s: its steady-state prediction is no better than
+                # the anchor's (a long, lightly damped span rings for tens of seconds after the
+                # robot arrives). Keep the goal and stop.
+                confirm, confirmed = False, True
         if retarget or confirm:
             low, high = _free_interval(x_r, obstacles, span.length, margin)
             omega_now = 2 * np.pi * frequency
-            choice = _choose_target(shape, plant, robot, omega_now, weights, x_r, low, high)
+            reach = _reach(limits, TRAVEL_FRACTION * (t[-1] - t[k]))
+            choice = _choose_target(shape, plant, robot, omega_now, weights, x_r, low, high,
+                                    reach)
             if choice is not None:
                 position_choice, loop_choice, grid, predicted = choice
                 predictions.append((float(t[k]), grid, predicted, read_only(shape)))

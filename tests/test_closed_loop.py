@@ -10,7 +10,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import powerline_control as plc
-from powerline_control.closed_loop import _ModalPlant, run_closed_loop
+from powerline_control.closed_loop import _ModalPlant, _reach, run_closed_loop
 from powerline_control.tuning import tune_damper
 
 LAB = plc.Span.paper_lab()
@@ -297,6 +297,141 @@ def test_results_do_not_depend_on_the_machine_load():
     np.testing.assert_array_equal(idle.robot_position, loaded.robot_position)
     np.testing.assert_array_equal(idle.displacement, loaded.displacement)
     assert idle.statuses == loaded.statuses
+
+
+@pytest.mark.parametrize(("v_max", "a_max", "budget"),
+                         [(1.0, 2.0, 5.0), (0.5, 1.0, 0.7), (0.3, 0.8, 0.75), (2.0, 0.5, 3.0)])
+def test_reach_is_the_longest_rest_to_rest_move_in_the_budget(v_max, a_max, budget):
+    # Brute force: bisect on the distance, each tried by integrating the bang-coast-bang profile
+    # (accelerate, cruise at v_max if reached, brake) at 1e-4 s; the move fits when it stops
+    # within the budget. 3e-3 relative: one integration step of overshoot at the braking point
+    # (~v dt / distance, < 1e-3 here) and the bisection (2^-25).
+    def stop_time(distance):
+        dt, x, v, t = 1e-4, 0.0, 0.0, 0.0
+        while True:
+            braking = v * v / (2 * a_max)
+            accel = -a_max if x + braking >= distance else (a_max if v < v_max else 0.0)
+            v = min(max(v + accel * dt, 0.0), v_max)
+            x += v * dt
+            t += dt
+            if v == 0.0 and accel < 0:
+                return t
+
+    low, high = 0.0, v_max * budget
+    for _ in range(25):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if stop_time(mid) <= budget else (low, mid)
+    limits = plc.RobotLimits(v_max=v_max, a_max=a_max)
+    assert _reach(limits, budget) == pytest.approx(low, rel=3e-3)
+    assert _reach(limits, 0.0) == 0.0
+
+
+# ---------------------------------------------------------------------------- a long real span
+def _long_span_case(length, wind_speed, where):
+    """ACSR Drake at 20 % RTS in aeolian lock-in, the robot starting a tenth of a loop past a
+    node near ``where`` (fraction of the span). Truth: dense FE steady states of the whole
+    default mesh, all its modes damped at the same 0.05 %."""
+    import scipy.linalg
+
+    span = plc.Span.at_rts_fraction(length, plc.conductors["drake"], 0.2)
+    model = plc.LineModel(span)
+    mass, stiffness = model.mass_matrix.toarray(), model.stiffness_matrix.toarray()
+    omega2, shapes = scipy.linalg.eigh(stiffness, mass)
+    damping = mass @ shapes @ np.diag(2 * 0.0005 * np.sqrt(omega2)) @ shapes.T @ mass
+    wind = plc.AeolianForce(wind_speed=wind_speed)
+    bound = wind.bind(model)
+    omega = 2 * np.pi * bound.frequency
+
+    def steady(robot=None, position=None):
+        """FE DOF amplitudes: the bare line, or the robot (body + absorber DOF) parked."""
+        n = mass.shape[0]
+        dynamic = np.zeros((n + 1, n + 1), dtype=complex)
+        dynamic[:n, :n] = stiffness - omega**2 * mass + 1j * omega * damping
+        load = np.append(bound.load, 0.0).astype(complex)
+        if robot is None:
+            return np.linalg.solve(dynamic[:n, :n], load[:n])
+        s = model.shape_vector(position)
+        dynamic[:n, :n] -= omega**2 * robot.body_mass * np.outer(s, s)
+        coupling = np.append(s, -1.0)
+        dynamic += (robot.stiffness + 1j * omega * robot.damping) * np.outer(coupling, coupling)
+        dynamic[n, n] -= omega**2 * robot.suspended_mass
+        return np.linalg.solve(dynamic, load)[:n]
+
+    def amplitude_at(dofs, points):
+        return np.abs(np.array([model.shape_vector(p) @ dofs for p in points]))
+
+    x = model.node_positions
+    weights = np.zeros_like(x)
+    weights[1:] += 0.5 * np.diff(x)
+    weights[:-1] += 0.5 * np.diff(x)
+    weights /= weights.sum()
+    nodal = model.displacement_map().toarray()
+
+    def rms(dofs):
+        return float(np.sqrt(0.5 * weights @ np.abs(nodal @ dofs) ** 2))
+
+    loop = float(np.pi / span.wavenumber(bound.frequency))
+    bare = steady()
+    # Start a tenth of a loop past a node of the robot-free excited shape.
+    near = np.linspace(where * span.length - loop, where * span.length + loop, 801)
+    node = float(near[np.argmin(amplitude_at(bare, near))])
+    start = node + 0.1 * loop
+    around = np.linspace(start - 0.6 * loop, start + 0.6 * loop, 801)
+    antinode = float(around[np.argmax(amplitude_at(bare, around))])
+    frequencies = model.natural_frequencies(200)
+    mode = int(np.argmin(np.abs(frequencies - bound.frequency))) + 1
+    robot = tune_damper(model, mode, antinode, 3.0, body_mass=5.0)  # 5 kg body + 3 kg absorber
+    robot = plc.MDR(start, robot.body_mass, robot.suspended_mass, robot.stiffness, robot.damping)
+    return span, model, wind, robot, loop, bare, steady, amplitude_at, rms
+
+
+LONG_SPANS = [
+    # Drake 300 m at 2.5 m/s (16.4 Hz, loops ~4 m; the shipped scenario is 3 m/s, 19.7 Hz, from
+    # midspan), starting near 0.62 L: measured 4.4x (FE steady state), 2.7x over the window.
+    pytest.param(300.0, 2.5, 0.62, 4, id="drake300-2.5ms-0.62L", marks=pytest.mark.slow),
+    # Drake 250 m at 2.5 m/s from near 0.41 L: the robot's 8 kg detunes the 0.05 %-damped span,
+    # so the parked RMS is steep across the loop (2.4e-5 m at 0.7 loop past the node, 1.6e-4 m
+    # at 0.3). The robot settles 2.05x below its start in steady state, but over the 12 s run's
+    # window only ~1x: its arrival's transient has not decayed. Known limitation, kept strict.
+    pytest.param(250.0, 2.5, 0.41, 4, id="drake250-2.5ms-0.41L",
+                 marks=[pytest.mark.slow, pytest.mark.xfail(
+                     strict=True, reason="the arrival's transient on a 0.05 %-damped 250 m span "
+                     "outlasts the 12 s run (docs/closed_loop.md)")]),
+]
+
+
+@pytest.mark.parametrize(("length", "wind_speed", "where", "seed"), LONG_SPANS)
+def test_long_span_robot_goes_to_a_near_antinode_and_beats_its_start(length, wind_speed, where,
+                                                                      seed):
+    span, model, wind, robot, loop, bare, steady, amplitude_at, rms = _long_span_case(
+        length, wind_speed, where)
+    x = model.node_positions
+    sensors = sorted({int(np.argmin(np.abs(x - f * span.length)))
+                      for f in (0.13, 0.31, 0.52, 0.68, 0.9)})
+    result = run_closed_loop(span, wind, robot, plc.RobotLimits(v_max=1.0, a_max=2.0),
+                             sensors=sensors, n_elements=model.n_elements,
+                             damping=plc.ModalDamping(0.0005), duration=12.0, calibration=2.0,
+                             dt=0.002, seed=seed)
+    final = float(result.robot_position[-1])
+    assert result.settled
+    last = result.t >= result.t[-1] - 2.0
+    assert np.ptp(result.robot_position[last]) < 0.02 * loop
+    # A near loop, not a trip across the span: within two loops of the start.
+    assert abs(final - robot.position) < 2 * loop
+    # Near an antinode of the robot-free excited shape (dense FE): within 15 % of a loop, where
+    # the absorber still sees sin^2 > 0.8 of the loop's motion (the five sensors 30-60 m away
+    # fix the local phase of the standing wave only to ~10 % of a loop).
+    around = np.linspace(final - 0.6 * loop, final + 0.6 * loop, 601)
+    envelope = amplitude_at(bare, around)
+    peaks = [around[i] for i in range(1, around.size - 1)
+             if envelope[i] >= envelope[i - 1] and envelope[i] >= envelope[i + 1]]
+    assert min(abs(p - final) for p in peaks) < 0.15 * loop
+    # More than 2x below the robot parked at its start, in steady state (dense FE). The run's own
+    # window ratio (result.vibration_reduction) also holds the start-up transient of a
+    # 0.05 %-damped span (time constant ~20 s), so it is asserted at the same bar but not
+    # used as the truth.
+    assert rms(steady(robot, robot.position)) > 2.0 * rms(steady(robot, final))
+    assert result.vibration_reduction > 2.0
 
 
 def test_band_plant_field_of_a_long_span_matches_the_modal_sum():
