@@ -553,10 +553,22 @@ def shipped_scenarios() -> dict[str, str]:
     return found
 
 
+_MAX_SCENARIO_BYTES = 1_000_000  # the shipped scenarios are ~1 kB
+
+
 def _resolve(path: str | Path) -> tuple[str, str]:
     """The text and a display name of a scenario given as a file path or a shipped name."""
     candidate = Path(path)
     if candidate.is_file() or candidate.suffix == ".toml" or len(candidate.parts) > 1:
+        # A device or FIFO (/dev/zero) would be read without end, a huge file whole: a scenario
+        # is a few kilobytes of TOML, so only a regular file under the limit is read.
+        if candidate.exists() and not candidate.is_file():
+            raise InputError(f"The scenario path {str(candidate)!r} is not a regular file (a "
+                             "folder, device or pipe). Give a TOML file.")
+        if candidate.is_file() and candidate.stat().st_size > _MAX_SCENARIO_BYTES:
+            raise InputError(f"The scenario file {str(candidate)!r} has "
+                             f"{candidate.stat().st_size} bytes, over the {_MAX_SCENARIO_BYTES} "
+                             "a scenario may have. Give a TOML scenario file.")
         try:
             return candidate.read_text(), str(candidate)
         except OSError as exc:

@@ -170,6 +170,18 @@ def test_wrong_argument_types_are_input_errors(kwargs, parameter):
         load_scenario(**kwargs)
 
 
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero")
+def test_a_device_or_a_huge_file_is_not_read(tmp_path):
+    with pytest.raises(InputError, match="'/dev/zero' is not a regular file"):
+        load_scenario("/dev/zero")  # read_text() never returned
+    with pytest.raises(InputError, match="is not a regular file"):
+        load_scenario(tmp_path)
+    big = tmp_path / "big.toml"
+    big.write_text("# padding\n" * 100_001)  # 10 bytes x 100001 lines: just over 1 MB of TOML
+    with pytest.raises(InputError, match="1000010 bytes, over the 1000000"):
+        load_scenario(big)
+
+
 def test_file_errors_name_the_file(tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text("[robot]\nstart = -1.0\n")

@@ -685,8 +685,8 @@ def _loop(s, **kwargs):
 
 # Rows of issue 12 (each class it lists), found by a fuzz of every name in __all__ with NaN, inf,
 # negative, zero, huge, wrong types, empty, transposed and complex arrays, bools for numbers and
-# strings for bools. A fifth element marks a finding routed to the owner of a module that is still
-# being edited (strict xfail: it must start passing when fixed).
+# strings for bools. A fifth element would mark a finding routed to the owner of a module that is
+# still being edited (strict xfail: it must start passing when fixed); every routed row is fixed.
 BAD_INPUT_ISSUE_12 = [
     # ---- raw errors (each was an AttributeError / TypeError / OverflowError, fixed here)
     ("Span.at_rts_fraction conductor=3.0",
