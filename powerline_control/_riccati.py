@@ -37,6 +37,7 @@ from .errors import EstimationError
 
 __all__ = [
     "RESIDUAL_RTOL",
+    "gramian_sum",
     "information_matrix",
     "solve_filter_dare",
     "steady_state_batch",
@@ -383,3 +384,28 @@ def field_variances(covariance: np.ndarray, field_map: np.ndarray | None) -> np.
     if field_map is None:
         return np.clip(np.diag(covariance).copy(), 0.0, None)
     return np.clip(np.sum((field_map @ covariance) * field_map, axis=1), 0.0, None)
+
+
+def gramian_sum(a: np.ndarray, block: np.ndarray, horizon: int) -> np.ndarray:
+    """``sum_{t<horizon} (A^T)^t W A^t`` by binary doubling: ``O(n^3 log N)``, not ``O(n^2 N)``.
+
+    ``block`` is W, one ``(n, n)`` matrix or a batch ``(m, n, n)`` (one per sensor candidate).
+    Uses ``W_2m = W_m + (A^m)^T W_m A^m``; overflow (an unstable model over a long horizon) is
+    left for the caller to detect, as non-finite or huge entries, and to report in its own terms.
+    """
+    block = np.array(block, dtype=float)
+    power = np.array(a, dtype=float)
+    total = np.zeros_like(block)
+    total_power = np.eye(power.shape[0])  # A^(length accumulated so far)
+    remaining = horizon
+    with np.errstate(all="ignore"):  # overflow is the caller's to check
+        while remaining:
+            if remaining & 1:
+                # Append the block after what has been accumulated: W += (A^s)^T W_m A^s.
+                total += total_power.T @ block @ total_power
+                total_power = power @ total_power
+            remaining >>= 1
+            if remaining:
+                block = block + power.T @ block @ power
+                power = power @ power
+    return total

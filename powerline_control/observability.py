@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import control as ct
 import numpy as np
 
-from ._riccati import field_variances, posterior_from_predicted, solve_filter_dare
+from ._riccati import field_variances, gramian_sum, posterior_from_predicted, solve_filter_dare
 from ._validation import (
     check_budget,
     check_choice,
@@ -192,23 +192,7 @@ def observability_gramian(
     index = _check_sensors(sensors, sys.noutputs)
     a = np.asarray(sys.A, dtype=float)
     c = np.asarray(sys.C, dtype=float)[index]
-    n = a.shape[0]
-    # block = W_m for the current power-of-two length m, power = A^m.
-    block = c.T @ c
-    power = a.copy()
-    total = np.zeros((n, n))
-    total_power = np.eye(n)  # A^(length accumulated so far)
-    remaining = horizon
-    with np.errstate(all="ignore"):  # overflow is checked below
-        while remaining:
-            if remaining & 1:
-                # Append the block after what has been accumulated: W += (A^s)^T W_m A^s.
-                total += total_power.T @ block @ total_power
-                total_power = power @ total_power
-            remaining >>= 1
-            if remaining:
-                block = block + power.T @ block @ power
-                power = power @ power
+    total = gramian_sum(a, c.T @ c, horizon)
     if not np.all(np.isfinite(total)) or np.max(np.abs(total)) > 1e300:
         radius = float(np.max(np.abs(np.linalg.eigvals(a))))
         longest = int(300 * np.log(10) / (2 * np.log(radius))) if radius > 1 else None

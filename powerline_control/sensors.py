@@ -42,7 +42,7 @@ import numpy as np
 import scipy.linalg as sla
 from threadpoolctl import threadpool_limits
 
-from ._riccati import solve_filter_dare
+from ._riccati import gramian_sum, solve_filter_dare
 from ._sensor_criteria import (
     KalmanCriterion,
     LogDetCriterion,
@@ -620,19 +620,7 @@ def _gramian_terms(a: np.ndarray, g: np.ndarray, horizon: int) -> np.ndarray:
                 mats += rows[:, :, None] * rows[:, None, :]
                 rows = rows @ a
         else:
-            block = g[:, :, None] * g[:, None, :]
-            power = a.copy()
-            mats = np.zeros((m, n, n))
-            total_power = np.eye(n)
-            remaining = horizon
-            while remaining:
-                if remaining & 1:
-                    mats += total_power.T @ block @ total_power
-                    total_power = power @ total_power
-                remaining >>= 1
-                if remaining:
-                    block = block + power.T @ block @ power
-                    power = power @ power
+            mats = gramian_sum(a, g[:, :, None] * g[:, None, :], horizon)
     if not np.all(np.isfinite(mats)) or np.max(np.abs(mats)) > 1e300:
         raise InputError(
             f"The observability Gramians over horizon={horizon} steps overflow: the model has "
