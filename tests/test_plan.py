@@ -391,7 +391,8 @@ def test_trajectory_arrays_are_read_only():
         traj.position[0] = 1.0
 
 
-@settings(max_examples=25, deadline=None)
+# Derandomized: the same 25 cases on every run and machine (a CI run must not depend on luck).
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
 @given(
     start=st.floats(0.15, 3.5),
     target=st.floats(0.15, 3.5),
@@ -412,7 +413,8 @@ def test_random_requests_either_plan_within_bounds_or_name_the_obstacle(start, t
         assert "obstacle" in str(exc)  # the target is inside or behind it
         return
     low, high = traj.bounds
-    assert low <= min(start, target) and max(start, target) <= high
+    # A target exactly at the free interval's edge is accepted; 0.3 - 0.1 lands 1 ulp below 0.2.
+    assert low - 1e-12 <= min(start, target) and max(start, target) <= high + 1e-12
     assert high <= obstacle - 0.1 + 1e-12 or low >= obstacle + 0.2 - 1e-12
     check_limits_between_samples(traj, low, high)
 

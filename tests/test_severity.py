@@ -260,7 +260,7 @@ def test_robot_at_antinode_never_worse_than_fixed_damper(conductor, fraction, le
         span, np.arange(0.8, 7.6, 0.4)))
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
 @given(position=st.floats(0.0, 300.0), tuning=st.floats(3.0, 60.0), zeta=st.floats(0.01, 0.8),
        speed=st.floats(0.5, 8.0))
 def test_any_damper_anywhere_only_lowers_the_amplitude(position, tuning, zeta, speed):
