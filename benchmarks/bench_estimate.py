@@ -36,7 +36,7 @@ import warnings  # noqa: E402
 import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import numpy as np  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
-from _common import timed  # noqa: E402
+from _common import CANDIDATES, RANKS, reduced_model, slope, timed  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
 
@@ -93,32 +93,7 @@ def rel(a, b):
 
 
 # ----------------------------------------------------------------------- reduced coordinates
-CANDIDATES = (101, 1001)
-RANKS = (20, 80)
-
-
-def reduced_model(m: int, r: int, seed: int = 0):
-    """A rank-``r`` DMD model of an ``m``-node field (r/2 string modes, two tones each, 1 %
-    noise): ``r`` states, ``m`` outputs (C = the field map), Q = its residual covariance."""
-    rng = np.random.default_rng(seed)
-    x = np.linspace(0.0, 1.0, m)
-    k = np.arange(1, r // 2 + 1)
-    t = np.arange(3000) * 1e-3
-    modal = np.array([(1e-3 / j) * (np.sin(2 * np.pi * 6.5 * j * t + rng.uniform(0, 6))
-                                    + 0.3 * np.sin(2 * np.pi * 6.5 * 1.01 * j * t))
-                      for j in k])
-    field = np.sin(np.pi * np.outer(x, k)) @ modal
-    noisy = field + 1e-2 * field.std() * rng.standard_normal(field.shape)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", plc.UnstableModelWarning)
-        dmd = plc.fit_dmd(noisy, dt=1e-3, alpha=1e-6, alpha_mode="relative", rank=r)
-    noise_var = float((1e-2 * field.std()) ** 2)
-    return dmd.to_statespace(), dmd.residual_covariance, noise_var
-
-
-def slope(t_small: float, t_large: float, small: int, large: int) -> float:
-    """Log-log slope of cost against size between two sizes."""
-    return float(np.log(t_large / t_small) / np.log(large / small))
+# The rank-r models and sizes live in _common (shared with the other benchmark).
 
 
 def reduced_table(repeats: int = 1) -> None:

@@ -250,7 +250,7 @@ class StudyResult:
             import pandas as pd
         except ImportError as error:  # pragma: no cover - pandas is installed where tested
             raise ImportError(
-                "StudyResult.to_dataframe needs pandas (pip install pandas); "
+                "StudyResult.to_dataframe needs pandas (pip install 'powerline_control[pandas]'); "
                 "table(), to_csv() and to_json() work without it."
             ) from error
         return pd.DataFrame(self.table(), columns=self.columns)
