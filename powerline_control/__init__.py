@@ -9,6 +9,7 @@ closed loop -> report / CLI.  See ``docs/`` and the README.
 # CasADi. Add a new export as a line of this table (module -> names), not as an eager import.
 from .errors import (
     EstimationError,
+    ExcitationWarning,
     FileFormatError,
     IdentificationError,
     IllConditionedWarning,
@@ -50,7 +51,7 @@ _LAZY_EXPORTS = {
         "load_model", "save_model",
     ),
     "recipe": (
-        "EstimatorDesign", "design_estimator",
+        "EstimatorDesign", "ExcitationReport", "design_estimator",
     ),
     "estimate": (
         "Accuracy", "Consistency", "Estimate", "KalmanFilter", "estimation_accuracy",
@@ -160,6 +161,8 @@ __all__ = [
     "estimation_accuracy",
     "EstimationError",
     "EstimatorDesign",
+    "ExcitationReport",
+    "ExcitationWarning",
     "FileFormatError",
     "filter_consistency",
     "fit_dmd",

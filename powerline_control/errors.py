@@ -82,4 +82,8 @@ class UndetectableModeWarning(UserWarning):
     """A mode on or outside the unit circle is invisible to the sensors: its error grows."""
 
 
-__all__ += ["UndetectableModeWarning"]
+class ExcitationWarning(UserWarning):
+    """A training record is not persistently exciting: a model of it cannot know other loads."""
+
+
+__all__ += ["UndetectableModeWarning", "ExcitationWarning"]

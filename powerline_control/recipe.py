@@ -39,12 +39,18 @@ from ._validation import (
     check_snapshot_matrix,
     read_only,
 )
-from .errors import EstimationError, IdentificationError, IllConditionedWarning, InputError
+from .errors import (
+    EstimationError,
+    ExcitationWarning,
+    IdentificationError,
+    IllConditionedWarning,
+    InputError,
+)
 from .estimate import KalmanFilter
 from .identify import DMDModel, fit_dmd
 from .sensors import select_sensors
 
-__all__ = ["AlphaSweep", "EstimatorDesign", "design_estimator"]
+__all__ = ["AlphaSweep", "EstimatorDesign", "ExcitationReport", "design_estimator"]
 
 #: Default number of stacked snapshots (the model state spans delays * dt of history).
 DEFAULT_DELAYS = 8
@@ -52,6 +58,15 @@ DEFAULT_DELAYS = 8
 DEFAULT_RANK = 30
 #: Largest number of spatial POD coordinates kept before delay embedding.
 DEFAULT_SPATIAL_RANK = 24
+#: Modal model: process noise per step and line coordinate, in sensor-noise variances.
+DEFAULT_PROCESS_NOISE = 1.0
+#: A record is narrowband when fewer than this fraction of its frequency bins rise above the
+#: noise (spectral lines occupy a few bins each; broadband excitation tens of %).
+_NARROWBAND_OCCUPANCY = 0.05
+#: ... and when removing its lines leaves at most this multiple of the noise variance.
+_NARROWBAND_RESIDUAL = 1.5
+#: Most spectral lines extracted (each costs a few DTFTs of the record).
+_MAX_LINES = 60
 #: Relative alphas of the held-out sweep (0 first: exact on clean data, no damping bias).
 _DEFAULT_ALPHAS = np.array([0.0, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2])
 #: Process-noise floor of the filter, as a fraction of the data's mean square (see _steady_filter).
@@ -131,6 +146,9 @@ class EstimatorDesign:
     q_floor : float
         Variance (m^2) added to every diagonal entry of the filter's ``Q`` (1e-10 of the data's
         mean square): it keeps the Riccati equation solvable on noise-free data.
+    excitation : ExcitationReport or None
+        What the record excites above its noise (narrowband or broadband, its spectral lines)
+        and which model was built ("modal" or "dmd").
 
     Examples
     --------
@@ -154,6 +172,7 @@ class EstimatorDesign:
     n_train: int
     n_stabilised: int = 0
     q_floor: float = 0.0
+    excitation: ExcitationReport | None = None
 
     @property
     def alpha_curve(self) -> AlphaSweep:
@@ -220,18 +239,32 @@ class EstimatorDesign:
         """
         m = self.model
         report = m.stability_report(warn=False)
-        lines = [
-            f"Estimator for {m.n_nodes} nodes from {self.sensors.size} sensors "
-            f"(nodes {self.sensors.tolist()}).",
-            f"Model: time-delay DMD, {m.delays} delays ({m.delays * m.dt * 1e3:.3g} ms of "
-            f"history), {m.n_states} POD coordinates of {self.spatial_rank} spatial ones, "
-            f"trained on {self.n_train} samples at dt = {m.dt:g} s.",
-            f"Tikhonov alpha {m.alpha_relative:.3g} relative ({m.alpha:.3g} absolute), chosen "
-            f"by the estimator's error at unmeasured nodes on held-out data "
-            f"({100 * float(np.nanmin(self.alpha_sweep.held_out_error)):.3g} %); "
-            + report.message,
-            f"Sensor noise std {self.noise_std:.3g} m ({self.noise_source}).",
-        ]
+        head = (f"Estimator for {m.n_nodes} nodes from {self.sensors.size} sensors "
+                f"(nodes {self.sensors.tolist()}).")
+        if self.excitation is not None and self.excitation.method == "modal":
+            lines = [
+                head,
+                f"Model: one undamped oscillator per spectral line of the record "
+                f"({m.n_states // 2} lines, {m.n_states} states), shapes in {self.spatial_rank} "
+                f"spatial directions (POD completed with smooth fields), trained on "
+                f"{self.n_train} samples at dt = {m.dt:g} s; no alpha.",
+                self.excitation.message,
+                f"Sensor noise std {self.noise_std:.3g} m ({self.noise_source}).",
+            ]
+        else:
+            lines = [
+                head,
+                f"Model: time-delay DMD, {m.delays} delays ({m.delays * m.dt * 1e3:.3g} ms of "
+                f"history), {m.n_states} POD coordinates of {self.spatial_rank} spatial ones, "
+                f"trained on {self.n_train} samples at dt = {m.dt:g} s.",
+                f"Tikhonov alpha {m.alpha_relative:.3g} relative ({m.alpha:.3g} absolute), "
+                f"chosen by the estimator's error at unmeasured nodes on held-out data "
+                f"({100 * float(np.nanmin(self.alpha_sweep.held_out_error)):.3g} %); "
+                + report.message,
+                f"Sensor noise std {self.noise_std:.3g} m ({self.noise_source}).",
+            ]
+            if self.excitation is not None:
+                lines.insert(3, self.excitation.message)
         if self.n_stabilised:
             lines.insert(3, f"{self.n_stabilised} eigenvalue(s) of the least-squares fit lay just "
                             "outside the unit circle and were pulled to radius 1 - 1e-6.")
@@ -424,6 +457,255 @@ def _lift(model: DMDModel, spatial: np.ndarray) -> DMDModel:
     )
 
 
+# ------------------------------------------------------------------ narrowband records
+@dataclass(frozen=True, eq=False)
+class ExcitationReport:
+    """What the training record excites above its noise, as :func:`design_estimator` saw it.
+
+    A record is *narrowband* when, in the spatial coordinates, a few spectral lines hold all its
+    power above the sensor noise (a harmonic load with the free start-up transients of an
+    undamped span); it is then not persistently exciting: only the modes among those lines can
+    be identified, and loads that excite other modes are beyond any model of it.
+
+    Attributes
+    ----------
+    narrowband : bool
+        True when spectral lines explain the record down to the noise (see ``occupancy``).
+    occupancy : float
+        Fraction of the frequency bins (0 to Nyquist) whose summed power over the spatial
+        coordinates exceeds the level white noise reaches in 0.1 % of bins: a few % for lines,
+        tens of % for broadband excitation.
+    frequencies : ndarray
+        Frequencies (Hz, ascending) of the spectral lines found above the noise (narrowband
+        records only; empty otherwise): the forcing and the modes the record excites.
+    residual_ratio : float
+        Mean square left after removing those lines, over the noise variance (about 1 when the
+        lines explain everything; NaN for broadband records).
+    method : str
+        The model built: "modal" (one oscillator per line) or "dmd" (time-delay DMD).
+
+    Examples
+    --------
+    See :class:`EstimatorDesign`.
+    """
+
+    narrowband: bool
+    occupancy: float
+    frequencies: np.ndarray
+    residual_ratio: float
+    method: str
+
+    @property
+    def n_lines(self) -> int:
+        """Number of spectral lines found (forcing and excited modes)."""
+        return int(self.frequencies.size)
+
+    @property
+    def message(self) -> str:
+        """One sentence: what the record excites and what a model of it can know."""
+        if not self.narrowband:
+            return (f"Broadband record ({100 * self.occupancy:.2g} % of the frequency bins above "
+                    "the noise): time-delay DMD model.")
+        f = self.frequencies
+        listed = ", ".join(f"{v:.4g}" for v in f[:12]) + (", ..." if f.size > 12 else "")
+        return (f"Narrowband record: {f.size} spectral lines above the noise ({listed} Hz; "
+                f"{100 * self.occupancy:.2g} % of the frequency bins), which leave "
+                f"{self.residual_ratio:.3g} x the noise variance: one oscillator per line. It is "
+                "not persistently exciting: a load that excites modes other than these (e.g. "
+                f"broadband, or above {f.max():.4g} Hz) is beyond what this record can teach; "
+                "train on a record with broadband excitation (e.g. a RandomForce alongside the "
+                "harmonic load) for such loads.")
+
+
+def _smooth_basis(positions: np.ndarray, moving: np.ndarray, count: int) -> np.ndarray:
+    """The ``count`` smoothest unit fields over the moving nodes (zero on the others).
+
+    Eigenvectors of the lumped-mass second-difference operator along the node positions, with
+    the motionless nodes as fixed ends and free ends where the line stops (a string's modes:
+    sines on a uniform pinned mesh). They carry no information from the data: they complete
+    its POD with the smooth directions a record excites too weakly to show above its noise.
+    """
+    order = np.argsort(positions, kind="stable")
+    x = np.asarray(positions, dtype=float)[order]
+    if x.size < 2 or not np.all(np.diff(x) > 0):
+        x = np.arange(x.size, dtype=float)          # repeated positions: the node order
+    idx = np.flatnonzero(moving[order])
+    count = min(count, idx.size)
+    if count == 0:
+        return np.zeros((x.size, 0))
+    inv_h = 1.0 / np.diff(x)                        # 1 / element length, between node j, j+1
+    left = np.where(idx > 0, inv_h[np.maximum(idx - 1, 0)], 0.0)
+    right = np.where(idx < x.size - 1, inv_h[np.minimum(idx, x.size - 2)], 0.0)
+    with np.errstate(divide="ignore"):
+        mass = 0.5 * (np.where(left > 0, 1.0 / left, 0.0) + np.where(right > 0, 1.0 / right, 0.0))
+    scale = 1.0 / np.sqrt(mass)
+    diag = (left + right) * scale**2
+    adjacent = np.diff(idx) == 1                    # both neighbours move: coupled
+    off = np.where(adjacent, -inv_h[idx[:-1]], 0.0) * scale[:-1] * scale[1:]
+    if idx.size == 1:
+        vectors = np.ones((1, 1))
+    else:
+        _, vectors = sla.eigh_tridiagonal(diag, off, select="i", select_range=(0, count - 1))
+    fields = np.zeros((x.size, vectors.shape[1]))
+    fields[order[idx]] = vectors * scale[:, None]
+    return fields / np.linalg.norm(fields, axis=0)
+
+
+def _completed_basis(pod: np.ndarray, smooth: np.ndarray, size: int) -> np.ndarray:
+    """The POD directions, then smooth directions orthogonal to them, ``size`` in all."""
+    rest = smooth - pod @ (pod.T @ smooth)
+    q, r = sla.qr(rest, mode="economic")
+    independent = np.abs(np.diag(r)) > 1e-3  # what the POD directions do not already span
+    return np.hstack([pod, q[:, independent]])[:, :size]
+
+
+def _noise_quantile(k: int, probability: float) -> float:
+    """Level (over its mean) that a bin of k summed white-noise periodograms exceeds with the
+    given probability: a Gamma(k, 1/k) quantile (scipy.special, no scipy.stats import)."""
+    from scipy.special import gammainccinv
+
+    return float(gammainccinv(k, probability)) / k
+
+
+def _line_occupancy(coords: np.ndarray, noise: float) -> float:
+    """Fraction of frequency bins where the coordinates' summed periodogram exceeds white noise.
+
+    The spatial coordinates are orthonormal, so sensor noise of std ``noise`` gives each a white
+    spectrum of known level; the level is set where noise alone exceeds it in 0.1 % of bins.
+    """
+    k, n = coords.shape
+    window = np.hanning(n)
+    power = np.sum(np.abs(np.fft.rfft(coords * window, axis=1)) ** 2, axis=0)
+    level = k * noise**2 * float(np.sum(window**2)) * _noise_quantile(k, 1e-3)
+    return float(np.mean(power[1:] > level))
+
+
+def _line_power(res: np.ndarray, frequency: float, dt: float) -> float:
+    """Summed squared DTFT of the coordinates at ``frequency`` (the line's ML criterion)."""
+    phase = np.exp(-2j * np.pi * frequency * dt * np.arange(res.shape[1]))
+    return float(np.sum(np.abs(res @ phase) ** 2))
+
+
+def _line_fit(res: np.ndarray, frequency: float, dt: float) -> np.ndarray:
+    """Least-squares sinusoid at ``frequency`` in every coordinate (its samples, k x n)."""
+    w = 2 * np.pi * frequency * dt * np.arange(res.shape[1])
+    design = np.column_stack([np.cos(w), np.sin(w)])
+    coef, *_ = np.linalg.lstsq(design, res.T, rcond=None)
+    return (design @ coef).T
+
+
+def _refine_line(res: np.ndarray, frequency: float, dt: float, width: float) -> float:
+    """The frequency within +/- width that maximises the line's power (bounded scalar search)."""
+    from scipy.optimize import minimize_scalar
+
+    best = minimize_scalar(lambda f: -_line_power(res, f, dt),
+                           bounds=(max(frequency - width, 1e-12), frequency + width),
+                           method="bounded", options={"xatol": 1e-9 / dt})
+    return float(best.x)
+
+
+def _extract_lines(coords: np.ndarray, dt: float, max_lines: int
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Spectral lines of the coordinates, strongest first, until the rest is noise-like.
+
+    Each step takes the highest peak of the residual's summed (Hann, 4x zero-padded)
+    periodogram outside the lines already found, refines its frequency by maximum likelihood
+    (the summed squared DTFT of the un-windowed residual), subtracts the least-squares sinusoid
+    and re-fits the lines within a few bins of it (close lines bias each other). It stops when
+    the peak is below the level white noise exceeds in 1 % of records (relative to the
+    periodogram's median, so no noise level is needed). Returns (frequencies, shapes k x r with
+    unit columns, residual).
+    """
+    k, n = coords.shape
+    res = coords.copy()
+    nfft = 1 << int(math.ceil(math.log2(4 * n)))
+    window = np.hanning(n)
+    grid = np.fft.rfftfreq(nfft, dt)
+    bin_width = 1.0 / (n * dt)
+    threshold = _noise_quantile(k, 0.01 / n) / _noise_quantile(k, 0.5)
+    found: list[float] = []
+    parts: list[np.ndarray] = []
+    for _ in range(max_lines):
+        power = np.sum(np.abs(np.fft.rfft(res * window, nfft, axis=1)) ** 2, axis=0)
+        floor = float(np.median(power))
+        masked = power.copy()
+        masked[grid < 2 * bin_width] = 0.0             # no line at DC or the record's length
+        for f in found:
+            masked[np.abs(grid - f) < 2 * bin_width] = 0.0
+        peak = int(np.argmax(masked))
+        if not masked[peak] > threshold * floor:
+            break
+        f = _refine_line(res, float(grid[peak]), dt, bin_width)
+        part = _line_fit(res, f, dt)
+        res -= part
+        found.append(f)
+        parts.append(part)
+        near = [j for j, g in enumerate(found) if abs(g - f) < 8 * bin_width]
+        for _sweep in range(3):
+            for j in near:
+                res += parts[j]
+                found[j] = _refine_line(res, found[j], dt, 0.5 * bin_width)
+                parts[j] = _line_fit(res, found[j], dt)
+                res -= parts[j]
+    shapes = []
+    for part in parts:
+        u, _, _ = np.linalg.svd(part[:, : min(n, 4096)], full_matrices=False)
+        shapes.append(u[:, 0])
+    order = np.argsort(found)
+    freqs = np.array(found)[order]
+    shape_matrix = np.column_stack(shapes)[:, order] if shapes else np.zeros((k, 0))
+    return freqs, shape_matrix, res
+
+
+def _modal_model(frequencies: np.ndarray, shapes: np.ndarray, dt: float, n_pairs: int,
+                 process_noise: float) -> DMDModel:
+    """One undamped oscillator per line, as a two-delay model of the line's coordinates.
+
+    State ``[b_k; b_{k-1}]`` with ``b = Qᵀ x`` the coordinates of the field on the
+    orthonormalised line shapes ``Q``; each line's amplitude obeys
+    ``a_{k+1} = 2 rho cos(omega dt) a_k - rho^2 a_{k-1}`` (rho = 1 - 1e-6). Process noise
+    ``process_noise`` (m^2 per step) enters every current coordinate alike: the unknown load of
+    a new run, which the filter then tracks from the sensors.
+    """
+    n, r = shapes.shape
+    q, upper = sla.qr(shapes, mode="economic")
+    rho = _STABLE_RADIUS
+    c1 = 2 * rho * np.cos(2 * np.pi * frequencies * dt)
+    inv = sla.solve_triangular(upper, np.eye(r))
+    a11 = upper @ (c1[:, None] * inv)
+    a12 = -(rho**2) * np.eye(r)
+    A = np.block([[a11, a12], [np.eye(r), np.zeros((r, r))]])
+    basis = np.zeros((2 * n, 2 * r))
+    basis[:n, :r] = q
+    basis[n:, r:] = q
+    field_map = np.hstack([q, np.zeros((n, r))])
+    cov = np.zeros((2 * r, 2 * r))
+    cov[:r, :r] = process_noise * np.eye(r)
+    return DMDModel(
+        A=read_only(A), B=None, dt=dt, alpha=0.0, alpha_relative=0.0, delays=2, rank=2 * r,
+        n_nodes=n, field_map=read_only(field_map), basis=read_only(basis),
+        residual_covariance=read_only(cov), n_pairs=n_pairs,
+        initial_state=read_only(np.zeros(2 * r)),
+    )
+
+
+def _independent_lines(frequencies: np.ndarray, shapes: np.ndarray, spatial: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Drop lines whose field shape the others already span (their oscillator is unobservable
+    apart from its twin and makes the filter's Riccati equation singular)."""
+    fields = spatial @ shapes
+    keep: list[int] = []
+    for j in range(fields.shape[1]):
+        if keep:
+            q, _ = np.linalg.qr(fields[:, keep])
+            distance = float(np.linalg.norm(fields[:, j] - q @ (q.T @ fields[:, j])))
+        else:
+            distance = float(np.linalg.norm(fields[:, j]))
+        if distance > 1e-6:   # unit columns: 1e-6 is round-off of a repeated shape
+            keep.append(j)
+    return frequencies[keep], fields[:, keep]
+
+
 def design_estimator(
     snapshots: object,
     n_sensors: int = 5,
@@ -440,6 +722,8 @@ def design_estimator(
     criterion: str = "kalman",
     train_fraction: float = 0.7,
     seed: int | np.random.Generator | None = None,
+    method: str = "auto",
+    process_noise: float = DEFAULT_PROCESS_NOISE,
 ) -> EstimatorDesign:
     """Identify a reduced model, select sensors and build the Kalman filter, in one call.
 
@@ -479,6 +763,17 @@ def design_estimator(
         model is fitted on the whole record.
     seed : int, Generator or None
         Seed of the sensor selection's random baseline.
+    method : {"auto", "dmd", "modal"}, default "auto"
+        "dmd": time-delay DMD (steps 1-4 above). "modal": one undamped oscillator per spectral
+        line of the record (frequency and spatial shape found above the noise, in the data's POD
+        directions completed with smooth fields over ``positions``); ``delays``, ``rank`` and
+        ``alphas`` are then not used. "auto": "modal" when the record is narrowband (its
+        spectral lines explain it down to the noise: a harmonic load), else "dmd". A narrowband
+        record warns :class:`~powerline_control.errors.ExcitationWarning` (see
+        :attr:`EstimatorDesign.excitation`).
+    process_noise : float, default 1
+        Modal model only: process-noise variance per step and line coordinate, in units of the
+        sensor noise variance (the unknown load of a new run, tracked from the sensors).
 
     Returns
     -------
@@ -492,6 +787,12 @@ def design_estimator(
         over the memory budget.
     IdentificationError
         No dynamics in the data.
+
+    Warns
+    -----
+    ExcitationWarning
+        The record is narrowband (not persistently exciting): the design knows only the modes
+        among its spectral lines.
 
     Examples
     --------
@@ -507,6 +808,12 @@ def design_estimator(
                                                       "reconstruction"))
     train_fraction = check_real("train_fraction", train_fraction, low=0.0, high=1.0,
                                 high_inclusive=False)
+    method = check_choice("method", method, ("auto", "dmd", "modal"))
+    process_noise = check_real("process_noise", process_noise, low=0.0, high=1e6)
+    if positions is None:
+        positions = snap_positions
+    if positions is not None:
+        positions = check_array("positions", positions, shape=(n_nodes,))
     if noise_std is not None:
         noise_std = _check_noise_std(noise_std, float(np.sqrt(np.mean(X**2))))
     check_budget(
@@ -560,6 +867,43 @@ def design_estimator(
                                  .round().astype(int)[1:-1]]
         provisional = np.unique(provisional)
 
+    # 3b. Narrowband record? Then one oscillator per spectral line (the DMD model of such a
+    # record knows its forced mode and learns nothing of the modes a new load excites).
+    moving = np.zeros(n_nodes, dtype=bool)
+    moving[candidates] = True
+    node_x = np.arange(n_nodes, dtype=float) if positions is None else positions
+    _, gd_threshold = _noise_floor(s, X.shape)
+    n_signal = max(1, min(k, int(np.count_nonzero(s > gd_threshold))))
+    line_basis = _completed_basis(spatial[:, :n_signal],
+                                  _smooth_basis(node_x, moving, k + n_signal), k)
+    line_coords = line_basis.T @ X
+    occupancy = _line_occupancy(line_coords, noise)
+    excitation = ExcitationReport(narrowband=False, occupancy=occupancy,
+                                  frequencies=read_only(np.zeros(0)), residual_ratio=math.nan,
+                                  method="dmd")
+    if method == "modal" or (method == "auto" and occupancy < _NARROWBAND_OCCUPANCY):
+        freqs, shapes, residual = _extract_lines(line_coords, dt, min(2 * k, _MAX_LINES))
+        ratio = float(np.mean(residual**2)) / noise**2
+        if freqs.size and (method == "modal" or ratio < _NARROWBAND_RESIDUAL):
+            freqs, fields = _independent_lines(freqs, shapes, line_basis)
+            excitation = ExcitationReport(narrowband=ratio < _NARROWBAND_RESIDUAL,
+                                          occupancy=occupancy, frequencies=read_only(freqs),
+                                          residual_ratio=ratio, method="modal")
+            model = _modal_model(freqs, fields, dt, n_samples - 2, process_noise * noise**2)
+            if excitation.narrowband:
+                warnings.warn(excitation.message, ExcitationWarning, stacklevel=2)
+            chosen, selection = _choose_sensors(model, given, candidates, n_sensors, criterion,
+                                                noise, positions, forbidden, seed)
+            return EstimatorDesign(
+                model=model, sensors=read_only(chosen),
+                filter=_steady_filter(model, chosen, noise, q_floor), noise_std=float(noise),
+                noise_source=source,
+                alpha_sweep=AlphaSweep(alphas=read_only(np.zeros(0)),
+                                       held_out_error=read_only(np.zeros(0)),
+                                       layout=read_only(provisional), n_fit=0),
+                spatial_rank=line_basis.shape[1], sensor_selection=selection,
+                n_train=n_samples, n_stabilised=0, q_floor=q_floor, excitation=excitation)
+
     # 4. Alpha from held-out data: the error of the estimator itself at unmeasured nodes.
     grid = _DEFAULT_ALPHAS if alphas is None else check_array("alphas", alphas, ndim=1)
     if grid.size == 0 or np.any(grid < 0):
@@ -593,26 +937,8 @@ def design_estimator(
     model = _stabilise(lifted)
 
     # 5. Sensors on the final model.
-    if given is not None:
-        chosen, selection = given, None
-    else:
-        if positions is None:
-            positions = snap_positions
-        cand_positions = None
-        if positions is not None:
-            positions = check_array("positions", positions, shape=(n_nodes,))
-            cand_positions = positions[candidates]
-        selection = select_sensors(
-            model.to_statespace(measured=candidates.tolist()),
-            k=n_sensors,
-            criterion=criterion,
-            Q=model.residual_covariance,
-            R=noise**2,
-            positions=cand_positions,
-            forbidden=forbidden,
-            seed=0 if seed is None else seed,
-        )
-        chosen = np.sort(candidates[list(selection.nodes)])
+    chosen, selection = _choose_sensors(model, given, candidates, n_sensors, criterion, noise,
+                                        positions, forbidden, seed)
 
     kf = _steady_filter(model, chosen, noise, q_floor)
     return EstimatorDesign(
@@ -627,4 +953,24 @@ def design_estimator(
         n_train=n_samples,
         n_stabilised=lifted.n_unstable,
         q_floor=q_floor,
+        excitation=excitation,
     )
+
+
+def _choose_sensors(model: DMDModel, given, candidates: np.ndarray, n_sensors: int,
+                    criterion: str, noise: float, positions, forbidden, seed):
+    """The given sensors, or the optimised layout over the moving nodes (and its result)."""
+    if given is not None:
+        return given, None
+    cand_positions = None if positions is None else positions[candidates]
+    selection = select_sensors(
+        model.to_statespace(measured=candidates.tolist()),
+        k=n_sensors,
+        criterion=criterion,
+        Q=model.residual_covariance,
+        R=noise**2,
+        positions=cand_positions,
+        forbidden=forbidden,
+        seed=0 if seed is None else seed,
+    )
+    return np.sort(candidates[list(selection.nodes)]), selection
