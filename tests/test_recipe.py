@@ -94,6 +94,13 @@ def test_small_span_estimates_a_new_broadband_run(small_design):
         (dict(sensors=[0, 0]), InputError, "sensors"),
         (dict(sensors=[99]), InputError, "sensors"),
         (dict(dt=0.5), InputError, "dt"),
+        (dict(method="best"), InputError, "'method'"),
+        (dict(method=None), InputError, "'method'"),
+        (dict(process_noise=-1.0), InputError, "'process_noise'"),
+        (dict(process_noise=float("nan")), InputError, "'process_noise'"),
+        (dict(process_noise=1e7), InputError, "'process_noise'"),
+        (dict(process_noise="1"), InputError, "'process_noise'"),
+        (dict(positions=[0.0, 1.0]), InputError, "'positions'"),
     ],
 )
 def test_design_estimator_rejects_bad_input(small_design, kwargs, error, match):
@@ -160,6 +167,7 @@ def _new_run_error(model, design, force, seed):
 @pytest.mark.parametrize("shift", [0.9, 1.1], ids=["-10%", "+10%"])
 def test_lab_design_generalises_to_shifted_harmonic_forcing(lab_design, shift):
     model, design = lab_design
+    assert design.excitation.method == "dmd" and not design.excitation.narrowband  # broadband
     force = plc.HarmonicForce(1.0, LAB_HARMONIC.frequency * shift, LAB_HARMONIC.position)
     error = _new_run_error(model, design, force, seed=11)
     print(f"harmonic x{shift}: unmeasured-node error {error:.2%}")
@@ -293,3 +301,62 @@ def test_harmonic_only_design_generalises_to_broadband_when_the_record_saw_its_m
         pytest.skip("the record does not excite every mode the broadband load does")
     # Issue 10 item 4: under 5 % for broadband forcing.
     assert error < 0.05
+
+
+def test_smooth_basis_is_the_discrete_sine_basis_on_a_uniform_pinned_mesh():
+    """Closed form: the Dirichlet second difference on a uniform grid has eigenvectors
+    sin(j pi x / L) sampled at the nodes (the DST-I), eigenvalues ascending in j."""
+    from powerline_control.recipe import _smooth_basis
+
+    x = np.linspace(0.0, 2.7, 31)
+    moving = np.ones(x.size, dtype=bool)
+    moving[[0, -1]] = False
+    basis = _smooth_basis(x, moving, 6)
+    for j in range(6):
+        sine = np.sin((j + 1) * np.pi * x / x[-1])
+        sine /= np.linalg.norm(sine)
+        # Same unit vector up to sign; round-off of a 29 x 29 tridiagonal eigen-solve.
+        assert abs(abs(float(basis[:, j] @ sine)) - 1.0) < 1e-10
+    assert np.all(basis[[0, -1]] == 0.0)                 # nothing at the motionless supports
+
+
+def test_spectral_lines_are_found_at_their_frequencies_and_nothing_else():
+    """Three sinusoids (one 100x stronger, two 0.5 Hz apart, the weakest at half the noise std)
+    in six coordinates with white noise: the extraction finds exactly them."""
+    from powerline_control.recipe import _extract_lines
+
+    rng = np.random.default_rng(21)
+    dt, n = 1e-3, 8000
+    t = np.arange(n) * dt
+    lines = [(7.3, 50.0), (19.1, 1.0), (19.6, 0.5)]   # (Hz, amplitude in noise std)
+    shapes = rng.standard_normal((6, 3))
+    shapes /= np.linalg.norm(shapes, axis=0)
+    coords = sum(a * np.outer(shapes[:, i], np.sin(2 * np.pi * f * t + i))
+                 for i, (f, a) in enumerate(lines)) + rng.standard_normal((6, n))
+    freqs, found_shapes, residual = _extract_lines(coords, dt, 10)
+    assert freqs.size == 3
+    # Cramer-Rao: the weakest line's frequency std is sqrt(12 / (A^2 N^3)) / (2 pi dt) = 1.5 mHz;
+    # 10 mHz is about 6 of them.
+    assert np.allclose(freqs, [f for f, _ in lines], atol=0.01)
+    for i in range(3):      # shapes up to sign; the weakest (SNR 0.5/sample) within a few %
+        assert abs(float(found_shapes[:, i] @ shapes[:, i])) > 0.95
+    # What is left is the noise: unit variance within the scatter of 48,000 samples.
+    assert abs(float(np.mean(residual**2)) - 1.0) < 0.05
+
+
+def test_method_dmd_on_a_harmonic_record_does_not_warn_and_modal_names_its_lines():
+    model = plc.LineModel(plc.Span.paper_lab(), n_elements=20)
+    train = plc.simulate(model, plc.HarmonicForce(1.0, 18.3, 1.6), duration=4.0, dt=1e-3,
+                         noise_fraction=0.01, seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                 # no ExcitationWarning asked for
+        dmd = plc.design_estimator(train, n_sensors=3, delays=4, rank=12, seed=0,
+                                   method="dmd")
+    assert dmd.excitation.method == "dmd" and dmd.excitation.occupancy < 0.05
+    with pytest.warns(plc.ExcitationWarning, match="18.3"):   # the load's line is named
+        modal = plc.design_estimator(train, n_sensors=3, seed=0)
+    assert modal.excitation.method == "modal"
+    # Modal model: two states (now, one step ago) per line; the filter runs on the sensors.
+    assert modal.model.n_states == 2 * modal.excitation.n_lines
+    assert modal.estimate_field(train.displacement[modal.sensors]).shape == train.x.shape + (
+        train.t.size,)
