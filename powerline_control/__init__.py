@@ -51,7 +51,7 @@ _LAZY_EXPORTS = {
         "load_model", "save_model",
     ),
     "recipe": (
-        "EstimatorDesign", "ExcitationReport", "design_estimator",
+        "EstimatorDesign", "design_estimator",
     ),
     "estimate": (
         "Accuracy", "Consistency", "Estimate", "KalmanFilter", "estimation_accuracy",
@@ -161,7 +161,6 @@ __all__ = [
     "estimation_accuracy",
     "EstimationError",
     "EstimatorDesign",
-    "ExcitationReport",
     "ExcitationWarning",
     "FileFormatError",
     "filter_consistency",
