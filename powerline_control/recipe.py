@@ -16,6 +16,13 @@ with defaults measured to generalise (``docs/identification.md``, "The estimator
 4. **Filter**: a steady-state :class:`~powerline_control.estimate.KalmanFilter` on the measured
    rows only, ``Q`` = the model's residual covariance, ``R`` = the sensor noise variance (given,
    taken from :class:`~powerline_control.simulate.Snapshots`, or estimated from the data).
+
+A *narrowband* record (a harmonic load alone: the forced response plus the free transients of an
+undamped span, a sum of spectral lines down to the noise) replaces step 2: its lines are found in
+the data's POD directions completed with smooth fields over the node positions, and the model is
+one undamped oscillator per line with process noise (:class:`ExcitationReport`; it warns
+:class:`~powerline_control.errors.ExcitationWarning`, since such a record cannot teach the modes it
+does not excite). A DMD model of such a record learns the forced mode and little else.
 """
 
 from __future__ import annotations
