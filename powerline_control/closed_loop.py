@@ -62,6 +62,7 @@ from ._validation import (
     read_only,
 )
 from .errors import InputError
+from .estimate import KalmanFilter
 from .fem import MDR, LineModel
 from .line import Span
 from .plan import MotionPlanner, RobotLimits
@@ -542,7 +543,13 @@ def _phasor_of(load, frequency: float) -> complex:
 
 # ---------------------------------------------------------------------------------- the policy
 def _dominant_frequency(signals: np.ndarray, dt: float) -> float:
-    """Frequency of the largest spectral peak of (n_signals, n_t), Hann window, interpolated."""
+    """Frequency of the largest spectral peak of (n_signals, n_t), Hann window, interpolated.
+
+    Not antinode's ``_dominant_harmonic`` (the same Hann window and log-parabola, but no zero
+    padding): padding to at least 2 n bins makes the estimate ~10x closer for a tone (measured:
+    errors of 2e-4 to 1.4e-3 Hz here against 3e-3 to 1.6e-2 Hz on 1-2 s windows at 1 kHz), and
+    the phasors are fitted at this frequency over a window, where its error turns into phase.
+    """
     n = signals.shape[1]
     window = np.hanning(n)
     n_fft = max(2 * n, 1024)  # Hann + log-parabola: bias ~1 % of a bin for a pure tone
@@ -561,15 +568,32 @@ def _dominant_frequency(signals: np.ndarray, dt: float) -> float:
 
 
 def _fit_phasor(signals: np.ndarray, t: np.ndarray, frequency: float) -> np.ndarray:
-    """Least-squares A per row: signal ~ Re(A exp(i omega t)) + constant."""
+    """Least-squares A per row: signal ~ Re(A exp(i omega t)) + constant.
+
+    The fit antinode's ``_dominant_harmonic`` makes too, but here at a frequency given (measured
+    on the longer frequency window) and on absolute time ``t``: the phasors of a window's two
+    halves, compared for the unsteadiness check, share one phase reference (antinode's are
+    referred to their own window's first sample, and only at the frequency it finds itself).
+    """
     w = 2 * np.pi * frequency
     basis = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones_like(t)])
     coef, *_ = np.linalg.lstsq(basis, signals.T, rcond=None)
     return coef[0] - 1j * coef[1]
 
 
-def _antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float, float]]:
-    """(position, amplitude, loop length) of each local maximum of |shape| along the span."""
+def _antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float]]:
+    """(position, loop length) of each local maximum of |shape| along the span, the loop ending
+    at the nodes where |shape| is locally least.
+
+    Not :func:`~powerline_control.antinode.locate_antinodes`: on the closed loop's shapes it
+    finds the same antinodes (within 1 cm), but its loop ends are zero crossings of the
+    phase-aligned shape interpolated between nodes, so its loop lengths differ from these by up to
+    one element (1.22 against 1.28 m on the 20-element lab span, 3.70 against 3.58 m on a 300 m
+    Drake span), and it leaves out loops below 10 % of the largest. The loop length sets the
+    quarter-loop confirmation gate, so a choice near the gate's edge would go the other way with
+    it (ten varied runs happened to come out bit-identical with it swapped in); kept so that the
+    policy decides as it always has.
+    """
     amplitude = np.abs(shape)
     found = []
     minima = [0] + [j for j in range(1, x.size - 1)
@@ -579,13 +603,12 @@ def _antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float, 
         if amplitude[j] > amplitude[j - 1] and amplitude[j] >= amplitude[j + 1]:
             # Parabola through the three samples (non-uniform nodes allowed).
             xs, ys = x[j - 1 : j + 2], amplitude[j - 1 : j + 2]
-            a, b, c = np.polyfit(xs - x[j], ys, 2)
+            a, b, _ = np.polyfit(xs - x[j], ys, 2)
             offset = -b / (2 * a) if a < 0 else 0.0
             offset = float(np.clip(offset, xs[0] - x[j], xs[2] - x[j]))
             left = max(m for m in minima if m <= j)
             right = min(m for m in minima if m >= j)
-            found.append((float(x[j] + offset), float(c - b**2 / (4 * a) if a < 0 else ys[1]),
-                          float(x[right] - x[left])))
+            found.append((float(x[j] + offset), float(x[right] - x[left])))
     return found
 
 
@@ -661,7 +684,7 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
         position = float(grid[pick] + offset * (grid[1] - grid[0]))
     else:
         position = float(grid[pick])
-    loop = min(antinodes, key=lambda a: abs(a[0] - position))[2]
+    loop = min(antinodes, key=lambda a: abs(a[0] - position))[1]
     return position, loop, read_only(grid), read_only(predicted)
 
 
@@ -886,9 +909,8 @@ def _checked_sampling(duration, calibration, dt, control_period, plant_period):
 
 def _checked_mesh_and_sensors(n_elements, sensors, duration, dt):
     """The checked n_elements; the sensors and the run's memory checked before any model."""
-    if n_elements is not None:
+    if n_elements is not None:  # the sensors early, before any model is built
         n_elements = check_int("n_elements", n_elements, low=2)
-    if n_elements is not None:  # early, before any model is built
         check_indices("sensors", sensors, n_elements + 1)
     # The loop records ~4 node histories and ~16 scalars per sample (and the parked comparisons):
     # refuse a duration / dt that cannot fit before anything is built (n_elements=None: >= 2 nodes).
@@ -987,8 +1009,7 @@ def _build_line(span, robot, segments, settings: _Settings, sensors, *, bc, damp
     return _Line(
         span=span, bare=bare, sensors=sensors, sensor_rows=plant.nodal[list(sensors)],
         clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant,
-        plant_steps=plant_steps,
-        modal_force=modal_force, residual=residual, harmonic=harmonic,
+        plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
         weights=_trapezoid_weights(bare.node_positions),
     )
 
@@ -1006,7 +1027,7 @@ class _Calibration:
     noise_std: float            # the sensors' noise, m
     record: np.ndarray          # (n_nodes, n_cal) noisy calibration field
     robot_record: np.ndarray    # (n_cal,) noisy line displacement under the robot
-    kf: object                  # the Kalman filter, warmed up on the record (it keeps stepping)
+    kf: KalmanFilter            # warmed up on the record; it keeps stepping in the loop
     field_map: np.ndarray       # estimator states -> nodal displacements
     predict_sensors: np.ndarray  # one-step sensor predictor C A (the innovation check)
     warm_states: np.ndarray     # (n_cal, n_states) the filter's states over the record
@@ -1066,6 +1087,7 @@ class _Records:
     @classmethod
     def after_calibration(cls, line: _Line, calibration: _Calibration, robot: MDR,
                           n_cal: int) -> _Records:
+        """Histories for the whole run, the calibration window's filled in."""
         n_t = line.t.size
         records = cls(
             plant_states=np.empty((n_t, calibration.start_states.shape[1])),
@@ -1086,12 +1108,12 @@ class _Records:
 
 
 @dataclass
-class _Robot:
-    """The robot's state between control steps."""
+class _LoopState:
+    """Where the loop stands between control steps: the robot's motion and the plant's state."""
 
-    position: float
-    velocity: float
-    steer: float                # where it was last steered to (the goal, clipped to its reach)
+    position: float             # the robot's, m
+    velocity: float             # the robot's, m/s
+    steer: float                # where it was last steered to (the goal, in its free interval)
     plant_state: np.ndarray     # the plant's state z = (q, y, q', y') at this sample
 
 
@@ -1229,7 +1251,7 @@ def _excited_shape(records: _Records, line: _Line, robot: MDR, x_r: float, end: 
     return _bare_shape(records, line, robot, x_r, lo, end, frequency), unsteady
 
 
-def _update_target(targeting: _Targeting, state: _Robot, records: _Records, line: _Line,
+def _update_target(targeting: _Targeting, state: _LoopState, records: _Records, line: _Line,
                    robot: MDR, settings: _Settings, k: int, frequency: float) -> None:
     """The policy at control step k: choose a first target, confirm it once the robot has
     settled, or choose anew after a wind change (module doc)."""
@@ -1259,7 +1281,7 @@ def _update_target(targeting: _Targeting, state: _Robot, records: _Records, line
     targeting.accept(position, loop, frequency, retarget)
 
 
-def _move_robot(state: _Robot, goal: float, records: _Records, settings: _Settings,
+def _move_robot(state: _LoopState, goal: float, records: _Records, settings: _Settings,
                 planner: MotionPlanner | None, span_length: float, k: int, end: int) -> None:
     """Steer towards the goal (clipped to the free interval) over samples k..end and record the
     robot's motion: one constant acceleration, the limits held at every sample."""
@@ -1284,7 +1306,7 @@ def _move_robot(state: _Robot, goal: float, records: _Records, settings: _Settin
     state.steer = steer
 
 
-def _advance_plant(state: _Robot, records: _Records, line: _Line, calibration: _Calibration,
+def _advance_plant(state: _LoopState, records: _Records, line: _Line, calibration: _Calibration,
                    rng, timings: dict, k: int, end: int) -> None:
     """Simulate, sense and filter samples k..end in blocks that hold the robot's mid-block
     position; leaves the robot's state at sample end."""
@@ -1599,13 +1621,13 @@ def run_closed_loop(
     setup_start = time.perf_counter()
     line = _build_line(span, robot, segments, settings, sensors, bc=bc, damping=damping,
                        n_modes=n_modes, clamp_distance=clamp_distance)
-    calibration_run = _calibrate(line, robot, settings, rng)
+    calibrated = _calibrate(line, robot, settings, rng)
     n_cal, t = settings.n_cal, line.t
-    records = _Records.after_calibration(line, calibration_run, robot, n_cal)
+    records = _Records.after_calibration(line, calibrated, robot, n_cal)
 
     # ---- the loop: every control period, estimate, choose a target, move (and simulate)
-    state = _Robot(robot.position, 0.0, robot.position,
-                   calibration_run.start_states[n_cal - 1].copy())
+    state = _LoopState(robot.position, 0.0, robot.position,
+                   calibrated.start_states[n_cal - 1].copy())
     targeting = _Targeting()
     planner = _motion_planner(settings, span.length)
     timings = {"setup": time.perf_counter() - setup_start, "plant": 0.0, "plant update": 0.0,
@@ -1614,10 +1636,10 @@ def run_closed_loop(
     k = n_cal - 1
     while k < t.size - 1:
         end = min(k + settings.steps_per_period, t.size - 1)
-        frequency = _observe(records, calibration_run, settings, k)
+        frequency = _observe(records, calibrated, settings, k)
         _update_target(targeting, state, records, line, robot, settings, k, frequency)
         _move_robot(state, targeting.goal, records, settings, planner, span.length, k, end)
-        _advance_plant(state, records, line, calibration_run, rng, timings, k, end)
+        _advance_plant(state, records, line, calibrated, rng, timings, k, end)
         k = end
     wall = time.perf_counter() - wall_start
     timings["loop cpu"] = time.process_time() - cpu_start
@@ -1631,7 +1653,7 @@ def run_closed_loop(
     settling = _settling(records, t, segments, n_cal, loop_length, settings.settle_margin)
     loop_power = _damper_power(line.plant, robot, records.plant_states, records.position)
     scan_positions, scan_rms, best_position = _steady_state_scan(line)
-    comparisons = _comparisons(line, robot, records, calibration_run, settling.mask,
+    comparisons = _comparisons(line, robot, records, calibrated, settling.mask,
                                best_position, loop_power)
     timings["comparisons"] = time.perf_counter() - after_start
     return ClosedLoopResult(
@@ -1639,8 +1661,8 @@ def run_closed_loop(
         x=read_only(line.bare.node_positions.copy()),
         displacement=read_only(_field(line.plant, records.plant_states, line.residual)),
         baseline_displacement=read_only(
-            _field(line.plant, calibration_run.start_states, line.residual)),
-        estimated_field=read_only(calibration_run.field_map @ records.filter_states.T),
+            _field(line.plant, calibrated.start_states, line.residual)),
+        estimated_field=read_only(calibrated.field_map @ records.filter_states.T),
         robot_position=read_only(records.position),
         robot_velocity=read_only(records.velocity),
         target=read_only(records.target),
