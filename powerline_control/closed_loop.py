@@ -1309,47 +1309,61 @@ def _move_robot(state: _LoopState, goal: float, records: _Records, settings: _Se
 def _advance_plant(state: _LoopState, records: _Records, line: _Line, calibration: _Calibration,
                    rng, timings: dict, k: int, end: int) -> None:
     """Simulate, sense and filter samples k..end in blocks that hold the robot's mid-block
-    position; leaves the robot's state at sample end."""
+    position; leaves the loop's state at sample end."""
     j = k
     while j < end:
         block_end = min(j + line.plant_steps, end)
-        state.plant_state = _run_block(state.plant_state, records, line, calibration, rng,
-                                       timings, j, block_end)
+        x_mid = 0.5 * (records.position[j] + records.position[block_end])
+        tic = time.perf_counter()
+        phi, g0, g1 = line.plant.discretise(x_mid)
+        at_robot = line.plant.coupling(x_mid)
+        timings["plant update"] += time.perf_counter() - tic
+        tic = time.perf_counter()
+        state.plant_state = _step_plant(state.plant_state, (phi, g0, g1), records,
+                                        line.modal_force, j, block_end)
+        y_block = _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
+        tac = time.perf_counter()
+        _kalman_steps(records, calibration, y_block, j, block_end)
+        timings["plant"] += tac - tic
+        timings["filter"] += time.perf_counter() - tac
         j = block_end
     state.position, state.velocity = float(records.position[end]), float(records.velocity[end])
 
 
-def _run_block(z, records: _Records, line: _Line, calibration: _Calibration, rng,
-               timings: dict, j: int, block_end: int) -> np.ndarray:
-    """One block of samples j..block_end: the plant with the robot at its mid-block position,
-    the noisy sensors and the Kalman filter's steps. Returns the plant's last state."""
-    plant, modal_force, sensor_list = line.plant, line.modal_force, list(line.sensors)
-    x_mid = 0.5 * (records.position[j] + records.position[block_end])
-    tic = time.perf_counter()
-    phi, g0, g1 = plant.discretise(x_mid)
-    n_mid = plant.coupling(x_mid)
-    timings["plant update"] += time.perf_counter() - tic
-    tic = time.perf_counter()
+def _step_plant(z: np.ndarray, maps: tuple, records: _Records, modal_force: np.ndarray,
+                j: int, block_end: int) -> np.ndarray:
+    """The plant's exact first-order-hold steps from sample j to block_end, recorded; the last
+    state."""
+    phi, g0, g1 = maps
     for i in range(j, block_end):
         z = phi @ z + g0 @ modal_force[i] + g1 @ modal_force[i + 1]
         records.plant_states[i + 1] = z
-    block = records.plant_states[j + 1 : block_end + 1, : plant.r]
+    return z
+
+
+def _sense(records: _Records, line: _Line, at_robot: np.ndarray, noise_std: float, rng,
+           j: int, block_end: int) -> np.ndarray:
+    """The sensors' and the robot's noisy displacements over samples j+1..block_end, recorded;
+    the sensors' (n_samples, p)."""
+    sensor_list = list(line.sensors)
+    block = records.plant_states[j + 1 : block_end + 1, : line.plant.r]
     y_block = block @ line.sensor_rows.T + line.residual[sensor_list, j + 1 : block_end + 1].T
-    robot_block = block @ n_mid
-    noise_std = calibration.noise_std
+    robot_block = block @ at_robot
     if noise_std:
         y_block = y_block + noise_std * rng.standard_normal(y_block.shape)
         robot_block = robot_block + noise_std * rng.standard_normal(robot_block.shape)
     records.measured[:, j + 1 : block_end + 1] = y_block.T
     records.robot_measured[j + 1 : block_end + 1] = robot_block
-    tac = time.perf_counter()
+    return y_block
+
+
+def _kalman_steps(records: _Records, calibration: _Calibration, y_block: np.ndarray, j: int,
+                  block_end: int) -> None:
+    """The Kalman filter's steps on the block's measurements, and its one-step innovations."""
     for i in range(j, block_end):
         records.filter_states[i + 1] = calibration.kf.step(y_block[i - j])
     predicted = records.filter_states[j:block_end] @ calibration.predict_sensors.T
     records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
-    timings["plant"] += tac - tic
-    timings["filter"] += time.perf_counter() - tac
-    return z
 
 
 @dataclass(frozen=True)
@@ -1437,30 +1451,35 @@ def _parked_comparison(name: str, x_park: float | None, line: _Line, robot: MDR,
     return _comparison(name, x_park, states, line.plant, power, line, mask)
 
 
+def _steady_rms(line: _Line, x: float, omega: float, modal_amplitude: np.ndarray,
+                static_amplitude: np.ndarray) -> float:
+    """RMS over the span in steady state under a sine (its modal and residual amplitudes) with
+    the robot parked at x."""
+    plant = line.plant
+    amplitude = plant.steady_state(x, omega, modal_amplitude)
+    shape = plant.nodal @ amplitude[: plant.r] + static_amplitude
+    return float(np.sqrt(0.5 * line.weights @ np.abs(shape) ** 2))
+
+
 def _steady_state_scan(line: _Line) -> tuple[np.ndarray, np.ndarray, float]:
     """(positions, RMS, best position): the steady state with the robot parked along the span
     under the last harmonic load, a coarse grid and a fine one around its minimum (empty and
     NaN when that load is not one sine)."""
     if line.harmonic is None:
         return np.zeros(0), np.zeros(0), float("nan")
-    plant, span_length = line.plant, line.span.length
+    span_length = line.span.length
     scan_frequency, parts = line.harmonic
     omega = 2 * np.pi * scan_frequency
     modal_amplitude = sum(g * _phasor_of(load, scan_frequency) for load, g, _ in parts)
     static_amplitude = sum(s * _phasor_of(load, scan_frequency) for load, _, s in parts)
-
-    def steady_rms(x):
-        amplitude = plant.steady_state(x, omega, modal_amplitude)
-        shape = plant.nodal @ amplitude[: plant.r] + static_amplitude
-        return float(np.sqrt(0.5 * line.weights @ np.abs(shape) ** 2))
-
+    loads = (omega, modal_amplitude, static_amplitude)
     coarse = np.linspace(0.0, span_length, 4 * line.bare.n_elements + 1)[1:-1]
-    coarse_rms = np.array([steady_rms(x) for x in coarse])
+    coarse_rms = np.array([_steady_rms(line, x, *loads) for x in coarse])
     i = int(np.argmin(coarse_rms))
     step = coarse[1] - coarse[0]
     fine = np.linspace(max(coarse[i] - 2 * step, 1e-9),
                        min(coarse[i] + 2 * step, span_length - 1e-9), 41)
-    fine_rms = np.array([steady_rms(x) for x in fine])
+    fine_rms = np.array([_steady_rms(line, x, *loads) for x in fine])
     positions = np.concatenate([coarse, fine])
     order = np.argsort(positions)
     return (positions[order], np.concatenate([coarse_rms, fine_rms])[order],
