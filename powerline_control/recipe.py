@@ -77,6 +77,10 @@ _NARROWBAND_RESIDUAL = 1.5
 _MAX_LINES = 60
 #: A new line is sought at least this many frequency bins (1 / record length) from the others.
 _LINE_MASK_BINS = 2.0
+#: Modal model: smooth directions outside the lines' shapes, appended as white states with this
+#: many sensor-noise variances (what a narrowband record never showed, fitted to each sample).
+_UNSEEN_COUNT = 8
+_UNSEEN_NOISE = 100.0
 #: Relative alphas of the held-out sweep (0 first: exact on clean data, no damping bias).
 _DEFAULT_ALPHAS = np.array([0.0, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2])
 #: Process-noise floor of the filter, as a fraction of the data's mean square (see _steady_filter).
@@ -736,7 +740,8 @@ def _split_line(res: np.ndarray, frequency: float, dt: float, bin_width: float,
 
 
 def _modal_model(frequencies: np.ndarray, shapes: np.ndarray, dt: float, n_pairs: int,
-                 process_noise: float) -> DMDModel:
+                 process_noise: float, unseen: np.ndarray | None = None,
+                 unseen_noise: float = 0.0) -> DMDModel:
     """One undamped oscillator per line, as a two-delay model of the line's coordinates.
 
     State ``[b_k; b_{k-1}]`` with ``b = Qᵀ x`` the coordinates of the field on the
@@ -753,18 +758,32 @@ def _modal_model(frequencies: np.ndarray, shapes: np.ndarray, dt: float, n_pairs
     a11 = upper @ (c1[:, None] * inv)
     a12 = -(rho**2) * np.eye(r)
     A = np.block([[a11, a12], [np.eye(r), np.zeros((r, r))]])
-    basis = np.zeros((2 * n, 2 * r))
+    u = 0 if unseen is None else unseen.shape[1]
+    A = np.block([[A, np.zeros((2 * r, u))], [np.zeros((u, 2 * r + u))]])
+    basis = np.zeros((2 * n, 2 * r + u))
     basis[:n, :r] = q
-    basis[n:, r:] = q
-    field_map = np.hstack([q, np.zeros((n, r))])
-    cov = np.zeros((2 * r, 2 * r))
+    basis[n:, r:2 * r] = q
+    field_map = np.hstack([q, np.zeros((n, r))] + ([unseen] if u else []))
+    if u:
+        basis[:n, 2 * r:] = unseen
+    cov = np.zeros((2 * r + u, 2 * r + u))
     cov[:r, :r] = process_noise * np.eye(r)
+    cov[2 * r:, 2 * r:] = unseen_noise * np.eye(u)
     return DMDModel(
-        A=read_only(A), B=None, dt=dt, alpha=0.0, alpha_relative=0.0, delays=2, rank=2 * r,
-        n_nodes=n, field_map=read_only(field_map), basis=read_only(basis),
+        A=read_only(A), B=None, dt=dt, alpha=0.0, alpha_relative=0.0, delays=2,
+        rank=2 * r + u, n_nodes=n, field_map=read_only(field_map), basis=read_only(basis),
         residual_covariance=read_only(cov), n_pairs=n_pairs,
-        initial_state=read_only(np.zeros(2 * r)),
+        initial_state=read_only(np.zeros(2 * r + u)),
     )
+
+
+def _unseen_directions(fields: np.ndarray, smooth: np.ndarray) -> np.ndarray:
+    """Up to ``_UNSEEN_COUNT`` smooth directions that the line shapes leave out (orthonormal)."""
+    q, _ = np.linalg.qr(fields)
+    rest = smooth - q @ (q.T @ smooth)
+    basis, upper = sla.qr(rest, mode="economic")
+    new = np.abs(np.diag(upper)) > 0.3     # mostly outside the lines' span
+    return basis[:, new][:, :_UNSEEN_COUNT]
 
 
 def _independent_lines(frequencies: np.ndarray, shapes: np.ndarray, spatial: np.ndarray
@@ -967,11 +986,17 @@ def design_estimator(
             excitation = ExcitationReport(narrowband=ratio < _NARROWBAND_RESIDUAL,
                                           occupancy=occupancy, frequencies=read_only(freqs),
                                           residual_ratio=ratio, method="modal")
-            model = _modal_model(freqs, fields, dt, n_samples - 2, process_noise * noise**2)
+            lines_only = _modal_model(freqs, fields, dt, n_samples - 2, process_noise * noise**2)
             if excitation.narrowband:
                 warnings.warn(excitation.message, ExcitationWarning, stacklevel=2)
-            chosen, selection = _choose_sensors(model, given, candidates, n_sensors, criterion,
-                                                noise, positions, forbidden, seed)
+            # Sensors for what the record showed (the white unseen states below would pull them
+            # toward fitting directions with no dynamics).
+            chosen, selection = _choose_sensors(lines_only, given, candidates, n_sensors,
+                                                criterion, noise, positions, forbidden, seed)
+            unseen = _unseen_directions(fields, _smooth_basis(node_x, moving,
+                                                              fields.shape[1] + _UNSEEN_COUNT))
+            model = _modal_model(freqs, fields, dt, n_samples - 2, process_noise * noise**2,
+                                 unseen, _UNSEEN_NOISE * noise**2)
             return EstimatorDesign(
                 model=model, sensors=read_only(chosen),
                 filter=_steady_filter(model, chosen, noise, q_floor), noise_std=float(noise),

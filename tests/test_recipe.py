@@ -356,7 +356,15 @@ def test_method_dmd_on_a_harmonic_record_does_not_warn_and_modal_names_its_lines
     with pytest.warns(plc.ExcitationWarning, match="18.3"):   # the load's line is named
         modal = plc.design_estimator(train, n_sensors=3, seed=0)
     assert modal.excitation.method == "modal"
-    # Modal model: two states (now, one step ago) per line; the filter runs on the sensors.
-    assert modal.model.n_states == 2 * modal.excitation.n_lines
+    # Modal model: two states (now, one step ago) per line, plus at most 8 white states for
+    # smooth directions the record never excited (eigenvalue 0). The lines' eigenvalues are
+    # those of a_{k+1} = 2 rho cos(w dt) a_k - rho^2 a_{k-1}: rho exp(+/- i w dt), rho = 1 - 1e-6.
+    r = modal.excitation.n_lines
+    assert 2 * r <= modal.model.n_states <= 2 * r + 8
+    eig = np.linalg.eigvals(np.asarray(modal.model.A))
+    for f in modal.excitation.frequencies:
+        expected = (1 - 1e-6) * np.exp(2j * np.pi * f * train.dt)
+        assert np.min(np.abs(eig - expected)) < 1e-6     # round-off of a 2r-state eigen-solve
+    assert np.sum(np.abs(eig) < 1e-9) == modal.model.n_states - 2 * r
     assert modal.estimate_field(train.displacement[modal.sensors]).shape == train.x.shape + (
         train.t.size,)
