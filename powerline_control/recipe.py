@@ -259,9 +259,11 @@ class EstimatorDesign:
             lines = [
                 head,
                 f"Model: one undamped oscillator per spectral line of the record "
-                f"({m.n_states // 2} lines, {m.n_states} states), shapes in {self.spatial_rank} "
-                f"spatial directions (POD completed with smooth fields), trained on "
-                f"{self.n_train} samples at dt = {m.dt:g} s; no alpha.",
+                f"({self.excitation.n_lines} lines, {2 * self.excitation.n_lines} states) and "
+                f"{m.n_states - 2 * self.excitation.n_lines} white states for smooth directions "
+                f"the record never excited; shapes in {self.spatial_rank} spatial directions "
+                f"(POD completed with smooth fields), trained on {self.n_train} samples at "
+                f"dt = {m.dt:g} s; no alpha.",
                 self.excitation.message,
                 f"Sensor noise std {self.noise_std:.3g} m ({self.noise_source}).",
             ]

@@ -366,5 +366,6 @@ def test_method_dmd_on_a_harmonic_record_does_not_warn_and_modal_names_its_lines
         expected = (1 - 1e-6) * np.exp(2j * np.pi * f * train.dt)
         assert np.min(np.abs(eig - expected)) < 1e-6     # round-off of a 2r-state eigen-solve
     assert np.sum(np.abs(eig) < 1e-9) == modal.model.n_states - 2 * r
+    assert f"({r} lines, {2 * r} states)" in modal.summary()
     assert modal.estimate_field(train.displacement[modal.sensors]).shape == train.x.shape + (
         train.t.size,)
