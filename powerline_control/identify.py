@@ -919,6 +919,7 @@ def _ridge_gram(
     diagonal = gram.diagonal().copy()
     if alpha < _GRAM_ALPHA_FRACTION * diagonal.sum():
         return None
+    gram = np.ascontiguousarray(gram)  # (it is: fit_dmd's syrk) the flat view below needs it
     cross_t = target @ regressor.T  # C^T, C-ordered: C in Fortran order
     flat_diagonal = gram.reshape(-1)[:: n_reg + 1]  # a view (gram is C-contiguous)
     flat_diagonal += alpha

@@ -797,11 +797,14 @@ def test_to_statespace_warns_what_to_change_for_models_python_control_refuses():
 
 
 def _residual_pass(X, model, delays, u):
-    """E E^T / N written out: E = x_{k+1} - A z_k - B u_k on the first block (the shift rows of
-    a delay model are exact, so Q is zero outside the leading n x n block)."""
+    """E E^T / N written out: E = z_{k+1} - A z_k - B u_k, on the first block for a delay model
+    without rank (its shift rows are exact, so Q is zero outside the leading n x n block) and
+    in POD coordinates basis^T z for a rank-r model."""
     n = X.shape[0]
     Z = np.vstack([X[:, delays - 1 - i : X.shape[1] - i] for i in range(delays)])
     Z0, Z1 = Z[:, :-1], Z[:, 1:]
+    if model.basis is not None:
+        Z0, Z1, n = model.basis.T @ Z0, model.basis.T @ Z1, model.basis.shape[1]
     E = Z1[:n] - model.A[:n] @ Z0
     if u is not None:
         E -= model.B[:n] @ u[:, delays - 1 : delays - 1 + Z0.shape[1]]
@@ -826,18 +829,19 @@ def _spy_on_gram_q(monkeypatch):
 
 
 @pytest.mark.parametrize(
-    "n_nodes, n_samples, delays, n_inputs, alpha, mode, seed, block",
+    "n_nodes, n_samples, delays, n_inputs, rank, alpha, mode, seed, block",
     [
-        (9, 400, 1, 0, 3e-3, "relative", 61, None),
-        (4, 350, 3, 0, 0.7, "absolute", 62, None),       # delays: Q zero outside n x n
-        (5, 300, 2, 2, 2e-2, "relative", 63, None),      # inputs: E includes B u
-        (3, 250, 1, 1, 5e-4, "relative", 64, None),
-        (13, 500, 2, 0, 1e-4, "relative", 65, 4),        # 26 rows in 7 uneven block rows
-        (300, 900, 1, 0, 1e-3, "relative", 66, None),    # 300 > the 256-row default block
+        (9, 400, 1, 0, None, 3e-3, "relative", 61, None),
+        (4, 350, 3, 0, None, 0.7, "absolute", 62, None),   # delays: Q zero outside n x n
+        (5, 300, 2, 2, None, 2e-2, "relative", 63, None),  # inputs: E includes B u
+        (3, 250, 1, 1, None, 5e-4, "relative", 64, None),
+        (13, 500, 2, 0, None, 1e-4, "relative", 65, 4),    # 13 rows in 4 uneven block rows
+        (300, 900, 1, 0, None, 1e-3, "relative", 66, None),  # 300 > the 256-row block
+        (8, 400, 2, 1, 6, 1e-3, "relative", 70, None),     # rank 6 of 16 rows, and an input
     ],
 )
 def test_gram_route_q_equals_the_residual_pass(monkeypatch, n_nodes, n_samples, delays,
-                                                n_inputs, alpha, mode, seed, block):
+                                                n_inputs, rank, alpha, mode, seed, block):
     from powerline_control import identify
 
     if block is not None:
@@ -849,7 +853,8 @@ def test_gram_route_q_equals_the_residual_pass(monkeypatch, n_nodes, n_samples, 
     X = simulate_discrete(A_true, rng.standard_normal(n_nodes), n_samples, B=B_true, u=u,
                           rng=rng, noise=0.05)
     calls = _spy_on_gram_q(monkeypatch)
-    model = plc.fit_dmd(X, 0.01, alpha=alpha, alpha_mode=mode, delays=delays, inputs=u)
+    model = plc.fit_dmd(X, 0.01, alpha=alpha, alpha_mode=mode, delays=delays, inputs=u,
+                        rank=rank)
     assert len(calls) == 1 and calls[0] is not None  # the Gram route, not the fallback
     direct = _residual_pass(X, model, delays, u)
     # 5 % process noise: the residual holds >= 1e-3 of the data's energy, so the Gram-route
