@@ -239,7 +239,7 @@ def main():
     repeats = 1 if args.quick else 3
     sizes = [101] if args.quick else [101, 2001]
     print("BLAS pinned to 1 thread (OPENBLAS/OMP/MKL_NUM_THREADS=1, set before numpy import)")
-    full_repeats = {101: 1 if args.quick else 10 * repeats, 2001: 3}
+    full_repeats = {101: 1 if args.quick else 10 * repeats, 2001: 5}
     print(f"alpha = {ALPHA_RELATIVE:g} relative (absolute rows: the same absolute alpha); "
           f"full rank: medians of {full_repeats[101]} runs at 101 nodes, {full_repeats[2001]} "
           f"at 2001; rank {RANK}: {repeats} and 1\n")
