@@ -276,8 +276,7 @@ class _Study:
             [
                 ("record", f"{snap.t.size} samples at dt = {snap.dt:g} s ({sim.duration:g} s); "
                  f"first {TRAIN_FRACTION:.0%} identify the model, the rest test it"),
-                ("modes kept", f"{snap.n_modes} of {self.model.n_dofs}"
-                 if hasattr(snap, "n_modes") else "-"),
+                ("modes kept", f"{snap.n_modes} of {self.model.n_dofs}"),
                 ("RMS / peak displacement (last quarter)",
                  f"{_mm(np.sqrt(np.mean(tail**2)))} / {_mm(np.abs(tail).max())}"),
                 ("sensor noise std", f"{_mm(snap.noise_std)} "
@@ -286,12 +285,12 @@ class _Study:
             ],
         )
 
-    # -- identification, sensors, filter: the one place with recipe decisions
+    # -- identification, sensors, filter: by the package's one recipe
     def design_estimator(self, *, choose_sensors: bool = True):
-        """Identify the model, choose the sensors and build the filter (the package's recipe).
+        """Identify the model, choose the sensors and build the filter (``design_estimator``).
 
-        Every recipe decision (delays, rank, alpha, criterion, measurement variance) lives here
-        until ``powerline_control.design_estimator`` takes it over.
+        The recipe's decisions (delays, rank, alpha, criterion, measurement variance) live in
+        ``powerline_control.recipe``; this verb passes the scenario's keys on to it.
         """
         self.progress.stage("identifying the DMD model (choosing alpha on held-out data)")
         self.design = _design_estimator(self.scenario, self.snap, self.model, self.n_train,
@@ -541,37 +540,28 @@ class _Study:
 
         sev_cfg = self.scenario.severity
         self.progress.stage("aeolian severity by the energy balance method")
-        if not hasattr(plc, "aeolian_severity"):
-            raise InputError("The severity study needs powerline_control.aeolian_severity, "
-                             "which this installation does not have.")
         speeds = np.asarray(sev_cfg.wind_speeds, dtype=float)
         results = [plc.aeolian_severity(self.span, wind_speeds=speeds)]
-        robot_text = ""
-        if hasattr(plc, "AtAntinode"):
-            robot, _ = _tuned_robot(self.scenario, self.model,
-                                    self.scenario.forcing.load_frequency(self.span))
-            results.append(plc.aeolian_severity(self.span, wind_speeds=speeds,
-                                                dampers=[plc.AtAntinode(robot)]))
-            robot_text = " With the robot: its absorber parked at the antinode of each wind speed."
+        robot, _ = _tuned_robot(self.scenario, self.model,
+                                self.scenario.forcing.load_frequency(self.span))
+        results.append(plc.aeolian_severity(self.span, wind_speeds=speeds,
+                                            dampers=[plc.AtAntinode(robot)]))
+        robot_text = " With the robot: its absorber parked at the antinode of each wind speed."
         bare = results[0]
         rows = []
         for i, speed in enumerate(bare.wind_speed):
             text = (f"{bare.frequency[i]:.3g} Hz, loops {bare.loop_length[i]:.3g} m; antinode "
                     f"amplitude {_mm(bare.amplitude[i])}, clamp strain "
                     f"{1e6 * bare.strain_pp[i]:.3g} µε peak-to-peak")
-            if len(results) > 1:
-                robot_result = results[1]
-                text += (f"; with the robot {_mm(robot_result.amplitude[i])}, "
-                         f"{1e6 * robot_result.strain_pp[i]:.3g} µε")
+            robot_result = results[1]
+            text += (f"; with the robot {_mm(robot_result.amplitude[i])}, "
+                     f"{1e6 * robot_result.strain_pp[i]:.3g} µε")
             rows.append((f"wind {speed:g} m/s", text))
-        figures = []
-        if hasattr(_plotting(), "plot_severity"):
-            figures.append(_Figure("severity", functools.partial(_severity_figure, results),
-                                   "Antinode amplitude (mm, zero to peak) and peak-to-peak "
-                                   "bending strain at the clamp (µε) against wind speed (m/s), "
-                                   "from the energy balance, without dampers and with the robot. "
-                                   "Look for strains above the endurance line: those winds "
-                                   "fatigue the conductor."))
+        figures = [_Figure("severity", functools.partial(_severity_figure, results),
+                           "Antinode amplitude (mm, zero to peak) and peak-to-peak bending "
+                           "strain at the clamp (µε) against wind speed (m/s), from the energy "
+                           "balance, without dampers and with the robot. Look for strains above "
+                           "the endurance line: those winds fatigue the conductor.")]
         self.report.section(
             "Aeolian severity (energy balance)", rows,
             intro="For each wind speed the steady antinode amplitude is where the wind's power "
@@ -681,10 +671,9 @@ def _given_sensors(scenario, x):
 def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_sensors=True):
     """The estimator: identified model, sensors and noise model, by the package's recipe.
 
-    With ``powerline_control.design_estimator`` (the one recipe: delays, rank and alpha chosen
-    from held-out data, sensors, filter) the command makes no recipe decision of its own; the
-    scenario's identification keys, when set, are passed to it. Without it (an older package)
-    the previous path runs: ``select_alpha`` then ``fit_dmd`` then ``select_sensors``.
+    ``powerline_control.design_estimator`` is the one recipe (delays, rank and alpha chosen from
+    held-out data, sensors, filter): the command makes no recipe decision of its own; the
+    scenario's identification keys, when set, are passed to it.
     """
     import numpy as np
 
@@ -705,32 +694,23 @@ def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_s
         given = list(np.linspace(0, n_nodes - 1, k + 2).round().astype(int)[1:-1])
         how = "evenly spaced (no optimisation in this verb)"
     count_curve = None
-    if hasattr(plc, "design_estimator"):
-        if given is None:
-            progress.stage(f"choosing {k} sensor positions (Kalman criterion)")
-        options = {key: value for key, value in (("delays", cfg.delays), ("rank", cfg.rank))
-                   if value is not None}
-        if cfg.alpha != "auto":
-            options["alphas"] = [float(cfg.alpha)]
-        design = plc.design_estimator(
-            train, n_sensors=k, dt=snap.dt, noise_std=snap.noise_std or None, sensors=given,
-            positions=x, forbidden=supports, seed=scenario.simulation.seed, **options)
-        dmd = design.model
-        sensors = [int(i) for i in design.sensors]
-        selection = design.sensor_selection
-        noise_var = float(design.noise_std) ** 2
-        if hasattr(design, "summary"):
-            # The recipe's own account of what it chose (model, alpha, noise), in words.
-            said = [line for line in design.summary().splitlines()[1:]
-                    if not line.startswith(("Sensors chosen", "Predicted steady-state"))]
-            recipe = "the package's recipe (design_estimator). " + " ".join(said)
-        else:
-            recipe = (f"the package's recipe (design_estimator): {dmd.delays} time delays, "
-                      f"alpha {dmd.alpha:.3g} absolute, chosen on held-out data; trained on "
-                      f"the first {n_train} samples")
-    else:
-        dmd, recipe, selection, sensors, noise_var, count_curve = _legacy_estimator(
-            scenario, snap, train, x, supports, given, progress)
+    if given is None:
+        progress.stage(f"choosing {k} sensor positions (Kalman criterion)")
+    options = {key: value for key, value in (("delays", cfg.delays), ("rank", cfg.rank))
+               if value is not None}
+    if cfg.alpha != "auto":
+        options["alphas"] = [float(cfg.alpha)]
+    design = plc.design_estimator(
+        train, n_sensors=k, dt=snap.dt, noise_std=snap.noise_std or None, sensors=given,
+        positions=x, forbidden=supports, seed=scenario.simulation.seed, **options)
+    dmd = design.model
+    sensors = [int(i) for i in design.sensors]
+    selection = design.sensor_selection
+    noise_var = float(design.noise_std) ** 2
+    # The recipe's own account of what it chose (model, alpha, noise), in words.
+    said = [line for line in design.summary().splitlines()[1:]
+            if not line.startswith(("Sensors chosen", "Predicted steady-state"))]
+    recipe = "the package's recipe (design_estimator). " + " ".join(said)
     if given is not None:
         sensors = list(given)
     elif selection is not None:
@@ -774,41 +754,6 @@ def _design_estimator(scenario, snap, model, n_train: int, progress, *, choose_s
     return design
 
 
-def _legacy_estimator(scenario, snap, train, x, supports, given, progress):
-    """The command's own recipe, used only when the package has no ``design_estimator``."""
-    import numpy as np
-
-    from .identify import fit_dmd, select_alpha
-    from .sensors import select_sensors
-
-    cfg = scenario.identification
-    delays = cfg.delays or 2
-    if cfg.alpha == "auto":
-        curve = select_alpha(train, snap.dt, delays=delays, rank=cfg.rank)
-        alpha = curve.best_stable_alpha if curve.best_stable_alpha is not None \
-            else curve.best_alpha
-        dmd = fit_dmd(train, snap.dt, alpha=alpha, delays=delays, rank=cfg.rank,
-                      alpha_mode=curve.alpha_mode)
-        chosen = (f"alpha {alpha:.3g} ({curve.alpha_mode}; {dmd.alpha:.3g} absolute), chosen by "
-                  "held-out prediction error")
-    else:
-        dmd = fit_dmd(train, snap.dt, alpha=float(cfg.alpha), delays=delays, rank=cfg.rank,
-                      alpha_mode="relative")
-        chosen = f"alpha {float(cfg.alpha):.3g} relative ({dmd.alpha:.3g} absolute)"
-    recipe = (f"{delays} time delay(s), rank {cfg.rank or 'full'}, {chosen}; trained on the "
-              f"first {train.shape[1]} samples")
-    rms = float(np.sqrt(np.mean(snap.true_displacement**2)))
-    noise_var = max(snap.noise_std**2, (1e-4 * rms) ** 2)
-    if given is not None:
-        return dmd, recipe, None, list(given), noise_var, None
-    k = scenario.estimation.n_sensors
-    progress.stage(f"choosing {k} sensor positions (Kalman criterion, convex relaxation)")
-    candidates = dmd.to_statespace(measured=list(range(x.size)))
-    selection = select_sensors(candidates, k=k, criterion="kalman", Q=dmd.residual_covariance,
-                               R=noise_var, positions=x, forbidden=supports)
-    return dmd, recipe, selection, [int(i) for i in selection.nodes], noise_var, None
-
-
 def _sensor_count_curve(candidates, dmd, noise_var, x, supports, k):
     """Predicted estimation error against the number of sensors (each count optimised)."""
     from .sensors import sensor_count_study
@@ -829,24 +774,25 @@ def _tuned_robot(scenario, model, load_frequency: float):
     cfg = scenario.robot
     frequencies = np.asarray(model.natural_frequencies(min(400, model.n_dofs)))
     mode = int(np.argmin(np.abs(frequencies - load_frequency))) + 1
-    if hasattr(plc, "tune_damper"):
-        # Tuned for where it will damp: the antinode of that mode nearest the start (the
-        # modal mass seen at a node is infinite), then placed at its start.
-        x = np.asarray(model.node_positions)
-        shape = np.abs(model.mode_shapes(mode)[:, mode - 1])
-        loop = model.span.length / mode
-        near = np.abs(x - cfg.start) <= loop
-        antinode = float(x[near][np.argmax(shape[near])]) if near.any() else cfg.start
-        mdr = plc.tune_damper(model, mode, antinode, cfg.suspended_mass,
-                              body_mass=cfg.body_mass)
-        mdr = dataclasses.replace(mdr, position=cfg.start)
-        return mdr, (f"absorber tuned (Den Hartog) to mode {mode} "
-                     f"({frequencies[mode - 1]:.4g} Hz), the mode nearest the load's "
-                     f"{load_frequency:.4g} Hz, for the antinode at {antinode:.4g} m")
-    mdr = plc.MDR.tuned(cfg.start, cfg.body_mass, cfg.suspended_mass, load_frequency,
-                        cfg.damping_ratio)
-    return mdr, (f"absorber tuned to the load's {load_frequency:.4g} Hz (damping ratio "
-                 f"{cfg.damping_ratio:g})")
+    # Tuned for where it will damp: the antinode of that mode nearest the start (the
+    # modal mass seen at a node is infinite), then placed at its start.
+    x = np.asarray(model.node_positions)
+    shape = np.abs(model.mode_shapes(mode)[:, mode - 1])
+    loop = model.span.length / mode
+    near = np.abs(x - cfg.start) <= loop
+    antinode = float(x[near][np.argmax(shape[near])]) if near.any() else cfg.start
+    mdr = plc.tune_damper(model, mode, antinode, cfg.suspended_mass,
+                          body_mass=cfg.body_mass)
+    how = "Den Hartog"
+    if cfg.damping_ratio > 0:
+        # The scenario's own damping ratio, at the Den Hartog frequency.
+        omega = np.sqrt(mdr.stiffness / mdr.suspended_mass)
+        mdr = dataclasses.replace(mdr, damping=2 * cfg.damping_ratio * mdr.suspended_mass * omega)
+        how = f"Den Hartog frequency, damping ratio {cfg.damping_ratio:g} from the scenario"
+    mdr = dataclasses.replace(mdr, position=cfg.start)
+    return mdr, (f"absorber tuned ({how}) to mode {mode} "
+                 f"({frequencies[mode - 1]:.4g} Hz), the mode nearest the load's "
+                 f"{load_frequency:.4g} Hz, for the antinode at {antinode:.4g} m")
 
 
 def _default_closed_loop_sensors(scenario, model):
@@ -896,12 +842,9 @@ def _path_figure(x, envelope, t, position, target, target_series):
 
 
 def _closed_loop_path_figure(result):
-    plotting = _plotting()
-    if hasattr(plotting, "plot_robot_path"):      # the closed loop's own figure
-        return plotting.plot_robot_path(result)
     import numpy as np
 
-    return plotting.plot_plan_path(
+    return _plotting().plot_plan_path(
         result.x, np.abs(result.baseline_displacement[:, result.t.size // 2:]).max(axis=1),
         result.t, result.robot_position, target_series=result.target)
 
@@ -915,8 +858,7 @@ def _layout_figure(errors, positions, span_length):
 
 
 def _severity_figure(result):
-    drawn = _plotting().plot_severity(result)
-    return drawn if hasattr(drawn, "savefig") else drawn.figure
+    return _plotting().plot_severity(result)
 
 
 # ----------------------------------------------------------------------------- outputs

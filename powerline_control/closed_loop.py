@@ -62,6 +62,7 @@ from ._validation import (
     read_only,
 )
 from .errors import InputError
+from .estimate import KalmanFilter
 from .fem import MDR, LineModel
 from .line import Span
 from .plan import MotionPlanner, RobotLimits
@@ -93,6 +94,8 @@ NEAR_OPTIMAL = 0.03
 # vibrating at the start's level for most of the run (on a long span the few sensors cannot rank
 # ~100 loops to 3 % anyway).
 TRAVEL_FRACTION = 0.5
+# The robot keeps this fraction of the span away from the supports and the obstacles.
+SUPPORT_MARGIN = 0.02
 
 
 @dataclass(frozen=True)
@@ -540,7 +543,13 @@ def _phasor_of(load, frequency: float) -> complex:
 
 # ---------------------------------------------------------------------------------- the policy
 def _dominant_frequency(signals: np.ndarray, dt: float) -> float:
-    """Frequency of the largest spectral peak of (n_signals, n_t), Hann window, interpolated."""
+    """Frequency of the largest spectral peak of (n_signals, n_t), Hann window, interpolated.
+
+    Not antinode's ``_dominant_harmonic`` (the same Hann window and log-parabola, but no zero
+    padding): padding to at least 2 n bins makes the estimate ~10x closer for a tone (measured:
+    errors of 2e-4 to 1.4e-3 Hz here against 3e-3 to 1.6e-2 Hz on 1-2 s windows at 1 kHz), and
+    the phasors are fitted at this frequency over a window, where its error turns into phase.
+    """
     n = signals.shape[1]
     window = np.hanning(n)
     n_fft = max(2 * n, 1024)  # Hann + log-parabola: bias ~1 % of a bin for a pure tone
@@ -559,15 +568,32 @@ def _dominant_frequency(signals: np.ndarray, dt: float) -> float:
 
 
 def _fit_phasor(signals: np.ndarray, t: np.ndarray, frequency: float) -> np.ndarray:
-    """Least-squares A per row: signal ~ Re(A exp(i omega t)) + constant."""
+    """Least-squares A per row: signal ~ Re(A exp(i omega t)) + constant.
+
+    The fit antinode's ``_dominant_harmonic`` makes too, but here at a frequency given (measured
+    on the longer frequency window) and on absolute time ``t``: the phasors of a window's two
+    halves, compared for the unsteadiness check, share one phase reference (antinode's are
+    referred to their own window's first sample, and only at the frequency it finds itself).
+    """
     w = 2 * np.pi * frequency
     basis = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones_like(t)])
     coef, *_ = np.linalg.lstsq(basis, signals.T, rcond=None)
     return coef[0] - 1j * coef[1]
 
 
-def _antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float, float]]:
-    """(position, amplitude, loop length) of each local maximum of |shape| along the span."""
+def _antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float]]:
+    """(position, loop length) of each local maximum of |shape| along the span, the loop ending
+    at the nodes where |shape| is locally least.
+
+    Not :func:`~powerline_control.antinode.locate_antinodes`: on the closed loop's shapes it
+    finds the same antinodes (within 1 cm), but its loop ends are zero crossings of the
+    phase-aligned shape interpolated between nodes, so its loop lengths differ from these by up to
+    one element (1.22 against 1.28 m on the 20-element lab span, 3.70 against 3.58 m on a 300 m
+    Drake span), and it leaves out loops below 10 % of the largest. The loop length sets the
+    quarter-loop confirmation gate, so a choice near the gate's edge would go the other way with
+    it (ten varied runs happened to come out bit-identical with it swapped in); kept so that the
+    policy decides as it always has.
+    """
     amplitude = np.abs(shape)
     found = []
     minima = [0] + [j for j in range(1, x.size - 1)
@@ -577,13 +603,12 @@ def _antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float, 
         if amplitude[j] > amplitude[j - 1] and amplitude[j] >= amplitude[j + 1]:
             # Parabola through the three samples (non-uniform nodes allowed).
             xs, ys = x[j - 1 : j + 2], amplitude[j - 1 : j + 2]
-            a, b, c = np.polyfit(xs - x[j], ys, 2)
+            a, b, _ = np.polyfit(xs - x[j], ys, 2)
             offset = -b / (2 * a) if a < 0 else 0.0
             offset = float(np.clip(offset, xs[0] - x[j], xs[2] - x[j]))
             left = max(m for m in minima if m <= j)
             right = min(m for m in minima if m >= j)
-            found.append((float(x[j] + offset), float(c - b**2 / (4 * a) if a < 0 else ys[1]),
-                          float(x[right] - x[left])))
+            found.append((float(x[j] + offset), float(x[right] - x[left])))
     return found
 
 
@@ -659,7 +684,7 @@ def _choose_target(bare_shape, plant, robot, omega, weights, robot_position, low
         position = float(grid[pick] + offset * (grid[1] - grid[0]))
     else:
         position = float(grid[pick])
-    loop = min(antinodes, key=lambda a: abs(a[0] - position))[2]
+    loop = min(antinodes, key=lambda a: abs(a[0] - position))[1]
     return position, loop, read_only(grid), read_only(predicted)
 
 
@@ -688,7 +713,10 @@ def _time_optimal_accel(position, velocity, goal, limits: RobotLimits, period: f
     return float(np.clip((wanted - velocity) / period, -a, a))
 
 
-def _free_interval(position, obstacles, span_length, margin):
+def _free_interval(position, obstacles, span_length):
+    """(low, high): where the robot may go from ``position`` without crossing an obstacle,
+    keeping SUPPORT_MARGIN of the span from the supports and from every obstacle."""
+    margin = SUPPORT_MARGIN * span_length
     low, high = margin, span_length - margin
     for left, right in obstacles:
         if right <= position:
@@ -759,6 +787,722 @@ def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
     sys = design.model.to_statespace(measured=list(sensors))
     return (design.filter, np.asarray(design.model.field_map),
             np.asarray(sys.C) @ np.asarray(sys.A))
+
+
+# ------------------------------------------------------------------------------------ the run
+# run_closed_loop tells the story of the run; these are its stages, in the order it calls them.
+
+
+@dataclass(frozen=True)
+class _Settings:
+    """run_closed_loop's options after checking, with the sample counts the run works in."""
+
+    limits: RobotLimits
+    duration: float
+    dt: float
+    control_period: float
+    steps_per_period: int       # samples per control step
+    plant_steps: int | None     # samples per plant block (None: chosen once the plant is known)
+    n_cal: int                  # samples of the calibration window (robot parked)
+    noise_fraction: float
+    planner_time_budget: float | None
+    antinode_window: float
+    frequency_window: float
+    retarget_threshold: float
+    settle_margin: float
+    delays: int | None
+    estimator_rank: int | None
+    motion: str
+    n_elements: int | None
+    obstacles: tuple
+
+    @property
+    def n_samples(self) -> int:
+        """Samples of the whole run (durations are floored to whole samples, as simulate does)."""
+        return int(np.floor(self.duration / self.dt + 1e-9)) + 1
+
+    @property
+    def window(self) -> int:
+        """Samples the excited shape is fitted on (at least two control periods)."""
+        return max(int(round(self.antinode_window / self.dt)), 2 * self.steps_per_period)
+
+    @property
+    def frequency_samples(self) -> int:
+        """Samples the dominant frequency is measured on (at least two control periods)."""
+        return max(int(round(self.frequency_window / self.dt)), 2 * self.steps_per_period)
+
+
+def _checked_settings(span, robot, limits, sensors, *, n_elements, duration, calibration, dt,
+                      control_period, plant_period, noise_fraction, delays, estimator_rank,
+                      antinode_window, frequency_window, retarget_threshold, settle_margin,
+                      obstacles, motion, planner_time_budget) -> _Settings:
+    """Every argument checked once, in a fixed order (the first bad one is the one reported)."""
+    if not isinstance(span, Span):
+        raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
+    if not isinstance(robot, MDR):
+        raise InputError(
+            f"The 'robot' parameter must be an MDR (its position is the start). "
+            f"Got {type(robot).__name__}."
+        )
+    _check_robot(span, robot)
+    limits = limits or RobotLimits(v_max=0.5, a_max=1.0)
+    if not isinstance(limits, RobotLimits):
+        raise InputError(
+            f"The 'limits' parameter must be RobotLimits or None. Got {type(limits).__name__}."
+        )
+    duration, dt, control_period, steps_per_period, plant_steps, n_cal = _checked_sampling(
+        duration, calibration, dt, control_period, plant_period
+    )
+    # < 1 as in scenarios (config): noise larger than the signal it measures is no experiment,
+    # and 1e300 overflowed into a raw NumPy "infs or NaNs" error.
+    noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True,
+                                high=1.0, high_inclusive=False)
+    if planner_time_budget is not None:  # checked even when motion="closed_form" ignores it
+        planner_time_budget = check_real("planner_time_budget", planner_time_budget, low=0.0)
+    antinode_window = check_real("antinode_window", antinode_window, low=0.0)
+    frequency_window = check_real("frequency_window", frequency_window, low=0.0)
+    retarget_threshold = check_real("retarget_threshold", retarget_threshold, low=0.0)
+    settle_margin = check_real("settle_margin", settle_margin, low=0.0, low_inclusive=True)
+    if delays is not None:
+        delays = check_int("delays", delays, low=1)
+    if estimator_rank is not None:
+        estimator_rank = check_int("estimator_rank", estimator_rank, low=1)
+    if motion not in ("closed_form", "mpc"):
+        raise InputError(f"The 'motion' parameter must be 'closed_form' or 'mpc'. Got {motion!r}.")
+    n_elements = _checked_mesh_and_sensors(n_elements, sensors, duration, dt)
+    return _Settings(
+        limits=limits, duration=duration, dt=dt, control_period=control_period,
+        steps_per_period=steps_per_period, plant_steps=plant_steps, n_cal=n_cal,
+        noise_fraction=noise_fraction, planner_time_budget=planner_time_budget,
+        antinode_window=antinode_window, frequency_window=frequency_window,
+        retarget_threshold=retarget_threshold, settle_margin=settle_margin, delays=delays,
+        estimator_rank=estimator_rank, motion=motion, n_elements=n_elements,
+        obstacles=tuple(_checked_obstacles(obstacles, robot)),
+    )
+
+
+def _checked_sampling(duration, calibration, dt, control_period, plant_period):
+    """(duration, dt, control_period, steps per control period, steps per plant block or None,
+    calibration samples): the run's times, whose rates must divide dt."""
+    duration = check_real("duration", duration, low=0.0)
+    calibration = check_real(
+        "calibration", calibration, low=0.0, high=duration, high_inclusive=False
+    )
+    dt = check_real("dt", dt, low=0.0)
+    # A period longer than the run would never act (1e300 was accepted and ignored).
+    control_period = check_real("control_period", control_period, low=0.0, high=duration)
+    if plant_period is not None:
+        plant_period = check_real("plant_period", plant_period, low=0.0, high=duration)
+    steps_per_period = _check_multiple("control_period", control_period, dt)
+    plant_steps = (
+        _check_multiple("plant_period", plant_period, dt) if plant_period is not None else None
+    )
+    # Durations are sampled (floored to whole samples, as simulate does); rates must divide.
+    n_cal = int(np.floor(calibration / dt + 1e-9)) + 1
+    if n_cal < 3:
+        raise InputError(
+            f"The 'calibration' parameter ({calibration:g} s) must hold at least 2 samples of "
+            f"dt ({dt:g} s)."
+        )
+    return duration, dt, control_period, steps_per_period, plant_steps, n_cal
+
+
+def _checked_mesh_and_sensors(n_elements, sensors, duration, dt):
+    """The checked n_elements; the sensors and the run's memory checked before any model."""
+    if n_elements is not None:  # the sensors early, before any model is built
+        n_elements = check_int("n_elements", n_elements, low=2)
+        check_indices("sensors", sensors, n_elements + 1)
+    # The loop records ~4 node histories and ~16 scalars per sample (and the parked comparisons):
+    # refuse a duration / dt that cannot fit before anything is built (n_elements=None: >= 2 nodes).
+    n_samples = int(np.floor(duration / dt + 1e-9)) + 1
+    check_budget(f"run_closed_loop's {n_samples}-sample histories",
+                 nbytes=8.0 * n_samples * (4 * (n_elements + 1 if n_elements else 2) + 16),
+                 parameter="duration", value=duration,
+                 fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use fewer "
+                     f"elements (n_elements={n_elements})")
+    if len(set(sensors)) != len(sensors):
+        raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
+    return n_elements
+
+
+def _checked_obstacles(obstacles, robot: MDR) -> list[tuple[float, float]]:
+    """(left, right) pairs, left < right, none holding the robot's start."""
+    try:
+        pairs = [tuple(pair) for pair in obstacles]
+    except TypeError:
+        pairs = [()]
+    if any(len(pair) != 2 for pair in pairs):
+        raise InputError("The 'obstacles' parameter must be a sequence of (left, right) pairs "
+                         f"in m. Got {obstacles!r}.")
+    checked = [(check_real("obstacles", a), check_real("obstacles", b)) for a, b in pairs]
+    for left, right in checked:
+        if not left < right:
+            raise InputError(f"Each of 'obstacles' must be (left, right), left < right. Got "
+                             f"{(left, right)}.")
+        if left <= robot.position <= right:
+            raise InputError(
+                f"The 'robot.position' ({robot.position:g} m) lies inside the obstacle "
+                f"{(left, right)}."
+            )
+    return checked
+
+
+@dataclass(frozen=True)
+class _Line:
+    """The simulated line: the bare FE model, the plant with and without the robot, the loads."""
+
+    span: Span
+    bare: LineModel
+    sensors: tuple              # measured node indices, sorted (the estimator's output order)
+    sensor_rows: np.ndarray     # (p, r): the plant modes' displacements at the sensors
+    clamp_distance: float       # where the "near_clamp" comparison parks the robot, m
+    t: np.ndarray               # (n_t,) sample times, s
+    plant: _ModalPlant          # with the robot
+    free_plant: _ModalPlant     # without it (the "no_robot" comparison)
+    plant_steps: int            # samples per plant block (the robot's position held)
+    modal_force: np.ndarray     # (n_t, r)
+    residual: np.ndarray        # (n_nodes, n_t): the dropped modes' response to the loads
+    harmonic: tuple | None      # (frequency, parts) of the last load when it is one sine
+    weights: np.ndarray         # (n_nodes,) trapezoid weights: RMS over the span by length
+
+
+def _build_line(span, robot, segments, settings: _Settings, sensors, *, bc, damping, n_modes,
+                clamp_distance) -> _Line:
+    """The FE model, the sensors on it, the modal plant and the loads' histories."""
+    bare = LineModel(span, settings.n_elements, bc, damping=damping)
+    sensors = tuple(sorted(check_indices("sensors", sensors, bare.n_nodes).tolist()))
+    fixed_nodes = [j for j in sensors if bare.displacement_map()[[j]].nnz == 0]
+    if fixed_nodes:
+        raise InputError(
+            f"The 'sensors' parameter names support node(s) {fixed_nodes}, where the line does "
+            "not move: the estimator's model has no displacement there."
+        )
+    clamp_distance = (
+        min(0.05 * span.length, 1.5)
+        if clamp_distance is None
+        else check_real("clamp_distance", clamp_distance, low=0.0, high=span.length)
+    )
+    t = settings.dt * np.arange(settings.n_samples)
+    load_frequencies = [
+        float(b.frequency)
+        for _, loads in segments
+        for f in loads
+        for b in [f.bind(bare) if hasattr(f, "bind") else f]
+        if getattr(b, "frequency", None) is not None   # a user's load may say None: not a sine
+    ]
+    if n_modes is None:
+        n_modes = _default_modes(span, bare, load_frequencies, settings.dt)
+    else:
+        n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
+    plant = _ModalPlant(bare, robot, n_modes, settings.dt)
+    plant_steps = settings.plant_steps
+    if plant_steps is None:
+        # 10 ms blocks, or one block per control period for a long span's band of ~100 modes
+        # (each new position costs an exponential of a (4r + 2)-square matrix).
+        plant_steps = (
+            settings.steps_per_period
+            if plant.r > SMALL_PLANT_MODES
+            else max(1, min(settings.steps_per_period, int(round(0.01 / settings.dt))))
+        )
+    free_plant = _ModalPlant(bare, None, n_modes, settings.dt)
+    modal_force, residual, harmonic = _load_histories(bare, plant, segments, t)
+    return _Line(
+        span=span, bare=bare, sensors=sensors, sensor_rows=plant.nodal[list(sensors)],
+        clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant,
+        plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
+        weights=_trapezoid_weights(bare.node_positions),
+    )
+
+
+def _field(plant: _ModalPlant, states: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """Nodal displacements (n_nodes, n_t) of plant states (n_t, 2 n_q) plus the loads' residual."""
+    return plant.nodal @ states[:, : plant.r].T + residual
+
+
+@dataclass(frozen=True)
+class _Calibration:
+    """The estimator, designed on the first window with the robot parked at its start."""
+
+    start_states: np.ndarray    # (n_t, 2 n_q): the plant parked at the start for the whole run
+    noise_std: float            # the sensors' noise, m
+    record: np.ndarray          # (n_nodes, n_cal) noisy calibration field
+    robot_record: np.ndarray    # (n_cal,) noisy line displacement under the robot
+    kf: KalmanFilter            # warmed up on the record; it keeps stepping in the loop
+    field_map: np.ndarray       # estimator states -> nodal displacements
+    predict_sensors: np.ndarray  # one-step sensor predictor C A (the innovation check)
+    warm_states: np.ndarray     # (n_cal, n_states) the filter's states over the record
+    innovation_rms: float       # RMS one-step prediction error of the sensors over the record
+    innovation_power: np.ndarray  # (n_cal,) its mean square per sample (0 for the first two)
+
+
+def _calibrate(line: _Line, robot: MDR, settings: _Settings, rng) -> _Calibration:
+    """Simulate the parked start, add sensor noise, identify the estimator and warm it up."""
+    n_cal, sensor_list = settings.n_cal, list(line.sensors)
+    start_states = _run_parked(line.plant, robot.position, line.modal_force, line.t.size)
+    calib_true = _field(line.plant, start_states[:n_cal], line.residual[:, :n_cal])
+    calib_rms = float(np.sqrt(np.mean(calib_true**2)))
+    noise_std = settings.noise_fraction * calib_rms
+    record = calib_true + noise_std * rng.standard_normal(calib_true.shape)
+    kf, field_map, predict_sensors = _calibrated_filter(
+        record, settings.dt, sensor_list, settings.delays, noise_std, settings.estimator_rank
+    )
+    # C order, as the run's state history it is copied into (the same BLAS calls below)
+    warm_states = np.ascontiguousarray(
+        np.asarray(kf.filter(record[sensor_list], update_state=True).states).T
+    )
+    innovation = record[sensor_list, 2:] - predict_sensors @ warm_states[1 : n_cal - 1].T
+    innovation_power = np.zeros(n_cal)
+    innovation_power[2:] = np.mean(innovation**2, axis=0)
+    robot_record = start_states[:n_cal, : line.plant.r] @ line.plant.coupling(robot.position) + (
+        noise_std * rng.standard_normal(n_cal)
+    )
+    return _Calibration(
+        start_states=start_states, noise_std=noise_std, record=record,
+        robot_record=robot_record, kf=kf, field_map=field_map, predict_sensors=predict_sensors,
+        warm_states=warm_states, innovation_rms=float(np.sqrt(np.mean(innovation**2))),
+        innovation_power=innovation_power,
+    )
+
+
+@dataclass
+class _Records:
+    """What the run records: histories over every sample (filled as it goes; the calibration
+    window first) and a log of every control step."""
+
+    plant_states: np.ndarray    # (n_t, 2 n_q) true plant states
+    filter_states: np.ndarray   # (n_t, n_states) the Kalman filter's
+    position: np.ndarray        # (n_t,) robot position, m
+    velocity: np.ndarray        # (n_t,) robot velocity, m/s
+    target: np.ndarray          # (n_t,) the goal steered to (NaN before the first)
+    measured: np.ndarray        # (p, n_t) noisy sensor displacements
+    robot_measured: np.ndarray  # (n_t,) noisy line displacement under the robot
+    innovation_power: np.ndarray  # (n_t,) mean square one-step prediction error of the sensors
+    statuses: list = field(default_factory=list)
+    frequencies: list = field(default_factory=list)
+    innovation_ratio: list = field(default_factory=list)
+    retarget_times: list = field(default_factory=list)
+    target_starts: list = field(default_factory=list)   # sample index of each new target
+    predictions: list = field(default_factory=list)
+
+    @classmethod
+    def after_calibration(cls, line: _Line, calibration: _Calibration, robot: MDR,
+                          n_cal: int) -> _Records:
+        """Histories for the whole run, the calibration window's filled in."""
+        n_t = line.t.size
+        records = cls(
+            plant_states=np.empty((n_t, calibration.start_states.shape[1])),
+            filter_states=np.empty((n_t, calibration.field_map.shape[1])),
+            position=np.full(n_t, robot.position),
+            velocity=np.zeros(n_t),
+            target=np.full(n_t, np.nan),
+            measured=np.zeros((len(line.sensors), n_t)),
+            robot_measured=np.zeros(n_t),
+            innovation_power=np.zeros(n_t),
+        )
+        records.plant_states[:n_cal] = calibration.start_states[:n_cal]
+        records.filter_states[:n_cal] = calibration.warm_states
+        records.measured[:, :n_cal] = calibration.record[list(line.sensors)]
+        records.robot_measured[:n_cal] = calibration.robot_record
+        records.innovation_power[:n_cal] = calibration.innovation_power
+        return records
+
+
+@dataclass
+class _LoopState:
+    """Where the loop stands between control steps: the robot's motion and the plant's state."""
+
+    position: float             # the robot's, m
+    velocity: float             # the robot's, m/s
+    steer: float                # where it was last steered to (the goal, in its free interval)
+    plant_state: np.ndarray     # the plant's state z = (q, y, q', y') at this sample
+
+
+@dataclass
+class _Targeting:
+    """The policy's memory between control steps (see the module doc)."""
+
+    goal: float = np.nan                # where the robot is sent
+    anchor: float = np.nan              # the choice the confirmation gate is anchored to
+    loop: float = np.nan                # the loop length at the anchor, m
+    anchor_frequency: float = np.nan    # the dominant frequency the anchor was chosen at
+    pending_since: float | None = None  # when the frequency left the anchor's (a wind change)
+    still_since: float | None = None    # since when the robot is still at its steer point
+    choices: int = 0                    # loops tried for this excitation
+    confirmed: bool = False             # the choice is final until the frequency changes
+
+    def update_clocks(self, now: float, robot_still: bool, frequency: float,
+                      threshold: float) -> None:
+        """Track how long the robot has been still and the frequency away from the anchor's."""
+        if not robot_still:
+            self.still_since = None
+        elif self.still_since is None:
+            self.still_since = now
+        changed = (
+            not np.isnan(self.anchor_frequency)
+            and abs(frequency - self.anchor_frequency) > threshold * self.anchor_frequency
+        )
+        if changed and self.pending_since is None:
+            self.pending_since = now
+        elif not changed:
+            self.pending_since = None
+
+    def due(self, now: float, robot_still: bool, window_time: float,
+            settle_margin: float) -> tuple[bool, bool]:
+        """(retarget, confirm): a first target or a wind change held for a window with the robot
+        still; else a confirmation once the robot has been still for a window."""
+        retarget = np.isnan(self.goal) or (
+            self.pending_since is not None
+            and now - self.pending_since >= max(window_time, 1.0)
+            and robot_still
+        )
+        confirm = (
+            not retarget
+            and not self.confirmed
+            and self.still_since is not None
+            and now - self.still_since >= max(window_time, settle_margin)
+        )
+        return retarget, confirm
+
+    def gate_unsteady(self, retarget: bool, confirm: bool, unsteady: float,
+                      now: float) -> tuple[bool, bool]:
+        """(retarget, confirm) once the window's unsteadiness is known."""
+        since = self.pending_since if retarget else self.still_since
+        waited = now - since if since is not None else 0.0
+        # A window that still beats with a decaying mode misleads the prediction: wait (up to
+        # MAX_WAIT s) for a steady one, except for the very first target.
+        if unsteady > UNSTEADY_LIMIT and waited < MAX_WAIT and not np.isnan(self.goal):
+            return False, False
+        if confirm and unsteady > UNSTEADY_LIMIT:
+            # Still beating after MAX_WAIT s: its steady-state prediction is no better than
+            # the anchor's (a long, lightly damped span rings for tens of seconds after the
+            # robot arrives). Keep the goal and stop.
+            self.confirmed = True
+            return retarget, False
+        return retarget, confirm
+
+    def accept(self, position: float, loop: float, frequency: float, retarget: bool) -> None:
+        """Take a predicted best position as the goal (a new target, or a confirmation)."""
+        if retarget:
+            self.anchor, self.loop, self.goal = position, loop, position
+            self.anchor_frequency, self.pending_since = frequency, None
+            self.choices, self.confirmed = 1, False
+        elif abs(position - self.anchor) <= 0.25 * self.loop:
+            # The same minimum, better estimated from a steady window: accept it (the
+            # gate is anchored to the choice, it never moves with the goal) and stop.
+            self.goal, self.confirmed = position, True
+        elif self.choices < MAX_CHOICES:
+            # Another loop: the first choice came from a beating window. Go there.
+            self.anchor, self.loop, self.goal = position, loop, position
+            self.choices += 1
+        else:
+            self.confirmed = True
+
+
+def _motion_planner(settings: _Settings, span_length: float) -> MotionPlanner | None:
+    """The receding-horizon planner for motion="mpc"; None for the closed-form law."""
+    if settings.motion != "mpc":
+        return None
+    limits, control_period = settings.limits, settings.control_period
+    braking = limits.v_max / limits.a_max
+    return MotionPlanner(
+        limits, dt=control_period, horizon=max(40, int(np.ceil(2 * braking / control_period))),
+        span_length=span_length, obstacles=list(settings.obstacles),
+        **({} if settings.planner_time_budget is None
+           else {"time_budget": settings.planner_time_budget}),
+    )
+
+
+def _observe(records: _Records, calibration: _Calibration, settings: _Settings,
+             k: int) -> float:
+    """The dominant frequency the sensors show up to sample k; logs it and the innovation ratio
+    (the estimator's recent one-step error over its calibration value)."""
+    lo = max(k + 1 - settings.window, 0)
+    frequency = _dominant_frequency(
+        records.measured[:, max(k + 1 - settings.frequency_samples, 0) : k + 1], settings.dt
+    )
+    records.frequencies.append(frequency)
+    records.innovation_ratio.append(
+        float(np.sqrt(np.mean(records.innovation_power[lo + 1 : k + 1])))
+        / max(calibration.innovation_rms, 1e-300)
+    )
+    return frequency
+
+
+def _bare_shape(records: _Records, line: _Line, robot: MDR, x_r: float, lo: int, end: int,
+                frequency: float) -> np.ndarray:
+    """The robot-free excited shape from the sensors' and the robot's own phasors on [lo, end]."""
+    tt = line.t[lo : end + 1]
+    sensed = _fit_phasor(records.measured[:, lo : end + 1], tt, frequency)
+    at_robot = _fit_phasor(records.robot_measured[None, lo : end + 1], tt, frequency)[0]
+    return _kernel_shape(line.plant, line.sensor_rows, sensed, robot, x_r, at_robot,
+                         2 * np.pi * frequency)
+
+
+def _excited_shape(records: _Records, line: _Line, robot: MDR, x_r: float, end: int,
+                   frequency: float, window: int) -> tuple[np.ndarray, float]:
+    """W_bare over the last window (estimate phasor minus the robot's own reaction), and how
+    unsteady it is: the relative difference of the shapes fitted on its two halves."""
+    lo = max(end + 1 - window, 0)
+    mid = (lo + end) // 2
+    first = _bare_shape(records, line, robot, x_r, lo, mid, frequency)
+    second = _bare_shape(records, line, robot, x_r, mid, end, frequency)
+    scale = np.linalg.norm(first) + np.linalg.norm(second)
+    unsteady = 2 * float(np.linalg.norm(first - second)) / max(scale, 1e-300)
+    return _bare_shape(records, line, robot, x_r, lo, end, frequency), unsteady
+
+
+def _update_target(targeting: _Targeting, state: _LoopState, records: _Records, line: _Line,
+                   robot: MDR, settings: _Settings, k: int, frequency: float) -> None:
+    """The policy at control step k: choose a first target, confirm it once the robot has
+    settled, or choose anew after a wind change (module doc)."""
+    t = line.t
+    robot_still = abs(state.velocity) < 1e-3 and abs(state.position - state.steer) < 1e-3
+    targeting.update_clocks(t[k], robot_still, frequency, settings.retarget_threshold)
+    retarget, confirm = targeting.due(t[k], robot_still, settings.window * settings.dt,
+                                      settings.settle_margin)
+    if not (retarget or confirm):
+        return
+    shape, unsteady = _excited_shape(records, line, robot, state.position, k, frequency,
+                                     settings.window)
+    retarget, confirm = targeting.gate_unsteady(retarget, confirm, unsteady, t[k])
+    if not (retarget or confirm):
+        return
+    low, high = _free_interval(state.position, settings.obstacles, line.span.length)
+    reach = _reach(settings.limits, TRAVEL_FRACTION * (t[-1] - t[k]))
+    choice = _choose_target(shape, line.plant, robot, 2 * np.pi * frequency, line.weights,
+                            state.position, low, high, reach)
+    if choice is None:
+        return
+    position, loop, grid, predicted = choice
+    records.predictions.append((float(t[k]), grid, predicted, read_only(shape)))
+    if retarget:
+        records.retarget_times.append(float(t[k]))
+        records.target_starts.append(k)
+    targeting.accept(position, loop, frequency, retarget)
+
+
+def _move_robot(state: _LoopState, goal: float, records: _Records, settings: _Settings,
+                planner: MotionPlanner | None, span_length: float, k: int, end: int) -> None:
+    """Steer towards the goal (clipped to the free interval) over samples k..end and record the
+    robot's motion: one constant acceleration, the limits held at every sample."""
+    x_r, v_r, limits = state.position, state.velocity, settings.limits
+    low, high = _free_interval(x_r, settings.obstacles, span_length)
+    steer = float(np.clip(goal, low, high)) if not np.isnan(goal) else x_r
+    period = (end - k) * settings.dt
+    if planner is not None:
+        step = planner.step((x_r, v_r), steer)
+        accel, status = float(step.acceleration), step.status
+    else:
+        accel = _time_optimal_accel(x_r, v_r, steer, limits, period)
+        status = "closed_form" if steer == goal or np.isnan(goal) else "blocked"
+    records.statuses.append(status)
+    # The actuator saturates: limits hold at every sample.
+    accel = float(np.clip(accel, -limits.a_max, limits.a_max))
+    accel = float(np.clip(accel, (-limits.v_max - v_r) / period, (limits.v_max - v_r) / period))
+    tau = settings.dt * np.arange(1, end - k + 1)
+    records.position[k + 1 : end + 1] = x_r + v_r * tau + 0.5 * accel * tau**2
+    records.velocity[k + 1 : end + 1] = v_r + accel * tau
+    records.target[k + 1 : end + 1] = goal
+    state.steer = steer
+
+
+def _advance_plant(state: _LoopState, records: _Records, line: _Line, calibration: _Calibration,
+                   rng, timings: dict, k: int, end: int) -> None:
+    """Simulate, sense and filter samples k..end in blocks that hold the robot's mid-block
+    position; leaves the loop's state at sample end."""
+    j = k
+    while j < end:
+        block_end = min(j + line.plant_steps, end)
+        x_mid = 0.5 * (records.position[j] + records.position[block_end])
+        tic = time.perf_counter()
+        phi, g0, g1 = line.plant.discretise(x_mid)
+        at_robot = line.plant.coupling(x_mid)
+        timings["plant update"] += time.perf_counter() - tic
+        tic = time.perf_counter()
+        state.plant_state = _step_plant(state.plant_state, (phi, g0, g1), records,
+                                        line.modal_force, j, block_end)
+        y_block = _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
+        tac = time.perf_counter()
+        _kalman_steps(records, calibration, y_block, j, block_end)
+        timings["plant"] += tac - tic
+        timings["filter"] += time.perf_counter() - tac
+        j = block_end
+    state.position, state.velocity = float(records.position[end]), float(records.velocity[end])
+
+
+def _step_plant(z: np.ndarray, maps: tuple, records: _Records, modal_force: np.ndarray,
+                j: int, block_end: int) -> np.ndarray:
+    """The plant's exact first-order-hold steps from sample j to block_end, recorded; the last
+    state."""
+    phi, g0, g1 = maps
+    for i in range(j, block_end):
+        z = phi @ z + g0 @ modal_force[i] + g1 @ modal_force[i + 1]
+        records.plant_states[i + 1] = z
+    return z
+
+
+def _sense(records: _Records, line: _Line, at_robot: np.ndarray, noise_std: float, rng,
+           j: int, block_end: int) -> np.ndarray:
+    """The sensors' and the robot's noisy displacements over samples j+1..block_end, recorded;
+    the sensors' (n_samples, p)."""
+    sensor_list = list(line.sensors)
+    block = records.plant_states[j + 1 : block_end + 1, : line.plant.r]
+    y_block = block @ line.sensor_rows.T + line.residual[sensor_list, j + 1 : block_end + 1].T
+    robot_block = block @ at_robot
+    if noise_std:
+        y_block = y_block + noise_std * rng.standard_normal(y_block.shape)
+        robot_block = robot_block + noise_std * rng.standard_normal(robot_block.shape)
+    records.measured[:, j + 1 : block_end + 1] = y_block.T
+    records.robot_measured[j + 1 : block_end + 1] = robot_block
+    return y_block
+
+
+def _kalman_steps(records: _Records, calibration: _Calibration, y_block: np.ndarray, j: int,
+                  block_end: int) -> None:
+    """The Kalman filter's steps on the block's measurements, and its one-step innovations."""
+    for i in range(j, block_end):
+        records.filter_states[i + 1] = calibration.kf.step(y_block[i - j])
+    predicted = records.filter_states[j:block_end] @ calibration.predict_sensors.T
+    records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
+
+
+@dataclass(frozen=True)
+class _Settling:
+    """When the robot arrived and stayed: per target, per load change, and the settled window."""
+
+    settle_times: tuple
+    follow_times: tuple
+    settled: bool
+    mask: np.ndarray            # (n_t,) the samples of the settled window
+    window: tuple               # (start, end) of the settled window, s
+
+
+def _settling(records: _Records, t: np.ndarray, segments, n_cal: int, loop_length: float,
+              settle_margin: float) -> _Settling:
+    """Arrival ("within 1 % of a loop of the final position, for good") after each target and
+    each load change, and the settled window that starts ``settle_margin`` after the last."""
+    position, target_starts, n_t = records.position, records.target_starts, t.size
+    tolerance = 0.01 * loop_length
+    settle_times = []
+    bounds = target_starts[1:] + [n_t - 1]
+    for begin, stop in zip(target_starts, bounds, strict=True):
+        arrival = _arrival_index(position[: stop + 1], begin, tolerance)
+        settle_times.append(float(t[arrival] - t[begin]) if arrival is not None else float("nan"))
+    follow_times = []
+    for change in (start for start, _ in segments[1:]):
+        later = [i for i, begin in enumerate(target_starts) if t[begin] >= change]
+        if not later:
+            follow_times.append(float("nan"))
+            continue
+        begin, stop = target_starts[later[0]], bounds[later[0]]
+        arrival = _arrival_index(position[: stop + 1], begin, tolerance)
+        follow_times.append(float(t[arrival] - change) if arrival is not None else float("nan"))
+    last_begin = target_starts[-1] if target_starts else n_cal - 1
+    arrival = _arrival_index(position, last_begin, tolerance)
+    window_start = t[arrival] + settle_margin if arrival is not None else np.inf
+    settled = bool(window_start <= t[-1] - 1.0)
+    if not settled:
+        window_start = max(t[-1] - 1.0, 0.0)
+    mask = t >= window_start - 1e-12
+    return _Settling(tuple(settle_times), tuple(follow_times), settled, mask,
+                     (float(t[mask][0]), float(t[-1])))
+
+
+def _relative_velocity(plant: _ModalPlant, states: np.ndarray, positions) -> np.ndarray:
+    """Velocity of the line under the robot relative to its absorber mass, per sample (zero
+    without an absorber); ``positions`` one parked position or one per sample."""
+    nq, r = plant.n_q, plant.r
+    if not plant.absorber:
+        return np.zeros(states.shape[0])
+    if np.ndim(positions) == 0:
+        line_velocity = states[:, nq : nq + r] @ plant.coupling(float(positions))
+    else:
+        coupling = np.stack([plant.coupling(float(x)) for x in positions])
+        line_velocity = np.einsum("ij,ij->i", states[:, nq : nq + r], coupling)
+    return line_velocity - states[:, nq + r]
+
+
+def _damper_power(plant: _ModalPlant, robot: MDR, states: np.ndarray, positions) -> np.ndarray:
+    """Power dissipated in the robot's damper per sample, W."""
+    damping_coefficient = robot.damping if robot.has_absorber else 0.0
+    return damping_coefficient * _relative_velocity(plant, states, positions) ** 2
+
+
+def _comparison(name: str, position: float, states: np.ndarray, plant: _ModalPlant,
+                power: np.ndarray, line: _Line, mask: np.ndarray) -> Comparison:
+    """The vibration of the plant's states over the settled window (``mask``)."""
+    field_window = _field(plant, states[mask], line.residual[:, mask])
+    rms = float(np.sqrt(np.mean(line.weights @ field_window**2)))
+    envelope = np.max(np.abs(field_window), axis=1)
+    return Comparison(name, float(position), rms, float(envelope.max()),
+                      float(np.mean(power[mask])) if power.size else 0.0,
+                      read_only(envelope))
+
+
+def _parked_comparison(name: str, x_park: float | None, line: _Line, robot: MDR,
+                       mask: np.ndarray) -> Comparison:
+    """The whole run with the robot parked at ``x_park`` (None: no robot on the line)."""
+    n_t = line.t.size
+    if x_park is None:
+        states = _run_parked(line.free_plant, None, line.modal_force, n_t)
+        return _comparison(name, np.nan, states, line.free_plant, np.zeros(n_t), line, mask)
+    states = _run_parked(line.plant, x_park, line.modal_force, n_t)
+    power = _damper_power(line.plant, robot, states, x_park)
+    return _comparison(name, x_park, states, line.plant, power, line, mask)
+
+
+def _steady_rms(line: _Line, x: float, omega: float, modal_amplitude: np.ndarray,
+                static_amplitude: np.ndarray) -> float:
+    """RMS over the span in steady state under a sine (its modal and residual amplitudes) with
+    the robot parked at x."""
+    plant = line.plant
+    amplitude = plant.steady_state(x, omega, modal_amplitude)
+    shape = plant.nodal @ amplitude[: plant.r] + static_amplitude
+    return float(np.sqrt(0.5 * line.weights @ np.abs(shape) ** 2))
+
+
+def _steady_state_scan(line: _Line) -> tuple[np.ndarray, np.ndarray, float]:
+    """(positions, RMS, best position): the steady state with the robot parked along the span
+    under the last harmonic load, a coarse grid and a fine one around its minimum (empty and
+    NaN when that load is not one sine)."""
+    if line.harmonic is None:
+        return np.zeros(0), np.zeros(0), float("nan")
+    span_length = line.span.length
+    scan_frequency, parts = line.harmonic
+    omega = 2 * np.pi * scan_frequency
+    modal_amplitude = sum(g * _phasor_of(load, scan_frequency) for load, g, _ in parts)
+    static_amplitude = sum(s * _phasor_of(load, scan_frequency) for load, _, s in parts)
+    loads = (omega, modal_amplitude, static_amplitude)
+    coarse = np.linspace(0.0, span_length, 4 * line.bare.n_elements + 1)[1:-1]
+    coarse_rms = np.array([_steady_rms(line, x, *loads) for x in coarse])
+    i = int(np.argmin(coarse_rms))
+    step = coarse[1] - coarse[0]
+    fine = np.linspace(max(coarse[i] - 2 * step, 1e-9),
+                       min(coarse[i] + 2 * step, span_length - 1e-9), 41)
+    fine_rms = np.array([_steady_rms(line, x, *loads) for x in fine])
+    positions = np.concatenate([coarse, fine])
+    order = np.argsort(positions)
+    return (positions[order], np.concatenate([coarse_rms, fine_rms])[order],
+            float(fine[int(np.argmin(fine_rms))]))
+
+
+def _comparisons(line: _Line, robot: MDR, records: _Records, calibration: _Calibration,
+                 mask: np.ndarray, best_position: float, loop_power: np.ndarray) -> tuple:
+    """no robot, parked near a clamp, parked at the start, parked at the best position, and the
+    closed loop, over the same settled window."""
+    start_states, plant = calibration.start_states, line.plant
+    return (
+        _parked_comparison("no_robot", None, line, robot, mask),
+        _parked_comparison("near_clamp", line.clamp_distance, line, robot, mask),
+        _comparison("start", robot.position, start_states, plant,
+                    _damper_power(plant, robot, start_states, robot.position), line, mask),
+        _parked_comparison("best", best_position, line, robot, mask)
+        if not np.isnan(best_position)
+        else Comparison("best", np.nan, np.nan, np.nan, np.nan,
+                        read_only(np.zeros(line.bare.n_nodes))),
+        _comparison("closed_loop", records.position[-1], records.plant_states, plant,
+                    loop_power, line, mask),
+    )
 
 
 # Thousands of small products per simulated second: one BLAS thread is several times faster than
@@ -881,462 +1625,83 @@ def run_closed_loop(
     --------
     See :class:`ClosedLoopResult`.
     """
-    if not isinstance(span, Span):
-        raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
-    if not isinstance(robot, MDR):
-        raise InputError(
-            f"The 'robot' parameter must be an MDR (its position is the start). "
-            f"Got {type(robot).__name__}."
-        )
-    _check_robot(span, robot)
-    limits = limits or RobotLimits(v_max=0.5, a_max=1.0)
-    if not isinstance(limits, RobotLimits):
-        raise InputError(
-            f"The 'limits' parameter must be RobotLimits or None. Got {type(limits).__name__}."
-        )
-    duration = check_real("duration", duration, low=0.0)
-    calibration = check_real(
-        "calibration", calibration, low=0.0, high=duration, high_inclusive=False
+    settings = _checked_settings(
+        span, robot, limits, sensors, n_elements=n_elements, duration=duration,
+        calibration=calibration, dt=dt, control_period=control_period, plant_period=plant_period,
+        noise_fraction=noise_fraction, delays=delays, estimator_rank=estimator_rank,
+        antinode_window=antinode_window, frequency_window=frequency_window,
+        retarget_threshold=retarget_threshold, settle_margin=settle_margin, obstacles=obstacles,
+        motion=motion, planner_time_budget=planner_time_budget,
     )
-    dt = check_real("dt", dt, low=0.0)
-    # A period longer than the run would never act (1e300 was accepted and ignored).
-    control_period = check_real("control_period", control_period, low=0.0, high=duration)
-    if plant_period is not None:
-        plant_period = check_real("plant_period", plant_period, low=0.0, high=duration)
-    steps_per_period = _check_multiple("control_period", control_period, dt)
-    plant_steps = (
-        _check_multiple("plant_period", plant_period, dt) if plant_period is not None else None
-    )
-    # Durations are sampled (floored to whole samples, as simulate does); rates must divide.
-    n_cal = int(np.floor(calibration / dt + 1e-9)) + 1
-    if n_cal < 3:
-        raise InputError(
-            f"The 'calibration' parameter ({calibration:g} s) must hold at least 2 samples of "
-            f"dt ({dt:g} s)."
-        )
-    # < 1 as in scenarios (config): noise larger than the signal it measures is no experiment,
-    # and 1e300 overflowed into a raw NumPy "infs or NaNs" error.
-    noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True,
-                                high=1.0, high_inclusive=False)
-    if planner_time_budget is not None:  # checked even when motion="closed_form" ignores it
-        planner_time_budget = check_real("planner_time_budget", planner_time_budget, low=0.0)
-    antinode_window = check_real("antinode_window", antinode_window, low=0.0)
-    frequency_window = check_real("frequency_window", frequency_window, low=0.0)
-    retarget_threshold = check_real("retarget_threshold", retarget_threshold, low=0.0)
-    settle_margin = check_real("settle_margin", settle_margin, low=0.0, low_inclusive=True)
-    if delays is not None:
-        delays = check_int("delays", delays, low=1)
-    if estimator_rank is not None:
-        estimator_rank = check_int("estimator_rank", estimator_rank, low=1)
-    if motion not in ("closed_form", "mpc"):
-        raise InputError(f"The 'motion' parameter must be 'closed_form' or 'mpc'. Got {motion!r}.")
-    if n_elements is not None:
-        n_elements = check_int("n_elements", n_elements, low=2)
-    if n_elements is not None:  # early, before any model is built
-        check_indices("sensors", sensors, n_elements + 1)
-    # The loop records ~4 node histories and ~16 scalars per sample (and the parked comparisons):
-    # refuse a duration / dt that cannot fit before anything is built (n_elements=None: >= 2 nodes).
-    n_samples = int(np.floor(duration / dt + 1e-9)) + 1
-    check_budget(f"run_closed_loop's {n_samples}-sample histories",
-                 nbytes=8.0 * n_samples * (4 * (n_elements + 1 if n_elements else 2) + 16),
-                 parameter="duration", value=duration,
-                 fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use fewer "
-                     f"elements (n_elements={n_elements})")
-    if len(set(sensors)) != len(sensors):
-        raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
-    try:
-        pairs = [tuple(pair) for pair in obstacles]
-    except TypeError:
-        pairs = [()]
-    if any(len(pair) != 2 for pair in pairs):
-        raise InputError("The 'obstacles' parameter must be a sequence of (left, right) pairs "
-                         f"in m. Got {obstacles!r}.")
-    obstacles = [(check_real("obstacles", a), check_real("obstacles", b)) for a, b in pairs]
-    for left, right in obstacles:
-        if not left < right:
-            raise InputError(f"Each of 'obstacles' must be (left, right), left < right. Got "
-                             f"{(left, right)}.")
-        if left <= robot.position <= right:
-            raise InputError(
-                f"The 'robot.position' ({robot.position:g} m) lies inside the obstacle "
-                f"{(left, right)}."
-            )
     rng = check_rng(seed)
-    segments = _segments(force, duration)
+    segments = _segments(force, settings.duration)
 
+    # ---- the line, its loads, and the estimator calibrated with the robot parked at its start
     setup_start = time.perf_counter()
-    bare = LineModel(span, n_elements, bc, damping=damping)
-    # Sorted: the estimator's outputs follow the node order.
-    sensors = tuple(sorted(check_indices("sensors", sensors, bare.n_nodes).tolist()))
-    fixed_nodes = [j for j in sensors if bare.displacement_map()[[j]].nnz == 0]
-    if fixed_nodes:
-        raise InputError(
-            f"The 'sensors' parameter names support node(s) {fixed_nodes}, where the line does "
-            "not move: the estimator's model has no displacement there."
-        )
-    clamp_distance = (
-        min(0.05 * span.length, 1.5)
-        if clamp_distance is None
-        else check_real("clamp_distance", clamp_distance, low=0.0, high=span.length)
-    )
-    t = dt * np.arange(int(np.floor(duration / dt + 1e-9)) + 1)
-    n_t = t.size
-    load_frequencies = [
-        float(b.frequency)
-        for _, loads in segments
-        for f in loads
-        for b in [f.bind(bare) if hasattr(f, "bind") else f]
-        if getattr(b, "frequency", None) is not None   # a user's load may say None: not a sine
-    ]
-    if n_modes is None:
-        n_modes = _default_modes(span, bare, load_frequencies, dt)
-    else:
-        n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
-    plant = _ModalPlant(bare, robot, n_modes, dt)
-    if plant_steps is None:
-        # 10 ms blocks, or one block per control period for a long span's band of ~100 modes
-        # (each new position costs an exponential of a (4r + 2)-square matrix).
-        plant_steps = (
-            steps_per_period
-            if plant.r > SMALL_PLANT_MODES
-            else max(1, min(steps_per_period, int(round(0.01 / dt))))
-        )
-    free_plant = _ModalPlant(bare, None, n_modes, dt)
-    modal_force, residual, harmonic = _load_histories(bare, plant, segments, t)
-    nodal = plant.nodal
-    weights = _trapezoid_weights(bare.node_positions)
-    sensor_list = list(sensors)
+    line = _build_line(span, robot, segments, settings, sensors, bc=bc, damping=damping,
+                       n_modes=n_modes, clamp_distance=clamp_distance)
+    calibrated = _calibrate(line, robot, settings, rng)
+    n_cal, t = settings.n_cal, line.t
+    records = _Records.after_calibration(line, calibrated, robot, n_cal)
 
-    # ---- calibration: robot parked at its start
-    start_states = _run_parked(plant, robot.position, modal_force, n_t)
-    r, nq = plant.r, plant.n_q
-    calib_true = nodal @ start_states[:n_cal, :r].T + residual[:, :n_cal]
-    calib_rms = float(np.sqrt(np.mean(calib_true**2)))
-    noise_std = noise_fraction * calib_rms
-    calib_noisy = calib_true + noise_std * rng.standard_normal(calib_true.shape)
-    kf, field_map, predict_sensors = _calibrated_filter(
-        calib_noisy, dt, sensor_list, delays, noise_std, estimator_rank
-    )
-    states = np.empty((n_t, field_map.shape[1]))
-    warm = kf.filter(calib_noisy[sensor_list], update_state=True)
-    states[:n_cal] = np.asarray(warm.states).T
-    innovation_cal = calib_noisy[sensor_list, 2:] - predict_sensors @ states[1 : n_cal - 1].T
-    calib_innovation = float(np.sqrt(np.mean(innovation_cal**2)))
-    innovation_power = np.zeros(n_t)
-    innovation_power[2:n_cal] = np.mean(innovation_cal**2, axis=0)
-
-    # ---- the loop
-    z_hist = np.empty((n_t, 2 * nq))
-    z_hist[:n_cal] = start_states[:n_cal]
-    position = np.full(n_t, robot.position)
-    velocity = np.zeros(n_t)
-    target = np.full(n_t, np.nan)
-    robot_measured = np.zeros(n_t)
-    n_cal_coupling = plant.coupling(robot.position)
-    robot_measured[:n_cal] = start_states[:n_cal, :r] @ n_cal_coupling + noise_std * (
-        rng.standard_normal(n_cal)
-    )
-    measured = np.zeros((len(sensor_list), n_t))
-    measured[:, :n_cal] = calib_noisy[sensor_list]
-    window = max(int(round(antinode_window / dt)), 2 * steps_per_period)
-    frequency_samples = max(int(round(frequency_window / dt)), 2 * steps_per_period)
-    statuses, frequencies, innovation_ratio = [], [], []
-    retarget_times, target_starts, predictions = [], [], []
-    planner = None
-    if motion == "mpc":
-        braking = limits.v_max / limits.a_max
-        planner = MotionPlanner(
-            limits, dt=control_period, horizon=max(40, int(np.ceil(2 * braking / control_period))),
-            span_length=span.length, obstacles=obstacles,
-            **({} if planner_time_budget is None else {"time_budget": planner_time_budget}),
-        )
-    goal, anchor, loop = np.nan, np.nan, np.nan
-    anchor_frequency, pending_since, still_since = np.nan, None, None
-    choices, confirmed = 0, False
-    x_r, v_r = robot.position, 0.0
-    steer = x_r
-    z = start_states[n_cal - 1].copy()
-    margin = 0.02 * span.length
-
-    sensor_rows = nodal[sensor_list]
-
-    def bare_shape(lo: int, end: int, frequency: float) -> np.ndarray:
-        """The robot-free excited shape from the sensors' and the robot's own phasors."""
-        tt = t[lo : end + 1]
-        sensed = _fit_phasor(measured[:, lo : end + 1], tt, frequency)
-        at_robot = _fit_phasor(robot_measured[None, lo : end + 1], tt, frequency)[0]
-        return _kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot,
-                             2 * np.pi * frequency)
-
-    def excited_shape(end: int, frequency: float) -> tuple[np.ndarray, float]:
-        """W_bare over the last window (estimate phasor minus the robot's own reaction), and
-        how unsteady it is: the relative difference of the shapes fitted on its two halves."""
-        lo = max(end + 1 - window, 0)
-        mid = (lo + end) // 2
-        first, second = bare_shape(lo, mid, frequency), bare_shape(mid, end, frequency)
-        scale = np.linalg.norm(first) + np.linalg.norm(second)
-        unsteady = 2 * float(np.linalg.norm(first - second)) / max(scale, 1e-300)
-        return bare_shape(lo, end, frequency), unsteady
-
+    # ---- the loop: every control period, estimate, choose a target, move (and simulate)
+    state = _LoopState(robot.position, 0.0, robot.position,
+                   calibrated.start_states[n_cal - 1].copy())
+    targeting = _Targeting()
+    planner = _motion_planner(settings, span.length)
     timings = {"setup": time.perf_counter() - setup_start, "plant": 0.0, "plant update": 0.0,
-               "filter": 0.0, "modes": plant.r}
+               "filter": 0.0, "modes": line.plant.r}
     wall_start, cpu_start = time.perf_counter(), time.process_time()
     k = n_cal - 1
-    while k < n_t - 1:
-        end = min(k + steps_per_period, n_t - 1)
-        lo = max(k + 1 - window, 0)
-        frequency = _dominant_frequency(measured[:, max(k + 1 - frequency_samples, 0) : k + 1], dt)
-        frequencies.append(frequency)
-        innovation_ratio.append(
-            float(np.sqrt(np.mean(innovation_power[lo + 1 : k + 1])))
-            / max(calib_innovation, 1e-300)
-        )
-        robot_still = abs(v_r) < 1e-3 and abs(x_r - steer) < 1e-3
-        still_since = (still_since if still_since is not None else t[k]) if robot_still else None
-        changed = (
-            not np.isnan(anchor_frequency)
-            and abs(frequency - anchor_frequency) > retarget_threshold * anchor_frequency
-        )
-        if changed and pending_since is None:
-            pending_since = t[k]
-        elif not changed:
-            pending_since = None
-        window_time = window * dt
-        retarget = np.isnan(goal) or (
-            pending_since is not None
-            and t[k] - pending_since >= max(window_time, 1.0)
-            and robot_still
-        )
-        confirm = (
-            not retarget
-            and not confirmed
-            and still_since is not None
-            and t[k] - still_since >= max(window_time, settle_margin)
-        )
-        if retarget or confirm:
-            shape, unsteady = excited_shape(k, frequency)
-            since = pending_since if retarget else still_since
-            waited = t[k] - since if since is not None else 0.0
-            # A window that still beats with a decaying mode misleads the prediction: wait (up to
-            # MAX_WAIT s) for a steady one, except for the very first target.
-            if unsteady > UNSTEADY_LIMIT and waited < MAX_WAIT and not np.isnan(goal):
-                retarget = confirm = False
-            elif confirm and unsteady > UNSTEADY_LIMIT:
-                # Still beating after MAX_WAIT s: its steady-state prediction is no better than
-                # the anchor's (a long, lightly damped span rings for tens of seconds after the
-                # robot arrives). Keep the goal and stop.
-                confirm, confirmed = False, True
-        if retarget or confirm:
-            low, high = _free_interval(x_r, obstacles, span.length, margin)
-            omega_now = 2 * np.pi * frequency
-            reach = _reach(limits, TRAVEL_FRACTION * (t[-1] - t[k]))
-            choice = _choose_target(shape, plant, robot, omega_now, weights, x_r, low, high,
-                                    reach)
-            if choice is not None:
-                position_choice, loop_choice, grid, predicted = choice
-                predictions.append((float(t[k]), grid, predicted, read_only(shape)))
-                if retarget:
-                    anchor, loop, goal = position_choice, loop_choice, position_choice
-                    anchor_frequency, pending_since = frequency, None
-                    choices, confirmed = 1, False
-                    retarget_times.append(float(t[k]))
-                    target_starts.append(k)
-                elif abs(position_choice - anchor) <= 0.25 * loop:
-                    # The same minimum, better estimated from a steady window: accept it (the
-                    # gate is anchored to the choice, it never moves with the goal) and stop.
-                    goal, confirmed = position_choice, True
-                elif choices < MAX_CHOICES:
-                    # Another loop: the first choice came from a beating window. Go there.
-                    anchor, loop, goal = position_choice, loop_choice, position_choice
-                    choices += 1
-                else:
-                    confirmed = True
-        low, high = _free_interval(x_r, obstacles, span.length, margin)
-        steer = float(np.clip(goal, low, high)) if not np.isnan(goal) else x_r
-        period = (end - k) * dt
-        if planner is not None:
-            step = planner.step((x_r, v_r), steer)
-            accel, status = float(step.acceleration), step.status
-        else:
-            accel = _time_optimal_accel(x_r, v_r, steer, limits, period)
-            status = "closed_form" if steer == goal or np.isnan(goal) else "blocked"
-        statuses.append(status)
-        # The actuator saturates: limits hold at every sample.
-        accel = float(np.clip(accel, -limits.a_max, limits.a_max))
-        accel = float(np.clip(accel, (-limits.v_max - v_r) / period, (limits.v_max - v_r) / period))
-        tau = dt * np.arange(1, end - k + 1)
-        position[k + 1 : end + 1] = x_r + v_r * tau + 0.5 * accel * tau**2
-        velocity[k + 1 : end + 1] = v_r + accel * tau
-        target[k + 1 : end + 1] = goal
-        # The plant over the period, in blocks holding the robot's mid-block position.
-        j = k
-        while j < end:
-            block_end = min(j + plant_steps, end)
-            x_mid = 0.5 * (position[j] + position[block_end])
-            tic = time.perf_counter()
-            phi, g0, g1 = plant.discretise(x_mid)
-            n_mid = plant.coupling(x_mid)
-            timings["plant update"] += time.perf_counter() - tic
-            tic = time.perf_counter()
-            for i in range(j, block_end):
-                z = phi @ z + g0 @ modal_force[i] + g1 @ modal_force[i + 1]
-                z_hist[i + 1] = z
-            block = z_hist[j + 1 : block_end + 1, :r]
-            y_block = block @ sensor_rows.T + residual[sensor_list, j + 1 : block_end + 1].T
-            robot_block = block @ n_mid
-            if noise_std:
-                y_block = y_block + noise_std * rng.standard_normal(y_block.shape)
-                robot_block = robot_block + noise_std * rng.standard_normal(robot_block.shape)
-            measured[:, j + 1 : block_end + 1] = y_block.T
-            robot_measured[j + 1 : block_end + 1] = robot_block
-            tac = time.perf_counter()
-            for i in range(j, block_end):
-                states[i + 1] = kf.step(y_block[i - j])
-            predicted = states[j:block_end] @ predict_sensors.T
-            innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
-            timings["plant"] += tac - tic
-            timings["filter"] += time.perf_counter() - tac
-            j = block_end
-        x_r, v_r = float(position[end]), float(velocity[end])
+    while k < t.size - 1:
+        end = min(k + settings.steps_per_period, t.size - 1)
+        frequency = _observe(records, calibrated, settings, k)
+        _update_target(targeting, state, records, line, robot, settings, k, frequency)
+        _move_robot(state, targeting.goal, records, settings, planner, span.length, k, end)
+        _advance_plant(state, records, line, calibrated, rng, timings, k, end)
         k = end
     wall = time.perf_counter() - wall_start
     timings["loop cpu"] = time.process_time() - cpu_start
     timings["policy and motion"] = wall - timings["plant"] - timings["plant update"] - timings[
         "filter"]
+
+    # ---- what happened, over a settled window, against the robot parked
     after_start = time.perf_counter()
-
-    # ---- what happened, over a settled window
-    displacement = nodal @ z_hist[:, :r].T + residual
-    final_frequency = frequencies[-1] if frequencies else float("nan")
-    loop_length = float(span.loop_length(final_frequency)) if frequencies else float("nan")
-    tolerance = 0.01 * loop_length
-    settle_times = []
-    bounds = target_starts[1:] + [n_t - 1]
-    for begin, stop in zip(target_starts, bounds, strict=True):
-        arrival = _arrival_index(position[: stop + 1], begin, tolerance)
-        settle_times.append(float(t[arrival] - t[begin]) if arrival is not None else float("nan"))
-    follow_times = []
-    for change in (start for start, _ in segments[1:]):
-        later = [i for i, begin in enumerate(target_starts) if t[begin] >= change]
-        if not later:
-            follow_times.append(float("nan"))
-            continue
-        begin, stop = target_starts[later[0]], bounds[later[0]]
-        arrival = _arrival_index(position[: stop + 1], begin, tolerance)
-        follow_times.append(float(t[arrival] - change) if arrival is not None else float("nan"))
-    last_begin = target_starts[-1] if target_starts else n_cal - 1
-    arrival = _arrival_index(position, last_begin, tolerance)
-    window_start = t[arrival] + settle_margin if arrival is not None else np.inf
-    settled = bool(window_start <= t[-1] - 1.0)
-    if not settled:
-        window_start = max(t[-1] - 1.0, 0.0)
-    mask = t >= window_start - 1e-12
-    settled_window = (float(t[mask][0]), float(t[-1]))
-
-    def relative_velocity(states_hist, x_hist):
-        if not plant.absorber:
-            return np.zeros(states_hist.shape[0])
-        if np.ndim(x_hist) == 0:
-            line_velocity = states_hist[:, nq : nq + r] @ plant.coupling(float(x_hist))
-        else:
-            coupling = np.stack([plant.coupling(float(x)) for x in x_hist])
-            line_velocity = np.einsum("ij,ij->i", states_hist[:, nq : nq + r], coupling)
-        return line_velocity - states_hist[:, nq + r]
-
-    def metrics(name, pos, states_hist, used_plant, power):
-        field_window = (
-            used_plant.nodal @ states_hist[mask][:, : used_plant.r].T + residual[:, mask]
-        )
-        rms = float(np.sqrt(np.mean(weights @ field_window**2)))
-        envelope = np.max(np.abs(field_window), axis=1)
-        return Comparison(name, float(pos), rms, float(envelope.max()),
-                          float(np.mean(power[mask])) if power.size else 0.0,
-                          read_only(envelope))
-
-    damping_coefficient = robot.damping if robot.has_absorber else 0.0
-    loop_positions = position.copy()
-    if plant.absorber:
-        coupled = np.stack([plant.coupling(float(x)) for x in loop_positions[mask]])
-        full_rel = np.zeros(n_t)
-        full_rel[mask] = (
-            np.einsum("ij,ij->i", z_hist[mask][:, nq : nq + r], coupled) - z_hist[mask, nq + r]
-        )
-        # Outside the window (figures only): the robot's velocity coupling at each sample.
-        full_rel[~mask] = relative_velocity(z_hist[~mask], loop_positions[~mask])
-    else:
-        full_rel = np.zeros(n_t)
-    loop_power = damping_coefficient * full_rel**2
-
-    scan_positions, scan_rms, best_position = np.zeros(0), np.zeros(0), float("nan")
-    if harmonic is not None:
-        scan_frequency, parts = harmonic
-        omega = 2 * np.pi * scan_frequency
-        modal_amplitude = sum(g * _phasor_of(load, scan_frequency) for load, g, _ in parts)
-        static_amplitude = sum(s * _phasor_of(load, scan_frequency) for load, _, s in parts)
-
-        def steady_rms(x):
-            amplitude = plant.steady_state(x, omega, modal_amplitude)
-            shape = nodal @ amplitude[:r] + static_amplitude
-            return float(np.sqrt(0.5 * weights @ np.abs(shape) ** 2))
-
-        coarse = np.linspace(0.0, span.length, 4 * bare.n_elements + 1)[1:-1]
-        coarse_rms = np.array([steady_rms(x) for x in coarse])
-        i = int(np.argmin(coarse_rms))
-        step = coarse[1] - coarse[0]
-        fine = np.linspace(max(coarse[i] - 2 * step, 1e-9),
-                           min(coarse[i] + 2 * step, span.length - 1e-9), 41)
-        fine_rms = np.array([steady_rms(x) for x in fine])
-        scan_positions = np.concatenate([coarse, fine])
-        order = np.argsort(scan_positions)
-        scan_rms = np.concatenate([coarse_rms, fine_rms])[order]
-        scan_positions = scan_positions[order]
-        best_position = float(fine[int(np.argmin(fine_rms))])
-
-    def parked(name, x_park):
-        if x_park is None:
-            hist = _run_parked(free_plant, None, modal_force, n_t)
-            return metrics(name, np.nan, hist, free_plant, np.zeros(n_t))
-        hist = _run_parked(plant, x_park, modal_force, n_t)
-        power = damping_coefficient * relative_velocity(hist, x_park) ** 2
-        return metrics(name, x_park, hist, plant, power)
-
-    comparisons = [
-        parked("no_robot", None),
-        parked("near_clamp", clamp_distance),
-        metrics("start", robot.position, start_states, plant,
-                damping_coefficient * relative_velocity(start_states, robot.position) ** 2),
-        parked("best", best_position) if not np.isnan(best_position)
-        else Comparison("best", np.nan, np.nan, np.nan, np.nan, read_only(np.zeros(bare.n_nodes))),
-        metrics("closed_loop", position[-1], z_hist, plant, loop_power),
-    ]
-    baseline = nodal @ start_states[:, :r].T + residual
+    frequencies = records.frequencies
+    loop_length = float(span.loop_length(frequencies[-1])) if frequencies else float("nan")
+    settling = _settling(records, t, segments, n_cal, loop_length, settings.settle_margin)
+    loop_power = _damper_power(line.plant, robot, records.plant_states, records.position)
+    scan_positions, scan_rms, best_position = _steady_state_scan(line)
+    comparisons = _comparisons(line, robot, records, calibrated, settling.mask,
+                               best_position, loop_power)
     timings["comparisons"] = time.perf_counter() - after_start
     return ClosedLoopResult(
         t=read_only(t),
-        x=read_only(bare.node_positions.copy()),
-        displacement=read_only(displacement),
-        baseline_displacement=read_only(baseline),
-        estimated_field=read_only(field_map @ states.T),
-        robot_position=read_only(position),
-        robot_velocity=read_only(velocity),
-        target=read_only(target),
-        sensors=sensors,
+        x=read_only(line.bare.node_positions.copy()),
+        displacement=read_only(_field(line.plant, records.plant_states, line.residual)),
+        baseline_displacement=read_only(
+            _field(line.plant, calibrated.start_states, line.residual)),
+        estimated_field=read_only(calibrated.field_map @ records.filter_states.T),
+        robot_position=read_only(records.position),
+        robot_velocity=read_only(records.velocity),
+        target=read_only(records.target),
+        sensors=line.sensors,
         calibration_time=float(t[n_cal - 1]),
-        statuses=tuple(statuses),
+        statuses=tuple(records.statuses),
         wall_time=wall,
-        settled_window=settled_window,
-        settled=settled,
-        comparisons=tuple(comparisons),
+        settled_window=settling.window,
+        settled=settling.settled,
+        comparisons=comparisons,
         scan_positions=read_only(scan_positions),
         scan_rms=read_only(scan_rms),
         best_position=best_position,
         loop_length=loop_length,
         frequency=read_only(np.array(frequencies)),
-        retarget_times=tuple(retarget_times),
-        settle_times=tuple(settle_times),
-        innovation_ratio=read_only(np.array(innovation_ratio)),
+        retarget_times=tuple(records.retarget_times),
+        settle_times=settling.settle_times,
+        innovation_ratio=read_only(np.array(records.innovation_ratio)),
         damper_power=read_only(loop_power),
-        predictions=tuple(predictions),
+        predictions=tuple(records.predictions),
         timings=timings,
-        follow_times=tuple(follow_times),
+        follow_times=settling.follow_times,
     )

@@ -232,7 +232,9 @@ class EstimationConfig:
 class RobotConfig:
     """The damping robot: where it starts, its masses, absorber damping and limits.
 
-    The absorber is tuned to the load's frequency (see :meth:`ForcingConfig.load_frequency`).
+    The absorber is tuned to the line's mode nearest the load's frequency (see
+    :meth:`ForcingConfig.load_frequency`): by Den Hartog's rule, or with the given
+    ``damping_ratio`` at the Den Hartog frequency.
     ``closed_loop`` is the simulated time of the closed-loop run (calibration included; 0 skips
     it).
     """
@@ -242,8 +244,10 @@ class RobotConfig:
     body_mass: float = _key(0.02, "kg", "Mass of the robot's body, rigid on the line.",
                             low=0.0, low_inclusive=True, high=1000.0)
     suspended_mass: float = _key(0.05, "kg", "Mass of the tuned absorber.", low=0.0, high=1000.0)
-    damping_ratio: float = _key(0.1, "", "Damping ratio of the absorber.", low=0.0, high=1.0,
-                                high_inclusive=False)
+    damping_ratio: float = _key(
+        0.0, "", "Damping ratio of the absorber; 0 takes Den Hartog's optimum (frequency and "
+        "damping) for the line's mode nearest the load.", low=0.0, low_inclusive=True, high=1.0,
+        high_inclusive=False)
     v_max: float = _key(0.5, "m/s", "Largest robot speed.", low=0.0, high=20.0)
     a_max: float = _key(1.0, "m/s^2", "Largest robot acceleration.", low=0.0, high=100.0)
     closed_loop: float = _key(6.0, "s", "Simulated time of the closed loop (0 skips it).",

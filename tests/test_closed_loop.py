@@ -5,6 +5,8 @@ complex solves of K - w^2 M + i w C with the robot attached) for steady states, 
 transients, and conservation of energy for the integrator.
 """
 
+import re
+
 import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
@@ -247,13 +249,50 @@ def test_estimate_tracks_the_true_field(settled_case):
         (dict(force=[(0.0, plc.HarmonicForce(1.0, 24.0, 0.5)), (5.0, "gust")]), "force"),
         (dict(force=[(1.0, plc.HarmonicForce(1.0, 24.0, 0.5))]), "force"),
         (dict(force="wind"), "force"),
+        (dict(force=None), "force"),
+        (dict(force=plc.HarmonicForce(1.0, 24.0, 5.0)), "force position"),  # off the 3.66 m span
+        (dict(span="lab"), "span"),
+        (dict(robot="robot"), "robot"),
+        (dict(limits=(0.5, 1.0)), "limits"),
+        (dict(duration=-1.0), "duration"),
+        (dict(duration=float("nan")), "duration"),
+        (dict(duration=1e9), "duration"),  # 1e12 samples: over the memory budget, before building
+        (dict(dt=0.0), "dt"),
+        (dict(control_period=10.0), "control_period"),  # longer than the run: it would never act
+        (dict(plant_period=0.0), "plant_period"),
+        (dict(noise_fraction=1.0), "noise_fraction"),
+        (dict(antinode_window=0.0), "antinode_window"),
+        (dict(frequency_window=-2.0), "frequency_window"),
+        (dict(retarget_threshold=-0.1), "retarget_threshold"),
+        (dict(settle_margin=-1.0), "settle_margin"),
+        (dict(delays=0), "delays"),
+        (dict(delays=1.5), "delays"),
+        (dict(estimator_rank=0), "estimator_rank"),
+        (dict(n_elements=1), "n_elements"),
+        (dict(n_elements=20.0), "n_elements"),
+        (dict(n_elements=None, sensors=[5, 10_000]), "sensors"),  # checked on the default mesh
+        (dict(sensors=[5.5, 10]), "sensors"),
+        (dict(obstacles=[(1.0,)]), "obstacles"),
+        (dict(obstacles=5), "obstacles"),
+        (dict(obstacles=[(2.0, 1.9)]), "obstacles"),
+        (dict(n_modes=0), "n_modes"),
+        (dict(n_modes=10_000), "n_modes"),  # 20 elements have 40 free DOFs
+        (dict(clamp_distance=-0.1), "clamp_distance"),
+        (dict(clamp_distance=10.0), "clamp_distance"),
+        (dict(planner_time_budget=-1.0), "planner_time_budget"),
+        (dict(seed="x"), "seed"),
+        # Several bad arguments: the first in the signature's order of checks is the one named.
+        (dict(duration=-1.0, motion="fast"), "duration"),
+        (dict(motion="fast", obstacles=[(2.0, 1.9)]), "motion"),
+        (dict(limits="fast", dt=0.0), "limits"),
     ],
 )
 def test_bad_arguments(kwargs, name):
     args = {"sensors": [5, 10], "n_elements": 20, "duration": 3.0, "calibration": 1.0,
             "force": plc.HarmonicForce(1.0, 24.0, 0.5), "robot": plc.MDR(1.2, 0.02), **kwargs}
-    with pytest.raises(plc.InputError, match=name):
-        run_closed_loop(LAB, args.pop("force"), args.pop("robot"), **args)
+    span = args.pop("span", LAB)
+    with pytest.raises(plc.InputError, match=f"'{re.escape(name)}'"):  # the name, quoted
+        run_closed_loop(span, args.pop("force"), args.pop("robot"), **args)
 
 
 def test_robot_too_heavy_for_the_tension():
