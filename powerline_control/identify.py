@@ -814,7 +814,7 @@ def _certified_top_eigenvalue(gram: np.ndarray) -> float | None:
         return None
     shifted = gram * -1.0
     shifted.reshape(-1)[:: k + 1] += theta * (1.0 + _CERTIFICATE_SLACK)
-    _, info = _potrf(shifted, lower=1, overwrite_a=1, clean=0)
+    _, info = _potrf(shifted.T, lower=1, overwrite_a=1, clean=0)  # symmetric: .T is Fortran
     return theta if info == 0 else None
 
 
@@ -988,12 +988,13 @@ def _residual_covariance_from_gram(
         stop = min(start + _SCATTER_BLOCK, k)
         np.matmul(coef[start:stop], d_t[:stop].T, out=scatter[start:stop, :stop])
     gram = parts.gram
-    gram.reshape(-1)[:: gram.shape[0] + 1] = parts.diagonal  # G's diagonal back (the factor's
-    np.subtract(gram[:k, :k], scatter, out=scatter)  # is no longer needed): lower = YY^T - coef D
-    # rank-one corrections of Y Y^T, on the lower triangle only (Fortran 'upper' of the view)
-    scatter_f = scatter.T
-    _syr(-1.0, parts.first, lower=0, a=scatter_f, overwrite_a=1)
-    _syr(1.0, parts.last, lower=0, a=scatter_f, overwrite_a=1)
+    # G's diagonal back over the factor's (no longer needed): gram's lower triangle is G's
+    gram.reshape(-1)[:: gram.shape[0] + 1] = parts.diagonal
+    np.subtract(gram[:k, :k], scatter, out=scatter)  # lower triangle: G - coef D
+    # rank-one corrections of Y Y^T, on the lower triangle only (Fortran 'upper' of the
+    # transposed view, updated in place; the returned array is used in case BLAS copied)
+    updated = _syr(-1.0, parts.first, lower=0, a=scatter.T, overwrite_a=1)
+    scatter = _syr(1.0, parts.last, lower=0, a=updated, overwrite_a=1).T
     _mirror_lower(scatter)
     scatter *= 1.0 / n_pairs
     if n_states == k:
