@@ -9,13 +9,22 @@ Data: damped standing waves sin(j pi x / L) of a 3.66 m span at 30 frequencies, 
 1 kHz, plus 0.1 % white noise, on 101 and 2,001 nodes x 5,000 snapshots.
 
 Rows
-* full rank, alpha = 1e-3 relative: ``plc.fit_dmd`` (Cholesky route; it always computes the
-  residual covariance Q, from Gram matrices: X X^T and Y Y^T share all but two columns, so the
-  only data products are X X^T and the lag product X Y^T) against numpy
-  ``X1 X0^T inv(X0 X0^T + alpha I)`` (eq. 14 literally), numpy ``solve`` (the same without the
-  explicit inverse, A only) and numpy ``solve`` + Q the straightforward way (residual
-  E = X1 - A X0, then E E^T / N: the third and fourth n^2 N products).
+* full rank: ``plc.fit_dmd`` (Cholesky route; it always computes the residual covariance Q, from
+  Gram matrices: X X^T and Y Y^T share all but two columns, so the only data products are
+  X X^T and the lag product X Y^T) with alpha = 1e-3 relative (it then also finds the largest
+  singular value) and with ``alpha_mode="absolute"`` given the same absolute alpha as the peers
+  (the like-for-like input), against numpy ``X1 X0^T inv(X0 X0^T + alpha I)`` (eq. 14
+  literally), numpy ``solve`` (the same without the explicit inverse, A only) and numpy
+  ``solve`` + Q the straightforward way (residual E = X1 - A X0, then E E^T / N: the third and
+  fourth n^2 N products).  All of one size are timed round-robin (each repeat runs every
+  variant once, in a shuffled order), so the machine's load falls on all of them alike; the
+  bound table also gives the ratio of the fastest runs (the least disturbed by other users).
   Agreement: max |A_ours - A_numpy| / max |A_numpy| (and the same for Q).
+  Flop bound: numpy's A-only flops over ours with Q, counting the data products (X X^T as a
+  syrk, n^2 N; the lag product, 2 n^2 N) and the dense algebra (numpy: LU 2/3 n^3 + solve
+  2 n^3; ours: Cholesky n^3/3 + solve 2 n^3 + the lower triangle of coef D by block rows,
+  (1 + b/n) n^3 with b = min(n, 256) rows per block).  At equal flop rates, ``peer / ours``
+  cannot exceed it.
 * rank r = 30 (the 30 standing waves; cutting inside the noise floor would make the subspace,
   and so any two implementations' eigenvalues, ill-defined), alpha = 1e-3 relative:
   ``plc.fit_dmd(rank=r)`` against ``pydmd.DMD(svd_rank=r, tikhonov_regularization=alpha /
@@ -72,13 +81,35 @@ def eig_distance(ours, theirs):
     return float(max(d.min(axis=0).max(), d.min(axis=1).max()))
 
 
+def round_robin(funcs, repeats, seed=0):
+    """Median and fastest time and the last result of each function, all timed within each
+    repeat in a freshly shuffled order (a fixed order would hand whatever runs after the
+    memory-hungry "+ Q" peer its page faults and cache misses, every time)."""
+    order = np.random.default_rng(seed)
+    times = {name: [] for name in funcs}
+    results = {}
+    for _ in range(repeats):
+        for name in order.permutation(list(funcs)):
+            start = time.perf_counter()
+            results[name] = funcs[name]()
+            times[name].append(time.perf_counter() - start)
+    return ({name: statistics.median(t) for name, t in times.items()},
+            {name: min(t) for name, t in times.items()}, results)
+
+
+def flop_bound(n: int, n_pairs: int) -> float:
+    """numpy eq. 14 (A only) flops over ours (A and Q); see the module docstring."""
+    data = 3.0 * n**2 * n_pairs
+    numpy_solve = data + (2.0 / 3.0 + 2.0) * n**3
+    block = min(n, 256)  # identify._SCATTER_BLOCK rows per block of the lower-triangle product
+    ours = data + (1.0 / 3.0 + 2.0 + 1.0 + block / n) * n**3
+    return numpy_solve / ours
+
+
 def full_rank_rows(X, repeats):
     X0, X1 = X[:, :-1], X[:, 1:]
     s_max = np.linalg.norm(X0, 2) if X.shape[0] <= 200 else None
-    ours_t, ours = timed(
-        lambda: plc.fit_dmd(X, 1e-3, alpha=ALPHA_RELATIVE, alpha_mode="relative"), repeats
-    )
-    alpha = ours.alpha
+    alpha = plc.fit_dmd(X, 1e-3, alpha=ALPHA_RELATIVE, alpha_mode="relative").alpha
     if s_max is not None:
         assert abs(alpha - ALPHA_RELATIVE * s_max**2) < 1e-10 * alpha
 
@@ -94,10 +125,22 @@ def full_rank_rows(X, repeats):
         E = X1 - A @ X0                     # the residual pass: two more n^2 N products
         return A, (E @ E.T) / X0.shape[1]
 
+    funcs = {
+        "ours, relative": lambda: plc.fit_dmd(X, 1e-3, alpha=ALPHA_RELATIVE,
+                                               alpha_mode="relative"),
+        "ours, absolute": lambda: plc.fit_dmd(X, 1e-3, alpha=alpha, alpha_mode="absolute"),
+        "numpy eq.14 (inv)": naive_inv,
+        "numpy eq.14 (solve), A only": naive_solve,
+        "numpy eq.14 (solve) + Q": naive_solve_with_q,
+    }
+    times, fastest, results = round_robin(funcs, repeats)
     rows = []
-    for label, func in (("numpy eq.14 (inv)", naive_inv), ("numpy eq.14 (solve)", naive_solve),
-                        ("numpy eq.14 (solve) + Q", naive_solve_with_q)):
-        peer_t, peer = timed(func, repeats)
+    size = f"{X.shape[0]} x {X.shape[1]}, full rank, with Q"
+    pairs = [("ours, relative", peer) for peer in list(funcs)[2:]]
+    pairs += [("ours, absolute", "numpy eq.14 (solve), A only"),
+              ("ours, absolute", "numpy eq.14 (solve) + Q")]
+    for ours_name, peer_name in pairs:
+        ours, peer = results[ours_name], results[peer_name]
         if isinstance(peer, tuple):
             peer, peer_q = peer
             q_diff = float(np.abs(ours.residual_covariance - peer_q).max()
@@ -106,9 +149,14 @@ def full_rank_rows(X, repeats):
                         f"Q: {q_diff:.1e}"
         else:
             agreement = f"A: {np.abs(ours.A - peer).max() / np.abs(peer).max():.1e}"
-        rows.append((f"{X.shape[0]} x {X.shape[1]}, full rank, with Q", ours_t, label, peer_t,
-                     agreement))
-    return rows
+        alpha_label = ours_name.split(", ")[1]
+        rows.append((f"{size}, alpha {alpha_label}", times[ours_name], peer_name,
+                     times[peer_name], agreement))
+    bound = flop_bound(X.shape[0], X0.shape[1])
+    peer = "numpy eq.14 (solve), A only"
+    ratios = [times[peer] / times[name] for name in ("ours, relative", "ours, absolute")]
+    ratios += [fastest[peer] / fastest[name] for name in ("ours, relative", "ours, absolute")]
+    return rows, (X.shape[0], X.shape[1], bound, ratios)
 
 
 def rank_rows(X, repeats):
@@ -191,17 +239,30 @@ def main():
     repeats = 1 if args.quick else 3
     sizes = [101] if args.quick else [101, 2001]
     print("BLAS pinned to 1 thread (OPENBLAS/OMP/MKL_NUM_THREADS=1, set before numpy import)")
-    print(f"alpha = {ALPHA_RELATIVE:g} relative; median of {repeats} run(s)\n")
-    rows = []
+    full_repeats = {101: 1 if args.quick else 10 * repeats, 2001: 5}
+    print(f"alpha = {ALPHA_RELATIVE:g} relative (absolute rows: the same absolute alpha); "
+          f"full rank: medians of {full_repeats[101]} runs at 101 nodes, {full_repeats[2001]} "
+          f"at 2001; rank {RANK}: {repeats} and 1\n")
+    rows, bounds = [], []
     for n in sizes:
         X = standing_waves(n, 5000)
-        rows += full_rank_rows(X, repeats if n < 1000 else 1)
+        full, bound = full_rank_rows(X, full_repeats[n])
+        rows += full
+        bounds.append(bound)
         rows += rank_rows(X, repeats if n < 1000 else 1)
     print("| case | powerline_control (s) | peer | peer (s) | peer / ours | agreement |")
     print("|---|---:|---|---:|---:|---|")
     for case, ours_t, peer, peer_t, agreement in rows:
-        print(f"| {case} | {ours_t:.3f} | {peer} | {peer_t:.3f} | {peer_t / ours_t:.2f} | "
+        print(f"| {case} | {ours_t:.4g} | {peer} | {peer_t:.4g} | {peer_t / ours_t:.2f} | "
               f"{agreement} |")
+    print("\nFlop-count bound of ours (A and Q) against numpy eq. 14 solve (A only): the ratio "
+          "peer / ours cannot exceed it at equal flop rates")
+    print("| size | flop bound | relative alpha, medians | absolute alpha, medians | "
+          "relative, fastest runs | absolute, fastest runs |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for n, n_samples, bound, ratios in bounds:
+        print(f"| {n} x {n_samples} | {bound:.3f} | " + " | ".join(f"{r:.2f}" for r in ratios)
+              + " |")
 
 
 if __name__ == "__main__":

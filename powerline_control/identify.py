@@ -32,6 +32,9 @@ from functools import cached_property
 import control as ct
 import numpy as np
 import scipy.linalg as sla
+from scipy.linalg.blas import dsyr as _syr
+from scipy.linalg.lapack import dpotrf as _potrf
+from scipy.linalg.lapack import dpotrs as _potrs
 
 from ._validation import (
     check_array,
@@ -750,7 +753,10 @@ def _largest_singular_value(M: np.ndarray, gram: np.ndarray | None = None) -> fl
     """Largest singular value, from the smaller Gram matrix (``gram`` if already computed).
 
     The top eigenvalue of a Gram matrix is accurate to relative round-off, and it costs far less
-    than an SVD: a partial symmetric eigensolver for small Gram matrices, Lanczos for large ones.
+    than an SVD: a certified block Krylov estimate or a partial symmetric eigensolver for small
+    Gram matrices, Lanczos for large ones.  Start vectors are pseudo-random with a fixed seed
+    (reproducible, and never orthogonal to the top eigenvector by a symmetry of the data, as a
+    vector of ones is to an antisymmetric mode).
     """
     if M.size == 0:
         return 0.0
@@ -758,12 +764,58 @@ def _largest_singular_value(M: np.ndarray, gram: np.ndarray | None = None) -> fl
         gram = M @ M.T if M.shape[0] <= M.shape[1] else M.T @ M
     k = gram.shape[0]
     if k <= 500:
-        top = sla.eigvalsh(gram, subset_by_index=[k - 1, k - 1])[0]
+        top = _certified_top_eigenvalue(gram) if k <= _KRYLOV_LIMIT else None
+        if top is None:
+            try:
+                top = sla.eigvalsh(gram, subset_by_index=[k - 1, k - 1])[0]
+            except np.linalg.LinAlgError:  # syevr can fail on a tight cluster (G = c I)
+                top = np.linalg.eigvalsh(gram)[-1]
     else:
         from scipy.sparse.linalg import eigsh
 
-        top = eigsh(gram, k=1, which="LA", v0=np.ones(k), tol=0, return_eigenvectors=False)[0]
+        start = np.random.default_rng(0).standard_normal(k)
+        top = eigsh(gram, k=1, which="LA", v0=start, tol=0, return_eigenvectors=False)[0]
     return math.sqrt(max(float(top), 0.0))
+
+
+#: Block Krylov space of _certified_top_eigenvalue: _KRYLOV_BLOCK x _KRYLOV_STEPS vectors.
+_KRYLOV_BLOCK, _KRYLOV_STEPS = 4, 6
+#: ... used up to this size (above it LAPACK's partial eigensolver is cheap next to the Gram).
+_KRYLOV_LIMIT = 200
+#: Relative slack of its certificate: far above the Cholesky round-off k eps (k <= 500).
+_CERTIFICATE_SLACK = 1e-11
+#: Its start block: pseudo-random with a fixed seed, drawn once.
+_KRYLOV_START = np.random.default_rng(0).standard_normal((_KRYLOV_LIMIT, _KRYLOV_BLOCK))
+
+
+def _certified_top_eigenvalue(gram: np.ndarray) -> float | None:
+    """Top eigenvalue of a symmetric PSD matrix to ~1e-11 relative, or None when not certified.
+
+    A Rayleigh-Ritz value ``theta`` on a small block Krylov space never exceeds the top
+    eigenvalue; a Cholesky factorisation of ``theta (1 + slack) I - G`` succeeds only when no
+    eigenvalue exceeds ``theta (1 + slack)``.  Both together pin the top eigenvalue; at 101
+    states this costs about half of LAPACK's partial eigensolver (a tridiagonal reduction).
+    """
+    k = gram.shape[0]
+    width = _KRYLOV_BLOCK * _KRYLOV_STEPS
+    if k <= 2 * width:
+        return None
+    basis = np.empty((k, width))
+    basis[:, :_KRYLOV_BLOCK] = _KRYLOV_START[:k]
+    for step in range(1, _KRYLOV_STEPS):
+        block = gram @ basis[:, (step - 1) * _KRYLOV_BLOCK : step * _KRYLOV_BLOCK]
+        scale = np.abs(block).max()
+        if not scale > 0:
+            return None
+        basis[:, step * _KRYLOV_BLOCK : (step + 1) * _KRYLOV_BLOCK] = block / scale
+    orthonormal, _ = np.linalg.qr(basis)
+    theta = float(np.linalg.eigvalsh(orthonormal.T @ (gram @ orthonormal))[-1])
+    if not theta > 0:
+        return None
+    shifted = gram * -1.0
+    shifted.reshape(-1)[:: k + 1] += theta * (1.0 + _CERTIFICATE_SLACK)
+    _, info = _potrf(shifted.T, lower=1, overwrite_a=1, clean=0)  # symmetric: .T is Fortran
+    return theta if info == 0 else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -850,70 +902,122 @@ def _sign_fixed(U: np.ndarray) -> np.ndarray:
 
 
 def _ridge_gram(
-    target: np.ndarray, regressor: np.ndarray, alpha: float, gram: np.ndarray | None = None
-) -> tuple[np.ndarray, _TargetGram, np.ndarray] | None:
-    """Cholesky route of :func:`_ridge`: ``(coef, target_gram, W)`` or None when not accurate.
+    target: np.ndarray, regressor: np.ndarray, alpha: float, gram: np.ndarray | None
+) -> tuple[np.ndarray, _GramScatter] | None:
+    """Cholesky route of :func:`_ridge`: ``(coef, scatter)``, or None when not accurate.
 
-    Solving ``(G + alpha I) coef^T = R Y^T`` loses about ``eps (1 + s_max^2 / alpha)``; it is
-    taken only when that is below ~1e-10 (and when ``R R^T`` is the smaller Gram matrix).
-    With ``G + alpha I = L L^T`` the solve is two triangular solves, ``W = L^{-1} R Y^T`` and
-    ``coef^T = L^{-T} W``; ``W`` and ``Y Y^T`` (as a :class:`_TargetGram`) are returned for the
-    residual covariance.  ``gram`` (``R R^T``), when given, is overwritten by the factor.
+    Solving ``(G + alpha I) coef^T = C`` (``G = R R^T``, ``C = R Y^T``) loses about
+    ``eps (1 + s_max^2 / alpha)``; it is taken only when that is below ~1e-10 (and when
+    ``R R^T`` is the smaller Gram matrix).  ``gram`` (``R R^T``, C-ordered) is overwritten by
+    the factor.  Everything is laid out for LAPACK without transposed copies: a symmetric
+    C-ordered matrix is itself in Fortran order, and ``Y R^T`` (C-ordered) is ``C`` in Fortran
+    order, so ``potrs`` returns ``coef^T`` in Fortran order, i.e. ``coef`` in C order.
     """
     n_reg, n_pairs = regressor.shape
-    if alpha <= 0 or n_reg > n_pairs:
+    if gram is None or alpha <= 0 or n_reg > n_pairs:
         return None
-    gram = regressor @ regressor.T if gram is None else gram
-    if alpha < _GRAM_ALPHA_FRACTION * np.trace(gram):
-        return None
-    cross = regressor @ target.T
     diagonal = gram.diagonal().copy()
-    # G is symmetric, so its transpose is the same matrix in Fortran order, which LAPACK
-    # factors in place; the factor fills the lower triangle and leaves G's strict upper one.
-    shifted = gram.T
-    shifted[np.diag_indices_from(shifted)] += alpha
-    factor, _ = sla.cho_factor(shifted, lower=True, overwrite_a=True, check_finite=False)
-    W = sla.solve_triangular(factor, cross, lower=True, overwrite_b=True, check_finite=False)
-    coef_t = sla.solve_triangular(factor, W, lower=True, trans="T", check_finite=False)
+    if alpha < _GRAM_ALPHA_FRACTION * diagonal.sum():
+        return None
+    gram = np.ascontiguousarray(gram)  # (it is: fit_dmd's syrk) the flat view below needs it
+    cross_t = target @ regressor.T  # C^T, C-ordered: C in Fortran order
+    flat_diagonal = gram.reshape(-1)[:: n_reg + 1]  # a view (gram is C-contiguous)
+    flat_diagonal += alpha
+    # Fortran 'lower' is C-order 'upper': the factor fills gram's upper triangle and leaves
+    # G in its strict lower one (read back by _GramScatter).
+    factor, info = _potrf(gram.T, lower=1, overwrite_a=1, clean=0)
+    if info != 0:  # not positive definite in floating point (cannot happen for alpha > 0
+        return None  # above the threshold, but the SVD route is the safe answer)
+    coef_t, info = _potrs(factor, cross_t.T, lower=1, overwrite_b=0)
+    if info != 0:  # pragma: no cover - potrs fails only on bad arguments
+        return None
     k = target.shape[0]
-    target_gram = _TargetGram(factor, diagonal, regressor[:k, 0].copy(), target[:, -1].copy())
-    return coef_t.T, target_gram, W
+    scatter = _GramScatter(gram, diagonal, cross_t, regressor[:k, 0].copy(), target[:, -1].copy())
+    return coef_t.T, scatter
 
 
-class _TargetGram:
-    """``Y Y^T`` of a shifted target, from the regressor's Gram matrix without a data pass.
+@dataclass(frozen=True, eq=False)
+class _GramScatter:
+    """What :func:`_residual_covariance_from_gram` needs to form ``E E^T`` without a data pass.
 
-    The target is always the regressor's state rows shifted by one sample, so
-    ``Y Y^T = G[:k, :k] - r_0 r_0^T + y_N y_N^T``.  ``G`` is read from the strict upper triangle
-    of ``factor`` (a Cholesky factor stored in the lower triangle) and from ``diagonal``.
+    ``gram`` holds ``G = R R^T`` in its strict lower triangle (the Cholesky factor of
+    ``G + alpha I`` is in the upper one) and ``diagonal`` its diagonal.  The target is the
+    regressor's state rows shifted by one sample, so ``Y Y^T = G[:k, :k] - r_0 r_0^T +
+    y_N y_N^T``.  ``cross_t`` is ``C^T = Y R^T`` (overwritten by the scatter computation).
     """
 
-    def __init__(
-        self, factor: np.ndarray, diagonal: np.ndarray, first: np.ndarray, last: np.ndarray
-    ) -> None:
-        self.factor, self.diagonal, self.first, self.last = factor, diagonal, first, last
+    gram: np.ndarray
+    diagonal: np.ndarray
+    cross_t: np.ndarray
+    first: np.ndarray
+    last: np.ndarray
 
-    def regressor_gram(self) -> np.ndarray:
-        """The regressor's Gram matrix ``G`` (a new array), rebuilt from the stored factor."""
-        gram = np.triu(self.factor, 1)
-        gram += gram.T
-        gram[np.diag_indices_from(gram)] = self.diagonal
-        return gram
-
-    def trace(self) -> float:
+    def target_trace(self) -> float:
         k = self.first.size
         return float(self.diagonal[:k].sum() - self.first @ self.first + self.last @ self.last)
 
-    def minus(self, other: np.ndarray) -> np.ndarray:
-        """``Y Y^T - other`` (a new array; ``other`` is symmetric)."""
-        k = self.first.size
-        gram = np.triu(self.factor[:k, :k], 1)
-        gram += gram.T  # numpy buffers the overlapping transpose
-        gram[np.diag_indices(k)] = self.diagonal[:k]
-        gram -= other
-        gram -= np.outer(self.first, self.first)
-        gram += np.outer(self.last, self.last)
-        return gram
+
+#: Block rows of the lower-triangle product in _residual_covariance_from_gram: the blocks above
+#: the diagonal cost (1 + block / k) / 2 of the full product.
+_SCATTER_BLOCK = 256
+
+
+def _residual_covariance_from_gram(
+    coef: np.ndarray, alpha: float, parts: _GramScatter, n_states: int, n_pairs: int
+) -> np.ndarray | None:
+    """``E E^T / n_pairs`` (``E = Y - coef R``) from Gram matrices, or None when cancellation bites.
+
+    With the normal equations ``coef (G + alpha I) = C^T``,
+    ``E E^T = Y Y^T - 2 coef C + coef G coef^T = Y Y^T - coef D`` with
+    ``D = C + alpha coef^T`` (``coef G coef^T = coef C - alpha coef coef^T``).  ``coef D`` is
+    symmetric, so only its lower triangle is formed, by block rows: about ``k^3`` flops
+    (half a product) and no pass over the data.  The difference of large terms is accurate to
+    about ``eps ||Y||^2``, so the result is used only when the residual is at least 1e-8 of the
+    data (checked on the trace, in O(k^2), before the product is formed).  Returns the
+    symmetric ``(n_states, n_states)`` covariance (zero outside the leading ``k x k`` block).
+    """
+    k = coef.shape[0]
+    d_t = parts.cross_t
+    d_t += alpha * coef  # D^T = C^T + alpha coef, in place
+    total = parts.target_trace()
+    trace = total - _dot(coef, d_t)  # trace(coef D) = sum(coef * D^T)
+    if not trace >= 1e-8 * total:
+        return None
+    scatter = np.zeros((k, k))  # contiguous: BLAS updates it in place
+    for start in range(0, k, _SCATTER_BLOCK):
+        stop = min(start + _SCATTER_BLOCK, k)
+        np.matmul(coef[start:stop], d_t[:stop].T, out=scatter[start:stop, :stop])
+    gram = parts.gram
+    # G's diagonal back over the factor's (no longer needed): gram's lower triangle is G's
+    gram.reshape(-1)[:: gram.shape[0] + 1] = parts.diagonal
+    np.subtract(gram[:k, :k], scatter, out=scatter)  # lower triangle: G - coef D
+    # rank-one corrections of Y Y^T, on the lower triangle only (Fortran 'upper' of the
+    # transposed view, updated in place; the returned array is used in case BLAS copied)
+    updated = _syr(-1.0, parts.first, lower=0, a=scatter.T, overwrite_a=1)
+    scatter = _syr(1.0, parts.last, lower=0, a=updated, overwrite_a=1).T
+    _mirror_lower(scatter)
+    scatter *= 1.0 / n_pairs
+    if n_states == k:
+        return read_only(scatter)
+    Q = np.zeros((n_states, n_states))
+    Q[:k, :k] = scatter
+    return read_only(Q)
+
+
+def _mirror_lower(M: np.ndarray) -> None:
+    """Copy the lower triangle of the square ``M`` onto its upper one, in place, by blocks."""
+    k = M.shape[0]
+    for start in range(0, k, _SCATTER_BLOCK):
+        stop = min(start + _SCATTER_BLOCK, k)
+        M[:start, start:stop] = M[start:stop, :start].T
+        block = M[start:stop, start:stop]
+        # only upper entries are written, from lower ones, so the overlap is harmless
+        np.copyto(block, block.T, where=np.tri(stop - start, k=-1, dtype=bool).T)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``sum(a * b)`` of two arrays of the same shape (no temporaries when C-contiguous)."""
+    return float(np.vdot(a, b))
 
 
 def _ridge(
@@ -940,34 +1044,6 @@ def _ridge(
         ratio = float(s[keep][-1] / s[0]) if keep.any() else None
     coef = (target_V[:, keep] * gain) @ U[:, keep].T
     return coef, ratio
-
-
-def _residual_covariance_from_gram(
-    coef: np.ndarray, alpha: float, target_gram: _TargetGram, W: np.ndarray
-) -> np.ndarray | None:
-    """``E E^T`` for ``E = Y - coef R`` from Gram matrices, or None when cancellation bites.
-
-    With the normal equations ``coef (G + alpha I) = C^T`` (``C = R Y^T``, ``G + alpha I =
-    L L^T``, ``W = L^{-1} C``), ``E E^T = Y Y^T - coef C - alpha coef coef^T
-    = Y Y^T - W^T W - alpha coef coef^T``: two symmetric n x n products instead of a pass over
-    the data.  The difference of large terms is accurate to about eps ||Y||^2, so the result is
-    used only when the residual is at least 1e-8 of the data (checked on the trace, in
-    O(n^2), before the products are formed).
-    """
-    total = target_gram.trace()
-    trace = total - _squared_norm(W) - alpha * _squared_norm(coef)
-    if trace < 1e-8 * total:
-        return None
-    # M^T M and M M^T are evaluated by numpy as symmetric rank-k updates (syrk).
-    products = coef @ coef.T
-    products *= alpha
-    products += W.T @ W
-    return target_gram.minus(products)
-
-
-def _squared_norm(M: np.ndarray) -> float:
-    flat = M.ravel(order="K")  # no copy for C- or Fortran-ordered arrays
-    return float(flat @ flat)
 
 
 def _covariance(scatter: np.ndarray, n_states: int, n_pairs: int) -> np.ndarray:
@@ -1011,25 +1087,24 @@ def _fit_problem(
     svd: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     gram: np.ndarray | None = None,
 ) -> DMDModel:
-    n_reg = problem.regressor.shape[0]
-    keep_gram = alpha > 0 and n_reg <= _KEEP_GRAM_LIMIT
+    n_reg, n_pairs = problem.regressor.shape
     kept_gram = None
-    if keep_gram and gram is not None:
+    if alpha > 0 and n_reg <= _KEEP_GRAM_LIMIT and gram is not None:
         kept_gram = gram.copy()  # the Cholesky route overwrites it
     gram_route = None if svd is not None else _ridge_gram(
         problem.target, problem.regressor, alpha, gram
     )
-    kept_ratio, scatter = None, None
+    kept_ratio, covariance = None, None
     if gram_route is not None:
-        coef, target_gram, W = gram_route
-        scatter = _residual_covariance_from_gram(coef, alpha, target_gram, W)
-        if keep_gram and kept_gram is None:
-            kept_gram = target_gram.regressor_gram()
+        coef, parts = gram_route
+        covariance = _residual_covariance_from_gram(
+            coef, alpha, parts, problem.n_states, n_pairs
+        )
     else:
         if svd is None:
             svd = _ridge_svd(problem.target, problem.regressor)
         coef, kept_ratio = _ridge(problem.target, problem.regressor, alpha, svd)
-        if keep_gram:
+        if alpha > 0 and n_reg <= _KEEP_GRAM_LIMIT and kept_gram is None:
             U, sv = svd[2], svd[1]
             kept_gram = (U * sv**2) @ U.T
     if (
@@ -1046,11 +1121,9 @@ def _fit_problem(
             stacklevel=3,
         )
     A, B = _assemble(problem, coef)
-    n_pairs = problem.regressor.shape[1]
-    if scatter is None:
+    if covariance is None:  # the residual pass: exact whatever the cancellation
         residual = problem.target - coef @ problem.regressor
-        scatter = residual @ residual.T
-    covariance = _covariance(scatter, problem.n_states, n_pairs)
+        covariance = _covariance(residual @ residual.T, problem.n_states, n_pairs)
     n_states, n_nodes = problem.n_states, problem.n_nodes
     if problem.basis is None:
         field_map = np.eye(n_nodes, n_states)
@@ -1114,6 +1187,13 @@ def _check_common(
              "shorter record"),
     )
     return X, dt, delays, rank, _check_inputs(inputs, n_samples)
+
+
+def _refuse_all_zero(X: np.ndarray) -> None:
+    if not np.any(X):
+        raise IdentificationError(
+            "The 'X' parameter is all zeros: there are no dynamics to identify."
+        )
 
 
 def _absolute_alpha(
@@ -1209,22 +1289,25 @@ def fit_dmd(
     X, dt, delays, rank, u = _check_common(X, dt, delays, rank, inputs)
     alpha = check_real("alpha", alpha, low=0.0, low_inclusive=True)
     alpha_mode = check_choice("alpha_mode", alpha_mode, ("absolute", "relative"))
-    if not np.any(X):
-        raise IdentificationError(
-            "The 'X' parameter is all zeros: there are no dynamics to identify."
-        )
     n_pairs = X.shape[1] - delays
     n_states = X.shape[0] * delays
-    if alpha == 0 and rank is None and n_pairs < n_states + (0 if u is None else u.shape[0]):
+    n_reg = n_states + (0 if u is None else u.shape[0])
+    # The Gram matrix serves the relative-alpha scale and the Cholesky route (computed once),
+    # and its trace tells whether the data are all zero without another pass over them.
+    with_gram = alpha > 0 and n_reg <= n_pairs
+    if not (with_gram and rank is None):
+        _refuse_all_zero(X)
+    if alpha == 0 and rank is None and n_pairs < n_reg:
         raise InputError(
             f"Plain DMD (alpha=0, rank=None) needs at least as many snapshot pairs as states "
             f"(+ inputs): got {n_pairs} pairs for {n_states} states. Pass alpha > 0 "
             "(e.g. alpha_mode='relative', alpha=1e-6), a rank, or more samples."
         )
     problem = _prepare(X, delays, rank, u)
-    n_reg, n_pairs = problem.regressor.shape
-    # The Gram matrix serves both the relative-alpha scale and the Cholesky route: compute once.
-    gram = problem.regressor @ problem.regressor.T if alpha > 0 and n_reg <= n_pairs else None
+    gram = problem.regressor @ problem.regressor.T if with_gram else None
+    if gram is not None and rank is None and not gram.diagonal()[:n_states].sum() > 0:
+        # the state rows cover every sample but the last; squares can underflow: ask the data
+        _refuse_all_zero(X)
     alpha, problem = _absolute_alpha(alpha, alpha_mode, problem, gram)
     return _fit_problem(problem, alpha, dt, gram=gram)
 

@@ -789,3 +789,158 @@ def test_to_statespace_warns_what_to_change_for_models_python_control_refuses():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         marginal.to_statespace(measured=[0, 2])          # every unit-circle mode is seen
+
+
+# ----------------------------------------------------------------------------------------------
+# Issue 10 item 8: the full-rank fit's Q from Gram matrices (no residual pass) is exact
+# ----------------------------------------------------------------------------------------------
+
+
+def _residual_pass(X, model, delays, u):
+    """E E^T / N written out: E = z_{k+1} - A z_k - B u_k, on the first block for a delay model
+    without rank (its shift rows are exact, so Q is zero outside the leading n x n block) and
+    in POD coordinates basis^T z for a rank-r model."""
+    n = X.shape[0]
+    Z = np.vstack([X[:, delays - 1 - i : X.shape[1] - i] for i in range(delays)])
+    Z0, Z1 = Z[:, :-1], Z[:, 1:]
+    if model.basis is not None:
+        Z0, Z1, n = model.basis.T @ Z0, model.basis.T @ Z1, model.basis.shape[1]
+    E = Z1[:n] - model.A[:n] @ Z0
+    if u is not None:
+        E -= model.B[:n] @ u[:, delays - 1 : delays - 1 + Z0.shape[1]]
+    Q = np.zeros((Z0.shape[0], Z0.shape[0]))
+    Q[:n, :n] = E @ E.T / Z0.shape[1]
+    return Q
+
+
+def _spy_on_gram_q(monkeypatch):
+    """Record what the Gram route of Q returned (None: the cancellation guard fell back)."""
+    from powerline_control import identify
+
+    calls = []
+    original = identify._residual_covariance_from_gram
+
+    def spy(*args, **kwargs):
+        calls.append(original(*args, **kwargs))
+        return calls[-1]
+
+    monkeypatch.setattr(identify, "_residual_covariance_from_gram", spy)
+    return calls
+
+
+@pytest.mark.parametrize(
+    "n_nodes, n_samples, delays, n_inputs, rank, alpha, mode, seed, block",
+    [
+        (9, 400, 1, 0, None, 3e-3, "relative", 61, None),
+        (4, 350, 3, 0, None, 0.7, "absolute", 62, None),   # delays: Q zero outside n x n
+        (5, 300, 2, 2, None, 2e-2, "relative", 63, None),  # inputs: E includes B u
+        (3, 250, 1, 1, None, 5e-4, "relative", 64, None),
+        (13, 500, 2, 0, None, 1e-4, "relative", 65, 4),    # 13 rows in 4 uneven block rows
+        (300, 900, 1, 0, None, 1e-3, "relative", 66, None),  # 300 > the 256-row block
+        (8, 400, 2, 1, 6, 1e-3, "relative", 70, None),     # rank 6 of 16 rows, and an input
+    ],
+)
+def test_gram_route_q_equals_the_residual_pass(monkeypatch, n_nodes, n_samples, delays,
+                                                n_inputs, rank, alpha, mode, seed, block):
+    from powerline_control import identify
+
+    if block is not None:
+        monkeypatch.setattr(identify, "_SCATTER_BLOCK", block)
+    rng = np.random.default_rng(seed)
+    A_true = random_stable_system(n_nodes, rng, radius=0.97)
+    B_true = rng.standard_normal((n_nodes, n_inputs)) if n_inputs else None
+    u = rng.standard_normal((n_inputs, n_samples)) if n_inputs else None
+    X = simulate_discrete(A_true, rng.standard_normal(n_nodes), n_samples, B=B_true, u=u,
+                          rng=rng, noise=0.05)
+    calls = _spy_on_gram_q(monkeypatch)
+    model = plc.fit_dmd(X, 0.01, alpha=alpha, alpha_mode=mode, delays=delays, inputs=u,
+                        rank=rank)
+    assert len(calls) == 1 and calls[0] is not None  # the Gram route, not the fallback
+    direct = _residual_pass(X, model, delays, u)
+    # 5 % process noise: the residual holds >= 1e-3 of the data's energy, so the Gram-route
+    # difference (accurate to ~eps ||Y||^2) is good to ~1e-12 of Q; 1e-9 leaves room.
+    np.testing.assert_allclose(model.residual_covariance, direct, rtol=1e-9,
+                               atol=1e-11 * np.abs(direct).max())
+    assert np.array_equal(model.residual_covariance, model.residual_covariance.T)
+    assert not model.residual_covariance.flags.writeable
+
+
+@pytest.mark.parametrize("delays, n_inputs", [(1, 0), (2, 1)])
+def test_gram_route_q_falls_back_to_the_residual_pass_when_cancellation_bites(
+        monkeypatch, delays, n_inputs):
+    # Noise-free linear data and a small alpha (still above the Cholesky threshold): the
+    # residual is ~1e-13 of the data's energy, below the guard's 1e-8, where Y Y^T - coef D
+    # would keep only ~1e-3 correct digits.  The guard must hand over to the residual pass.
+    rng = np.random.default_rng(67)
+    n = 4
+    A_true = random_stable_system(n, rng, radius=0.99)
+    B_true = rng.standard_normal((n, n_inputs)) if n_inputs else None
+    u = rng.standard_normal((n_inputs, 600)) if n_inputs else None
+    X = simulate_discrete(A_true, rng.standard_normal(n), 600, B=B_true, u=u)
+    X += 1e-7 * rng.standard_normal(X.shape)  # residual energy ~1e-14: far below 1e-8
+    calls = _spy_on_gram_q(monkeypatch)
+    model = plc.fit_dmd(X, 0.01, alpha=2e-6, alpha_mode="relative", delays=delays, inputs=u)
+    assert len(calls) == 1 and calls[0] is None  # the guard fell back
+    direct = _residual_pass(X, model, delays, u)
+    # Both evaluate the same residual pass, so they agree to round-off of E E^T.
+    np.testing.assert_allclose(model.residual_covariance, direct, rtol=1e-10,
+                               atol=1e-12 * np.abs(direct).max())
+
+
+@pytest.mark.parametrize(
+    "kind, n_nodes",
+    [
+        ("decaying spectrum", 120),     # the certified block-Krylov route (<= 200 states)
+        ("equal singular values", 150),  # a tight cluster: certified (theta = lambda exactly)
+        ("equal singular values", 260),  # LAPACK's partial eigensolver (or full eigh)
+        ("no gap", 90),                  # uncertified Krylov: falls back to LAPACK
+        ("antisymmetric top mode", 520),  # Lanczos from a seeded start (not ones, which is
+                                          # orthogonal to the top mode up to round-off)
+    ],
+)
+def test_relative_alpha_uses_the_largest_singular_value(kind, n_nodes):
+    rng = np.random.default_rng(68)
+    n_samples = 3 * n_nodes
+    if kind == "decaying spectrum":
+        X = rng.standard_normal((n_nodes, n_samples)) / np.arange(1, n_nodes + 1)[:, None]
+    elif kind == "equal singular values":
+        X = np.linalg.qr(rng.standard_normal((n_samples, n_nodes)))[0].T * 3.0
+        X = np.hstack([X, X[:, :1]])  # the fit drops the last column; keep X0 orthonormal
+    elif kind == "no gap":
+        X = rng.standard_normal((n_nodes, n_samples))
+    else:
+        # a mirror-symmetric span whose strongest motion is antisymmetric (mode 2) and whose
+        # symmetric part (mode 1) is uncorrelated with it: the Gram matrix commutes with the
+        # reflection, so a Krylov space started from ones sees mode 2 only through round-off.
+        x = np.linspace(0, 1, n_nodes)
+        t = np.arange(n_samples + 1)
+        first = np.cos(2 * np.pi * 5 * t[:-1] / n_samples)
+        second = np.sin(2 * np.pi * 5 * t[:-1] / n_samples)  # orthogonal to `first` over t
+        X0 = np.outer(np.sin(np.pi * x), first) + 3 * np.outer(np.sin(2 * np.pi * x), second)
+        X = np.hstack([X0, X0[:, :1]])
+    s_max = np.linalg.svd(X[:, :-1], compute_uv=False)[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnstableModelWarning)
+        model = plc.fit_dmd(X, 0.01, alpha=1e-3, alpha_mode="relative")
+    # Top eigenvalue of the Gram matrix: round-off of the eigensolver, or the 1e-11 slack of the
+    # block-Krylov certificate; numpy's SVD is the independent truth.
+    assert model.alpha == pytest.approx(1e-3 * s_max**2, rel=2e-11)
+
+
+def test_all_zero_check_from_the_gram_trace_is_exact():
+    # The Cholesky route reads "all zeros" off the Gram trace; it must still mean X == 0.
+    with pytest.raises(IdentificationError, match="all zeros"):
+        plc.fit_dmd(np.zeros((3, 30)), 0.01, alpha=0.1, inputs=np.ones(30))  # inputs are not X
+    with pytest.raises(IdentificationError, match="all zeros"):
+        plc.fit_dmd(np.zeros((3, 30)), 0.01, alpha=0.1, delays=3)
+    # Only the last sample is non-zero: no regressor column holds it (trace 0), yet X is not
+    # zero.  Then A = 0 exactly (C = R Y^T = 0) and E = Y, so Q = Y Y^T / N.
+    last = np.zeros((2, 30))
+    last[1, -1] = 1e-3
+    model = plc.fit_dmd(last, 0.01, alpha=0.1)
+    assert not np.any(model.A)
+    np.testing.assert_allclose(model.residual_covariance, np.diag([0.0, 1e-6 / 29]),
+                               rtol=1e-14, atol=0)
+    # Data so small that their squares underflow (Gram = 0) are data, not zeros.
+    tiny = 1e-200 * np.random.default_rng(69).standard_normal((3, 30))
+    assert np.all(np.isfinite(plc.fit_dmd(tiny, 0.01, alpha=1.0).A))
