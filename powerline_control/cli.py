@@ -292,7 +292,8 @@ class _Study:
         The recipe's decisions (delays, rank, alpha, criterion, measurement variance) live in
         ``powerline_control.recipe``; this verb passes the scenario's keys on to it.
         """
-        self.progress.stage("identifying the DMD model (choosing alpha on held-out data)")
+        self.progress.stage("identifying the model (the recipe's choices judged on held-out "
+                            "data)")
         self.design = _design_estimator(self.scenario, self.snap, self.model, self.n_train,
                                         self.progress, choose_sensors=choose_sensors)
         self._report_identification()
@@ -312,10 +313,11 @@ class _Study:
              "The unregularised fit (the paper's eq. 11), for comparison."),
         ]
         self.report.section(
-            "Identification (DMD with Tikhonov regularisation)", rows,
-            intro="Dynamic Mode Decomposition fits a linear one-step map to the training part "
-            "of the record; Tikhonov regularisation (alpha) pulls its eigenvalues inside the "
-            "unit circle.",
+            "Identification", rows,
+            intro="The recipe fits a linear one-step map to the training part of the record: "
+            "time-delay Dynamic Mode Decomposition with Tikhonov regularisation (alpha pulls "
+            "its eigenvalues inside the unit circle), or, for a narrowband record whose "
+            "spectral lines explain it, one oscillator per line (the recipe line says which).",
             figures=[_Figure("eigenvalues", d.eigenvalue_figure,
                              "Eigenvalues of the identified map before (plain DMD, alpha = 0) and "
                              "after regularisation, with the unit circle. Look for points outside "
