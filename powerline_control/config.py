@@ -201,7 +201,8 @@ class SimulationConfig:
 
 @dataclass(frozen=True)
 class IdentificationConfig:
-    """DMD: time delays, Tikhonov alpha ("auto" chooses by held-out prediction error), rank."""
+    """The estimator's identification: delays, alpha and rank (unset: the recipe chooses), and
+    the broadband shaker of the identification run."""
 
     delays: int | None = _key(
         None, "", "Snapshots stacked per model state (time-delay embedding); unset: the "
@@ -212,6 +213,14 @@ class IdentificationConfig:
         low=0.0, low_inclusive=True, high=1.0, allowed='"auto" or a real number in [0, 1]')
     rank: int | None = _key(None, "", "Rank of the identified model (the filter's state size); "
                             "unset: the package's recipe chooses.", kind="int", low=1, high=5000)
+    shaker: float = _key(
+        0.1, "N", "Standard deviation of a broadband shaker force, at 31 % of the span, added to "
+        "an identification run (the scenario's load plus the shaker, as long as the training "
+        "part) that trains the estimator: a harmonic record alone is not persistently exciting. "
+        "0: train on the first 60 % of the scenario's own record.", low=0.0, low_inclusive=True,
+        high=1e6)
+    shaker_bandwidth: float = _key(100.0, "Hz", "Highest frequency of the shaker force.",
+                                   low=0.0, high=1e4)
 
 
 @dataclass(frozen=True)
