@@ -802,20 +802,28 @@ def _unseen_directions(fields: np.ndarray, smooth: np.ndarray) -> np.ndarray:
     return basis[:, new][:, :_UNSEEN_COUNT]
 
 
-def _independent_lines(frequencies: np.ndarray, shapes: np.ndarray, spatial: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def _independent_lines(frequencies: np.ndarray, shapes: np.ndarray, spatial: np.ndarray,
+                       strength: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Drop lines whose field shape the others already span (their oscillator is unobservable
-    apart from its twin and makes the filter's Riccati equation singular)."""
+    apart from its twin and makes the filter's Riccati equation singular).
+
+    The strongest lines (``strength``, e.g. their power) are kept first: with one node every
+    shape is the same, and the line kept must be the record's, not a weak neighbour of it.
+    The kept lines stay in the given (ascending frequency) order.
+    """
     fields = spatial @ shapes
     keep: list[int] = []
-    for j in range(fields.shape[1]):
+    order = (range(fields.shape[1]) if strength is None
+             else np.argsort(-np.asarray(strength), kind="stable"))
+    for j in order:
         if keep:
             q, _ = np.linalg.qr(fields[:, keep])
             distance = float(np.linalg.norm(fields[:, j] - q @ (q.T @ fields[:, j])))
         else:
             distance = float(np.linalg.norm(fields[:, j]))
         if distance > 1e-6:   # unit columns: 1e-6 is round-off of a repeated shape
-            keep.append(j)
+            keep.append(int(j))
+    keep.sort()
     return frequencies[keep], fields[:, keep]
 
 
@@ -1004,7 +1012,8 @@ def design_estimator(
                 "method='dmd' or 'auto'."
             )
         if freqs.size and (method == "modal" or ratio < _NARROWBAND_RESIDUAL):
-            freqs, fields = _independent_lines(freqs, shapes, line_basis)
+            power = np.array([_line_power(line_coords, f, dt) for f in freqs])
+            freqs, fields = _independent_lines(freqs, shapes, line_basis, power)
             excitation = ExcitationReport(narrowband=ratio < _NARROWBAND_RESIDUAL,
                                           occupancy=occupancy, frequencies=read_only(freqs),
                                           residual_ratio=ratio, method="modal")
