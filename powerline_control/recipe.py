@@ -509,7 +509,18 @@ class ExcitationReport:
 
     Examples
     --------
-    See :class:`EstimatorDesign`.
+    A harmonic load alone: the record holds the load's line and the span's start-up modes.
+
+    >>> import warnings, powerline_control as plc
+    >>> model = plc.LineModel(plc.Span.paper_lab(), n_elements=20)
+    >>> snap = plc.simulate(model, plc.HarmonicForce(1.0, 18.3, 1.6), 4.0, 1e-3,
+    ...                     noise_fraction=0.01, seed=3)
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore", plc.ExcitationWarning)  # it is narrowband
+    ...     design = plc.design_estimator(snap, n_sensors=3, seed=0)
+    >>> report = design.excitation
+    >>> report.narrowband, report.method, bool(abs(report.frequencies - 18.3).min() < 0.01)
+    (True, 'modal', True)
     """
 
     narrowband: bool
