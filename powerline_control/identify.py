@@ -1135,7 +1135,7 @@ def _fit_problem(
         B=None if B is None else read_only(B),
         dt=dt,
         alpha=alpha,
-        alpha_relative=alpha / s_max**2 if s_max > 0 else 0.0,
+        alpha_relative=alpha / s_max**2 if s_max**2 > 0 else 0.0,  # squares can underflow
         delays=problem.delays,
         rank=None if problem.basis is None else n_states,
         n_nodes=n_nodes,
@@ -1167,10 +1167,28 @@ def _check_inputs(inputs: object, n_samples: int) -> np.ndarray | None:
     return u
 
 
+#: Largest data magnitude: Gram matrices sum its squares, which beyond ~1e154 overflow to inf.
+#: (Tiny data are accepted: their squares underflow to zero, which the fit copes with.)
+_SCALE_LIMIT = 1e150
+
+
+def _check_scale(name: str, values: np.ndarray) -> None:
+    """Refuse data whose squares overflow (max/min: no temporary array)."""
+    if values.size == 0:
+        return
+    peak = max(abs(float(values.max())), abs(float(values.min())))
+    if peak > _SCALE_LIMIT:
+        raise InputError(
+            f"The {name!r} parameter has largest magnitude {peak:.3g}, above {_SCALE_LIMIT:g}: "
+            "its squares overflow in floating point. Rescale it (e.g. to km or Mm)."
+        )
+
+
 def _check_common(
     X: object, dt: object, delays: object, rank: object, inputs: object
 ) -> tuple[np.ndarray, float, int, int | None, np.ndarray | None]:
     X = _check_snapshots(X)
+    _check_scale("X", X)
     dt = check_real("dt", dt, low=0.0)
     n_samples = X.shape[1]
     delays = check_int("delays", delays, low=1, high=max(1, n_samples - 2))
@@ -1186,7 +1204,10 @@ def _check_common(
              "design_estimator first projects the nodes on a few spatial POD modes), or a "
              "shorter record"),
     )
-    return X, dt, delays, rank, _check_inputs(inputs, n_samples)
+    u = _check_inputs(inputs, n_samples)
+    if u is not None:
+        _check_scale("inputs", u)
+    return X, dt, delays, rank, u
 
 
 def _refuse_all_zero(X: np.ndarray) -> None:

@@ -342,6 +342,8 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
     except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError):
         return math.inf
     unmeasured = np.setdiff1d(candidates, layout)
+    if unmeasured.size == 0:  # every moving node measured: score the filtered measured nodes
+        unmeasured = layout
     skip = min(held.shape[1] // 4, 10 * delays + 100)  # the filter's start-up transient
     truth = held[unmeasured, skip:]
     mse = float(np.mean((field[unmeasured, skip:] - truth) ** 2)) - data_noise**2
@@ -430,11 +432,16 @@ def _marchenko_pastur_median(beta: float) -> float:
     lo, hi = (1 - math.sqrt(beta)) ** 2, (1 + math.sqrt(beta)) ** 2
     if beta <= 1e-9:
         return 1.0
-    grid = np.linspace(lo, hi, 4001)
-    density = np.sqrt(np.maximum((hi - grid) * (grid - lo), 0.0)) / (2 * math.pi * beta * grid)
-    cdf = np.cumsum(density)
+    # x = centre - half cos(theta) takes the square-root edges (and, at beta = 1, the 1 / x pole
+    # at x = 0) out of the integrand: half^2 sin^2(theta) / (2 pi beta x) is smooth in theta.
+    # Midpoint rule, so that x = 0 itself is never evaluated.
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    edges = np.linspace(0.0, math.pi, 4001)
+    mid = (edges[1:] + edges[:-1]) / 2
+    weight = half**2 * np.sin(mid) ** 2 / (2 * math.pi * beta * (centre - half * np.cos(mid)))
+    cdf = np.cumsum(weight)
     cdf /= cdf[-1]
-    return float(np.interp(0.5, cdf, grid))
+    return float(np.interp(0.5, cdf, centre - half * np.cos(edges[1:])))
 
 
 def _spatial_basis(X: np.ndarray, max_rank: int) -> tuple[np.ndarray, np.ndarray]:
@@ -502,7 +509,18 @@ class ExcitationReport:
 
     Examples
     --------
-    See :class:`EstimatorDesign`.
+    A harmonic load alone: the record holds the load's line and the span's start-up modes.
+
+    >>> import warnings, powerline_control as plc
+    >>> model = plc.LineModel(plc.Span.paper_lab(), n_elements=20)
+    >>> snap = plc.simulate(model, plc.HarmonicForce(1.0, 18.3, 1.6), 4.0, 1e-3,
+    ...                     noise_fraction=0.01, seed=3)
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore", plc.ExcitationWarning)  # it is narrowband
+    ...     design = plc.design_estimator(snap, n_sensors=3, seed=0)
+    >>> report = design.excitation
+    >>> report.narrowband, report.method, bool(abs(report.frequencies - 18.3).min() < 0.01)
+    (True, 'modal', True)
     """
 
     narrowband: bool
@@ -519,6 +537,12 @@ class ExcitationReport:
     @property
     def message(self) -> str:
         """One sentence: what the record excites and what a model of it can know."""
+        if not self.narrowband and self.method == "modal":  # asked for: method="modal"
+            return (f"Record not narrowband ({self.n_lines} spectral lines leave "
+                    f"{self.residual_ratio:.3g} x the noise variance; "
+                    f"{100 * self.occupancy:.2g} % of the frequency bins above the noise): one "
+                    "oscillator per line as asked (method='modal'); what the lines leave out is "
+                    "not modelled.")
         if not self.narrowband:
             return (f"Broadband record ({100 * self.occupancy:.2g} % of the frequency bins above "
                     "the noise): time-delay DMD model.")
@@ -549,6 +573,10 @@ def _smooth_basis(positions: np.ndarray, moving: np.ndarray, count: int) -> np.n
     count = min(count, idx.size)
     if count == 0:
         return np.zeros((x.size, 0))
+    if idx.size == 1:  # one moving node (also a one-node record: no element lengths)
+        fields = np.zeros((x.size, 1))
+        fields[order[idx]] = 1.0
+        return fields
     inv_h = 1.0 / np.diff(x)                        # 1 / element length, between node j, j+1
     left = np.where(idx > 0, inv_h[np.maximum(idx - 1, 0)], 0.0)
     right = np.where(idx < x.size - 1, inv_h[np.minimum(idx, x.size - 2)], 0.0)
@@ -558,10 +586,7 @@ def _smooth_basis(positions: np.ndarray, moving: np.ndarray, count: int) -> np.n
     diag = (left + right) * scale**2
     adjacent = np.diff(idx) == 1                    # both neighbours move: coupled
     off = np.where(adjacent, -inv_h[idx[:-1]], 0.0) * scale[:-1] * scale[1:]
-    if idx.size == 1:
-        vectors = np.ones((1, 1))
-    else:
-        _, vectors = sla.eigh_tridiagonal(diag, off, select="i", select_range=(0, count - 1))
+    _, vectors = sla.eigh_tridiagonal(diag, off, select="i", select_range=(0, count - 1))
     fields = np.zeros((x.size, vectors.shape[1]))
     fields[order[idx]] = vectors * scale[:, None]
     return fields / np.linalg.norm(fields, axis=0)
@@ -788,20 +813,28 @@ def _unseen_directions(fields: np.ndarray, smooth: np.ndarray) -> np.ndarray:
     return basis[:, new][:, :_UNSEEN_COUNT]
 
 
-def _independent_lines(frequencies: np.ndarray, shapes: np.ndarray, spatial: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def _independent_lines(frequencies: np.ndarray, shapes: np.ndarray, spatial: np.ndarray,
+                       strength: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Drop lines whose field shape the others already span (their oscillator is unobservable
-    apart from its twin and makes the filter's Riccati equation singular)."""
+    apart from its twin and makes the filter's Riccati equation singular).
+
+    The strongest lines (``strength``, e.g. their power) are kept first: with one node every
+    shape is the same, and the line kept must be the record's, not a weak neighbour of it.
+    The kept lines stay in the given (ascending frequency) order.
+    """
     fields = spatial @ shapes
     keep: list[int] = []
-    for j in range(fields.shape[1]):
+    order = (range(fields.shape[1]) if strength is None
+             else np.argsort(-np.asarray(strength), kind="stable"))
+    for j in order:
         if keep:
             q, _ = np.linalg.qr(fields[:, keep])
             distance = float(np.linalg.norm(fields[:, j] - q @ (q.T @ fields[:, j])))
         else:
             distance = float(np.linalg.norm(fields[:, j]))
         if distance > 1e-6:   # unit columns: 1e-6 is round-off of a repeated shape
-            keep.append(j)
+            keep.append(int(j))
+    keep.sort()
     return frequencies[keep], fields[:, keep]
 
 
@@ -983,8 +1016,15 @@ def design_estimator(
     if method == "modal" or (method == "auto" and occupancy < _NARROWBAND_OCCUPANCY):
         freqs, shapes, residual = _extract_lines(line_coords, dt, min(2 * k, _MAX_LINES))
         ratio = float(np.mean(residual**2)) / noise**2
+        if method == "modal" and not freqs.size:
+            raise IdentificationError(
+                "The 'method' parameter is 'modal' but the record holds no spectral line above "
+                f"its noise (std {noise:.3g} m): there is no oscillator to build. Use "
+                "method='dmd' or 'auto'."
+            )
         if freqs.size and (method == "modal" or ratio < _NARROWBAND_RESIDUAL):
-            freqs, fields = _independent_lines(freqs, shapes, line_basis)
+            power = np.array([_line_power(line_coords, f, dt) for f in freqs])
+            freqs, fields = _independent_lines(freqs, shapes, line_basis, power)
             excitation = ExcitationReport(narrowband=ratio < _NARROWBAND_RESIDUAL,
                                           occupancy=occupancy, frequencies=read_only(freqs),
                                           residual_ratio=ratio, method="modal")

@@ -944,3 +944,74 @@ def test_all_zero_check_from_the_gram_trace_is_exact():
     # Data so small that their squares underflow (Gram = 0) are data, not zeros.
     tiny = 1e-200 * np.random.default_rng(69).standard_normal((3, 30))
     assert np.all(np.isfinite(plc.fit_dmd(tiny, 0.01, alpha=1.0).A))
+
+
+# ------------------------------------------------------- review: against the textbook formulas
+def _textbook_fit(X, alpha, mode):
+    """A = X1 X0^T (X0 X0^T + alpha I)^-1 and Q = E E^T / N, written out (delays 1, no inputs);
+    relative alpha scales by the largest squared singular value of X0 (a full SVD)."""
+    X = np.asarray(X, dtype=float)
+    X0, X1 = X[:, :-1], X[:, 1:]
+    if mode == "relative":
+        alpha = alpha * np.linalg.svd(X0, compute_uv=False)[0] ** 2
+    A = np.linalg.solve(X0 @ X0.T + alpha * np.eye(X.shape[0]), X0 @ X1.T).T
+    E = X1 - A @ X0
+    return A, E @ E.T / X0.shape[1], alpha
+
+
+@pytest.mark.parametrize(
+    "n_nodes, n_samples, alpha, mode, layout, scale, seed",
+    [
+        (7, 90, 2e-3, "relative", "fortran", 1.0, 81),
+        (60, 400, 1e-5, "relative", "strided", 3e-4, 82),    # 60 rows: certified Krylov top
+        (130, 500, 1e-3, "relative", "float32", 1.0, 83),
+        (1, 12, 0.4, "absolute", "fortran", 1.0, 84),         # one node, very short
+        (25, 200, 1e3, "absolute", "strided", 1e6, 85),      # large scale, large alpha
+        (40, 300, 1e-4, "relative", "c", 1e-120, 86),        # tiny scale
+    ],
+)
+def test_fit_dmd_matches_the_textbook_formulas(n_nodes, n_samples, alpha, mode, layout, scale,
+                                               seed):
+    rng = np.random.default_rng(seed)
+    A_true = random_stable_system(n_nodes, rng, radius=0.95)
+    X = scale * simulate_discrete(A_true, rng.standard_normal(n_nodes), n_samples, rng=rng,
+                                  noise=0.05)
+    given = {"c": X, "fortran": np.asfortranarray(X),
+             "strided": np.repeat(X, 2, axis=1)[:, ::2],     # non-contiguous view
+             "float32": X.astype(np.float32)}[layout]
+    model = plc.fit_dmd(given, 0.01, alpha=alpha, alpha_mode=mode)
+    A, Q, absolute = _textbook_fit(given, alpha, mode)
+    # Both are linear solves of the same well-posed (alpha > 0) system: agreement to ~1e-12
+    # of the largest entry; Q from the Gram route loses up to eps / 1e-8 of the data's energy
+    # (its documented cancellation gate), hence 1e-7 there.
+    np.testing.assert_allclose(model.A, A, rtol=0, atol=1e-9 * np.abs(A).max())
+    np.testing.assert_allclose(model.residual_covariance, Q, rtol=0, atol=1e-7 * np.abs(Q).max())
+    assert model.alpha == pytest.approx(absolute, rel=1e-9)   # certified to ~1e-11
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"X": GOOD * 1e160}, "'X'.*largest magnitude.*Rescale"),   # Gram overflowed to inf
+        ({"X": GOOD * -1e300}, "'X'.*largest magnitude.*Rescale"),
+        ({"X": GOOD, "inputs": 1e200 * np.ones((1, 40))}, "'inputs'.*largest magnitude"),
+    ],
+)
+@pytest.mark.parametrize("entry", ["fit_dmd", "select_alpha", "OnlineDMD"])
+def test_data_whose_squares_overflow_are_refused(kwargs, match, entry):
+    X, u = kwargs["X"], kwargs.get("inputs")
+    call = {"fit_dmd": lambda: plc.fit_dmd(X, 0.01, alpha=1e-3, alpha_mode="relative",
+                                           rank=2, inputs=u),
+            "select_alpha": lambda: plc.select_alpha(X, 0.01, horizon=2, inputs=u),
+            "OnlineDMD": lambda: plc.OnlineDMD(X, 0.01, alpha=1e-3, inputs=u)}[entry]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")               # no overflow RuntimeWarning first
+        with pytest.raises(InputError, match=match):
+            call()
+
+
+def test_pod_fit_of_data_whose_squares_underflow_does_not_divide_by_zero():
+    # rank=2 on 1e-200 data: s_max > 0 but s_max**2 == 0 (was a ZeroDivisionError).
+    tiny = 1e-200 * np.random.default_rng(87).standard_normal((4, 40)).cumsum(axis=1)
+    model = plc.fit_dmd(tiny, 0.01, alpha=1e-3, alpha_mode="relative", rank=2)
+    assert np.all(np.isfinite(model.A)) and np.isfinite(model.alpha_relative)

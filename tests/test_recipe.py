@@ -369,3 +369,108 @@ def test_method_dmd_on_a_harmonic_record_does_not_warn_and_modal_names_its_lines
     assert f"({r} lines, {2 * r} states)" in modal.summary()
     assert modal.estimate_field(train.displacement[modal.sensors]).shape == train.x.shape + (
         train.t.size,)
+
+
+# ------------------------------------------------------------- review: edge cases of the recipe
+@pytest.mark.parametrize("beta", [1.0, 0.999, 0.37])
+def test_marchenko_pastur_median_matches_quadrature(beta):
+    """Independent truth: the median of the Marchenko-Pastur density by adaptive quadrature and
+    root finding (beta = 1 has a 1/x pole at x = 0, which a uniform grid in x cannot take)."""
+    from scipy import integrate, optimize
+
+    from powerline_control.recipe import _marchenko_pastur_median
+
+    lo, hi = (1 - beta**0.5) ** 2, (1 + beta**0.5) ** 2
+
+    def density(x):
+        return np.sqrt(max((hi - x) * (x - lo), 0.0)) / (2 * np.pi * beta * x)
+
+    def cdf(m):
+        return integrate.quad(density, lo, m, limit=200)[0]
+
+    median = optimize.brentq(lambda m: cdf(m) - 0.5, lo + 1e-12, hi, xtol=1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        value = _marchenko_pastur_median(beta)
+    # 4000-point midpoint rule in the angle variable: ~1e-7 at beta = 1 and 0.37; just below 1
+    # the pole sits at lo ~ 2.5e-7, a transition of width sqrt(lo) narrower than the grid step,
+    # which costs ~3e-5 (the former grid in x was 3 % off there). 1e-4 of a median ~0.65.
+    assert abs(value - median) < 1e-4
+
+
+def test_noise_floor_of_a_square_white_noise_matrix():
+    """A square record (n_nodes == n_samples, beta = 1) used to give NaN and a RuntimeWarning.
+    Truth: the std of the white noise itself."""
+    from powerline_control.recipe import _noise_floor
+
+    rng = np.random.default_rng(2718)
+    X = 0.3 * rng.standard_normal((150, 150))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sigma, threshold = _noise_floor(np.linalg.svd(X, compute_uv=False), X.shape)
+    # The median singular value of a 150 x 150 Gaussian matrix scatters by ~1 %: 5 % is wide.
+    assert abs(sigma / 0.3 - 1.0) < 0.05 and np.isfinite(threshold)
+
+
+def test_smooth_basis_of_a_single_moving_node_is_that_node():
+    from powerline_control.recipe import _smooth_basis
+
+    one = _smooth_basis(np.array([0.4]), np.array([True]), 3)     # a one-node record
+    assert one.shape == (1, 1) and one[0, 0] == 1.0
+    field = _smooth_basis(np.array([0.0, 0.5, 1.5]), np.array([False, True, False]), 2)
+    assert np.array_equal(field, [[0.0], [1.0], [0.0]])
+
+
+@pytest.mark.parametrize("frequency, amplitude, phase", [(11.7, 0.7, 0.4), (17.3, 1.0, 0.0)])
+@pytest.mark.parametrize("method", ["auto", "modal", "dmd"])
+def test_one_node_record_gives_a_working_estimator(method, frequency, amplitude, phase):
+    """One node (used to raise IndexError in _smooth_basis for every method, and a 'Mean of
+    empty slice' RuntimeWarning in the DMD held-out score with no unmeasured node). At 17.3 Hz
+    the extraction also finds a weak spurious neighbour a bin below; with one node both have
+    the same shape and the stronger (the record's own line) must be the one kept."""
+    dt, n = 1e-3, 3000
+    t = np.arange(n) * dt
+    clean = amplitude * np.sin(2 * np.pi * frequency * t + phase)
+    rng = np.random.default_rng(606)
+    X = clean[None] + 0.01 * rng.standard_normal((1, n))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warnings.simplefilter("ignore", plc.ExcitationWarning)   # one line: narrowband
+        design = plc.design_estimator(X, dt=dt, n_sensors=1, noise_std=0.01, delays=2, rank=2,
+                                      method=method)
+    if design.excitation.method == "modal":
+        # A 3 s line at SNR 70 per sample is located to well under 1 mHz; 10 mHz is generous.
+        assert np.allclose(design.excitation.frequencies, [frequency], atol=0.01)
+    estimate = design.estimate_field(X)
+    # The filter averages the 0.01 m measurement noise: its error must be below that noise.
+    error = float(np.sqrt(np.mean((estimate[0, 200:] - clean[200:]) ** 2)))
+    assert error < 0.01
+
+
+def test_modal_method_on_a_broadband_record_says_what_it_built():
+    """Two lines on top of a white field in three smooth shapes (broadband, 50x the sensor
+    noise): every bin is above the noise, so the record is not narrowband."""
+    rng = np.random.default_rng(77)
+    x = np.linspace(0.0, 1.0, 12)
+    t = np.arange(3000) * 1e-3
+    shapes = np.array([np.sin((j + 1) * np.pi * x) for j in range(3)])
+    X = (np.outer(shapes[0], np.sin(2 * np.pi * 13.1 * t))
+         + np.outer(shapes[1], np.sin(2 * np.pi * 27.4 * t + 1.0))
+         + 0.05 * shapes.T @ rng.standard_normal((3, t.size))
+         + 0.001 * rng.standard_normal((12, t.size)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")              # not narrowband: no ExcitationWarning
+        design = plc.design_estimator(X, dt=1e-3, n_sensors=4, delays=4, rank=8,
+                                      method="modal")
+    ex = design.excitation
+    assert ex.method == "modal" and not ex.narrowband and ex.residual_ratio > 1.5
+    # The message used to read "Broadband record ...: time-delay DMD model." for this model.
+    assert "DMD" not in ex.message and "method='modal'" in ex.message
+    assert "time-delay DMD" not in design.summary()
+
+
+def test_modal_method_without_spectral_lines_is_refused():
+    rng = np.random.default_rng(88)
+    with pytest.raises(plc.IdentificationError, match="'method'"):  # used to fall back to DMD
+        plc.design_estimator(rng.standard_normal((10, 2000)), dt=1e-3, n_sensors=2,
+                             delays=4, rank=8, method="modal")
