@@ -255,7 +255,8 @@ class RobotConfig:
     suspended_mass: float = _key(0.05, "kg", "Mass of the tuned absorber.", low=0.0, high=1000.0)
     damping_ratio: float = _key(
         0.0, "", "Damping ratio of the absorber; 0 takes Den Hartog's optimum (frequency and "
-        "damping) for the line's mode nearest the load.", low=0.0, low_inclusive=True, high=1.0,
+        "damping) for the line's mode nearest the load; > 0: this ratio, c / (2 m omega_a), at "
+        "Den Hartog's frequency.", low=0.0, low_inclusive=True, high=1.0,
         high_inclusive=False)
     v_max: float = _key(0.5, "m/s", "Largest robot speed.", low=0.0, high=20.0)
     a_max: float = _key(1.0, "m/s^2", "Largest robot acceleration.", low=0.0, high=100.0)

@@ -543,9 +543,13 @@ class ExcitationReport:
                     f"{100 * self.occupancy:.2g} % of the frequency bins above the noise): one "
                     "oscillator per line as asked (method='modal'); what the lines leave out is "
                     "not modelled.")
-        if not self.narrowband:
+        if not self.narrowband and self.occupancy >= _NARROWBAND_OCCUPANCY:
             return (f"Broadband record ({100 * self.occupancy:.2g} % of the frequency bins above "
                     "the noise): time-delay DMD model.")
+        if not self.narrowband:  # few bins, but its spectral lines do not explain it
+            return (f"Not a line spectrum: {100 * self.occupancy:.2g} % of the frequency bins "
+                    "above the noise, but its spectral lines leave much more than the noise: "
+                    "time-delay DMD model.")
         f = self.frequencies
         listed = ", ".join(f"{v:.4g}" for v in f[:12]) + (", ..." if f.size > 12 else "")
         return (f"Narrowband record: {f.size} spectral lines above the noise ({listed} Hz; "

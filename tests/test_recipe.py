@@ -474,3 +474,15 @@ def test_modal_method_without_spectral_lines_is_refused():
     with pytest.raises(plc.IdentificationError, match="'method'"):  # used to fall back to DMD
         plc.design_estimator(rng.standard_normal((10, 2000)), dt=1e-3, n_sensors=2,
                              delays=4, rank=8, method="modal")
+
+
+@pytest.mark.parametrize("occupancy, expected", [(0.31, "Broadband record (31 %"),
+                                                 (0.027, "Not a line spectrum: 2.7 %")])
+def test_excitation_message_of_a_record_the_lines_do_not_explain(occupancy, expected):
+    """Few bins above the noise but lines that leave much more than it (the real span's wind):
+    not called broadband; many bins: broadband. Both get the DMD model."""
+    from powerline_control.recipe import ExcitationReport
+
+    report = ExcitationReport(narrowband=False, occupancy=occupancy,
+                              frequencies=np.zeros(0), residual_ratio=float("nan"), method="dmd")
+    assert report.message.startswith(expected) and "time-delay DMD" in report.message
