@@ -753,10 +753,10 @@ def _largest_singular_value(M: np.ndarray, gram: np.ndarray | None = None) -> fl
     """Largest singular value, from the smaller Gram matrix (``gram`` if already computed).
 
     The top eigenvalue of a Gram matrix is accurate to relative round-off, and it costs far less
-    than an SVD: a certified block Krylov estimate or a partial symmetric eigensolver for small
-    Gram matrices, Lanczos for large ones.  Start vectors are pseudo-random with a fixed seed
-    (reproducible, and never orthogonal to the top eigenvector by a symmetry of the data, as a
-    vector of ones is to an antisymmetric mode).
+    than an SVD: a partial symmetric eigensolver for small Gram matrices, Lanczos for large
+    ones.  Lanczos starts from a pseudo-random vector with a fixed seed (reproducible, and never
+    orthogonal to the top eigenvector by a symmetry of the data, as a vector of ones is to an
+    antisymmetric mode).
     """
     if M.size == 0:
         return 0.0
@@ -764,58 +764,16 @@ def _largest_singular_value(M: np.ndarray, gram: np.ndarray | None = None) -> fl
         gram = M @ M.T if M.shape[0] <= M.shape[1] else M.T @ M
     k = gram.shape[0]
     if k <= 500:
-        top = _certified_top_eigenvalue(gram) if k <= _KRYLOV_LIMIT else None
-        if top is None:
-            try:
-                top = sla.eigvalsh(gram, subset_by_index=[k - 1, k - 1])[0]
-            except np.linalg.LinAlgError:  # syevr can fail on a tight cluster (G = c I)
-                top = np.linalg.eigvalsh(gram)[-1]
+        try:
+            top = sla.eigvalsh(gram, subset_by_index=[k - 1, k - 1])[0]
+        except np.linalg.LinAlgError:  # syevr can fail on a tight cluster (G = c I)
+            top = np.linalg.eigvalsh(gram)[-1]
     else:
         from scipy.sparse.linalg import eigsh
 
         start = np.random.default_rng(0).standard_normal(k)
         top = eigsh(gram, k=1, which="LA", v0=start, tol=0, return_eigenvectors=False)[0]
     return math.sqrt(max(float(top), 0.0))
-
-
-#: Block Krylov space of _certified_top_eigenvalue: _KRYLOV_BLOCK x _KRYLOV_STEPS vectors.
-_KRYLOV_BLOCK, _KRYLOV_STEPS = 4, 6
-#: ... used up to this size (above it LAPACK's partial eigensolver is cheap next to the Gram).
-_KRYLOV_LIMIT = 200
-#: Relative slack of its certificate: far above the Cholesky round-off k eps (k <= 500).
-_CERTIFICATE_SLACK = 1e-11
-#: Its start block: pseudo-random with a fixed seed, drawn once.
-_KRYLOV_START = np.random.default_rng(0).standard_normal((_KRYLOV_LIMIT, _KRYLOV_BLOCK))
-
-
-def _certified_top_eigenvalue(gram: np.ndarray) -> float | None:
-    """Top eigenvalue of a symmetric PSD matrix to ~1e-11 relative, or None when not certified.
-
-    A Rayleigh-Ritz value ``theta`` on a small block Krylov space never exceeds the top
-    eigenvalue; a Cholesky factorisation of ``theta (1 + slack) I - G`` succeeds only when no
-    eigenvalue exceeds ``theta (1 + slack)``.  Both together pin the top eigenvalue; at 101
-    states this costs about half of LAPACK's partial eigensolver (a tridiagonal reduction).
-    """
-    k = gram.shape[0]
-    width = _KRYLOV_BLOCK * _KRYLOV_STEPS
-    if k <= 2 * width:
-        return None
-    basis = np.empty((k, width))
-    basis[:, :_KRYLOV_BLOCK] = _KRYLOV_START[:k]
-    for step in range(1, _KRYLOV_STEPS):
-        block = gram @ basis[:, (step - 1) * _KRYLOV_BLOCK : step * _KRYLOV_BLOCK]
-        scale = np.abs(block).max()
-        if not scale > 0:
-            return None
-        basis[:, step * _KRYLOV_BLOCK : (step + 1) * _KRYLOV_BLOCK] = block / scale
-    orthonormal, _ = np.linalg.qr(basis)
-    theta = float(np.linalg.eigvalsh(orthonormal.T @ (gram @ orthonormal))[-1])
-    if not theta > 0:
-        return None
-    shifted = gram * -1.0
-    shifted.reshape(-1)[:: k + 1] += theta * (1.0 + _CERTIFICATE_SLACK)
-    _, info = _potrf(shifted.T, lower=1, overwrite_a=1, clean=0)  # symmetric: .T is Fortran
-    return theta if info == 0 else None
 
 
 @dataclass(frozen=True, eq=False)

@@ -691,7 +691,8 @@ def _extract_lines(coords: np.ndarray, dt: float, max_lines: int
             j = int(np.argmin(np.abs(np.array(found) - grid[top])))
             if j not in tried:
                 tried.add(j)
-                noise_energy = floor / (k * float(np.sum(window**2))) * k * n / n
+                # White-noise energy per sample summed over the coordinates (periodogram median).
+                noise_energy = floor / float(np.sum(window**2))
                 pair = _split_line(res + parts[j], found[j], dt, bin_width,
                                    min_gain=40.0 * k * noise_energy)
                 if pair is not None:
@@ -966,7 +967,7 @@ def design_estimator(
 
     # 1. Spatial POD: the coordinates above round-off (at most spatial_rank).
     spatial, s = _spatial_basis(X, min(spatial_rank, n_nodes))
-    sigma_est, _ = _noise_floor(s, X.shape)
+    sigma_est, gd_threshold = _noise_floor(s, X.shape)
     above = int(np.count_nonzero(s > _ROUND_OFF_FRACTION * s[0]))
     k = max(1, min(spatial_rank, above, n_nodes))
     k = min(max(k, math.ceil(rank / delays)), spatial.shape[1])  # enough for the rank
@@ -1008,7 +1009,6 @@ def design_estimator(
     moving = np.zeros(n_nodes, dtype=bool)
     moving[candidates] = True
     node_x = np.arange(n_nodes, dtype=float) if positions is None else positions
-    _, gd_threshold = _noise_floor(s, X.shape)
     n_signal = max(1, min(k, int(np.count_nonzero(s > gd_threshold))))
     line_basis = _completed_basis(spatial[:, :n_signal],
                                   _smooth_basis(node_x, moving, k + n_signal), k)
