@@ -308,8 +308,7 @@ class _Study:
             return None
         position = 0.31 * self.span.length  # off the symmetry points: drives every low mode
         shaker = RandomForce(ident.shaker, position, ident.shaker_bandwidth, seed=sim.seed + 1)
-        forces = list(self.force) if isinstance(self.force, list | tuple) else [self.force]
-        self.train_snap = simulate(self.model, [*forces, shaker],
+        self.train_snap = simulate(self.model, [self.force, shaker],
                                    duration=self.n_train * sim.dt, dt=sim.dt,
                                    noise_fraction=sim.noise_fraction, seed=sim.seed + 1)
         return ("identification run",

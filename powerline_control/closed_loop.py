@@ -1646,7 +1646,7 @@ def run_closed_loop(
 
     # ---- the loop: every control period, estimate, choose a target, move (and simulate)
     state = _LoopState(robot.position, 0.0, robot.position,
-                   calibrated.start_states[n_cal - 1].copy())
+                       calibrated.start_states[n_cal - 1].copy())
     targeting = _Targeting()
     planner = _motion_planner(settings, span.length)
     timings = {"setup": time.perf_counter() - setup_start, "plant": 0.0, "plant update": 0.0,
