@@ -12,7 +12,9 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import powerline_control as plc
-from powerline_control.closed_loop import _ModalPlant, _reach, run_closed_loop
+from powerline_control.closed_loop import run_closed_loop
+from powerline_control.closed_loop.plant import ModalPlant as _ModalPlant
+from powerline_control.closed_loop.policy import reach_within as _reach
 from powerline_control.tuning import tune_damper
 
 LAB = plc.Span.paper_lab()
@@ -480,19 +482,19 @@ def test_band_plant_field_of_a_long_span_matches_the_modal_sum():
     # flexibility 1 / omega_k^2 (a static-sag-shaped field ~100x the true vibration). Truth: the
     # closed-form steady state of the pinned taut beam, 3000 modes sin(n pi x / L) of modal mass
     # m L / 2, mass-proportional damping C = a M (the same i a omega in every mode).
-    from powerline_control import closed_loop as cl
+    from powerline_control.closed_loop import plant as cl
 
     span = plc.Span.at_rts_fraction(100.0, "drake", 0.20)
     a, f0, freq, x_f = 0.4, 1.5, 15.2, 31.7
     bare = plc.LineModel(span, 300, damping=plc.RayleighDamping(a, 0.0))
-    modes = cl._default_modes(span, bare, [freq], 1e-3)
+    modes = cl.default_modes(span, bare, [freq], 1e-3)
     assert np.ndim(modes) == 1 and modes[0] > 10        # a band: modes below it are left out
     plant = _ModalPlant(bare, None, modes, 1e-3)
     force = plc.HarmonicForce(f0, freq, x_f)
     t = 1e-3 * np.arange(5)
-    _, _, (frequency, parts) = cl._load_histories(bare, plant, cl._segments(force, 1.0), t)
+    _, _, (frequency, parts) = cl.load_histories(bare, plant, cl.load_segments(force, 1.0), t)
     omega = 2 * np.pi * frequency
-    phasor = cl._phasor_of(force, frequency)
+    phasor = cl.phasor_of(force, frequency)
     field = sum((plant.nodal @ plant.modal_response(g, omega) + static) * phasor
                 for _, g, static in parts)
     n = np.arange(1, 3001)[:, None]

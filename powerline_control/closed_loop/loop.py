@@ -1,0 +1,797 @@
+"""run_closed_loop: sensors -> estimate -> target -> motion -> the robot moves, and the verdict."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from .._validation import (
+    check_budget,
+    check_indices,
+    check_int,
+    check_real,
+    check_rng,
+    read_only,
+)
+from ..errors import InputError
+from ..estimate import KalmanFilter
+from ..fem import MDR, LineModel
+from ..line import Span
+from ..plan import MotionPlanner, RobotLimits
+from ..recipe import design_estimator
+from .evaluation import all_comparisons, settling_of, steady_state_scan, trapezoid_weights
+from .plant import (
+    SMALL_PLANT_MODES,
+    ModalPlant,
+    damper_power,
+    default_modes,
+    load_histories,
+    load_segments,
+    nodal_field,
+    run_parked,
+)
+from .policy import (
+    TRAVEL_FRACTION,
+    Targeting,
+    choose_target,
+    dominant_frequency,
+    fit_phasor,
+    free_interval,
+    kernel_shape,
+    reach_within,
+    time_optimal_accel,
+)
+from .result import ClosedLoopResult
+
+GRAVITY = 9.81
+# A robot heavier than this fraction of the span's own mass is no longer a small attachment: the
+# slowly-varying-parameter plant and the single-mode tuning are not credible beyond it.
+MAX_ROBOT_MASS_RATIO = 0.25
+# Static slope of the line under the robot's weight, W / (2 T) at midspan: beyond 0.05 rad the
+# small-slope (linear taut-string) model of the line is not valid.
+MAX_STATIC_SLOPE = 0.05
+
+# ---------------------------------------------------------------------------------- validation
+def _check_robot(span: Span, robot: MDR) -> None:
+    if robot.position > span.length:
+        raise InputError(
+            f"The 'robot.position' parameter must lie on the span [0, {span.length:g}] m. "
+            f"Got {robot.position:g}."
+        )
+    total = robot.body_mass + robot.suspended_mass
+    span_mass = span.conductor.mass_per_length * span.length
+    if total > MAX_ROBOT_MASS_RATIO * span_mass:
+        raise InputError(
+            f"The 'robot' is too heavy for this span: {total:g} kg against a span mass of "
+            f"{span_mass:.3g} kg (allowed: at most {MAX_ROBOT_MASS_RATIO:g} of it, beyond which "
+            "the robot is not a small attachment of the line)."
+        )
+    slope = GRAVITY * total / (2 * span.tension)
+    if slope > MAX_STATIC_SLOPE:
+        raise InputError(
+            f"The 'robot' is too heavy for the tension: its weight {GRAVITY * total:.3g} N "
+            f"bends the line by {slope:.3g} rad at midspan (W / 2T; allowed "
+            f"<= {MAX_STATIC_SLOPE:g}, the small-slope limit of the linear line model)."
+        )
+
+
+def _check_multiple(name: str, value: float, dt: float) -> int:
+    steps = int(round(value / dt))
+    if steps < 1 or abs(steps * dt - value) > 1e-9 * max(1.0, value):
+        raise InputError(
+            f"The '{name}' parameter ({value:g} s) must be a positive multiple of dt ({dt:g} s)."
+        )
+    return steps
+
+
+def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
+    """The estimator recipe (:func:`~powerline_control.recipe.design_estimator`) on the
+    calibration record with the given sensors: filter, field map and the one-step sensor
+    predictor C A (for the innovation check)."""
+    options = {} if delays is None else {"delays": delays}
+    if rank is not None:
+        options["rank"] = rank
+    design = design_estimator(record, len(sensors), dt=dt, sensors=list(sensors),
+                              noise_std=noise_std if noise_std > 0 else None, **options)
+    sys = design.model.to_statespace(measured=list(sensors))
+    return (design.filter, np.asarray(design.model.field_map),
+            np.asarray(sys.C) @ np.asarray(sys.A))
+
+
+# ------------------------------------------------------------------------------------ the run
+# run_closed_loop tells the story of the run; these are its stages, in the order it calls them.
+
+
+@dataclass(frozen=True)
+class _Settings:
+    """run_closed_loop's options after checking, with the sample counts the run works in."""
+
+    limits: RobotLimits
+    duration: float
+    dt: float
+    control_period: float
+    steps_per_period: int       # samples per control step
+    plant_steps: int | None     # samples per plant block (None: chosen once the plant is known)
+    n_cal: int                  # samples of the calibration window (robot parked)
+    noise_fraction: float
+    planner_time_budget: float | None
+    antinode_window: float
+    frequency_window: float
+    retarget_threshold: float
+    settle_margin: float
+    delays: int | None
+    estimator_rank: int | None
+    motion: str
+    n_elements: int | None
+    obstacles: tuple
+
+    @property
+    def n_samples(self) -> int:
+        """Samples of the whole run (durations are floored to whole samples, as simulate does)."""
+        return int(np.floor(self.duration / self.dt + 1e-9)) + 1
+
+    @property
+    def window(self) -> int:
+        """Samples the excited shape is fitted on (at least two control periods)."""
+        return max(int(round(self.antinode_window / self.dt)), 2 * self.steps_per_period)
+
+    @property
+    def frequency_samples(self) -> int:
+        """Samples the dominant frequency is measured on (at least two control periods)."""
+        return max(int(round(self.frequency_window / self.dt)), 2 * self.steps_per_period)
+
+
+def _checked_settings(span, robot, limits, sensors, *, n_elements, duration, calibration, dt,
+                      control_period, plant_period, noise_fraction, delays, estimator_rank,
+                      antinode_window, frequency_window, retarget_threshold, settle_margin,
+                      obstacles, motion, planner_time_budget) -> _Settings:
+    """Every argument checked once, in a fixed order (the first bad one is the one reported)."""
+    if not isinstance(span, Span):
+        raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
+    if not isinstance(robot, MDR):
+        raise InputError(
+            f"The 'robot' parameter must be an MDR (its position is the start). "
+            f"Got {type(robot).__name__}."
+        )
+    _check_robot(span, robot)
+    limits = limits or RobotLimits(v_max=0.5, a_max=1.0)
+    if not isinstance(limits, RobotLimits):
+        raise InputError(
+            f"The 'limits' parameter must be RobotLimits or None. Got {type(limits).__name__}."
+        )
+    duration, dt, control_period, steps_per_period, plant_steps, n_cal = _checked_sampling(
+        duration, calibration, dt, control_period, plant_period
+    )
+    # < 1 as in scenarios (config): noise larger than the signal it measures is no experiment,
+    # and 1e300 overflowed into a raw NumPy "infs or NaNs" error.
+    noise_fraction = check_real("noise_fraction", noise_fraction, low=0.0, low_inclusive=True,
+                                high=1.0, high_inclusive=False)
+    if planner_time_budget is not None:  # checked even when motion="closed_form" ignores it
+        planner_time_budget = check_real("planner_time_budget", planner_time_budget, low=0.0)
+    antinode_window = check_real("antinode_window", antinode_window, low=0.0)
+    frequency_window = check_real("frequency_window", frequency_window, low=0.0)
+    retarget_threshold = check_real("retarget_threshold", retarget_threshold, low=0.0)
+    settle_margin = check_real("settle_margin", settle_margin, low=0.0, low_inclusive=True)
+    if delays is not None:
+        delays = check_int("delays", delays, low=1)
+    if estimator_rank is not None:
+        estimator_rank = check_int("estimator_rank", estimator_rank, low=1)
+    if motion not in ("closed_form", "mpc"):
+        raise InputError(f"The 'motion' parameter must be 'closed_form' or 'mpc'. Got {motion!r}.")
+    n_elements = _checked_mesh_and_sensors(n_elements, sensors, duration, dt)
+    return _Settings(
+        limits=limits, duration=duration, dt=dt, control_period=control_period,
+        steps_per_period=steps_per_period, plant_steps=plant_steps, n_cal=n_cal,
+        noise_fraction=noise_fraction, planner_time_budget=planner_time_budget,
+        antinode_window=antinode_window, frequency_window=frequency_window,
+        retarget_threshold=retarget_threshold, settle_margin=settle_margin, delays=delays,
+        estimator_rank=estimator_rank, motion=motion, n_elements=n_elements,
+        obstacles=tuple(_checked_obstacles(obstacles, robot)),
+    )
+
+
+def _checked_sampling(duration, calibration, dt, control_period, plant_period):
+    """(duration, dt, control_period, steps per control period, steps per plant block or None,
+    calibration samples): the run's times, whose rates must divide dt."""
+    duration = check_real("duration", duration, low=0.0)
+    calibration = check_real(
+        "calibration", calibration, low=0.0, high=duration, high_inclusive=False
+    )
+    dt = check_real("dt", dt, low=0.0)
+    # A period longer than the run would never act (1e300 was accepted and ignored).
+    control_period = check_real("control_period", control_period, low=0.0, high=duration)
+    if plant_period is not None:
+        plant_period = check_real("plant_period", plant_period, low=0.0, high=duration)
+    steps_per_period = _check_multiple("control_period", control_period, dt)
+    plant_steps = (
+        _check_multiple("plant_period", plant_period, dt) if plant_period is not None else None
+    )
+    # Durations are sampled (floored to whole samples, as simulate does); rates must divide.
+    n_cal = int(np.floor(calibration / dt + 1e-9)) + 1
+    if n_cal < 3:
+        raise InputError(
+            f"The 'calibration' parameter ({calibration:g} s) must hold at least 2 samples of "
+            f"dt ({dt:g} s)."
+        )
+    return duration, dt, control_period, steps_per_period, plant_steps, n_cal
+
+
+def _checked_mesh_and_sensors(n_elements, sensors, duration, dt):
+    """The checked n_elements; the sensors and the run's memory checked before any model."""
+    if n_elements is not None:  # the sensors early, before any model is built
+        n_elements = check_int("n_elements", n_elements, low=2)
+        check_indices("sensors", sensors, n_elements + 1)
+    # The loop records ~4 node histories and ~16 scalars per sample (and the parked comparisons):
+    # refuse a duration / dt that cannot fit before anything is built (n_elements=None: >= 2 nodes).
+    n_samples = int(np.floor(duration / dt + 1e-9)) + 1
+    check_budget(f"run_closed_loop's {n_samples}-sample histories",
+                 nbytes=8.0 * n_samples * (4 * (n_elements + 1 if n_elements else 2) + 16),
+                 parameter="duration", value=duration,
+                 fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use fewer "
+                     f"elements (n_elements={n_elements})")
+    if len(set(sensors)) != len(sensors):
+        raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
+    return n_elements
+
+
+def _checked_obstacles(obstacles, robot: MDR) -> list[tuple[float, float]]:
+    """(left, right) pairs, left < right, none holding the robot's start."""
+    try:
+        pairs = [tuple(pair) for pair in obstacles]
+    except TypeError:
+        pairs = [()]
+    if any(len(pair) != 2 for pair in pairs):
+        raise InputError("The 'obstacles' parameter must be a sequence of (left, right) pairs "
+                         f"in m. Got {obstacles!r}.")
+    checked = [(check_real("obstacles", a), check_real("obstacles", b)) for a, b in pairs]
+    for left, right in checked:
+        if not left < right:
+            raise InputError(f"Each of 'obstacles' must be (left, right), left < right. Got "
+                             f"{(left, right)}.")
+        if left <= robot.position <= right:
+            raise InputError(
+                f"The 'robot.position' ({robot.position:g} m) lies inside the obstacle "
+                f"{(left, right)}."
+            )
+    return checked
+
+
+@dataclass(frozen=True)
+class _Line:
+    """The simulated line: the bare FE model, the plant with and without the robot, the loads."""
+
+    span: Span
+    bare: LineModel
+    sensors: tuple              # measured node indices, sorted (the estimator's output order)
+    sensor_rows: np.ndarray     # (p, r): the plant modes' displacements at the sensors
+    clamp_distance: float       # where the "near_clamp" comparison parks the robot, m
+    t: np.ndarray               # (n_t,) sample times, s
+    plant: ModalPlant          # with the robot
+    free_plant: ModalPlant     # without it (the "no_robot" comparison)
+    plant_steps: int            # samples per plant block (the robot's position held)
+    modal_force: np.ndarray     # (n_t, r)
+    residual: np.ndarray        # (n_nodes, n_t): the dropped modes' response to the loads
+    harmonic: tuple | None      # (frequency, parts) of the last load when it is one sine
+    weights: np.ndarray         # (n_nodes,) trapezoid weights: RMS over the span by length
+
+
+def _build_line(span, robot, segments, settings: _Settings, sensors, *, bc, damping, n_modes,
+                clamp_distance) -> _Line:
+    """The FE model, the sensors on it, the modal plant and the loads' histories."""
+    bare = LineModel(span, settings.n_elements, bc, damping=damping)
+    sensors = tuple(sorted(check_indices("sensors", sensors, bare.n_nodes).tolist()))
+    fixed_nodes = [j for j in sensors if bare.displacement_map()[[j]].nnz == 0]
+    if fixed_nodes:
+        raise InputError(
+            f"The 'sensors' parameter names support node(s) {fixed_nodes}, where the line does "
+            "not move: the estimator's model has no displacement there."
+        )
+    clamp_distance = (
+        min(0.05 * span.length, 1.5)
+        if clamp_distance is None
+        else check_real("clamp_distance", clamp_distance, low=0.0, high=span.length)
+    )
+    t = settings.dt * np.arange(settings.n_samples)
+    load_frequencies = [
+        float(b.frequency)
+        for _, loads in segments
+        for f in loads
+        for b in [f.bind(bare) if hasattr(f, "bind") else f]
+        if getattr(b, "frequency", None) is not None   # a user's load may say None: not a sine
+    ]
+    if n_modes is None:
+        n_modes = default_modes(span, bare, load_frequencies, settings.dt)
+    else:
+        n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
+    plant = ModalPlant(bare, robot, n_modes, settings.dt)
+    plant_steps = settings.plant_steps
+    if plant_steps is None:
+        # 10 ms blocks, or one block per control period for a long span's band of ~100 modes
+        # (each new position costs an exponential of a (4r + 2)-square matrix).
+        plant_steps = (
+            settings.steps_per_period
+            if plant.r > SMALL_PLANT_MODES
+            else max(1, min(settings.steps_per_period, int(round(0.01 / settings.dt))))
+        )
+    free_plant = ModalPlant(bare, None, n_modes, settings.dt)
+    modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
+    return _Line(
+        span=span, bare=bare, sensors=sensors, sensor_rows=plant.nodal[list(sensors)],
+        clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant,
+        plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
+        weights=trapezoid_weights(bare.node_positions),
+    )
+
+
+
+@dataclass(frozen=True)
+class _Calibration:
+    """The estimator, designed on the first window with the robot parked at its start."""
+
+    start_states: np.ndarray    # (n_t, 2 n_q): the plant parked at the start for the whole run
+    noise_std: float            # the sensors' noise, m
+    record: np.ndarray          # (n_nodes, n_cal) noisy calibration field
+    robot_record: np.ndarray    # (n_cal,) noisy line displacement under the robot
+    kf: KalmanFilter            # warmed up on the record; it keeps stepping in the loop
+    field_map: np.ndarray       # estimator states -> nodal displacements
+    predict_sensors: np.ndarray  # one-step sensor predictor C A (the innovation check)
+    warm_states: np.ndarray     # (n_cal, n_states) the filter's states over the record
+    innovation_rms: float       # RMS one-step prediction error of the sensors over the record
+    innovation_power: np.ndarray  # (n_cal,) its mean square per sample (0 for the first two)
+
+
+def _calibrate(line: _Line, robot: MDR, settings: _Settings, rng) -> _Calibration:
+    """Simulate the parked start, add sensor noise, identify the estimator and warm it up."""
+    n_cal, sensor_list = settings.n_cal, list(line.sensors)
+    start_states = run_parked(line.plant, robot.position, line.modal_force, line.t.size)
+    calib_true = nodal_field(line.plant, start_states[:n_cal], line.residual[:, :n_cal])
+    calib_rms = float(np.sqrt(np.mean(calib_true**2)))
+    noise_std = settings.noise_fraction * calib_rms
+    record = calib_true + noise_std * rng.standard_normal(calib_true.shape)
+    kf, field_map, predict_sensors = _calibrated_filter(
+        record, settings.dt, sensor_list, settings.delays, noise_std, settings.estimator_rank
+    )
+    # C order, as the run's state history it is copied into (the same BLAS calls below)
+    warm_states = np.ascontiguousarray(
+        np.asarray(kf.filter(record[sensor_list], update_state=True).states).T
+    )
+    innovation = record[sensor_list, 2:] - predict_sensors @ warm_states[1 : n_cal - 1].T
+    innovation_power = np.zeros(n_cal)
+    innovation_power[2:] = np.mean(innovation**2, axis=0)
+    robot_record = start_states[:n_cal, : line.plant.r] @ line.plant.coupling(robot.position) + (
+        noise_std * rng.standard_normal(n_cal)
+    )
+    return _Calibration(
+        start_states=start_states, noise_std=noise_std, record=record,
+        robot_record=robot_record, kf=kf, field_map=field_map, predict_sensors=predict_sensors,
+        warm_states=warm_states, innovation_rms=float(np.sqrt(np.mean(innovation**2))),
+        innovation_power=innovation_power,
+    )
+
+
+@dataclass
+class _Records:
+    """What the run records: histories over every sample (filled as it goes; the calibration
+    window first) and a log of every control step."""
+
+    plant_states: np.ndarray    # (n_t, 2 n_q) true plant states
+    filter_states: np.ndarray   # (n_t, n_states) the Kalman filter's
+    position: np.ndarray        # (n_t,) robot position, m
+    velocity: np.ndarray        # (n_t,) robot velocity, m/s
+    target: np.ndarray          # (n_t,) the goal steered to (NaN before the first)
+    measured: np.ndarray        # (p, n_t) noisy sensor displacements
+    robot_measured: np.ndarray  # (n_t,) noisy line displacement under the robot
+    innovation_power: np.ndarray  # (n_t,) mean square one-step prediction error of the sensors
+    statuses: list = field(default_factory=list)
+    frequencies: list = field(default_factory=list)
+    innovation_ratio: list = field(default_factory=list)
+    retarget_times: list = field(default_factory=list)
+    target_starts: list = field(default_factory=list)   # sample index of each new target
+    predictions: list = field(default_factory=list)
+
+    @classmethod
+    def after_calibration(cls, line: _Line, calibration: _Calibration, robot: MDR,
+                          n_cal: int) -> _Records:
+        """Histories for the whole run, the calibration window's filled in."""
+        n_t = line.t.size
+        records = cls(
+            plant_states=np.empty((n_t, calibration.start_states.shape[1])),
+            filter_states=np.empty((n_t, calibration.field_map.shape[1])),
+            position=np.full(n_t, robot.position),
+            velocity=np.zeros(n_t),
+            target=np.full(n_t, np.nan),
+            measured=np.zeros((len(line.sensors), n_t)),
+            robot_measured=np.zeros(n_t),
+            innovation_power=np.zeros(n_t),
+        )
+        records.plant_states[:n_cal] = calibration.start_states[:n_cal]
+        records.filter_states[:n_cal] = calibration.warm_states
+        records.measured[:, :n_cal] = calibration.record[list(line.sensors)]
+        records.robot_measured[:n_cal] = calibration.robot_record
+        records.innovation_power[:n_cal] = calibration.innovation_power
+        return records
+
+
+@dataclass
+class _LoopState:
+    """Where the loop stands between control steps: the robot's motion and the plant's state."""
+
+    position: float             # the robot's, m
+    velocity: float             # the robot's, m/s
+    steer: float                # where it was last steered to (the goal, in its free interval)
+    plant_state: np.ndarray     # the plant's state z = (q, y, q', y') at this sample
+
+
+
+def _motion_planner(settings: _Settings, span_length: float) -> MotionPlanner | None:
+    """The receding-horizon planner for motion="mpc"; None for the closed-form law."""
+    if settings.motion != "mpc":
+        return None
+    limits, control_period = settings.limits, settings.control_period
+    braking = limits.v_max / limits.a_max
+    return MotionPlanner(
+        limits, dt=control_period, horizon=max(40, int(np.ceil(2 * braking / control_period))),
+        span_length=span_length, obstacles=list(settings.obstacles),
+        **({} if settings.planner_time_budget is None
+           else {"time_budget": settings.planner_time_budget}),
+    )
+
+
+def _observe(records: _Records, calibration: _Calibration, settings: _Settings,
+             k: int) -> float:
+    """The dominant frequency the sensors show up to sample k; logs it and the innovation ratio
+    (the estimator's recent one-step error over its calibration value)."""
+    lo = max(k + 1 - settings.window, 0)
+    frequency = dominant_frequency(
+        records.measured[:, max(k + 1 - settings.frequency_samples, 0) : k + 1], settings.dt
+    )
+    records.frequencies.append(frequency)
+    records.innovation_ratio.append(
+        float(np.sqrt(np.mean(records.innovation_power[lo + 1 : k + 1])))
+        / max(calibration.innovation_rms, 1e-300)
+    )
+    return frequency
+
+
+def _bare_shape(records: _Records, line: _Line, robot: MDR, x_r: float, lo: int, end: int,
+                frequency: float) -> np.ndarray:
+    """The robot-free excited shape from the sensors' and the robot's own phasors on [lo, end]."""
+    tt = line.t[lo : end + 1]
+    sensed = fit_phasor(records.measured[:, lo : end + 1], tt, frequency)
+    at_robot = fit_phasor(records.robot_measured[None, lo : end + 1], tt, frequency)[0]
+    return kernel_shape(line.plant, line.sensor_rows, sensed, robot, x_r, at_robot,
+                         2 * np.pi * frequency)
+
+
+def _excited_shape(records: _Records, line: _Line, robot: MDR, x_r: float, end: int,
+                   frequency: float, window: int) -> tuple[np.ndarray, float]:
+    """W_bare over the last window (estimate phasor minus the robot's own reaction), and how
+    unsteady it is: the relative difference of the shapes fitted on its two halves."""
+    lo = max(end + 1 - window, 0)
+    mid = (lo + end) // 2
+    first = _bare_shape(records, line, robot, x_r, lo, mid, frequency)
+    second = _bare_shape(records, line, robot, x_r, mid, end, frequency)
+    scale = np.linalg.norm(first) + np.linalg.norm(second)
+    unsteady = 2 * float(np.linalg.norm(first - second)) / max(scale, 1e-300)
+    return _bare_shape(records, line, robot, x_r, lo, end, frequency), unsteady
+
+
+def _update_target(targeting: Targeting, state: _LoopState, records: _Records, line: _Line,
+                   robot: MDR, settings: _Settings, k: int, frequency: float) -> None:
+    """The policy at control step k: choose a first target, confirm it once the robot has
+    settled, or choose anew after a wind change (module doc)."""
+    t = line.t
+    robot_still = abs(state.velocity) < 1e-3 and abs(state.position - state.steer) < 1e-3
+    targeting.update_clocks(t[k], robot_still, frequency, settings.retarget_threshold)
+    retarget, confirm = targeting.due(t[k], robot_still, settings.window * settings.dt,
+                                      settings.settle_margin)
+    if not (retarget or confirm):
+        return
+    shape, unsteady = _excited_shape(records, line, robot, state.position, k, frequency,
+                                     settings.window)
+    retarget, confirm = targeting.gate_unsteady(retarget, confirm, unsteady, t[k])
+    if not (retarget or confirm):
+        return
+    low, high = free_interval(state.position, settings.obstacles, line.span.length)
+    reach = reach_within(settings.limits, TRAVEL_FRACTION * (t[-1] - t[k]))
+    choice = choose_target(shape, line.plant, robot, 2 * np.pi * frequency, line.weights,
+                            state.position, low, high, reach)
+    if choice is None:
+        return
+    position, loop, grid, predicted = choice
+    records.predictions.append((float(t[k]), grid, predicted, read_only(shape)))
+    if retarget:
+        records.retarget_times.append(float(t[k]))
+        records.target_starts.append(k)
+    targeting.accept(position, loop, frequency, retarget)
+
+
+def _move_robot(state: _LoopState, goal: float, records: _Records, settings: _Settings,
+                planner: MotionPlanner | None, span_length: float, k: int, end: int) -> None:
+    """Steer towards the goal (clipped to the free interval) over samples k..end and record the
+    robot's motion: one constant acceleration, the limits held at every sample."""
+    x_r, v_r, limits = state.position, state.velocity, settings.limits
+    low, high = free_interval(x_r, settings.obstacles, span_length)
+    steer = float(np.clip(goal, low, high)) if not np.isnan(goal) else x_r
+    period = (end - k) * settings.dt
+    if planner is not None:
+        step = planner.step((x_r, v_r), steer)
+        accel, status = float(step.acceleration), step.status
+    else:
+        accel = time_optimal_accel(x_r, v_r, steer, limits, period)
+        status = "closed_form" if steer == goal or np.isnan(goal) else "blocked"
+    records.statuses.append(status)
+    # The actuator saturates: limits hold at every sample.
+    accel = float(np.clip(accel, -limits.a_max, limits.a_max))
+    accel = float(np.clip(accel, (-limits.v_max - v_r) / period, (limits.v_max - v_r) / period))
+    tau = settings.dt * np.arange(1, end - k + 1)
+    records.position[k + 1 : end + 1] = x_r + v_r * tau + 0.5 * accel * tau**2
+    records.velocity[k + 1 : end + 1] = v_r + accel * tau
+    records.target[k + 1 : end + 1] = goal
+    state.steer = steer
+
+
+def _advance_plant(state: _LoopState, records: _Records, line: _Line, calibration: _Calibration,
+                   rng, timings: dict, k: int, end: int) -> None:
+    """Simulate, sense and filter samples k..end in blocks that hold the robot's mid-block
+    position; leaves the loop's state at sample end."""
+    j = k
+    while j < end:
+        block_end = min(j + line.plant_steps, end)
+        x_mid = 0.5 * (records.position[j] + records.position[block_end])
+        tic = time.perf_counter()
+        phi, g0, g1 = line.plant.discretise(x_mid)
+        at_robot = line.plant.coupling(x_mid)
+        timings["plant update"] += time.perf_counter() - tic
+        tic = time.perf_counter()
+        state.plant_state = _step_plant(state.plant_state, (phi, g0, g1), records,
+                                        line.modal_force, j, block_end)
+        y_block = _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
+        tac = time.perf_counter()
+        _kalman_steps(records, calibration, y_block, j, block_end)
+        timings["plant"] += tac - tic
+        timings["filter"] += time.perf_counter() - tac
+        j = block_end
+    state.position, state.velocity = float(records.position[end]), float(records.velocity[end])
+
+
+def _step_plant(z: np.ndarray, maps: tuple, records: _Records, modal_force: np.ndarray,
+                j: int, block_end: int) -> np.ndarray:
+    """The plant's exact first-order-hold steps from sample j to block_end, recorded; the last
+    state."""
+    phi, g0, g1 = maps
+    for i in range(j, block_end):
+        z = phi @ z + g0 @ modal_force[i] + g1 @ modal_force[i + 1]
+        records.plant_states[i + 1] = z
+    return z
+
+
+def _sense(records: _Records, line: _Line, at_robot: np.ndarray, noise_std: float, rng,
+           j: int, block_end: int) -> np.ndarray:
+    """The sensors' and the robot's noisy displacements over samples j+1..block_end, recorded;
+    the sensors' (n_samples, p)."""
+    sensor_list = list(line.sensors)
+    block = records.plant_states[j + 1 : block_end + 1, : line.plant.r]
+    y_block = block @ line.sensor_rows.T + line.residual[sensor_list, j + 1 : block_end + 1].T
+    robot_block = block @ at_robot
+    if noise_std:
+        y_block = y_block + noise_std * rng.standard_normal(y_block.shape)
+        robot_block = robot_block + noise_std * rng.standard_normal(robot_block.shape)
+    records.measured[:, j + 1 : block_end + 1] = y_block.T
+    records.robot_measured[j + 1 : block_end + 1] = robot_block
+    return y_block
+
+
+def _kalman_steps(records: _Records, calibration: _Calibration, y_block: np.ndarray, j: int,
+                  block_end: int) -> None:
+    """The Kalman filter's steps on the block's measurements, and its one-step innovations."""
+    for i in range(j, block_end):
+        records.filter_states[i + 1] = calibration.kf.step(y_block[i - j])
+    predicted = records.filter_states[j:block_end] @ calibration.predict_sensors.T
+    records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
+
+
+
+# two contending ones on a shared 2-core machine. The limit applies inside this call only.
+@threadpool_limits.wrap(limits=1, user_api="blas")
+def run_closed_loop(
+    span: Span,
+    force: object,
+    robot: MDR,
+    limits: RobotLimits | None = None,
+    *,
+    sensors: Sequence[int],
+    n_elements: int | None = 100,
+    bc: object = "pinned",
+    damping: object = None,
+    duration: float = 10.0,
+    calibration: float = 2.0,
+    dt: float = 1e-3,
+    control_period: float = 0.05,
+    plant_period: float | None = None,
+    noise_fraction: float = 0.01,
+    delays: int | None = None,
+    estimator_rank: int | None = None,
+    antinode_window: float = 1.0,
+    frequency_window: float = 2.0,
+    retarget_threshold: float = 0.05,
+    settle_margin: float = 1.0,
+    n_modes: int | None = None,
+    clamp_distance: float | None = None,
+    obstacles: Sequence[tuple[float, float]] = (),
+    motion: str = "closed_form",
+    planner_time_budget: float | None = None,
+    seed: int | np.random.Generator | None = 0,
+) -> ClosedLoopResult:
+    """Drive the damping robot to the antinode from sensor data and measure the vibration.
+
+    Parameters
+    ----------
+    span : Span
+        The span.
+    force : load, list of loads, or list of (start_time, load)
+        The excitation (e.g. :class:`~powerline_control.excitation.HarmonicForce`); a schedule
+        ``[(0.0, load_a), (8.0, load_b)]`` switches loads at the given times (a wind change).
+    robot : MDR
+        The robot; ``robot.position`` is where it starts (and stays parked in the baseline).
+    limits : RobotLimits or None
+        Speed and acceleration limits (default v_max = 0.5 m/s, a_max = 1 m/s^2).
+    sensors : sequence of int
+        Measured node indices (not at a pinned support, where the line never moves).
+    n_elements : int or None
+        Elements of the FE model whose modes play the real line (None: the mesh the physics
+        chooses for the aeolian band, see :class:`~powerline_control.fem.LineModel`).
+    bc : str or (str, str)
+        Supports.
+    damping : None, ModalDamping or RayleighDamping
+        The line's own damping (none by default, as in the paper).
+    duration : float
+        Total simulated time, s, calibration included.
+    calibration : float
+        Initial window with the robot parked, used to identify the estimator's model, s
+        (floored to whole samples, like ``duration``).
+    dt : float
+        Sample interval, s.
+    control_period : float
+        Interval between control steps, s (a multiple of ``dt``).
+    plant_period : float or None
+        Interval over which the plant holds the robot's (mid-block) position, s (a multiple of
+        ``dt``). None: 10 ms, or the control period when the plant keeps a band of more than 48
+        modes (a long span: each new position costs a matrix exponential of the band).
+    noise_fraction : float
+        Sensor noise as a fraction of the RMS displacement of the calibration window (0: none;
+        the filter then assumes a 1e-4 floor so that its Riccati equation stays regular).
+    delays : int or None
+        Time delays of the estimator's DMD model (None: the recipe's default).
+    estimator_rank : int or None
+        Rank of the estimator's model (None: the recipe's default). The filter's cost grows
+        with it, not with the mesh.
+    antinode_window : float
+        Length of the window the excited shape is fitted on, s.
+    frequency_window : float
+        Length of the window the dominant frequency is measured on, s (its resolution is about
+        1 / window: long enough to tell the load from the beating of a decaying mode).
+    retarget_threshold : float
+        Relative change of the dominant frequency that, held for ``antinode_window`` (and at
+        least 1 s), makes the robot choose a new target (a wind change).
+    settle_margin : float
+        Time after the robot's arrival before the settled window starts, s.
+    n_modes : int or None
+        Lowest bare-line modes kept by the plant; None keeps those below 8x the highest load
+        frequency (at least 12) when they are at most 48, else the band from 0.6x the lowest to
+        1.4x the highest load frequency (long spans).
+    clamp_distance : float or None
+        Where the "near clamp" comparison parks the robot, m from the left support; default
+        min(0.05 L, 1.5 m), where fixed dampers sit.
+    obstacles : sequence of (left, right)
+        Intervals the robot may not enter or cross, m.
+    motion : {"closed_form", "mpc"}
+        Motion law: the closed-form time-optimal approach, or the receding-horizon planner.
+    planner_time_budget : float or None
+        Wall-clock budget of one MPC step, s (``motion="mpc"`` only); None (default): the
+        planner's iteration limits, so results do not depend on the machine's load.
+    seed : int, Generator or None
+        Sensor noise.
+
+    Returns
+    -------
+    ClosedLoopResult
+
+    Raises
+    ------
+    InputError
+        For invalid arguments: sensors outside the model or at a support, a calibration longer
+        than the run, periods that are not multiples of ``dt``, a robot off the span, inside an
+        obstacle, or heavier than the line can carry (more than 25 % of the span's mass, or a
+        static slope W / 2T above 0.05 rad).
+    PowerlineControlError
+        From the stages (identification, estimation, planning) when they report trouble.
+
+    Examples
+    --------
+    See :class:`ClosedLoopResult`.
+    """
+    settings = _checked_settings(
+        span, robot, limits, sensors, n_elements=n_elements, duration=duration,
+        calibration=calibration, dt=dt, control_period=control_period, plant_period=plant_period,
+        noise_fraction=noise_fraction, delays=delays, estimator_rank=estimator_rank,
+        antinode_window=antinode_window, frequency_window=frequency_window,
+        retarget_threshold=retarget_threshold, settle_margin=settle_margin, obstacles=obstacles,
+        motion=motion, planner_time_budget=planner_time_budget,
+    )
+    rng = check_rng(seed)
+    segments = load_segments(force, settings.duration)
+
+    # ---- the line, its loads, and the estimator calibrated with the robot parked at its start
+    setup_start = time.perf_counter()
+    line = _build_line(span, robot, segments, settings, sensors, bc=bc, damping=damping,
+                       n_modes=n_modes, clamp_distance=clamp_distance)
+    calibrated = _calibrate(line, robot, settings, rng)
+    n_cal, t = settings.n_cal, line.t
+    records = _Records.after_calibration(line, calibrated, robot, n_cal)
+
+    # ---- the loop: every control period, estimate, choose a target, move (and simulate)
+    state = _LoopState(robot.position, 0.0, robot.position,
+                       calibrated.start_states[n_cal - 1].copy())
+    targeting = Targeting()
+    planner = _motion_planner(settings, span.length)
+    timings = {"setup": time.perf_counter() - setup_start, "plant": 0.0, "plant update": 0.0,
+               "filter": 0.0, "modes": line.plant.r}
+    wall_start, cpu_start = time.perf_counter(), time.process_time()
+    k = n_cal - 1
+    while k < t.size - 1:
+        end = min(k + settings.steps_per_period, t.size - 1)
+        frequency = _observe(records, calibrated, settings, k)
+        _update_target(targeting, state, records, line, robot, settings, k, frequency)
+        _move_robot(state, targeting.goal, records, settings, planner, span.length, k, end)
+        _advance_plant(state, records, line, calibrated, rng, timings, k, end)
+        k = end
+    wall = time.perf_counter() - wall_start
+    timings["loop cpu"] = time.process_time() - cpu_start
+    timings["policy and motion"] = wall - timings["plant"] - timings["plant update"] - timings[
+        "filter"]
+
+    # ---- what happened, over a settled window, against the robot parked
+    after_start = time.perf_counter()
+    frequencies = records.frequencies
+    loop_length = float(span.loop_length(frequencies[-1])) if frequencies else float("nan")
+    settling = settling_of(records, t, segments, n_cal, loop_length, settings.settle_margin)
+    loop_power = damper_power(line.plant, robot, records.plant_states, records.position)
+    scan_positions, scan_rms, best_position = steady_state_scan(line)
+    comparisons = all_comparisons(line, robot, records, calibrated, settling.mask,
+                               best_position, loop_power)
+    timings["comparisons"] = time.perf_counter() - after_start
+    return ClosedLoopResult(
+        t=read_only(t),
+        x=read_only(line.bare.node_positions.copy()),
+        displacement=read_only(nodal_field(line.plant, records.plant_states, line.residual)),
+        baseline_displacement=read_only(
+            nodal_field(line.plant, calibrated.start_states, line.residual)),
+        estimated_field=read_only(calibrated.field_map @ records.filter_states.T),
+        robot_position=read_only(records.position),
+        robot_velocity=read_only(records.velocity),
+        target=read_only(records.target),
+        sensors=line.sensors,
+        calibration_time=float(t[n_cal - 1]),
+        statuses=tuple(records.statuses),
+        wall_time=wall,
+        settled_window=settling.window,
+        settled=settling.settled,
+        comparisons=comparisons,
+        scan_positions=read_only(scan_positions),
+        scan_rms=read_only(scan_rms),
+        best_position=best_position,
+        loop_length=loop_length,
+        frequency=read_only(np.array(frequencies)),
+        retarget_times=tuple(records.retarget_times),
+        settle_times=settling.settle_times,
+        innovation_ratio=read_only(np.array(records.innovation_ratio)),
+        damper_power=read_only(loop_power),
+        predictions=tuple(records.predictions),
+        timings=timings,
+        follow_times=settling.follow_times,
+    )

@@ -1,0 +1,308 @@
+"""Where the robot goes: the robot-free excited shape, the predicted best parked position.
+
+Chasing the antinode of the field the robot is damping is unstable: the damped loop's maximum
+moves away from the robot. The robot targets something its damping does not move. From the
+sensors' and its own motion's phasors at the dominant frequency it removes its own reaction with
+the bare line's receptance,
+
+    W_bare(x) = W(x) - H(x, x_r; omega) D_r(omega) W_r,
+    D_r = omega^2 m_b + omega^2 m_a (k + i omega c) / (k + i omega c - omega^2 m_a),
+
+(the robot-free excited shape, fitted on the bare modes), which in steady state is the same
+wherever the robot is; then it predicts the span's RMS with itself parked at every p,
+``W_p = W_bare + H(., p) D_r W_bare(p) / (1 - H(p, p) D_r)``, and goes to the best it can reach
+(docs/closed_loop.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validation import read_only
+from ..plan import RobotLimits
+from .plant import robot_dynamic_stiffness
+
+# The policy: a window whose two halves give excited shapes differing by more than this (relative)
+# still beats with a decaying mode; wait up to MAX_WAIT s for a steady one. At most MAX_CHOICES
+# loops are tried per excitation before the choice is final.
+UNSTEADY_LIMIT = 0.25
+MAX_WAIT = 3.0
+MAX_CHOICES = 3
+# Local minima of the predicted RMS within this fraction of the lowest count as equally good:
+# the robot takes the nearest (equal loops of a resonant mode need no long trip).
+NEAR_OPTIMAL = 0.03
+# ... but only among the minima the robot reaches spending at most this fraction of the remaining
+# run travelling: a far loop predicted slightly better is not worth a trip that leaves the line
+# vibrating at the start's level for most of the run.
+TRAVEL_FRACTION = 0.5
+# The robot keeps this fraction of the span away from the supports and the obstacles.
+SUPPORT_MARGIN = 0.02
+
+# ---------------------------------------------------------------------------------- the policy
+def dominant_frequency(signals: np.ndarray, dt: float) -> float:
+    """Frequency of the largest spectral peak of (n_signals, n_t), Hann window, interpolated.
+
+    Not antinode's ``_dominant_harmonic`` (the same Hann window and log-parabola, but no zero
+    padding): padding to at least 2 n bins makes the estimate ~10x closer for a tone (measured:
+    errors of 2e-4 to 1.4e-3 Hz here against 3e-3 to 1.6e-2 Hz on 1-2 s windows at 1 kHz), and
+    the phasors are fitted at this frequency over a window, where its error turns into phase.
+    """
+    n = signals.shape[1]
+    window = np.hanning(n)
+    n_fft = max(2 * n, 1024)  # Hann + log-parabola: bias ~1 % of a bin for a pure tone
+    power = np.sum(
+        np.abs(np.fft.rfft((signals - signals.mean(axis=1, keepdims=True)) * window, n_fft))
+        ** 2,
+        axis=0,
+    )
+    power[0] = 0.0
+    k = int(np.argmax(power))
+    if 0 < k < power.size - 1:
+        a, b, c = np.log(power[k - 1 : k + 2] + 1e-300)
+        denom = a - 2 * b + c
+        k = k + (0.5 * (a - c) / denom if denom < 0 else 0.0)
+    return float(k / (n_fft * dt))
+
+
+def fit_phasor(signals: np.ndarray, t: np.ndarray, frequency: float) -> np.ndarray:
+    """Least-squares A per row: signal ~ Re(A exp(i omega t)) + constant.
+
+    The fit antinode's ``_dominant_harmonic`` makes too, but here at a frequency given (measured
+    on the longer frequency window) and on absolute time ``t``: the phasors of a window's two
+    halves, compared for the unsteadiness check, share one phase reference (antinode's are
+    referred to their own window's first sample, and only at the frequency it finds itself).
+    """
+    w = 2 * np.pi * frequency
+    basis = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones_like(t)])
+    coef, *_ = np.linalg.lstsq(basis, signals.T, rcond=None)
+    return coef[0] - 1j * coef[1]
+
+
+def antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float]]:
+    """(position, loop length) of each local maximum of |shape| along the span, the loop ending
+    at the nodes where |shape| is locally least.
+
+    Not :func:`~powerline_control.antinode.locate_antinodes`: on the closed loop's shapes it
+    finds the same antinodes (within 1 cm), but its loop ends are zero crossings of the
+    phase-aligned shape interpolated between nodes, so its loop lengths differ from these by up to
+    one element (1.22 against 1.28 m on the 20-element lab span, 3.70 against 3.58 m on a 300 m
+    Drake span), and it leaves out loops below 10 % of the largest. The loop length sets the
+    quarter-loop confirmation gate, so a choice near the gate's edge would go the other way with
+    it (ten varied runs happened to come out bit-identical with it swapped in); kept so that the
+    policy decides as it always has.
+    """
+    amplitude = np.abs(shape)
+    found = []
+    minima = [0] + [j for j in range(1, x.size - 1)
+                    if amplitude[j] <= amplitude[j - 1] and amplitude[j] <= amplitude[j + 1]]
+    minima.append(x.size - 1)
+    for j in range(1, x.size - 1):
+        if amplitude[j] > amplitude[j - 1] and amplitude[j] >= amplitude[j + 1]:
+            # Parabola through the three samples (non-uniform nodes allowed).
+            xs, ys = x[j - 1 : j + 2], amplitude[j - 1 : j + 2]
+            a, b, _ = np.polyfit(xs - x[j], ys, 2)
+            offset = -b / (2 * a) if a < 0 else 0.0
+            offset = float(np.clip(offset, xs[0] - x[j], xs[2] - x[j]))
+            left = max(m for m in minima if m <= j)
+            right = min(m for m in minima if m >= j)
+            found.append((float(x[j] + offset), float(x[right] - x[left])))
+    return found
+
+
+def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
+    """Robot-free excited shape at every node from the sensors' and the robot's phasors.
+
+    The robot's reaction ``D_r W_r`` is removed from every measurement with the bare line's
+    receptance; the robot-free shape is then the posterior mean of a Gaussian prior over the bare
+    modal amplitudes with variance ``1 / |omega_n^2 - omega^2 + i omega z_n|^2`` (what a load
+    spread evenly over the modes would drive): near a resonance it is that mode, fitted; between
+    two, the mix the few measurements support.
+    """
+    n_r = plant.coupling(x_r)
+    rows = np.vstack([sensor_rows, n_r])  # (p + 1, r)
+    values = np.append(sensed, at_robot)
+    reaction = robot_dynamic_stiffness(robot, omega) * at_robot
+    values = values - rows @ plant.modal_response(n_r, omega) * reaction
+    # A floor of 0.1 % damping keeps the prior finite on an undamped line at resonance.
+    floor = 2e-3 * np.sqrt(plant.omega2) * omega
+    variance = 1.0 / (np.abs(plant.omega2 - omega**2) ** 2 + floor**2)
+    gram = (rows * variance) @ rows.T
+    gram = gram + 1e-6 * np.trace(gram) / gram.shape[0] * np.eye(gram.shape[0])
+    return (plant.nodal * variance) @ (rows.T @ np.linalg.solve(gram, values))
+
+
+def predicted_rms(bare_shape, plant, robot, omega, positions, weights):
+    """RMS over the span, in steady state, with the robot parked at each of ``positions``.
+
+    With one point attachment the parked field follows from the robot-free one exactly:
+    ``W_p = W_bare + H(., p) D_r W_p(p)`` and ``W_p(p) = W_bare(p) / (1 - H(p, p) D_r)``,
+    so only the bare line's receptance is needed (no modal force is inverted from the estimate).
+    """
+    reaction = robot_dynamic_stiffness(robot, omega)
+    out = np.empty(len(positions))
+    for i, p in enumerate(positions):
+        h = plant.receptance(p, omega)
+        n = plant.coupling(p)
+        at_robot = complex(n @ plant.modal_response(n, omega))
+        w_bare_p = complex(np.interp(p, plant.model.node_positions, bare_shape.real)
+                           + 1j * np.interp(p, plant.model.node_positions, bare_shape.imag))
+        shape = bare_shape + h * reaction * w_bare_p / (1 - at_robot * reaction)
+        out[i] = np.sqrt(0.5 * weights @ np.abs(shape) ** 2)
+    return out
+
+
+def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high,
+                   reach=np.inf):
+    """The predicted best parked position within reach: among the local minima of the predicted
+    RMS no farther than ``reach`` from the robot, those within NEAR_OPTIMAL of the lowest of
+    them, the one nearest the robot (the nearest minimum when none is within reach).
+
+    Returns (position, loop length, grid, predicted RMS on the grid), or None without a loop.
+    """
+    x = plant.model.node_positions
+    antinodes = antinodes_of(bare_shape, x)
+    if not antinodes:
+        return None
+    grid = np.linspace(low, high, max(4 * x.size, 200))
+    predicted = predicted_rms(bare_shape, plant, robot, omega, grid, weights)
+    minima = [i for i in range(grid.size)
+              if (i == 0 or predicted[i] <= predicted[i - 1])
+              and (i == grid.size - 1 or predicted[i] <= predicted[i + 1])]
+    nearest = min(minima, key=lambda i: abs(grid[i] - robot_position))
+    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach] or [nearest]
+    lowest = min(predicted[i] for i in reachable)
+    good = [i for i in reachable if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
+    pick = min(good, key=lambda i: abs(grid[i] - robot_position))
+    if 0 < pick < grid.size - 1:
+        # Parabola through the grid minimum and its neighbours (uniform grid).
+        a, b, c = predicted[pick - 1 : pick + 2]
+        denom = a - 2 * b + c
+        offset = 0.5 * (a - c) / denom if denom > 0 else 0.0
+        position = float(grid[pick] + offset * (grid[1] - grid[0]))
+    else:
+        position = float(grid[pick])
+    loop = min(antinodes, key=lambda a: abs(a[0] - position))[1]
+    return position, loop, read_only(grid), read_only(predicted)
+
+
+def reach_within(limits: RobotLimits, time_budget: float) -> float:
+    """Longest rest-to-rest move within ``time_budget`` s (triangle or trapezoid profile), m."""
+    a, v = limits.a_max, limits.v_max
+    if time_budget <= 0:
+        return 0.0
+    if time_budget <= 2 * v / a:
+        return 0.25 * a * time_budget**2
+    return v * (time_budget - v / a)
+
+
+def time_optimal_accel(position, velocity, goal, limits: RobotLimits, period: float) -> float:
+    """Closed-form time-optimal approach of a double integrator, one constant-accel period.
+
+    The velocity wanted is the largest that can still stop at the goal with the braking the
+    limits allow, corrected for the discrete period (sqrt law with a half-period offset); the
+    acceleration reaches it as fast as allowed.
+    """
+    error = goal - position
+    a, v_max = limits.a_max, limits.v_max
+    half = 0.5 * a * period
+    v_stop = -half + np.sqrt(half**2 + 2 * a * abs(error))
+    wanted = np.sign(error) * min(v_max, v_stop, abs(error) / period)
+    return float(np.clip((wanted - velocity) / period, -a, a))
+
+
+def free_interval(position, obstacles, span_length):
+    """(low, high): where the robot may go from ``position`` without crossing an obstacle,
+    keeping SUPPORT_MARGIN of the span from the supports and from every obstacle."""
+    margin = SUPPORT_MARGIN * span_length
+    low, high = margin, span_length - margin
+    for left, right in obstacles:
+        if right <= position:
+            low = max(low, right + margin)
+        elif left >= position:
+            high = min(high, left - margin)
+    return low, high
+
+
+
+@dataclass
+class Targeting:
+    """The policy's memory between control steps (see the module doc)."""
+
+    goal: float = np.nan                # where the robot is sent
+    anchor: float = np.nan              # the choice the confirmation gate is anchored to
+    loop: float = np.nan                # the loop length at the anchor, m
+    anchor_frequency: float = np.nan    # the dominant frequency the anchor was chosen at
+    pending_since: float | None = None  # when the frequency left the anchor's (a wind change)
+    still_since: float | None = None    # since when the robot is still at its steer point
+    choices: int = 0                    # loops tried for this excitation
+    confirmed: bool = False             # the choice is final until the frequency changes
+
+    def update_clocks(self, now: float, robot_still: bool, frequency: float,
+                      threshold: float) -> None:
+        """Track how long the robot has been still and the frequency away from the anchor's."""
+        if not robot_still:
+            self.still_since = None
+        elif self.still_since is None:
+            self.still_since = now
+        changed = (
+            not np.isnan(self.anchor_frequency)
+            and abs(frequency - self.anchor_frequency) > threshold * self.anchor_frequency
+        )
+        if changed and self.pending_since is None:
+            self.pending_since = now
+        elif not changed:
+            self.pending_since = None
+
+    def due(self, now: float, robot_still: bool, window_time: float,
+            settle_margin: float) -> tuple[bool, bool]:
+        """(retarget, confirm): a first target or a wind change held for a window with the robot
+        still; else a confirmation once the robot has been still for a window."""
+        retarget = np.isnan(self.goal) or (
+            self.pending_since is not None
+            and now - self.pending_since >= max(window_time, 1.0)
+            and robot_still
+        )
+        confirm = (
+            not retarget
+            and not self.confirmed
+            and self.still_since is not None
+            and now - self.still_since >= max(window_time, settle_margin)
+        )
+        return retarget, confirm
+
+    def gate_unsteady(self, retarget: bool, confirm: bool, unsteady: float,
+                      now: float) -> tuple[bool, bool]:
+        """(retarget, confirm) once the window's unsteadiness is known."""
+        since = self.pending_since if retarget else self.still_since
+        waited = now - since if since is not None else 0.0
+        # A window that still beats with a decaying mode misleads the prediction: wait (up to
+        # MAX_WAIT s) for a steady one, except for the very first target.
+        if unsteady > UNSTEADY_LIMIT and waited < MAX_WAIT and not np.isnan(self.goal):
+            return False, False
+        if confirm and unsteady > UNSTEADY_LIMIT:
+            # Still beating after MAX_WAIT s: its steady-state prediction is no better than
+            # the anchor's (a long, lightly damped span rings for tens of seconds after the
+            # robot arrives). Keep the goal and stop.
+            self.confirmed = True
+            return retarget, False
+        return retarget, confirm
+
+    def accept(self, position: float, loop: float, frequency: float, retarget: bool) -> None:
+        """Take a predicted best position as the goal (a new target, or a confirmation)."""
+        if retarget:
+            self.anchor, self.loop, self.goal = position, loop, position
+            self.anchor_frequency, self.pending_since = frequency, None
+            self.choices, self.confirmed = 1, False
+        elif abs(position - self.anchor) <= 0.25 * self.loop:
+            # The same minimum, better estimated from a steady window: accept it (the
+            # gate is anchored to the choice, it never moves with the goal) and stop.
+            self.goal, self.confirmed = position, True
+        elif self.choices < MAX_CHOICES:
+            # Another loop: the first choice came from a beating window. Go there.
+            self.anchor, self.loop, self.goal = position, loop, position
+            self.choices += 1
+        else:
+            self.confirmed = True
+

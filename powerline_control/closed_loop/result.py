@@ -1,0 +1,209 @@
+"""What :func:`run_closed_loop` returns: the run's histories and its comparisons."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """The line's vibration over the settled window for one robot placement.
+
+    Attributes
+    ----------
+    name : str
+        ``"no_robot"``, ``"near_clamp"``, ``"start"`` (parked where the closed loop started),
+        ``"best"`` (parked at the best position of the steady-state scan) or ``"closed_loop"``.
+    position : float
+        Where the robot was parked, m (NaN without a robot; the final position for the loop).
+    rms : float
+        RMS displacement over the span (length-weighted) and the settled window, m.
+    peak : float
+        Largest absolute displacement over the span and the window, m.
+    damper_power : float
+        Mean power dissipated in the robot's damper over the window, W.
+    envelope : ndarray, shape (n_nodes,)
+        Largest absolute displacement at each node over the window, m.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c = Comparison("start", 1.2, 1e-3, 2e-3, 0.0, np.zeros(3))
+    >>> c.name, c.rms
+    ('start', 0.001)
+    """
+
+    name: str
+    position: float
+    rms: float
+    peak: float
+    damper_power: float
+    envelope: np.ndarray = field(repr=False)
+
+
+@dataclass(frozen=True)
+class ClosedLoopResult:
+    """What happened in :func:`run_closed_loop`.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n_t,)
+        Sample times, s (calibration window included, starting at 0).
+    x : ndarray, shape (n_nodes,)
+        Node positions, m.
+    displacement : ndarray, shape (n_nodes, n_t)
+        True (noise-free) displacement with the robot under closed-loop control.
+    baseline_displacement : ndarray, shape (n_nodes, n_t)
+        True displacement with the robot parked at its start for the whole run.
+    estimated_field : ndarray, shape (n_nodes, n_t)
+        The Kalman filter's estimate of the field (the calibration record filtered first).
+    robot_position, robot_velocity : ndarray, shape (n_t,)
+        Robot state, m and m/s.
+    target : ndarray, shape (n_t,)
+        Where the robot was steering to (NaN before the first target).
+    sensors : tuple of int
+        Measured node indices.
+    calibration_time : float
+        Length of the initial window (robot parked) used to identify the estimator's model, s.
+    statuses : tuple of str
+        Motion status of every control step ("closed_form", "blocked", or the MPC's status).
+    wall_time : float
+        Wall-clock time of the loop (after calibration), s.
+    settled_window : (float, float)
+        Time window (s) over which every metric is computed: from ``settle_margin`` after the robot
+        last arrived (stayed within 1 % of a loop of its final position) to the end of the run.
+    settled : bool
+        False when the robot never stayed put long enough (the window is then the last second).
+    comparisons : tuple of Comparison
+        no robot, parked near a clamp, parked at the start, parked at the best position, and
+        the closed loop, over the same settled window.
+    scan_positions, scan_rms : ndarray
+        The steady-state scan: RMS displacement over the span (m) with the robot parked at each
+        position, for the last harmonic load (empty when the load is not harmonic).
+    best_position : float
+        Minimiser of the scan, m (NaN without a harmonic load).
+    loop_length : float
+        Half-wavelength of the bare line at the final dominant frequency, m.
+    frequency : ndarray, shape (n_steps,)
+        Dominant frequency the controller measured at each control step, Hz.
+    retarget_times, settle_times : tuple of float
+        When the controller chose a new target (s), and how long the robot then took to arrive
+        and stay within 1 % of a loop (s; NaN if it did not).
+    follow_times : tuple of float
+        For every change of load in a schedule (a wind change): the time from the change until
+        the robot arrived at its new target and stayed (detection, retarget and move), s; NaN
+        when it did not.
+    innovation_ratio : ndarray, shape (n_steps,)
+        RMS one-step prediction error of the sensors over the last window, relative to its value
+        on the calibration record: the estimator's model is taken as valid below 3.
+    damper_power : ndarray, shape (n_t,)
+        Power dissipated in the robot's damper, W.
+    predictions : tuple of (float, ndarray, ndarray, ndarray)
+        At each target choice and confirmation: the time (s), the positions and the steady-state
+        RMS (m) the controller predicted for the robot parked there, and the robot-free excited
+        shape (complex amplitude at every node, m) it predicted from.
+    timings : dict
+        Wall-clock seconds spent in: setup (modes, calibration, identification), plant (sample
+        stepping and sensing), plant update (re-discretising after a move), filter (Kalman
+        steps), policy and motion, comparisons (parked runs and the steady-state scan); and
+        "loop cpu", the process time of the loop (less sensitive to the machine's load), and
+        "modes", the number of bare-line modes the plant kept.
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
+    >>> result = run_closed_loop(plc.Span.paper_lab(), plc.HarmonicForce(1.0, 24.0, 0.5),
+    ...                          robot, n_elements=20, sensors=[4, 9, 15], duration=2.0,
+    ...                          calibration=1.0)
+    >>> result.displacement.shape, len(result.statuses)      # 20 control steps of 50 ms
+    ((21, 2001), 20)
+    >>> [c.name for c in result.comparisons]
+    ['no_robot', 'near_clamp', 'start', 'best', 'closed_loop']
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    displacement: np.ndarray
+    baseline_displacement: np.ndarray
+    estimated_field: np.ndarray
+    robot_position: np.ndarray
+    robot_velocity: np.ndarray
+    target: np.ndarray
+    sensors: tuple
+    calibration_time: float
+    statuses: tuple
+    wall_time: float = field(repr=False)
+    settled_window: tuple = (0.0, 0.0)
+    settled: bool = False
+    comparisons: tuple = ()
+    scan_positions: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    scan_rms: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    best_position: float = float("nan")
+    loop_length: float = float("nan")
+    frequency: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    retarget_times: tuple = ()
+    settle_times: tuple = ()
+    innovation_ratio: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    damper_power: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    predictions: tuple = field(default=(), repr=False)
+    timings: dict = field(default_factory=dict, repr=False)
+    follow_times: tuple = ()
+
+    def comparison(self, name: str) -> Comparison:
+        """The comparison called ``name`` (see :attr:`comparisons`)."""
+        for item in self.comparisons:
+            if item.name == name:
+                return item
+        raise InputError(
+            f"The 'name' parameter must be one of {[c.name for c in self.comparisons]}. "
+            f"Got {name!r}."
+        )
+
+    @property
+    def window_mask(self) -> np.ndarray:
+        """Boolean mask of the samples in :attr:`settled_window`."""
+        return (self.t >= self.settled_window[0]) & (self.t <= self.settled_window[1])
+
+    @property
+    def estimator_valid(self) -> np.ndarray:
+        """Per control step: the estimator's model still fits (innovation ratio below 3)."""
+        return self.innovation_ratio < 3.0
+
+    @property
+    def rms_closed_loop(self) -> float:
+        """RMS displacement over the span in the settled window, m."""
+        return self.comparison("closed_loop").rms
+
+    @property
+    def rms_baseline(self) -> float:
+        """The same with the robot parked at its start, m."""
+        return self.comparison("start").rms
+
+    @property
+    def vibration_reduction(self) -> float:
+        """rms_baseline / rms_closed_loop: how many times less the line vibrates."""
+        return self.rms_baseline / self.rms_closed_loop
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated loop time over its wall-clock time (> 1: faster than real time)."""
+        return (self.t[-1] - self.calibration_time) / self.wall_time
+
+    def summary(self) -> str:
+        """A few lines: the settled window and every comparison."""
+        lines = [
+            f"settled window {self.settled_window[0]:.2f}-{self.settled_window[1]:.2f} s"
+            + ("" if self.settled else " (robot did not settle)"),
+        ]
+        for c in self.comparisons:
+            lines.append(
+                f"{c.name:12s} x = {c.position:7.3f} m  rms {1e3 * c.rms:8.4f} mm  "
+                f"peak {1e3 * c.peak:8.4f} mm  damper {1e3 * c.damper_power:8.4f} mW"
+            )
+        return "\n".join(lines)
+
