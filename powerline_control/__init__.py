@@ -69,7 +69,7 @@ _LAZY_EXPORTS = {
         "Antinode", "largest_antinode", "locate_antinodes", "nearest_antinode",
     ),
     "plan": (
-        "MotionPlanner", "MPCStep", "RobotLimits", "Trajectory", "plan_motion",
+        "MotionPlanner", "MPCStep", "RobotLimits", "Trajectory", "free_interval", "plan_motion",
     ),
     "severity": (
         "SELF_DAMPING_LAWS", "WIND_POWER_CURVES", "AtAntinode", "CatenaryCheck",
@@ -163,6 +163,7 @@ __all__ = [
     "EstimatorDesign",
     "ExcitationWarning",
     "FileFormatError",
+    "free_interval",
     "filter_consistency",
     "fit_dmd",
     "harmonic_mean_position",

@@ -13,6 +13,8 @@ optional last one is the robot's suspended mass. Supports remove ``w`` (pinned) 
 
 from __future__ import annotations
 
+import copy
+
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -578,6 +580,41 @@ class LineModel:
                 TruncationWarning,
                 stacklevel=2,
             )
+
+    def with_robot(self, mdr: MDR | None) -> LineModel:
+        """The same line (mesh, supports, damping) with ``mdr`` attached instead (None: bare).
+
+        Parameters
+        ----------
+        mdr : MDR or None
+            The robot, at ``mdr.position``, or None for the bare line.
+
+        Returns
+        -------
+        LineModel
+            A new model; this one is unchanged.
+
+        Examples
+        --------
+        >>> from powerline_control import Span
+        >>> model = LineModel(Span.paper_lab(), n_elements=20)
+        >>> loaded = model.with_robot(MDR(position=1.2, body_mass=0.05))
+        >>> loaded.mdr.position, model.mdr is None, loaded.n_nodes == model.n_nodes
+        (1.2, True, True)
+        """
+        if mdr is not None:
+            if not isinstance(mdr, MDR):
+                raise InputError(f"The 'mdr' parameter must be an MDR. Got {type(mdr).__name__}.")
+            self._check_position("mdr.position", mdr.position)
+        other = copy.copy(self)
+        other.mdr = mdr
+        # the absorber adds a DOF: the free set, its index and every cache are the new model's
+        other._free = other._free_dofs()
+        other._free_index = np.full(other._n_total, -1, dtype=np.int64)
+        other._free_index[other._free] = np.arange(other._free.size)
+        other._modes_cache, other._factor_cache = {}, {}
+        other.mass_matrix, other.stiffness_matrix, other.damper_matrix = other._assemble()
+        return other
 
     def _band_top(self, max_frequency, wind_speeds, strouhal) -> float:
         if max_frequency is not None:

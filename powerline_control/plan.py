@@ -44,7 +44,7 @@ from ._validation import (
 )
 from .errors import InputError, PlanningError
 
-__all__ = ["RobotLimits", "Trajectory", "plan_motion", "MotionPlanner", "MPCStep"]
+__all__ = ["RobotLimits", "Trajectory", "free_interval", "plan_motion", "MotionPlanner", "MPCStep"]
 
 _IPOPT_QUIET = {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes"}
 # Positions closer than this (metres) are treated as equal when testing contact with obstacles.
@@ -321,6 +321,63 @@ def _free_interval(
         elif left - half < high:
             high, high_reason = left - half, f"the obstacle ({left:g}, {right:g}) m"
     return low, high, low_reason, high_reason
+
+
+def free_interval(
+    position: float,
+    limits: RobotLimits,
+    span_length: float,
+    obstacles: Sequence[tuple[float, float]] = (),
+) -> tuple[float, float]:
+    """Where the robot's centre may go from ``position`` without its body leaving the span or
+    entering or crossing an obstacle.
+
+    The one rule of the package: the body (``limits.length``, centred on the position) may touch
+    a span end or an obstacle (``<=``) but not enter it; :func:`plan_motion` and
+    :class:`MotionPlanner` plan inside this interval.
+
+    Parameters
+    ----------
+    position : float
+        The robot's centre now, m from the left support (its body must be free there).
+    limits : RobotLimits
+        Its limits; ``limits.length`` is the body length, m.
+    span_length : float
+        Span length, m.
+    obstacles : sequence of (left, right)
+        Intervals, m, the robot may neither enter nor cross.
+
+    Returns
+    -------
+    (low, high) : tuple of float
+        Bounds of the robot's centre, m.
+
+    Raises
+    ------
+    InputError
+        If the body does not fit at ``position`` (inside an obstacle or off the span), or an
+        argument has no meaning.
+
+    Examples
+    --------
+    >>> free_interval(1.0, RobotLimits(v_max=0.5, a_max=1.0, length=0.2), 3.66, [(2.0, 2.1)])
+    (0.1, 1.9)
+    """
+    if not isinstance(limits, RobotLimits):
+        raise InputError(
+            f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__} instead."
+        )
+    span_length = check_real("span_length", span_length, low=0.0)
+    if limits.length > span_length:
+        raise InputError(
+            f"The robot length {limits.length:g} m (limits.length) must not exceed the "
+            f"span_length {span_length:g} m."
+        )
+    position = check_real("position", position, low=0.0, high=span_length, low_inclusive=True)
+    checked = _check_obstacles(obstacles, span_length)
+    _check_start_free(position, limits.length, span_length, checked)
+    low, high, _, _ = _free_interval(position, limits.length, span_length, checked)
+    return low, high
 
 
 def _check_position(name: str, value: object, span_length: float | None) -> float:

@@ -253,7 +253,7 @@ def test_estimate_tracks_the_true_field(settled_case):
         (dict(force="wind"), "force"),
         (dict(force=None), "force"),
         (dict(force=plc.HarmonicForce(1.0, 24.0, 5.0)), "force position"),  # off the 3.66 m span
-        (dict(span="lab"), "span"),
+        (dict(span="lab"), "model"),
         (dict(robot="robot"), "robot"),
         (dict(limits=(0.5, 1.0)), "limits"),
         (dict(duration=-1.0), "duration"),

@@ -21,9 +21,10 @@ from ..errors import InputError
 from ..estimate import KalmanFilter
 from ..fem import MDR, LineModel
 from ..line import Span
-from ..plan import MotionPlanner, RobotLimits
+from ..plan import RobotLimits, free_interval
 from ..recipe import design_estimator
 from .evaluation import all_comparisons, settling_of, steady_state_scan, trapezoid_weights
+from .motion import Motion
 from .plant import (
     SMALL_PLANT_MODES,
     ModalPlant,
@@ -40,10 +41,8 @@ from .policy import (
     choose_target,
     dominant_frequency,
     fit_phasor,
-    free_interval,
     kernel_shape,
     reach_within,
-    time_optimal_accel,
 )
 from .result import ClosedLoopResult
 
@@ -110,6 +109,7 @@ def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
 class _Settings:
     """run_closed_loop's options after checking, with the sample counts the run works in."""
 
+    robot: MDR                  # the robot (its position is the start)
     limits: RobotLimits
     duration: float
     dt: float
@@ -126,7 +126,7 @@ class _Settings:
     delays: int | None
     estimator_rank: int | None
     motion: str
-    n_elements: int | None
+    bare: LineModel             # the line the loop runs on (without the robot)
     obstacles: tuple
 
     @property
@@ -145,18 +145,17 @@ class _Settings:
         return max(int(round(self.frequency_window / self.dt)), 2 * self.steps_per_period)
 
 
-def _checked_settings(span, robot, limits, sensors, *, n_elements, duration, calibration, dt,
-                      control_period, plant_period, noise_fraction, delays, estimator_rank,
-                      antinode_window, frequency_window, retarget_threshold, settle_margin,
-                      obstacles, motion, planner_time_budget) -> _Settings:
+def _checked_settings(model, robot, limits, sensors, *, n_elements, bc, damping, duration,
+                      calibration, dt, control_period, plant_period, noise_fraction, delays,
+                      estimator_rank, antinode_window, frequency_window, retarget_threshold,
+                      settle_margin, obstacles, motion, planner_time_budget) -> _Settings:
     """Every argument checked once, in a fixed order (the first bad one is the one reported)."""
-    if not isinstance(span, Span):
-        raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
-    if not isinstance(robot, MDR):
+    if not isinstance(model, Span | LineModel):
         raise InputError(
-            f"The 'robot' parameter must be an MDR (its position is the start). "
-            f"Got {type(robot).__name__}."
+            f"The 'model' parameter must be a LineModel or a Span. Got {type(model).__name__}."
         )
+    robot = _robot_of(model, robot)
+    span = model.span if isinstance(model, LineModel) else model
     _check_robot(span, robot)
     limits = limits or RobotLimits(v_max=0.5, a_max=1.0)
     if not isinstance(limits, RobotLimits):
@@ -182,15 +181,16 @@ def _checked_settings(span, robot, limits, sensors, *, n_elements, duration, cal
         estimator_rank = check_int("estimator_rank", estimator_rank, low=1)
     if motion not in ("closed_form", "mpc"):
         raise InputError(f"The 'motion' parameter must be 'closed_form' or 'mpc'. Got {motion!r}.")
-    n_elements = _checked_mesh_and_sensors(n_elements, sensors, duration, dt)
+    bare = _bare_model(model, sensors, duration, dt, n_elements=n_elements, bc=bc,
+                       damping=damping)
+    obstacles = tuple(_checked_obstacles(obstacles, robot, limits, span.length))
     return _Settings(
-        limits=limits, duration=duration, dt=dt, control_period=control_period,
+        robot=robot, limits=limits, duration=duration, dt=dt, control_period=control_period,
         steps_per_period=steps_per_period, plant_steps=plant_steps, n_cal=n_cal,
         noise_fraction=noise_fraction, planner_time_budget=planner_time_budget,
         antinode_window=antinode_window, frequency_window=frequency_window,
         retarget_threshold=retarget_threshold, settle_margin=settle_margin, delays=delays,
-        estimator_rank=estimator_rank, motion=motion, n_elements=n_elements,
-        obstacles=tuple(_checked_obstacles(obstacles, robot)),
+        estimator_rank=estimator_rank, motion=motion, bare=bare, obstacles=obstacles,
     )
 
 
@@ -220,26 +220,67 @@ def _checked_sampling(duration, calibration, dt, control_period, plant_period):
     return duration, dt, control_period, steps_per_period, plant_steps, n_cal
 
 
-def _checked_mesh_and_sensors(n_elements, sensors, duration, dt):
-    """The checked n_elements; the sensors and the run's memory checked before any model."""
-    if n_elements is not None:  # the sensors early, before any model is built
-        n_elements = check_int("n_elements", n_elements, low=2)
-        check_indices("sensors", sensors, n_elements + 1)
+# Marks an argument the caller did not give (a LineModel brings its own mesh, supports, damping).
+_UNSET = object()
+
+
+def _robot_of(model, robot) -> MDR:
+    """The robot: ``robot``, or the one a LineModel carries (they must not disagree)."""
+    carried = model.mdr if isinstance(model, LineModel) else None
+    if robot is None and carried is not None:
+        return carried
+    if not isinstance(robot, MDR):
+        raise InputError(
+            f"The 'robot' parameter must be an MDR (its position is the start). "
+            f"Got {type(robot).__name__}."
+        )
+    if carried is not None and carried != robot:
+        raise InputError(
+            f"The 'robot' parameter ({robot}) differs from the robot the model carries "
+            f"(model.mdr = {carried}): pass one of them (robot=None takes the model's)."
+        )
+    return robot
+
+
+def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping) -> LineModel:
+    """The line the loop runs on, without the robot: the LineModel given (its mesh, supports and
+    damping), or one built from the Span; the run's memory checked before it is built."""
+    if isinstance(model, LineModel):
+        given = {name: value for name, value in
+                 (("n_elements", n_elements), ("bc", bc), ("damping", damping))
+                 if value is not _UNSET}
+        if given:
+            raise InputError(
+                f"The {sorted(given)} parameter(s) apply to a Span; the LineModel given brings "
+                "its own mesh, supports and damping. Leave them out or pass the Span."
+            )
+        n_nodes = model.n_nodes
+    else:
+        n_elements = 100 if n_elements is _UNSET else n_elements
+        if n_elements is not None:
+            n_elements = check_int("n_elements", n_elements, low=2)
+        n_nodes = None if n_elements is None else n_elements + 1
+    if n_nodes is not None:  # the sensors early, before any model is built
+        check_indices("sensors", sensors, n_nodes)
     # The loop records ~4 node histories and ~16 scalars per sample (and the parked comparisons):
     # refuse a duration / dt that cannot fit before anything is built (n_elements=None: >= 2 nodes).
     n_samples = int(np.floor(duration / dt + 1e-9)) + 1
     check_budget(f"run_closed_loop's {n_samples}-sample histories",
-                 nbytes=8.0 * n_samples * (4 * (n_elements + 1 if n_elements else 2) + 16),
+                 nbytes=8.0 * n_samples * (4 * (n_nodes or 2) + 16),
                  parameter="duration", value=duration,
-                 fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use fewer "
-                     f"elements (n_elements={n_elements})")
+                 fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use a "
+                     f"coarser mesh ({n_nodes} nodes)")
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
-    return n_elements
+    if isinstance(model, LineModel):
+        return model.with_robot(None) if model.mdr is not None else model
+    return LineModel(model, n_elements, "pinned" if bc is _UNSET else bc,
+                     damping=None if damping is _UNSET else damping)
 
 
-def _checked_obstacles(obstacles, robot: MDR) -> list[tuple[float, float]]:
-    """(left, right) pairs, left < right, none holding the robot's start."""
+def _checked_obstacles(obstacles, robot: MDR, limits: RobotLimits,
+                       span_length: float) -> list[tuple[float, float]]:
+    """(left, right) pairs, left < right, none holding the robot's body at its start."""
     try:
         pairs = [tuple(pair) for pair in obstacles]
     except TypeError:
@@ -252,11 +293,17 @@ def _checked_obstacles(obstacles, robot: MDR) -> list[tuple[float, float]]:
         if not left < right:
             raise InputError(f"Each of 'obstacles' must be (left, right), left < right. Got "
                              f"{(left, right)}.")
-        if left <= robot.position <= right:
+        half = limits.length / 2
+        if left - half < robot.position < right + half:
             raise InputError(
-                f"The 'robot.position' ({robot.position:g} m) lies inside the obstacle "
-                f"{(left, right)}."
+                f"The 'robot.position' ({robot.position:g} m) puts the robot's body (length "
+                f"{limits.length:g} m) inside the obstacle {(left, right)}."
             )
+    # the package's one free-interval rule: the body inside the span, out of every obstacle
+    try:
+        free_interval(robot.position, limits, span_length, checked)
+    except InputError as exc:
+        raise InputError(f"The 'robot.position' or 'limits.length' parameter: {exc}") from exc
     return checked
 
 
@@ -279,10 +326,11 @@ class _Line:
     weights: np.ndarray         # (n_nodes,) trapezoid weights: RMS over the span by length
 
 
-def _build_line(span, robot, segments, settings: _Settings, sensors, *, bc, damping, n_modes,
+def _build_line(robot, segments, settings: _Settings, sensors, *, n_modes,
                 clamp_distance) -> _Line:
-    """The FE model, the sensors on it, the modal plant and the loads' histories."""
-    bare = LineModel(span, settings.n_elements, bc, damping=damping)
+    """The sensors on the FE model, the modal plant and the loads' histories."""
+    bare = settings.bare
+    span = bare.span
     sensors = tuple(sorted(check_indices("sensors", sensors, bare.n_nodes).tolist()))
     fixed_nodes = [j for j in sensors if bare.displacement_map()[[j]].nnz == 0]
     if fixed_nodes:
@@ -392,6 +440,7 @@ class _Records:
     retarget_times: list = field(default_factory=list)
     target_starts: list = field(default_factory=list)   # sample index of each new target
     predictions: list = field(default_factory=list)
+    decisions: list = field(default_factory=list)       # (time, what the policy decided)
 
     @classmethod
     def after_calibration(cls, line: _Line, calibration: _Calibration, robot: MDR,
@@ -414,31 +463,6 @@ class _Records:
         records.robot_measured[:n_cal] = calibration.robot_record
         records.innovation_power[:n_cal] = calibration.innovation_power
         return records
-
-
-@dataclass
-class _LoopState:
-    """Where the loop stands between control steps: the robot's motion and the plant's state."""
-
-    position: float             # the robot's, m
-    velocity: float             # the robot's, m/s
-    steer: float                # where it was last steered to (the goal, in its free interval)
-    plant_state: np.ndarray     # the plant's state z = (q, y, q', y') at this sample
-
-
-
-def _motion_planner(settings: _Settings, span_length: float) -> MotionPlanner | None:
-    """The receding-horizon planner for motion="mpc"; None for the closed-form law."""
-    if settings.motion != "mpc":
-        return None
-    limits, control_period = settings.limits, settings.control_period
-    braking = limits.v_max / limits.a_max
-    return MotionPlanner(
-        limits, dt=control_period, horizon=max(40, int(np.ceil(2 * braking / control_period))),
-        span_length=span_length, obstacles=list(settings.obstacles),
-        **({} if settings.planner_time_budget is None
-           else {"time_budget": settings.planner_time_budget}),
-    )
 
 
 def _observe(records: _Records, calibration: _Calibration, settings: _Settings,
@@ -480,63 +504,49 @@ def _excited_shape(records: _Records, line: _Line, robot: MDR, x_r: float, end: 
     return _bare_shape(records, line, robot, x_r, lo, end, frequency), unsteady
 
 
-def _update_target(targeting: Targeting, state: _LoopState, records: _Records, line: _Line,
+def _update_target(targeting: Targeting, motion: Motion, records: _Records, line: _Line,
                    robot: MDR, settings: _Settings, k: int, frequency: float) -> None:
     """The policy at control step k: choose a first target, confirm it once the robot has
-    settled, or choose anew after a wind change (module doc)."""
+    settled, or choose anew after a wind change (module doc). It decides only with the robot at
+    rest, so that every move is one rest-to-rest plan."""
     t = line.t
-    robot_still = abs(state.velocity) < 1e-3 and abs(state.position - state.steer) < 1e-3
+    robot_still = motion.at_rest
     targeting.update_clocks(t[k], robot_still, frequency, settings.retarget_threshold)
     retarget, confirm = targeting.due(t[k], robot_still, settings.window * settings.dt,
                                       settings.settle_margin)
-    if not (retarget or confirm):
+    if not robot_still or not (retarget or confirm):
         return
-    shape, unsteady = _excited_shape(records, line, robot, state.position, k, frequency,
+    shape, unsteady = _excited_shape(records, line, robot, motion.position, k, frequency,
                                      settings.window)
     retarget, confirm = targeting.gate_unsteady(retarget, confirm, unsteady, t[k])
     if not (retarget or confirm):
         return
-    low, high = free_interval(state.position, settings.obstacles, line.span.length)
+    low, high = motion.bounds()
     reach = reach_within(settings.limits, TRAVEL_FRACTION * (t[-1] - t[k]))
     choice = choose_target(shape, line.plant, robot, 2 * np.pi * frequency, line.weights,
-                            state.position, low, high, reach)
-    if choice is None:
-        return
-    position, loop, grid, predicted = choice
-    records.predictions.append((float(t[k]), grid, predicted, read_only(shape)))
+                           motion.position, low, high, reach)
+    records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape)))
     if retarget:
         records.retarget_times.append(float(t[k]))
         records.target_starts.append(k)
-    targeting.accept(position, loop, frequency, retarget)
+    decision = targeting.accept(choice, motion.position, float(line.span.loop_length(frequency)),
+                                frequency, retarget)
+    records.decisions.append((float(t[k]), decision))
+    if targeting.goal != motion.goal:
+        motion.send(targeting.goal, float(t[k]))
 
 
-def _move_robot(state: _LoopState, goal: float, records: _Records, settings: _Settings,
-                planner: MotionPlanner | None, span_length: float, k: int, end: int) -> None:
-    """Steer towards the goal (clipped to the free interval) over samples k..end and record the
-    robot's motion: one constant acceleration, the limits held at every sample."""
-    x_r, v_r, limits = state.position, state.velocity, settings.limits
-    low, high = free_interval(x_r, settings.obstacles, span_length)
-    steer = float(np.clip(goal, low, high)) if not np.isnan(goal) else x_r
-    period = (end - k) * settings.dt
-    if planner is not None:
-        step = planner.step((x_r, v_r), steer)
-        accel, status = float(step.acceleration), step.status
-    else:
-        accel = time_optimal_accel(x_r, v_r, steer, limits, period)
-        status = "closed_form" if steer == goal or np.isnan(goal) else "blocked"
+def _move_robot(motion: Motion, records: _Records, t: np.ndarray, k: int, end: int) -> None:
+    """The robot's motion over samples k+1..end, recorded (the planner's, limits held)."""
+    position, velocity, status = motion.advance(t[k + 1 : end + 1], float(t[k]))
     records.statuses.append(status)
-    # The actuator saturates: limits hold at every sample.
-    accel = float(np.clip(accel, -limits.a_max, limits.a_max))
-    accel = float(np.clip(accel, (-limits.v_max - v_r) / period, (limits.v_max - v_r) / period))
-    tau = settings.dt * np.arange(1, end - k + 1)
-    records.position[k + 1 : end + 1] = x_r + v_r * tau + 0.5 * accel * tau**2
-    records.velocity[k + 1 : end + 1] = v_r + accel * tau
-    records.target[k + 1 : end + 1] = goal
-    state.steer = steer
+    records.position[k + 1 : end + 1] = position
+    records.velocity[k + 1 : end + 1] = velocity
+    records.target[k + 1 : end + 1] = motion.goal
 
 
-def _advance_plant(state: _LoopState, records: _Records, line: _Line, calibration: _Calibration,
-                   rng, timings: dict, k: int, end: int) -> None:
+def _advance_plant(plant_state: np.ndarray, records: _Records, line: _Line,
+                   calibration: _Calibration, rng, timings: dict, k: int, end: int) -> np.ndarray:
     """Simulate, sense and filter samples k..end in blocks that hold the robot's mid-block
     position; leaves the loop's state at sample end."""
     j = k
@@ -548,15 +558,15 @@ def _advance_plant(state: _LoopState, records: _Records, line: _Line, calibratio
         at_robot = line.plant.coupling(x_mid)
         timings["plant update"] += time.perf_counter() - tic
         tic = time.perf_counter()
-        state.plant_state = _step_plant(state.plant_state, (phi, g0, g1), records,
-                                        line.modal_force, j, block_end)
+        plant_state = _step_plant(plant_state, (phi, g0, g1), records, line.modal_force, j,
+                                  block_end)
         y_block = _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
         tac = time.perf_counter()
         _kalman_steps(records, calibration, y_block, j, block_end)
         timings["plant"] += tac - tic
         timings["filter"] += time.perf_counter() - tac
         j = block_end
-    state.position, state.velocity = float(records.position[end]), float(records.velocity[end])
+    return plant_state
 
 
 def _step_plant(z: np.ndarray, maps: tuple, records: _Records, modal_force: np.ndarray,
@@ -599,15 +609,15 @@ def _kalman_steps(records: _Records, calibration: _Calibration, y_block: np.ndar
 # two contending ones on a shared 2-core machine. The limit applies inside this call only.
 @threadpool_limits.wrap(limits=1, user_api="blas")
 def run_closed_loop(
-    span: Span,
+    model: LineModel | Span,
     force: object,
-    robot: MDR,
+    robot: MDR | None,
     limits: RobotLimits | None = None,
     *,
     sensors: Sequence[int],
-    n_elements: int | None = 100,
-    bc: object = "pinned",
-    damping: object = None,
+    n_elements: int | None = _UNSET,
+    bc: object = _UNSET,
+    damping: object = _UNSET,
     duration: float = 10.0,
     calibration: float = 2.0,
     dt: float = 1e-3,
@@ -716,29 +726,33 @@ def run_closed_loop(
     See :class:`ClosedLoopResult`.
     """
     settings = _checked_settings(
-        span, robot, limits, sensors, n_elements=n_elements, duration=duration,
+        model, robot, limits, sensors, n_elements=n_elements, bc=bc, damping=damping,
+        duration=duration,
         calibration=calibration, dt=dt, control_period=control_period, plant_period=plant_period,
         noise_fraction=noise_fraction, delays=delays, estimator_rank=estimator_rank,
         antinode_window=antinode_window, frequency_window=frequency_window,
         retarget_threshold=retarget_threshold, settle_margin=settle_margin, obstacles=obstacles,
         motion=motion, planner_time_budget=planner_time_budget,
     )
+    robot, limits = settings.robot, settings.limits
+    span = settings.bare.span
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
 
     # ---- the line, its loads, and the estimator calibrated with the robot parked at its start
     setup_start = time.perf_counter()
-    line = _build_line(span, robot, segments, settings, sensors, bc=bc, damping=damping,
-                       n_modes=n_modes, clamp_distance=clamp_distance)
+    line = _build_line(robot, segments, settings, sensors, n_modes=n_modes,
+                       clamp_distance=clamp_distance)
     calibrated = _calibrate(line, robot, settings, rng)
     n_cal, t = settings.n_cal, line.t
     records = _Records.after_calibration(line, calibrated, robot, n_cal)
 
     # ---- the loop: every control period, estimate, choose a target, move (and simulate)
-    state = _LoopState(robot.position, 0.0, robot.position,
-                       calibrated.start_states[n_cal - 1].copy())
+    plant_state = calibrated.start_states[n_cal - 1].copy()
     targeting = Targeting()
-    planner = _motion_planner(settings, span.length)
+    motion_state = Motion.new(limits, span.length, settings.obstacles, robot.position,
+                              settings.motion, settings.control_period,
+                              settings.planner_time_budget)
     timings = {"setup": time.perf_counter() - setup_start, "plant": 0.0, "plant update": 0.0,
                "filter": 0.0, "modes": line.plant.r}
     wall_start, cpu_start = time.perf_counter(), time.process_time()
@@ -746,9 +760,10 @@ def run_closed_loop(
     while k < t.size - 1:
         end = min(k + settings.steps_per_period, t.size - 1)
         frequency = _observe(records, calibrated, settings, k)
-        _update_target(targeting, state, records, line, robot, settings, k, frequency)
-        _move_robot(state, targeting.goal, records, settings, planner, span.length, k, end)
-        _advance_plant(state, records, line, calibrated, rng, timings, k, end)
+        _update_target(targeting, motion_state, records, line, robot, settings, k, frequency)
+        _move_robot(motion_state, records, t, k, end)
+        plant_state = _advance_plant(plant_state, records, line, calibrated, rng, timings, k,
+                                     end)
         k = end
     wall = time.perf_counter() - wall_start
     timings["loop cpu"] = time.process_time() - cpu_start
@@ -794,4 +809,5 @@ def run_closed_loop(
         predictions=tuple(records.predictions),
         timings=timings,
         follow_times=settling.follow_times,
+        decisions=tuple(records.decisions),
     )

@@ -37,8 +37,10 @@ NEAR_OPTIMAL = 0.03
 # run travelling: a far loop predicted slightly better is not worth a trip that leaves the line
 # vibrating at the start's level for most of the run.
 TRAVEL_FRACTION = 0.5
-# The robot keeps this fraction of the span away from the supports and the obstacles.
-SUPPORT_MARGIN = 0.02
+# A move must be predicted to lower the span's RMS by at least this fraction of its value where
+# the robot is: below it the prediction (a few sensors' phasors) cannot tell the two apart, and
+# the robot holds still rather than wander between equally good loops.
+MIN_GAIN = 0.05
 
 # ---------------------------------------------------------------------------------- the policy
 def dominant_frequency(signals: np.ndarray, dt: float) -> float:
@@ -78,37 +80,6 @@ def fit_phasor(signals: np.ndarray, t: np.ndarray, frequency: float) -> np.ndarr
     basis = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones_like(t)])
     coef, *_ = np.linalg.lstsq(basis, signals.T, rcond=None)
     return coef[0] - 1j * coef[1]
-
-
-def antinodes_of(shape: np.ndarray, x: np.ndarray) -> list[tuple[float, float]]:
-    """(position, loop length) of each local maximum of |shape| along the span, the loop ending
-    at the nodes where |shape| is locally least.
-
-    Not :func:`~powerline_control.antinode.locate_antinodes`: on the closed loop's shapes it
-    finds the same antinodes (within 1 cm), but its loop ends are zero crossings of the
-    phase-aligned shape interpolated between nodes, so its loop lengths differ from these by up to
-    one element (1.22 against 1.28 m on the 20-element lab span, 3.70 against 3.58 m on a 300 m
-    Drake span), and it leaves out loops below 10 % of the largest. The loop length sets the
-    quarter-loop confirmation gate, so a choice near the gate's edge would go the other way with
-    it (ten varied runs happened to come out bit-identical with it swapped in); kept so that the
-    policy decides as it always has.
-    """
-    amplitude = np.abs(shape)
-    found = []
-    minima = [0] + [j for j in range(1, x.size - 1)
-                    if amplitude[j] <= amplitude[j - 1] and amplitude[j] <= amplitude[j + 1]]
-    minima.append(x.size - 1)
-    for j in range(1, x.size - 1):
-        if amplitude[j] > amplitude[j - 1] and amplitude[j] >= amplitude[j + 1]:
-            # Parabola through the three samples (non-uniform nodes allowed).
-            xs, ys = x[j - 1 : j + 2], amplitude[j - 1 : j + 2]
-            a, b, _ = np.polyfit(xs - x[j], ys, 2)
-            offset = -b / (2 * a) if a < 0 else 0.0
-            offset = float(np.clip(offset, xs[0] - x[j], xs[2] - x[j]))
-            left = max(m for m in minima if m <= j)
-            right = min(m for m in minima if m >= j)
-            found.append((float(x[j] + offset), float(x[right] - x[left])))
-    return found
 
 
 def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
@@ -153,20 +124,31 @@ def predicted_rms(bare_shape, plant, robot, omega, positions, weights):
     return out
 
 
+@dataclass(frozen=True)
+class Choice:
+    """The predicted best parked position within reach, and what it was chosen from."""
+
+    position: float             # m
+    grid: np.ndarray            # candidate positions, m
+    predicted: np.ndarray       # predicted steady-state span RMS there, m
+    predicted_here: float       # ... with the robot parked where it is, m
+
+    @property
+    def gain(self) -> float:
+        """Predicted relative drop of the span's RMS by moving there (0: none)."""
+        best = float(np.min(self.predicted)) if self.predicted.size else self.predicted_here
+        return 1.0 - min(best, self.predicted_here) / max(self.predicted_here, 1e-300)
+
+
 def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high,
-                   reach=np.inf):
+                  reach=np.inf) -> Choice:
     """The predicted best parked position within reach: among the local minima of the predicted
     RMS no farther than ``reach`` from the robot, those within NEAR_OPTIMAL of the lowest of
-    them, the one nearest the robot (the nearest minimum when none is within reach).
-
-    Returns (position, loop length, grid, predicted RMS on the grid), or None without a loop.
-    """
+    them, the one nearest the robot (the nearest minimum when none is within reach)."""
     x = plant.model.node_positions
-    antinodes = antinodes_of(bare_shape, x)
-    if not antinodes:
-        return None
     grid = np.linspace(low, high, max(4 * x.size, 200))
     predicted = predicted_rms(bare_shape, plant, robot, omega, grid, weights)
+    here = float(predicted_rms(bare_shape, plant, robot, omega, [robot_position], weights)[0])
     minima = [i for i in range(grid.size)
               if (i == 0 or predicted[i] <= predicted[i - 1])
               and (i == grid.size - 1 or predicted[i] <= predicted[i + 1])]
@@ -183,8 +165,7 @@ def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low,
         position = float(grid[pick] + offset * (grid[1] - grid[0]))
     else:
         position = float(grid[pick])
-    loop = min(antinodes, key=lambda a: abs(a[0] - position))[1]
-    return position, loop, read_only(grid), read_only(predicted)
+    return Choice(position, read_only(grid), read_only(predicted), here)
 
 
 def reach_within(limits: RobotLimits, time_budget: float) -> float:
@@ -195,35 +176,6 @@ def reach_within(limits: RobotLimits, time_budget: float) -> float:
     if time_budget <= 2 * v / a:
         return 0.25 * a * time_budget**2
     return v * (time_budget - v / a)
-
-
-def time_optimal_accel(position, velocity, goal, limits: RobotLimits, period: float) -> float:
-    """Closed-form time-optimal approach of a double integrator, one constant-accel period.
-
-    The velocity wanted is the largest that can still stop at the goal with the braking the
-    limits allow, corrected for the discrete period (sqrt law with a half-period offset); the
-    acceleration reaches it as fast as allowed.
-    """
-    error = goal - position
-    a, v_max = limits.a_max, limits.v_max
-    half = 0.5 * a * period
-    v_stop = -half + np.sqrt(half**2 + 2 * a * abs(error))
-    wanted = np.sign(error) * min(v_max, v_stop, abs(error) / period)
-    return float(np.clip((wanted - velocity) / period, -a, a))
-
-
-def free_interval(position, obstacles, span_length):
-    """(low, high): where the robot may go from ``position`` without crossing an obstacle,
-    keeping SUPPORT_MARGIN of the span from the supports and from every obstacle."""
-    margin = SUPPORT_MARGIN * span_length
-    low, high = margin, span_length - margin
-    for left, right in obstacles:
-        if right <= position:
-            low = max(low, right + margin)
-        elif left >= position:
-            high = min(high, left - margin)
-    return low, high
-
 
 
 @dataclass
@@ -289,20 +241,34 @@ class Targeting:
             return retarget, False
         return retarget, confirm
 
-    def accept(self, position: float, loop: float, frequency: float, retarget: bool) -> None:
-        """Take a predicted best position as the goal (a new target, or a confirmation)."""
+    def accept(self, choice: Choice, here: float, loop: float, frequency: float,
+               retarget: bool) -> str:
+        """Take the predicted best position as the goal (a new target, or a confirmation), or
+        hold where the robot is (``here``) when moving is not predicted to pay; returns what was
+        decided, in words (the result's decision log). A new target must be predicted to pay
+        by MIN_GAIN; a confirmation may refine inside the anchor's loop or try another loop
+        (at most MAX_CHOICES per excitation)."""
+        worth_moving = choice.gain >= MIN_GAIN
         if retarget:
-            self.anchor, self.loop, self.goal = position, loop, position
-            self.anchor_frequency, self.pending_since = frequency, None
+            self.anchor = self.goal = choice.position if worth_moving else here
+            self.loop, self.anchor_frequency, self.pending_since = loop, frequency, None
             self.choices, self.confirmed = 1, False
-        elif abs(position - self.anchor) <= 0.25 * self.loop:
+            if worth_moving:
+                return f"target {choice.position:.4g} m (predicted {100 * choice.gain:.0f} % lower)"
+            return (f"hold at {here:.4g} m: the best predicted position {choice.position:.4g} m "
+                    f"is only {100 * choice.gain:.1f} % lower (< {100 * MIN_GAIN:g} %)")
+        if abs(choice.position - self.anchor) <= 0.25 * self.loop:
             # The same minimum, better estimated from a steady window: accept it (the
             # gate is anchored to the choice, it never moves with the goal) and stop.
-            self.goal, self.confirmed = position, True
-        elif self.choices < MAX_CHOICES:
-            # Another loop: the first choice came from a beating window. Go there.
-            self.anchor, self.loop, self.goal = position, loop, position
+            self.goal, self.confirmed = choice.position, True
+            return f"confirm {choice.position:.4g} m (anchor {self.anchor:.4g} m)"
+        if self.choices < MAX_CHOICES:
+            # Another loop, predicted better (by more than NEAR_OPTIMAL, or choose_target would
+            # have kept the near one) from a steadier window: go there.
+            self.anchor, self.loop, self.goal = choice.position, loop, choice.position
             self.choices += 1
-        else:
-            self.confirmed = True
-
+            return (f"another loop: {choice.position:.4g} m (predicted "
+                    f"{100 * choice.gain:.0f} % lower)")
+        self.confirmed = True
+        return (f"final at {self.goal:.4g} m (best predicted {choice.position:.4g} m, "
+                f"{100 * choice.gain:.1f} % lower)")

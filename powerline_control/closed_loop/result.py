@@ -106,6 +106,10 @@ class ClosedLoopResult:
         At each target choice and confirmation: the time (s), the positions and the steady-state
         RMS (m) the controller predicted for the robot parked there, and the robot-free excited
         shape (complex amplitude at every node, m) it predicted from.
+    decisions : tuple of (float, str)
+        Every decision of the policy, in words: the time (s) and what it chose ("target ...",
+        "confirm ...", "another loop ...", "final ...") or why it held still ("hold ...: the
+        best predicted position is only 2 % lower").
     timings : dict
         Wall-clock seconds spent in: setup (modes, calibration, identification), plant (sample
         stepping and sensing), plant update (re-discretising after a move), filter (Kalman
@@ -153,6 +157,7 @@ class ClosedLoopResult:
     predictions: tuple = field(default=(), repr=False)
     timings: dict = field(default_factory=dict, repr=False)
     follow_times: tuple = ()
+    decisions: tuple = ()
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""
@@ -173,6 +178,13 @@ class ClosedLoopResult:
     def estimator_valid(self) -> np.ndarray:
         """Per control step: the estimator's model still fits (innovation ratio below 3)."""
         return self.innovation_ratio < 3.0
+
+    @property
+    def last_quarter_range(self) -> float:
+        """Range of the robot's position over the last quarter of the run, in loops (the robot
+        has settled when it is at most 0.02)."""
+        last = self.t >= self.t[0] + 0.75 * (self.t[-1] - self.t[0])
+        return float(np.ptp(self.robot_position[last]) / self.loop_length)
 
     @property
     def rms_closed_loop(self) -> float:
