@@ -219,6 +219,65 @@ def test_robot_respects_its_limits_and_the_obstacle():
     assert not np.any((result.robot_position > 1.5) & (result.robot_position < 1.6))
 
 
+def _jerk(result):
+    """Peak jerk (m/s^3) of the sampled path: third differences of the exact polynomials."""
+    acceleration = np.diff(result.robot_velocity) / np.diff(result.t)
+    return float(np.abs(np.diff(acceleration) / np.diff(result.t)[1:]).max())
+
+
+@pytest.mark.parametrize("motion", ["closed_form", "mpc"])
+def test_every_limit_holds_jerk_and_body_length_included(motion):
+    # The issue's case: j_max and length were ignored by the closed-form law (peak jerk
+    # 1415 m/s^3) and the MPC stopped with a state-shape error. Bounds: the planner's own
+    # (IPOPT meets them to ~1e-8 relative; the closed form exactly, to round-off).
+    limits = plc.RobotLimits(v_max=0.3, a_max=0.8, j_max=0.5, length=0.3)
+    obstacle = (1.5, 1.6)
+    result = run_closed_loop(LAB, plc.HarmonicForce(1.0, FREQS[2], 0.5), _robot(3, 1.2), limits,
+                             sensors=[7, 16, 28], n_elements=40, duration=6.0, calibration=1.0,
+                             obstacles=[obstacle], seed=1, motion=motion)
+    assert np.ptp(result.robot_position) > 0.1                    # it did move
+    assert np.abs(result.robot_velocity).max() <= 0.3 * (1 + 1e-6)
+    assert _jerk(result) <= 0.5 * (1 + 1e-5)
+    half = limits.length / 2
+    body_low, body_high = result.robot_position - half, result.robot_position + half
+    assert body_low.min() >= -1e-12 and body_high.max() <= LAB.length + 1e-12
+    assert not np.any((body_high > obstacle[0] + 1e-9) & (body_low < obstacle[1] - 1e-9))
+
+
+def test_body_length_keeps_the_robot_off_the_clamp():
+    # A target at the very support: the body (0.4 m) must stop with its end at the support,
+    # its centre at 0.2 m (plan.free_interval's rule, shared with plan_motion).
+    limits = plc.RobotLimits(v_max=0.5, a_max=1.0, length=0.4)
+    result = run_closed_loop(LAB, plc.HarmonicForce(1.0, FREQS[0], 0.3), _robot(1, 1.0), limits,
+                             sensors=[10, 30, 50], n_elements=N_EL, bc="clamped", duration=3.0,
+                             calibration=1.0, seed=2)
+    assert result.robot_position.min() >= 0.2 - 1e-12
+    assert result.robot_position.max() <= LAB.length - 0.2 + 1e-12
+
+
+def test_a_line_model_is_run_on_its_own_mesh_and_supports():
+    # The graded clamped mesh of the physics (nodes not uniform) and the model's damping: the
+    # loop runs on that line, not on a uniform copy. Truth: the no-robot field of the loop is
+    # the model's own, so its node positions and a parked steady state agree with the model's.
+    model = plc.LineModel(LAB, bc="clamped", damping=plc.ModalDamping(ZETA), max_frequency=60.0)
+    assert not np.allclose(np.diff(model.node_positions), model.element_lengths[0])  # graded
+    robot = _robot(3, 1.2)
+    sensors = [model.n_nodes // 4, model.n_nodes // 2, 3 * model.n_nodes // 4]
+    result = run_closed_loop(model, plc.HarmonicForce(1.0, FREQS[2], 0.5), robot,
+                             sensors=sensors, duration=2.0, calibration=1.0, seed=3)
+    np.testing.assert_array_equal(result.x, model.node_positions)
+    # the robot a model carries is the robot (and a conflicting one is refused)
+    carried = run_closed_loop(model.with_robot(robot), plc.HarmonicForce(1.0, FREQS[2], 0.5),
+                              None, sensors=sensors, duration=2.0, calibration=1.0, seed=3)
+    np.testing.assert_array_equal(carried.displacement, result.displacement)
+    with pytest.raises(plc.InputError, match="'robot'"):
+        run_closed_loop(model.with_robot(robot), plc.HarmonicForce(1.0, FREQS[2], 0.5),
+                        plc.MDR(1.0, 0.01), sensors=sensors, duration=2.0, calibration=1.0)
+    with pytest.raises(plc.InputError, match="'bc'"):
+        run_closed_loop(model, plc.HarmonicForce(1.0, FREQS[2], 0.5), robot, sensors=sensors,
+                        bc="pinned", duration=2.0, calibration=1.0)
+
+
 def test_estimate_tracks_the_true_field(settled_case):
     _, _, _, result = settled_case
     after = result.t > result.calibration_time + 0.5

@@ -53,9 +53,11 @@ class Motion:
 
     @property
     def at_rest(self) -> bool:
-        """Still (no speed, no acceleration) at its steer point, or with no goal yet."""
-        still = abs(self.velocity) < 1e-9 and abs(self.acceleration) < 1e-9
-        return still and (np.isnan(self.steer) or abs(self.position - self.steer) < 1e-6)
+        """Still at its steer point (or with no goal yet): to round-off for a closed-form
+        trajectory, within the receding-horizon planner's own tolerance for the MPC."""
+        tolerance = 1e-9 if self.planner is None else self.planner.tolerance
+        still = abs(self.velocity) <= tolerance and abs(self.acceleration) <= tolerance
+        return still and (np.isnan(self.steer) or abs(self.position - self.steer) <= tolerance)
 
     def bounds(self) -> tuple[float, float]:
         """Where the robot's centre may go from where it is (plan's free-interval rule)."""
