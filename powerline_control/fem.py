@@ -14,7 +14,6 @@ optional last one is the robot's suspended mass. Supports remove ``w`` (pinned) 
 from __future__ import annotations
 
 import copy
-
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -649,6 +648,24 @@ class LineModel:
     def n_dofs(self) -> int:
         """Number of free DOFs (line DOFs after supports, plus the suspended mass if any)."""
         return self._free.size
+
+    @property
+    def span_weights(self) -> np.ndarray:
+        """Trapezoid weights of the nodes, summing to 1: ``span_weights @ f`` is the
+        length-weighted mean over the span of nodal values ``f`` (graded meshes included), so
+        ``sqrt(span_weights @ y**2)`` is the span RMS of a displacement ``y``.
+
+        Examples
+        --------
+        >>> from powerline_control import Span
+        >>> LineModel(Span.paper_lab(), n_elements=4).span_weights
+        array([0.125, 0.25 , 0.25 , 0.25 , 0.125])
+        """
+        x = self.node_positions
+        weights = np.zeros_like(x)
+        weights[1:] += 0.5 * np.diff(x)
+        weights[:-1] += 0.5 * np.diff(x)
+        return read_only(weights / weights.sum())
 
     @property
     def element_length(self) -> float:

@@ -21,13 +21,6 @@ def arrival_index(position: np.ndarray, start: int, tolerance: float) -> int | N
     return index if index < position.size else None
 
 
-def trapezoid_weights(x: np.ndarray) -> np.ndarray:
-    w = np.zeros_like(x)
-    w[1:] += 0.5 * np.diff(x)
-    w[:-1] += 0.5 * np.diff(x)
-    return w / w.sum()
-
-
 
 @dataclass(frozen=True)
 class Settling:

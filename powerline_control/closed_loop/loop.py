@@ -23,7 +23,7 @@ from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
 from ..recipe import design_estimator
-from .evaluation import all_comparisons, settling_of, steady_state_scan, trapezoid_weights
+from .evaluation import all_comparisons, settling_of, steady_state_scan
 from .motion import Motion
 from .plant import (
     SMALL_PLANT_MODES,
@@ -371,7 +371,7 @@ def _build_line(robot, segments, settings: _Settings, sensors, *, n_modes,
         span=span, bare=bare, sensors=sensors, sensor_rows=plant.nodal[list(sensors)],
         clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant,
         plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
-        weights=trapezoid_weights(bare.node_positions),
+        weights=bare.span_weights,
     )
 
 

@@ -16,13 +16,15 @@ wherever the robot is; then it predicts the span's RMS with itself parked at eve
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validation import read_only
-from ..plan import RobotLimits
-from .plant import robot_dynamic_stiffness
+from .._validation import check_array, read_only
+from ..errors import InputError
+from ..fem import MDR, LineModel
+from ..plan import RobotLimits, free_interval
+from .plant import ModalPlant, default_modes, robot_dynamic_stiffness
 
 # The policy: a window whose two halves give excited shapes differing by more than this (relative)
 # still beats with a decaying mode; wait up to MAX_WAIT s for a steady one. At most MAX_CHOICES
@@ -126,12 +128,31 @@ def predicted_rms(bare_shape, plant, robot, omega, positions, weights):
 
 @dataclass(frozen=True)
 class Choice:
-    """The predicted best parked position within reach, and what it was chosen from."""
+    """The predicted best parked position within reach, and what it was chosen from.
 
-    position: float             # m
-    grid: np.ndarray            # candidate positions, m
-    predicted: np.ndarray       # predicted steady-state span RMS there, m
-    predicted_here: float       # ... with the robot parked where it is, m
+    Attributes
+    ----------
+    position : float
+        Where to park, m.
+    grid : ndarray
+        The candidate positions (the free interval), m.
+    predicted : ndarray
+        Predicted steady-state span RMS with the robot parked at each candidate, m.
+    predicted_here : float
+        The same with the robot parked where it is, m.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> choice = Choice(0.6, np.array([0.6, 1.8]), np.array([2e-4, 3e-4]), 1e-3)
+    >>> round(choice.gain, 2)
+    0.8
+    """
+
+    position: float
+    grid: np.ndarray = field(repr=False)
+    predicted: np.ndarray = field(repr=False)
+    predicted_here: float
 
     @property
     def gain(self) -> float:
@@ -166,6 +187,72 @@ def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low,
     else:
         position = float(grid[pick])
     return Choice(position, read_only(grid), read_only(predicted), here)
+
+
+def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot: MDR,
+                           start: float, limits: RobotLimits, *, obstacles=(),
+                           travel_time: float = np.inf) -> Choice:
+    """Where the closed loop would send the robot, from a record of the robot-free field.
+
+    The closed loop's own targeting rule (:func:`choose_target`) on a record with no robot on
+    the line (e.g. a Kalman estimate of the whole span): its phasor at the dominant frequency is
+    the robot-free excited shape, the steady-state span RMS with the robot parked at every
+    position of its free interval is predicted from it, and the best within reach is chosen
+    (the nearest of the positions within 3 % of the best, when a move is worth it).
+
+    Parameters
+    ----------
+    model : LineModel
+        The line, without the robot.
+    field : ndarray, shape (n_nodes, n_samples)
+        Displacement record of every node (m), columns in time, at interval ``dt`` (s).
+    dt : float
+        Sample interval, s.
+    robot : MDR
+        The robot (its impedance sets the prediction).
+    start : float
+        Where the robot is, m.
+    limits : RobotLimits
+        Its limits: speed and acceleration set the reach, the body length the free interval.
+    obstacles : sequence of (left, right)
+        Intervals it may not enter or cross, m.
+    travel_time : float
+        Time the robot may spend travelling, s (``inf``: the whole free interval is in reach).
+
+    Returns
+    -------
+    Choice
+        ``position`` (m), the candidate ``grid`` and its ``predicted`` RMS (m), the prediction
+        ``predicted_here`` at the start, and the predicted ``gain``.
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> model = plc.LineModel(plc.Span.paper_lab(), n_elements=40, damping=plc.ModalDamping(0.01))
+    >>> snap = plc.simulate(model, plc.HarmonicForce(1.0, 24.0, 0.5), duration=6.0, dt=1e-3)
+    >>> robot = plc.tune_damper(model, 3, 1.83, 0.05, body_mass=0.02)
+    >>> choice = choose_parked_position(model, snap.displacement[:, -2000:], snap.dt, robot,
+    ...                                 1.2, plc.RobotLimits(0.5, 1.0))
+    >>> round(choice.position, 1), round(choice.gain, 2)    # the loop at 0.58 m is the best
+    (0.6, 0.83)
+    """
+    if not isinstance(model, LineModel):
+        raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
+    field = check_array("field", field, shape=(model.n_nodes, None))
+    if field.shape[1] < 8:
+        raise InputError(
+            f"The 'field' parameter must hold at least 8 samples to measure a frequency. "
+            f"Got {field.shape[1]}."
+        )
+    frequency = dominant_frequency(field, dt)
+    if not frequency > 0.0:
+        raise InputError("The 'field' parameter shows no vibration (no spectral peak above 0 Hz).")
+    t = dt * np.arange(field.shape[1])
+    shape = fit_phasor(field, t, frequency)
+    plant = ModalPlant(model, robot, default_modes(model.span, model, [frequency], dt), dt)
+    low, high = free_interval(start, limits, model.span.length, obstacles)
+    return choose_target(shape, plant, robot, 2 * np.pi * frequency, model.span_weights, start,
+                         low, high, reach_within(limits, travel_time))
 
 
 def reach_within(limits: RobotLimits, time_budget: float) -> float:

@@ -121,9 +121,9 @@ class ClosedLoopResult:
     --------
     >>> import powerline_control as plc
     >>> robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
-    >>> result = run_closed_loop(plc.Span.paper_lab(), plc.HarmonicForce(1.0, 24.0, 0.5),
-    ...                          robot, n_elements=20, sensors=[4, 9, 15], duration=2.0,
-    ...                          calibration=1.0)
+    >>> result = plc.run_closed_loop(plc.Span.paper_lab(), plc.HarmonicForce(1.0, 24.0, 0.5),
+    ...                              robot, n_elements=20, sensors=[4, 9, 15], duration=2.0,
+    ...                              calibration=1.0)
     >>> result.displacement.shape, len(result.statuses)      # 20 control steps of 50 ms
     ((21, 2001), 20)
     >>> [c.name for c in result.comparisons]
