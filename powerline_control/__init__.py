@@ -80,7 +80,8 @@ _LAZY_EXPORTS = {
         "turbulence_factor", "wind_power",
     ),
     "closed_loop": (
-        "ClosedLoopResult", "run_closed_loop",
+        "Choice", "ClosedLoopResult", "ParkedSteadyState", "choose_parked_position",
+        "parked_steady_state", "run_closed_loop",
     ),
     "studies": (
         "StudyResult", "parameter_grid", "point_seed", "run_study",
@@ -146,6 +147,8 @@ __all__ = [
     "Baseline",
     "catenary_check",
     "CatenaryCheck",
+    "Choice",
+    "choose_parked_position",
     "ClosedLoopResult",
     "compare_sensor_sets",
     "Conductor",
@@ -190,6 +193,8 @@ __all__ = [
     "ObservabilityReport",
     "OnlineDMD",
     "parameter_grid",
+    "parked_steady_state",
+    "ParkedSteadyState",
     "plan_motion",
     "point_seed",
     "PlanningError",
