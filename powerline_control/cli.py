@@ -215,6 +215,8 @@ class _Study:
         self.design = None
         self.estimates = {}
         self.closed_loop = None
+        self._tuned = None
+        self.parked_choice = None
 
     # -- model
     def build_model(self):
@@ -437,6 +439,7 @@ class _Study:
         import numpy as np
 
         from .antinode import locate_antinodes, nearest_antinode
+        from .closed_loop.policy import TRAVEL_FRACTION, choose_parked_position
         from .plan import RobotLimits, plan_motion
 
         self.progress.stage("locating antinodes and planning the robot's move")
@@ -447,10 +450,21 @@ class _Study:
         true = locate_antinodes(snap.true_displacement[:, self.n_train:][:, window], snap.x,
                                 dt=snap.dt)
         robot = self.scenario.robot
-        target = nearest_antinode(estimated, robot.start)
-        truth = nearest_antinode(true, target.position)
         limits = RobotLimits(v_max=robot.v_max, a_max=robot.a_max)
-        plan = plan_motion(robot.start, target.position, limits, span_length=self.span.length)
+        # The closed loop's own targeting rule on the estimated field (the robot is not on the
+        # line in this record): the plan goes where the closed loop will.
+        tuned, _ = self.tuned_robot()
+        travel = float("inf")
+        if robot.closed_loop > 0:
+            travel = TRAVEL_FRACTION * (robot.closed_loop - self.closed_loop_timing()[1])
+        # the whole held-out estimate: its resolution (1 / length) must tell the load's line
+        # from a natural frequency's ringing next to it
+        choice = choose_parked_position(self.model, estimate.field, snap.dt, tuned,
+                                        robot.start, limits, travel_time=travel)
+        self.parked_choice = choice
+        target = nearest_antinode(estimated, choice.position)
+        truth = nearest_antinode(true, choice.position)
+        plan = plan_motion(robot.start, choice.position, limits, span_length=self.span.length)
         self.plan_result = plan
         envelope = np.abs(snap.true_displacement[:, self.n_train:]).max(axis=1)
         self.envelope = envelope
@@ -459,12 +473,15 @@ class _Study:
             "Antinodes and motion plan",
             [
                 ("antinodes (estimated field)", _summarise_positions(self.antinodes)),
-                ("nearest to the robot", f"{target.position:.4g} m (true field: "
+                ("target", f"{choice.position:.4g} m (predicted "
+                 f"{100 * choice.gain:.0f} % less vibration than at the start)",
+                 "The closed loop's rule: the predicted best parked position within reach "
+                 "(the nearest of those within 3 % of the best), from the estimated field."),
+                ("nearest antinode", f"{target.position:.4g} m (true field: "
                  f"{truth.position:.4g} m, {100 * abs(target.position - truth.position) / truth.loop_length:.2g} "  # noqa: E501
                  "% of a loop length apart)",
-                 "Where the estimated vibration is largest near the robot's start, checked "
-                 "against the true field."),
-                ("minimum-time move", f"{robot.start:g} m -> {target.position:.4g} m in "
+                 "The estimated antinode nearest the target, checked against the true field."),
+                ("minimum-time move", f"{robot.start:g} m -> {choice.position:.4g} m in "
                  f"{plan.duration:.3g} s (v_max {robot.v_max:g} m/s, a_max "
                  f"{robot.a_max:g} m/s^2)"),
             ],
@@ -482,10 +499,26 @@ class _Study:
                     "amplitude envelope (top), zoomed to where it travels. Look for the path "
                     "ending under an envelope peak."),
             ])
-        self.report.numbers.update(antinode=float(target.position),
+        self.report.numbers.update(target=float(choice.position),
+                                   antinode=float(target.position),
                                    true_antinode=float(truth.position),
                                    n_antinodes=len(self.antinodes),
                                    move_duration=float(plan.duration))
+
+    def tuned_robot(self):
+        """The scenario's robot tuned to the load (computed once), and the tuning in words."""
+        if self._tuned is None:
+            frequency = self.scenario.forcing.load_frequency(self.span)
+            self._tuned = _tuned_robot(self.scenario, self.model, frequency)
+        return self._tuned
+
+    def closed_loop_timing(self):
+        """(dt, calibration) of the closed loop: the calibration (robot parked, the estimator
+        identified) is a third of the run, at most 2 s, in whole 50 ms control periods."""
+        dt = self.scenario.simulation.dt
+        period = max(dt, round(0.05 / dt) * dt)
+        calibration = max(1, round(min(2.0, self.scenario.robot.closed_loop / 3) / period))
+        return dt, round(calibration * period / dt) * dt
 
     # -- closed loop
     def run_closed_loop(self, sensors=None):
@@ -500,20 +533,13 @@ class _Study:
             return
         self.progress.stage(f"closed loop: {robot_cfg.closed_loop:g} s of the robot chasing "
                             "the antinode, and the same run parked")
-        load_frequency = sc.forcing.load_frequency(self.span)
-        robot, tuning_text = _tuned_robot(sc, self.model, load_frequency)
+        robot, tuning_text = self.tuned_robot()
         if sensors is None:
             sensors = _default_closed_loop_sensors(sc, self.model)
-        # Calibration (robot parked, the estimator identified): a third of the run, at most
-        # 2 s, in whole 50 ms control periods (the loop needs whole steps).
-        dt = sc.simulation.dt
-        period = max(dt, round(0.05 / dt) * dt)
-        calibration = max(1, round(min(2.0, robot_cfg.closed_loop / 3) / period)) * period
-        calibration = round(calibration / dt) * dt
+        dt, calibration = self.closed_loop_timing()
         result = run_closed_loop(
-            self.span, self.force, robot, RobotLimits(robot_cfg.v_max, robot_cfg.a_max),
-            sensors=list(sensors), n_elements=self.model.n_elements, bc=self.model.bc,
-            damping=self.model.damping, duration=robot_cfg.closed_loop,
+            self.model, self.force, robot, RobotLimits(robot_cfg.v_max, robot_cfg.a_max),
+            sensors=list(sensors), duration=robot_cfg.closed_loop,
             calibration=calibration, dt=dt, noise_fraction=sc.simulation.noise_fraction,
             seed=sc.simulation.seed)
         self.closed_loop = result

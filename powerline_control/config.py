@@ -260,7 +260,7 @@ class RobotConfig:
         high_inclusive=False)
     v_max: float = _key(0.5, "m/s", "Largest robot speed.", low=0.0, high=20.0)
     a_max: float = _key(1.0, "m/s^2", "Largest robot acceleration.", low=0.0, high=100.0)
-    closed_loop: float = _key(6.0, "s", "Simulated time of the closed loop (0 skips it).",
+    closed_loop: float = _key(12.0, "s", "Simulated time of the closed loop (0 skips it).",
                               low=0.0, low_inclusive=True, high=600.0)
 
 
