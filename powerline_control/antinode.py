@@ -33,6 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ._spectral import dominant_frequency, fit_harmonic
 from ._validation import check_array, check_choice, check_real
 from .errors import InputError
 
@@ -120,32 +121,19 @@ def _dominant_harmonic(window: np.ndarray) -> tuple[np.ndarray, float, np.ndarra
     """Complex amplitude per node at the dominant frequency, that frequency in cycles/sample, and
     the variance of each node's complex amplitude estimated from the fit's residual.
 
-    The frequency is the largest peak of the node-summed Hann-windowed power spectrum, refined by
-    a parabola through the log power of the three bins around it (near exact for a Hann window);
-    the amplitudes come from a least-squares fit of cos, sin and a constant at that frequency.
-    The residual variance s^2 of a node gives its cos and sin coefficients a variance of about
-    2 s^2 / n_t (independent errors); whatever else is in the signal (other modes) counts as noise,
-    which makes it an upper estimate.
+    The frequency is the largest peak of the node-summed spectrum (:mod:`._spectral`), zero-padded
+    to at least twice the window and 1024 points: unpadded, its error of up to 0.016 bin leaves a
+    residual of 1 % of the amplitude in a noise-free window, which counts as noise here, and makes
+    a 1 % noise read as 1.44 %; padded, 0.03 % and 1.00 % (median over 400 tones). The amplitudes
+    come from a least-squares fit of cos, sin and a constant at that frequency, referred to the
+    window's first sample. The residual variance s^2 of a node gives its cos and sin coefficients
+    a variance of about 2 s^2 / n_t (independent errors); whatever else is in the signal (other
+    modes) counts as noise, which makes it an upper estimate.
     """
     n_t = window.shape[1]
-    centred = window - window.mean(axis=1, keepdims=True)
-    spectrum = np.fft.rfft(centred * np.hanning(n_t), axis=1)
-    power = np.sum(np.abs(spectrum) ** 2, axis=0)
-    power[0] = 0.0  # the mean is not a harmonic
-    k = int(np.argmax(power))
-    offset = 0.0
-    if 0 < k < power.size - 1 and np.all(power[k - 1 : k + 2] > 0):
-        left, mid, right = np.log(power[k - 1 : k + 2])
-        curvature = left - 2 * mid + right
-        if curvature < 0:
-            offset = 0.5 * (left - right) / curvature
-    frequency = (k + offset) / n_t
-    phase = 2 * np.pi * frequency * np.arange(n_t)
-    design = np.column_stack([np.cos(phase), np.sin(phase), np.ones(n_t)])
-    coefficients, *_ = np.linalg.lstsq(design, window.T, rcond=None)
-    residual = window.T - design @ coefficients
-    residual_variance = np.sum(residual**2, axis=0) / max(n_t - 3, 1)
-    return coefficients[0] - 1j * coefficients[1], frequency, 2.0 * residual_variance / n_t
+    frequency = dominant_frequency(window, 1.0)
+    fit = fit_harmonic(window, np.arange(n_t, dtype=float), frequency)
+    return fit.phasors, frequency, 2.0 * fit.residual_variance / n_t
 
 
 def _align_phase(phasors: np.ndarray) -> np.ndarray:
@@ -532,7 +520,8 @@ def locate_antinodes(
     Returns
     -------
     list of Antinode
-        Ordered by position along the span; empty if the field is identically zero.
+        Ordered by position along the span; empty if the field is identically zero (a window:
+        constant in time).
 
     Raises
     ------
@@ -567,6 +556,9 @@ def locate_antinodes(
     if dt is not None:
         dt = check_real("dt", dt, low=0.0)
 
+    given = variances is not None
+    given_variance = _node_variances(variances, data.shape) if given else None
+
     frequency = None
     if data.ndim == 2:
         if is_complex:
@@ -578,6 +570,8 @@ def locate_antinodes(
             raise InputError(
                 f"The 'field' parameter must have at least 4 time samples. Got {data.shape[1]}."
             )
+        if np.all(data == data[:, :1]):  # nothing vibrates: no harmonic, no loop
+            return []
         phasors, cycles_per_sample, phasor_variance = _dominant_harmonic(data)
         frequency = cycles_per_sample / dt if dt is not None else None
         signed = _align_phase(phasors)
@@ -588,9 +582,8 @@ def locate_antinodes(
         envelope_values = np.abs(data)
         noise_variance = np.full(n_nodes, _spatial_noise(positions, signed) ** 2)
 
-    given = variances is not None
     if given:
-        noise_variance = _node_variances(variances, data.shape)
+        noise_variance = given_variance
 
     peak_value = float(np.max(envelope_values))
     if peak_value == 0.0:

@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
-from threadpoolctl import threadpool_limits
 
+from ._spectral import extract_lines, line_occupancy, line_power
 from ._validation import (
     check_array,
     check_budget,
@@ -60,6 +60,9 @@ from .sensors import select_sensors
 
 __all__ = ["AlphaSweep", "EstimatorDesign", "ExcitationReport", "design_estimator"]
 
+# tests/test_recipe.py reaches the line extraction under its recipe-private name.
+_extract_lines = extract_lines
+
 #: Default number of stacked snapshots (the model state spans delays * dt of history).
 DEFAULT_DELAYS = 8
 #: Default POD rank of the delay-embedded model.
@@ -75,8 +78,6 @@ _NARROWBAND_OCCUPANCY = 0.05
 _NARROWBAND_RESIDUAL = 1.5
 #: Most spectral lines extracted (each costs a few DTFTs of the record).
 _MAX_LINES = 60
-#: A new line is sought at least this many frequency bins (1 / record length) from the others.
-_LINE_MASK_BINS = 2.0
 #: Modal model: smooth directions outside the lines' shapes, appended as white states with this
 #: many sensor-noise variances (what a narrowband record never showed, fitted to each sample).
 _UNSEEN_COUNT = 8
@@ -604,173 +605,6 @@ def _completed_basis(pod: np.ndarray, smooth: np.ndarray, size: int) -> np.ndarr
     return np.hstack([pod, q[:, independent]])[:, :size]
 
 
-def _noise_quantile(k: int, probability: float) -> float:
-    """Level (over its mean) that a bin of k summed white-noise periodograms exceeds with the
-    given probability: a Gamma(k, 1/k) quantile (scipy.special, no scipy.stats import)."""
-    from scipy.special import gammainccinv
-
-    return float(gammainccinv(k, probability)) / k
-
-
-def _line_occupancy(coords: np.ndarray, noise: float) -> float:
-    """Fraction of frequency bins where the coordinates' summed periodogram exceeds white noise.
-
-    The spatial coordinates are orthonormal, so sensor noise of std ``noise`` gives each a white
-    spectrum of known level; the level is set where noise alone exceeds it in 0.1 % of bins.
-    """
-    k, n = coords.shape
-    window = np.hanning(n)
-    power = np.sum(np.abs(np.fft.rfft(coords * window, axis=1)) ** 2, axis=0)
-    level = k * noise**2 * float(np.sum(window**2)) * _noise_quantile(k, 1e-3)
-    return float(np.mean(power[1:] > level))
-
-
-def _line_power(res: np.ndarray, frequency: float, dt: float) -> float:
-    """Summed squared DTFT of the coordinates at ``frequency`` (the line's ML criterion)."""
-    phase = np.exp(-2j * np.pi * frequency * dt * np.arange(res.shape[1]))
-    return float(np.sum(np.abs(res @ phase) ** 2))
-
-
-def _line_fit(res: np.ndarray, frequency: float, dt: float) -> np.ndarray:
-    """Least-squares sinusoid at ``frequency`` in every coordinate (its samples, k x n)."""
-    w = 2 * np.pi * frequency * dt * np.arange(res.shape[1])
-    design = np.column_stack([np.cos(w), np.sin(w)])
-    coef, *_ = np.linalg.lstsq(design, res.T, rcond=None)
-    return (design @ coef).T
-
-
-def _refine_line(res: np.ndarray, frequency: float, dt: float, width: float) -> float:
-    """The frequency within +/- width that maximises the line's power (bounded scalar search)."""
-    from scipy.optimize import minimize_scalar
-
-    best = minimize_scalar(lambda f: -_line_power(res, f, dt),
-                           bounds=(max(frequency - width, 1e-12), frequency + width),
-                           method="bounded", options={"xatol": 1e-9 / dt})
-    return float(best.x)
-
-
-# One BLAS thread: thousands of (4 x n) @ (n x k) products with k ~ 24, measured 50x slower
-# (72 ms against 1.4 ms each) with two contending threads on the shared 2-core machine.
-@threadpool_limits.wrap(limits=1, user_api="blas")
-def _extract_lines(coords: np.ndarray, dt: float, max_lines: int
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Spectral lines of the coordinates, strongest first, until the rest is noise-like.
-
-    Each step takes the highest peak of the residual's summed (Hann, 4x zero-padded)
-    periodogram outside the lines already found, refines its frequency by maximum likelihood
-    (the summed squared DTFT of the un-windowed residual), subtracts the least-squares sinusoid
-    and re-fits the lines within a few bins of it (close lines bias each other). It stops when
-    the peak is below the level white noise exceeds in 1 % of records (relative to the
-    periodogram's median, so no noise level is needed). Returns (frequencies, shapes k x r with
-    unit columns, residual).
-    """
-    k, n = coords.shape
-    res = coords.copy()
-    nfft = 1 << int(math.ceil(math.log2(4 * n)))
-    window = np.hanning(n)
-    grid = np.fft.rfftfreq(nfft, dt)
-    bin_width = 1.0 / (n * dt)
-    threshold = _noise_quantile(k, 0.01 / n) / _noise_quantile(k, 0.5)
-    found: list[float] = []
-    parts: list[np.ndarray] = []
-    tried: set[int] = set()      # lines already tested for an unresolved neighbour
-    locked: set[int] = set()     # resolved pairs: re-fitting them one by one would merge them
-    for _ in range(max_lines + 2 * len(tried) + 8):
-        if len(found) >= max_lines:
-            break
-        power = np.sum(np.abs(np.fft.rfft(res * window, nfft, axis=1)) ** 2, axis=0)
-        floor = float(np.median(power))
-        power[grid < 2 * bin_width] = 0.0              # no line at DC or the record's length
-        masked = power.copy()
-        for f in found:
-            masked[np.abs(grid - f) < _LINE_MASK_BINS * bin_width] = 0.0
-        top = int(np.argmax(power))
-        if power[top] > threshold * floor and masked[top] == 0.0:
-            # The strongest leftover sits on a line already found: two lines closer than the
-            # record resolves (a load near resonance beside the mode's own transient).
-            j = int(np.argmin(np.abs(np.array(found) - grid[top])))
-            if j not in tried:
-                tried.add(j)
-                # White-noise energy per sample summed over the coordinates (periodogram median).
-                noise_energy = floor / float(np.sum(window**2))
-                pair = _split_line(res + parts[j], found[j], dt, bin_width,
-                                   min_gain=40.0 * k * noise_energy)
-                if pair is not None:
-                    (f1, p1), (f2, p2) = pair
-                    res += parts[j] - p1 - p2
-                    found[j], parts[j] = f1, p1
-                    found.append(f2)
-                    parts.append(p2)
-                    locked.update({j, len(found) - 1})
-                continue
-        peak = int(np.argmax(masked))
-        if not masked[peak] > threshold * floor:
-            break
-        f = _refine_line(res, float(grid[peak]), dt, bin_width)
-        part = _line_fit(res, f, dt)
-        res -= part
-        found.append(f)
-        parts.append(part)
-        near = [j for j, g in enumerate(found) if abs(g - f) < 8 * bin_width and j not in locked]
-        for _sweep in range(3):
-            for j in near:
-                res += parts[j]
-                found[j] = _refine_line(res, found[j], dt, 0.5 * bin_width)
-                parts[j] = _line_fit(res, found[j], dt)
-                res -= parts[j]
-    shapes = []
-    for part in parts:
-        u, _, _ = np.linalg.svd(part[:, : min(n, 4096)], full_matrices=False)
-        shapes.append(u[:, 0])
-    order = np.argsort(found)
-    freqs = np.array(found)[order]
-    shape_matrix = np.column_stack(shapes)[:, order] if shapes else np.zeros((k, 0))
-    return freqs, shape_matrix, res
-
-
-def _split_line(res: np.ndarray, frequency: float, dt: float, bin_width: float,
-                min_gain: float):
-    """Two lines within a bin of ``frequency`` instead of one, if the data hold them.
-
-    Joint least squares of two sinusoids (Nelder-Mead over both frequencies from a few
-    starts). Accepted when it removes at least ``min_gain`` more energy than the one line and
-    the two are distinct: returns ((f1, part1), (f2, part2)), else None.
-    """
-    from scipy.optimize import minimize
-
-    t = np.arange(res.shape[1]) * dt
-
-    total = float(np.sum(res**2))
-
-    def parts_of(fs):
-        design = np.column_stack([g(2 * np.pi * f * t) for f in fs for g in (np.cos, np.sin)])
-        # Normal equations of the 4 regressors (small; lstsq copes when f1 -> f2).
-        rhs = design.T @ res.T
-        coef, *_ = np.linalg.lstsq(design.T @ design, rhs, rcond=1e-12)
-        return design, coef, rhs
-
-    def left(fs):
-        _, coef, rhs = parts_of(fs)
-        return total - float(np.sum(coef * rhs))
-
-    single = float(np.sum((res - _line_fit(res, frequency, dt)) ** 2))
-    best = None
-    for half in (0.15, 0.45):
-        start = np.array([frequency - half * bin_width, frequency + half * bin_width])
-        out = minimize(left, start, method="Nelder-Mead",
-                       options={"xatol": 1e-6 * bin_width, "fatol": 1e-12 * single,
-                                "initial_simplex": [start, start + [0.1 * bin_width, 0.0],
-                                                    start + [0.0, 0.1 * bin_width]],
-                                "maxiter": 200})
-        if best is None or out.fun < best.fun:
-            best = out
-    f1, f2 = sorted(float(v) for v in best.x)
-    if single - best.fun < min_gain or f2 - f1 < 0.02 * bin_width or f1 <= 0:
-        return None
-    design, coef, _ = parts_of([f1, f2])
-    return ((f1, (design[:, :2] @ coef[:2]).T), (f2, (design[:, 2:] @ coef[2:]).T))
-
-
 def _modal_model(frequencies: np.ndarray, shapes: np.ndarray, dt: float, n_pairs: int,
                  process_noise: float, unseen: np.ndarray | None = None,
                  unseen_noise: float = 0.0) -> DMDModel:
@@ -1013,12 +847,12 @@ def design_estimator(
     line_basis = _completed_basis(spatial[:, :n_signal],
                                   _smooth_basis(node_x, moving, k + n_signal), k)
     line_coords = line_basis.T @ X
-    occupancy = _line_occupancy(line_coords, noise)
+    occupancy = line_occupancy(line_coords, noise)
     excitation = ExcitationReport(narrowband=False, occupancy=occupancy,
                                   frequencies=read_only(np.zeros(0)), residual_ratio=math.nan,
                                   method="dmd")
     if method == "modal" or (method == "auto" and occupancy < _NARROWBAND_OCCUPANCY):
-        freqs, shapes, residual = _extract_lines(line_coords, dt, min(2 * k, _MAX_LINES))
+        freqs, shapes, residual = extract_lines(line_coords, dt, min(2 * k, _MAX_LINES))
         ratio = float(np.mean(residual**2)) / noise**2
         if method == "modal" and not freqs.size:
             raise IdentificationError(
@@ -1027,7 +861,7 @@ def design_estimator(
                 "method='dmd' or 'auto'."
             )
         if freqs.size and (method == "modal" or ratio < _NARROWBAND_RESIDUAL):
-            power = np.array([_line_power(line_coords, f, dt) for f in freqs])
+            power = np.array([line_power(line_coords, f, dt) for f in freqs])
             freqs, fields = _independent_lines(freqs, shapes, line_basis, power)
             excitation = ExcitationReport(narrowband=ratio < _NARROWBAND_RESIDUAL,
                                           occupancy=occupancy, frequencies=read_only(freqs),

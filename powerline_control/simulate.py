@@ -27,6 +27,7 @@ import scipy.linalg
 import scipy.signal
 from threadpoolctl import threadpool_limits
 
+from ._spectral import load_phasor
 from ._validation import check_array, check_budget, check_int, check_real, check_rng, read_only
 from .errors import InputError, ModelError, TruncationWarning
 from .excitation import BoundAeolianForce, HarmonicForce, RandomForce
@@ -337,19 +338,23 @@ def simulate(
         forcing = complex_modes.input_gain(basis.shapes.T @ load)
         values = check_array(f"force[{i}].values(t)", f.values(start_time + t), shape=(t.size,))
         frequency = _sine_frequency(f)
+        if frequency is not None:
+            # The sine's phasor referred to the first sample: values(start_time + t) =
+            # Re(phasor exp(i omega t)).
+            omega = 2 * np.pi * frequency
+            phasor = load_phasor(f, frequency) * np.exp(1j * omega * start_time)
         if truncated:
             shape = _residual_shape(model, basis, load, frequency)
             clean += np.outer(nodal @ shape, values)
             residual_state[0] += shape * values[-1]
             if frequency is not None:
-                rate = 2 * np.pi * frequency * getattr(f, "amplitude", 1.0) * np.cos(
-                    2 * np.pi * frequency * (start_time + t[-1]) + getattr(f, "phase", 0.0))
+                rate = float((1j * omega * phasor * np.exp(1j * omega * t[-1])).real)
             else:
                 rate = (values[-1] - values[-2]) / dt if values.size > 1 else 0.0
             residual_state[1] += shape * rate
         if frequency is not None and _exact_harmonic_possible(complex_modes.eigenvalues, frequency):
-            plus, minus = _harmonic_phasors(complex_modes.eigenvalues, forcing, f, start_time)
-            rotation = np.exp(2j * np.pi * f.frequency * t)
+            plus, minus = _harmonic_phasors(complex_modes.eigenvalues, forcing, phasor, omega)
+            rotation = np.exp(1j * omega * t)
             clean += (
                 np.outer(gains @ plus, rotation) + np.outer(gains @ minus, rotation.conj())
             ).real
@@ -552,17 +557,14 @@ def _exact_harmonic_possible(eigenvalues: np.ndarray, frequency: float) -> bool:
     return bool(np.min(np.abs(1j * omega - eigenvalues)) > 1e-9 * omega)
 
 
-def _harmonic_phasors(eigenvalues, forcing, force, start_time) -> tuple[np.ndarray, np.ndarray]:
-    """Particular solution of z' = lam z + g A sin(w t + phi) as plus e^{iwt} + minus e^{-iwt}.
+def _harmonic_phasors(eigenvalues, forcing, phasor, omega) -> tuple[np.ndarray, np.ndarray]:
+    """Particular solution of z' = lam z + g Re(P e^{iwt}) as plus e^{iwt} + minus e^{-iwt}.
 
     The response from rest is that minus exp(lam t) (plus + minus).
     """
-    omega = 2 * np.pi * force.frequency
-    amplitude = getattr(force, "amplitude", 1.0) * forcing
-    phase = getattr(force, "phase", 0.0) + omega * start_time
-    # sin(w t + phi) = (e^{i(w t + phi)} - e^{-i(w t + phi)}) / 2i
-    plus = amplitude * np.exp(1j * phase) / (2j * (1j * omega - eigenvalues))
-    minus = -amplitude * np.exp(-1j * phase) / (2j * (-1j * omega - eigenvalues))
+    # Re(P e^{iwt}) = (P e^{iwt} + conj(P) e^{-iwt}) / 2
+    plus = forcing * (0.5 * phasor) / (1j * omega - eigenvalues)
+    minus = forcing * (0.5 * np.conj(phasor)) / (-1j * omega - eigenvalues)
     return plus, minus
 
 

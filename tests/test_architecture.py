@@ -19,7 +19,8 @@ PACKAGE = pathlib.Path(plc.__file__).parent
 ORDER = ["line", "fem", "tuning", "excitation", "simulate", "identify", "riccati",
          "observability", "estimate", "sensors", "recipe", "antinode", "plan", "severity",
          "closed_loop", "studies"]
-LEAVES = {"errors", "_validation"}
+# _spectral (tones, phasors, spectral lines, peaks) serves stages from simulate to the closed loop.
+LEAVES = {"errors", "_validation", "_spectral"}
 ANYTHING_GOES = {"plotting", "report", "io", "config", "cli", "__init__", "__main__"}
 
 
