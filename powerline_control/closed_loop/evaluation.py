@@ -68,7 +68,7 @@ def settling_of(records, t: np.ndarray, segments, n_cal: int, loop_length: float
 def window_comparison(name: str, position: float, states: np.ndarray, plant: ModalPlant,
                 power: np.ndarray, line, mask: np.ndarray) -> Comparison:
     """The vibration of the plant's states over the settled window (``mask``)."""
-    field_window = nodal_field(plant, states[mask], line.residual[:, mask])
+    field_window = nodal_field(plant, states[mask], line.residual[:, mask], position)
     rms = float(np.sqrt(np.mean(line.weights @ field_window**2)))
     envelope = np.max(np.abs(field_window), axis=1)
     return Comparison(name, float(position), rms, float(envelope.max()),

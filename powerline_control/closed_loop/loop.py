@@ -355,7 +355,8 @@ def _build_line(robot, segments, settings: _Settings, sensors, *, n_modes,
         n_modes = default_modes(span, bare, load_frequencies, settings.dt)
     else:
         n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
-    plant = ModalPlant(bare, robot, n_modes, settings.dt)
+    loads = [load for _, items in segments for load in items]
+    plant = ModalPlant(bare, robot, n_modes, settings.dt, loads=loads)
     plant_steps = settings.plant_steps
     if plant_steps is None:
         # 10 ms blocks, or one block per control period for a long span's band of ~100 modes
@@ -365,7 +366,7 @@ def _build_line(robot, segments, settings: _Settings, sensors, *, n_modes,
             if plant.r > SMALL_PLANT_MODES
             else max(1, min(settings.steps_per_period, int(round(0.01 / settings.dt))))
         )
-    free_plant = ModalPlant(bare, None, n_modes, settings.dt)
+    free_plant = ModalPlant(bare, None, n_modes, settings.dt, loads=loads)
     modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
     return _Line(
         span=span, bare=bare, sensors=sensors, sensor_rows=plant.nodal[list(sensors)],
@@ -396,7 +397,8 @@ def _calibrate(line: _Line, robot: MDR, settings: _Settings, rng) -> _Calibratio
     """Simulate the parked start, add sensor noise, identify the estimator and warm it up."""
     n_cal, sensor_list = settings.n_cal, list(line.sensors)
     start_states = run_parked(line.plant, robot.position, line.modal_force, line.t.size)
-    calib_true = nodal_field(line.plant, start_states[:n_cal], line.residual[:, :n_cal])
+    calib_true = nodal_field(line.plant, start_states[:n_cal], line.residual[:, :n_cal],
+                             robot.position)
     calib_rms = float(np.sqrt(np.mean(calib_true**2)))
     noise_std = settings.noise_fraction * calib_rms
     record = calib_true + noise_std * rng.standard_normal(calib_true.shape)
@@ -783,9 +785,10 @@ def run_closed_loop(
     return ClosedLoopResult(
         t=read_only(t),
         x=read_only(line.bare.node_positions.copy()),
-        displacement=read_only(nodal_field(line.plant, records.plant_states, line.residual)),
+        displacement=read_only(nodal_field(line.plant, records.plant_states, line.residual,
+                                           records.position)),
         baseline_displacement=read_only(
-            nodal_field(line.plant, calibrated.start_states, line.residual)),
+            nodal_field(line.plant, calibrated.start_states, line.residual, robot.position)),
         estimated_field=read_only(calibrated.field_map @ records.filter_states.T),
         robot_position=read_only(records.position),
         robot_velocity=read_only(records.velocity),
