@@ -176,10 +176,13 @@ class ModalPlant:
         The robot is attached to the line through the flexibility h(x) the basis leaves out
         (:meth:`residual_flexibility`): at the plant's frequency it acts on the basis with
         D_eff = D_r / (1 - h D_r). The plant's robot reproduces D_eff exactly there: its body
-        mass as if alone behind h, m_b / (1 - h omega^2 m_b), and its absorber re-tuned to carry
-        the rest (same suspended mass; spring and damper from the complex stiffness that gives
-        the absorber's share). Without a frequency, or when that retuned robot would not be
-        passive (a negative spring or mass), the robot's own parameters.
+        keeps its mass and its absorber (same suspended mass) is re-tuned to carry the rest, the
+        spring and damper of the complex stiffness s' with
+        omega^2 m_a s' / (s' - omega^2 m_a) = D_eff - omega^2 m_b. Its damper is then never
+        negative (Im D_eff <= 0 for a dissipative robot), and an undamped robot stays undamped.
+        A robot without absorber gets the body mass m_b / (1 - h omega^2 m_b). Without a
+        frequency, or when no such robot is passive (a negative spring or mass), the robot's
+        own parameters.
         """
         robot = self.robot
         own = (robot.body_mass, robot.stiffness, robot.damping)
@@ -192,18 +195,21 @@ class ModalPlant:
         omega = 2 * np.pi * self.frequency
         dynamic = robot_dynamic_stiffness(robot, omega)
         effective = dynamic / (1.0 - h * dynamic)
-        body_share = 1.0 - h * omega**2 * robot.body_mass
-        body = robot.body_mass / body_share if body_share > 0 else -1.0
         result = own
-        if self.absorber and body >= 0:
-            absorber = effective - omega**2 * body
+        if not self.absorber:
+            body_share = 1.0 - h * omega**2 * robot.body_mass
+            if body_share > 0:   # the body alone behind h
+                result = (robot.body_mass / body_share, 0.0, 0.0)
+        else:
+            # The body keeps its mass and the absorber carries the whole correction: continuous
+            # in x (the body alone behind h, m_b / (1 - h omega^2 m_b), is singular at its local
+            # resonance on h, which 0.5 m from a clamp of a long span sits at the load).
+            absorber = effective - omega**2 * robot.body_mass
             spring = absorber * omega**2 * robot.suspended_mass / (
                 absorber - omega**2 * robot.suspended_mass)
-            if spring.real > 0:
-                result = (body, spring.real, max(spring.imag / omega, 0.0)
-                          if robot.damping > 0 else 0.0)
-        elif body >= 0:
-            result = (body, robot.stiffness, robot.damping)
+            if np.isfinite(spring) and spring.real > 0:
+                result = (robot.body_mass, float(spring.real),
+                          max(float(spring.imag) / omega, 0.0) if robot.damping > 0 else 0.0)
         if len(self._robot_cache) > 4096:
             self._robot_cache.clear()
         self._robot_cache[key] = result
