@@ -30,7 +30,24 @@ from concurrent.futures import ProcessPoolExecutor, as_completed  # noqa: E402
 import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import closed_loop_family as fam  # noqa: E402
 
-QUICK_PER_SPLIT = 5
+
+
+def code_version() -> str:
+    """HEAD and a hash of the uncommitted changes to the package (the closed loop is edited
+    concurrently: two runs are comparable only on the same version)."""
+    import hashlib
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, text=True,
+                              capture_output=True, check=True).stdout.strip()
+        diff = subprocess.run(["git", "diff", "HEAD", "--", "powerline_control"], cwd=root,
+                              capture_output=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    dirty = f"+dirty:{hashlib.sha1(diff).hexdigest()[:10]}" if diff else ""
+    return head + dirty
 
 
 def _seeds(options) -> list[int]:
@@ -56,6 +73,8 @@ def main() -> None:
     parser.add_argument("--json", default=None, help="write the per-scenario rows here")
     options = parser.parse_args()
     print(_common.PINNED)
+    options.version = code_version()
+    print(f"code: {options.version} (started {time.strftime('%H:%M:%S')})")
     seeds = _seeds(options)
     print(f"split {options.split}: {len(seeds)} scenarios, seeds {seeds}", flush=True)
     outcomes = []
@@ -103,7 +122,7 @@ def main() -> None:
 
 
 def _write(path, options, outcomes) -> None:
-    payload = {"split": options.split, "format": 1,
+    payload = {"split": options.split, "format": 1, "code": options.version,
                "rows": [o.row() for o in sorted(outcomes, key=lambda o: o.seed)]}
     Path(path).write_text(json.dumps(payload, indent=1))
 
