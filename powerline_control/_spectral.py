@@ -11,7 +11,7 @@ signal at frequency ``f`` is the complex amplitude with ``signal(t) ~ Re(A exp(i
 phase reference is ``t = 0`` of the times given: pass absolute times to compare phasors of
 different windows, ``np.arange(n_t)`` (and a frequency in cycles per sample) to refer them to a
 window's first sample. Spectra are one-sided periodograms of Hann-windowed signals summed over
-the signals: a tone common to all signals adds its power wherever its amplitude sits.
+the signals: a tone they share (a mode seen at several nodes) adds up whatever its phase in each.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ._validation import check_array, check_int, check_real, read_only
+from ._validation import check_array, check_bool, check_int, check_real, read_only
 from .errors import InputError
 
 __all__ = [
@@ -215,12 +215,11 @@ def _harmonic_basis(t: np.ndarray, frequency: float, constant: bool) -> np.ndarr
 
 def _check_fit(signals: object, t: object, frequency: object, constant: object
                ) -> tuple[np.ndarray, np.ndarray, float, bool]:
-    if not isinstance(constant, bool | np.bool_):
-        raise InputError(f"The 'constant' parameter must be True or False. Got {constant!r}.")
+    constant = check_bool("constant", constant)
     data = _check_signals(signals, 3 if constant else 2)
     times = check_array("t", t, shape=(data.shape[1],))
     frequency = check_real("frequency", frequency, low=0.0)
-    return data, times, frequency, bool(constant)
+    return data, times, frequency, constant
 
 
 def fit_harmonic(signals: object, t: object, frequency: object, *, constant: bool = True
