@@ -83,6 +83,7 @@ class ModalPlant:
         self._robot_cache: dict[float, tuple] = {}
         self._attachment_cache: dict[float, tuple] = {}
         self._mass_band = model.mass_matrix @ self.shapes[:, : self.n_band]
+        self._node_map = model.displacement_map()
 
     def coupling(self, x: float) -> np.ndarray:
         """The plant's basis displacements at x (shape functions restricted to the basis)."""
@@ -116,7 +117,7 @@ class ModalPlant:
                         gaps)
         ritz_part = n_ritz / gaps
         result = (float(weights @ full[index] - n_ritz @ ritz_part),
-                  model.displacement_map() @ full - self.nodal[:, self.n_band :] @ ritz_part)
+                  self._node_map @ full - self.nodal[:, self.n_band :] @ ritz_part)
         if len(self._attachment_cache) > 1024:
             self._attachment_cache.clear()
         self._attachment_cache[key] = result
@@ -143,11 +144,9 @@ class ModalPlant:
         nq, r = self.n_q, self.r
         xs = np.broadcast_to(np.asarray(positions, dtype=float), (states.shape[0],))
         force = np.empty(states.shape[0])
-        keys = np.round(xs, 6)
-        for key in np.unique(keys):
-            rows = keys == key
-            n = self.coupling(float(key))
-            body, spring, damper = self.robot_parameters(float(key))
+        for key, rows in _position_groups(self, xs):
+            n = self.coupling(key)
+            body, spring, damper = self.robot_parameters(key)
             a = states[rows, :r] @ n
             value = (2 * np.pi * self.frequency) ** 2 * body * a
             if self.absorber:
@@ -564,11 +563,30 @@ def nodal_field(plant: ModalPlant, states: np.ndarray, residual: np.ndarray,
     if np.all(np.isnan(xs)):
         return field
     force = plant.robot_force(states, xs)
-    keys = np.round(xs, 6)
-    for key in np.unique(keys):
-        columns = np.flatnonzero(keys == key)
-        field[:, columns] += np.outer(plant.attachment(float(key))[1], force[columns])
+    for key, columns in _position_groups(plant, xs):
+        field[:, columns] += np.outer(plant.attachment(key)[1], force[columns])
     return field
+
+
+# The robot's residual corrections of a record (its force's field, its re-tuned damper) are
+# evaluated on a grid of this fraction of the load's loop: a moving robot takes a new position
+# every sample, each a sparse solve; on the grid a move costs 2000 per loop, and the
+# corrections (a few % of the field, smooth in x) change by < 0.1 % of themselves per step.
+CORRECTION_GRID_PER_LOOP = 2000
+
+
+def _position_groups(plant: ModalPlant, positions: np.ndarray) -> list[tuple[float, np.ndarray]]:
+    """(position, sample indices) for each distinct position of a record, on the grid of
+    ``CORRECTION_GRID_PER_LOOP`` (positions to 1 um without a plant frequency)."""
+    keys = np.round(positions, 6)
+    if plant.frequency is not None:
+        step = float(plant.model.span.loop_length(plant.frequency)) / CORRECTION_GRID_PER_LOOP
+        keys = np.clip(np.round(np.round(positions / step) * step, 6), 0.0,
+                       plant.model.span.length)
+    order = np.argsort(keys, kind="stable")
+    distinct, starts = np.unique(keys[order], return_index=True)
+    return [(float(key), rows) for key, rows in zip(distinct, np.split(order, starts[1:]),
+                                                     strict=True)]
 
 
 def relative_velocity(plant: ModalPlant, states: np.ndarray, positions) -> np.ndarray:
@@ -595,10 +613,9 @@ def damper_power(plant: ModalPlant, robot: MDR, states: np.ndarray, positions) -
     if not robot.has_absorber or plant.robot is None:
         return np.zeros(states.shape[0])
     xs = np.broadcast_to(np.asarray(positions, dtype=float), (states.shape[0],))
-    keys = np.round(xs, 6)
     coefficient = np.empty(states.shape[0])
-    for key in np.unique(keys):
-        coefficient[keys == key] = plant.robot_parameters(float(key))[2]
+    for key, rows in _position_groups(plant, xs):
+        coefficient[rows] = plant.robot_parameters(key)[2]
     return coefficient * relative_velocity(plant, states, positions) ** 2
 
 
