@@ -222,3 +222,19 @@ def test_plant_without_loads_is_the_bare_modal_plant():
     assert plant.r == 10 and plant.n_ritz == 0 and plant.frequency is None
     assert plant.robot_parameters(1.0) == (0.03, 1500.0, 2.0)
     assert not np.any(plant.robot_field(1.0, np.ones(plant.n_q)))
+
+
+def test_a_load_without_frequency_beside_a_sine_is_not_counted_twice():
+    # The sine's Ritz vector above the top mode is in the basis; a load that is not a sine gets
+    # the static residual of the modes above the top less that vector's share, so the plant's
+    # static solution plus the residual is K^-1 f exactly (lowest modes: nothing below).
+    span = plc.Span.paper_lab()
+    bare = plc.LineModel(span, 40)
+    plant = cl.ModalPlant(bare, None, 12, 1e-3, loads=[plc.HarmonicForce(1.0, 30.0, 1.0)])
+    assert plant.n_ritz_above == 1
+    vector = bare.point_load(1.3)
+    residual = cl.residual_of_load(bare, plant, vector, None)
+    static = plant.nodal @ ((plant.shapes.T @ vector) / plant.omega2) + residual
+    truth = bare.displacement_map() @ bare.solve_flexibility(vector)
+    # round-off of the sparse solve and the mode sums
+    np.testing.assert_allclose(static, truth, rtol=0, atol=1e-9 * np.abs(truth).max())

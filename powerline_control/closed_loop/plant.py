@@ -66,8 +66,9 @@ class ModalPlant:
         self.robot = robot if active else None
         sines = _sines(model, loads)
         self.frequency = sines[-1][0] if sines else None
-        ritz, ritz_omega2, ritz_damping = _load_ritz_vectors(model, basis, index, sines)
+        ritz, ritz_omega2, ritz_damping, n_above = _load_ritz_vectors(model, basis, index, sines)
         self.n_ritz = ritz_omega2.size
+        self.n_ritz_above = n_above       # the last columns: Ritz vectors above the top mode
         self.n_band = index.size          # the first n_band columns are bare eigenmodes
         self.shapes = np.hstack([np.asarray(basis.shapes)[:, index], ritz])
         self.omega2 = np.concatenate([np.asarray(basis.omega)[index] ** 2, ritz_omega2])
@@ -358,7 +359,7 @@ def _load_ritz_vectors(model: LineModel, basis, index: np.ndarray, sines):
     below part from its modes, for the above part the top kept mode's ratio at omega_psi.
     """
     n_dofs = model.n_dofs
-    empty = (np.zeros((n_dofs, 0)), np.zeros(0), np.zeros((0, 0)))
+    empty = (np.zeros((n_dofs, 0)), np.zeros(0), np.zeros((0, 0)), 0)
     if not sines:
         return empty
     shapes, omega = np.asarray(basis.shapes), np.asarray(basis.omega)
@@ -372,7 +373,7 @@ def _load_ritz_vectors(model: LineModel, basis, index: np.ndarray, sines):
             below.append(projection[:first] / gaps)
         above.append(_complement_response(model, vector, shapes, mass_shapes, frequency,
                                           projection))
-    vectors, omega2, damping = [], [], []
+    vectors, omega2, damping, n_above = [], [], [], 0
     if below:
         a = np.stack(below, axis=1)                       # modal coordinates of the low modes
         t, values = _rayleigh_ritz(a.T @ a, a.T @ (omega[:first, None] ** 2 * a))
@@ -386,10 +387,12 @@ def _load_ritz_vectors(model: LineModel, basis, index: np.ndarray, sines):
                                    psi.T @ (model.stiffness_matrix @ psi))
         vectors.append(psi @ t)
         omega2.append(values)
+        n_above = values.size
         damping.append(np.diag(_line_damping_at(model, basis, np.sqrt(values))))
     if not vectors:
         return empty
-    return (np.hstack(vectors), np.concatenate(omega2), scipy.linalg.block_diag(*damping))
+    return (np.hstack(vectors), np.concatenate(omega2), scipy.linalg.block_diag(*damping),
+            n_above)
 
 
 def _line_damping_at(model: LineModel, basis, omega: np.ndarray) -> np.ndarray:
@@ -508,7 +511,12 @@ def residual_of_load(model: LineModel, plant: ModalPlant, vector: np.ndarray,
         if ritz.shape[1] and np.min(np.abs(gaps)) > 1e-9 * (2 * np.pi * f) ** 2:
             dofs = dofs - ritz @ ((ritz.T @ vector) / gaps)
     else:
-        dofs = model.residual_response(vector, plant.lowest.shapes, plant.lowest.omega)
+        # the static residual of the modes above the top, less what the plant's Ritz vectors
+        # above the top (M- and K-orthogonal to every mode below it) already carry
+        first_above = plant.r - plant.n_ritz_above
+        dofs = model.residual_response(
+            vector, np.hstack([plant.lowest.shapes, plant.shapes[:, first_above:]]),
+            np.concatenate([plant.lowest.omega, np.sqrt(plant.omega2[first_above:])]))
     return model.displacement_map() @ dofs
 
 
