@@ -397,8 +397,7 @@ def _calibrate(line: _Line, robot: MDR, settings: _Settings, rng) -> _Calibratio
     """Simulate the parked start, add sensor noise, identify the estimator and warm it up."""
     n_cal, sensor_list = settings.n_cal, list(line.sensors)
     start_states = run_parked(line.plant, robot.position, line.modal_force, line.t.size)
-    calib_true = nodal_field(line.plant, start_states[:n_cal], line.residual[:, :n_cal],
-                             robot.position)
+    calib_true = nodal_field(line.plant, start_states[:n_cal], line.residual[:, :n_cal])
     calib_rms = float(np.sqrt(np.mean(calib_true**2)))
     noise_std = settings.noise_fraction * calib_rms
     record = calib_true + noise_std * rng.standard_normal(calib_true.shape)
