@@ -36,6 +36,7 @@ import numbers
 import numpy as np
 import scipy.linalg
 
+from .._spectral import load_phasor
 from .._validation import check_real
 from ..errors import InputError, ModelError
 from ..fem import MDR, LineModel, ModalDamping, RayleighDamping
@@ -553,11 +554,9 @@ def load_histories(model, plant, segments, t):
 
 
 def phasor_of(load, frequency: float) -> complex:
-    """A: values(t) = Re(A exp(i 2 pi f t)), fitted on one period (exact for a sine)."""
-    tau = np.linspace(0.0, 1.0 / frequency, 64, endpoint=False)
-    values = np.asarray(load.values(tau), dtype=float)
-    w = 2 * np.pi * frequency
-    return complex(2 * np.mean(values * np.cos(w * tau)), -2 * np.mean(values * np.sin(w * tau)))
+    """A: values(t) = Re(A exp(i 2 pi f t)) (:func:`~powerline_control._spectral.load_phasor`)."""
+    return load_phasor(load, frequency)
+
 
 def nodal_field(plant: ModalPlant, states: np.ndarray, residual: np.ndarray,
                 positions=None) -> np.ndarray:

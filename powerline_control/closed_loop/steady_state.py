@@ -19,11 +19,12 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._spectral import load_phasor
 from .._validation import check_array, read_only
 from ..errors import InputError, ModelError
 from ..fem import MDR, LineModel, ModalDamping, RayleighDamping
 from ..severity import damper_impedance
-from .plant import phasor_of, robot_dynamic_stiffness
+from .plant import robot_dynamic_stiffness
 
 # Modes a ModalDamping line keeps with their damping: those below this multiple of the load
 # frequency. Above it a mode's damping changes its term 1 / (w_k^2 - w^2 + 2 i zeta w_k w) by
@@ -114,7 +115,7 @@ def _harmonic_load(model: LineModel, force: object) -> tuple[float, np.ndarray]:
         if getattr(bound, "position", None) is not None:
             model._check_position("force position", bound.position)
         vector = check_array("force load vector", bound.load_vector(model), shape=(model.n_dofs,))
-        load += phasor_of(bound, frequency) * vector
+        load += load_phasor(bound, frequency) * vector
     return frequency, load
 
 
