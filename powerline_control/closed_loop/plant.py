@@ -75,7 +75,8 @@ class ModalPlant:
         self.omega2 = np.concatenate([np.asarray(basis.omega)[index] ** 2, ritz_omega2])
         self.line_damping = scipy.linalg.block_diag(
             np.asarray(basis.damping)[np.ix_(index, index)], ritz_damping)
-        self.nodal = model.displacement_map() @ self.shapes  # (n_nodes, r)
+        self._node_map = model.displacement_map()
+        self.nodal = self._node_map @ self.shapes  # (n_nodes, r)
         self.r = self.omega2.size
         off_diagonal = self.line_damping - np.diag(np.diag(self.line_damping))
         self._diagonal = not np.any(off_diagonal)
@@ -85,7 +86,6 @@ class ModalPlant:
         self._robot_cache: dict[float, tuple] = {}
         self._attachment_cache: dict[float, tuple] = {}
         self._mass_band = model.mass_matrix @ self.shapes[:, : self.n_band]
-        self._node_map = model.displacement_map()
 
     def coupling(self, x: float) -> np.ndarray:
         """The plant's basis displacements at x (shape functions restricted to the basis)."""
@@ -217,7 +217,8 @@ class ModalPlant:
         return result
 
     def matrices(self, x: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """M, C, K over (q, y): O(r^2) rank-one updates of the bare line's diagonal ones."""
+        """M, C, K over (q, y): O(r^2) rank-one updates of the bare line's diagonal ones, with
+        the robot's parameters of :meth:`robot_parameters` at x."""
         r, nq = self.r, self.n_q
         mass, damp, stiff = np.eye(nq), np.zeros((nq, nq)), np.zeros((nq, nq))
         stiff[:r, :r] = np.diag(self.omega2)
