@@ -86,4 +86,9 @@ class ExcitationWarning(UserWarning):
     """A training record is not persistently exciting: a model of it cannot know other loads."""
 
 
-__all__ += ["UndetectableModeWarning", "ExcitationWarning"]
+class ReachWarning(UserWarning):
+    """The robot cannot reach where it would damp best: its limits, the run's length or the
+    obstacles keep it from every better position."""
+
+
+__all__ += ["UndetectableModeWarning", "ExcitationWarning", "ReachWarning"]

@@ -44,7 +44,7 @@ def public_names() -> list[str]:
 
 
 def module_of(name: str) -> str:
-    """The short name of the module that defines ``powerline_control.<name>``.
+    """The short name of the module (or subpackage) that defines ``powerline_control.<name>``.
 
     Functions and classes say it (``__module__``); a constant (a dict, a tuple) does not, so the
     package's submodules are searched for the very same object.
@@ -58,7 +58,9 @@ def module_of(name: str) -> str:
             if key.startswith("powerline_control.") and getattr(mod, name, None) is obj
         ]
         module = min(holders, key=_order_key) if holders else "powerline_control"
-    return module.removeprefix("powerline_control.").lstrip("_") or "powerline_control"
+    # a subpackage's names are its own section (closed_loop.loop -> closed_loop)
+    return module.removeprefix("powerline_control.").lstrip("_").split(".")[0] or \
+        "powerline_control"
 
 
 def _order_key(module: str) -> tuple[int, str]:

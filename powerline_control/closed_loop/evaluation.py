@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from .._validation import read_only
+from ..errors import ModelError
 from ..fem import MDR
-from .plant import ModalPlant, damper_power, nodal_field, phasor_of, run_parked
+from .plant import ModalPlant, damper_power, nodal_field, run_parked
+from .policy import reach_within
 from .result import Comparison
+from .steady_state import ParkedSteadyState, parked_steady_state
 
 
 def arrival_index(position: np.ndarray, start: int, tolerance: float) -> int | None:
@@ -76,70 +80,120 @@ def window_comparison(name: str, position: float, states: np.ndarray, plant: Mod
                       read_only(envelope))
 
 
-def parked_comparison(name: str, x_park: float | None, line, robot: MDR,
-                       mask: np.ndarray) -> Comparison:
-    """The whole run with the robot parked at ``x_park`` (None: no robot on the line)."""
-    n_t = line.t.size
-    if x_park is None:
-        states = run_parked(line.free_plant, None, line.modal_force, n_t)
-        return window_comparison(name, np.nan, states, line.free_plant, np.zeros(n_t), line, mask)
-    states = run_parked(line.plant, x_park, line.modal_force, n_t)
-    power = damper_power(line.plant, robot, states, x_park)
-    return window_comparison(name, x_park, states, line.plant, power, line, mask)
+# A settled window whose RMS is farther than this from the steady state (or whose halves differ by
+# this much) still rings: its time-domain RMS is flagged as transient.
+TRANSIENT_TOLERANCE = 0.10
 
 
-def steady_rms(line, x: float, omega: float, modal_amplitude: np.ndarray,
-                static_amplitude: np.ndarray) -> float:
-    """RMS over the span in steady state under a sine (its modal and residual amplitudes) with
-    the robot parked at x."""
-    plant = line.plant
-    amplitude = plant.steady_state(x, omega, modal_amplitude)
-    shape = plant.nodal @ amplitude[: plant.r] + static_amplitude
-    return float(np.sqrt(0.5 * line.weights @ np.abs(shape) ** 2))
+def reachable_positions(line, limits, start: float, bounds: tuple[float, float],
+                        travel_time: float) -> np.ndarray:
+    """The scan's positions: those the robot could reach from ``start`` inside ``bounds`` (its
+    free interval) moving rest-to-rest for at most ``travel_time`` s, about 40 per loop of the
+    last load's frequency (and 4 per element on short spans)."""
+    reach = reach_within(limits, travel_time)
+    low, high = max(bounds[0], start - reach), min(bounds[1], start + reach)
+    frequency = line.harmonic[0]
+    step = min(float(line.span.loop_length(frequency)) / 40, line.bare.element_length / 4)
+    return np.linspace(low, high, max(int(np.ceil((high - low) / step)) + 1, 2))
 
 
-def steady_state_scan(line) -> tuple[np.ndarray, np.ndarray, float]:
-    """(positions, RMS, best position): the steady state with the robot parked along the span
-    under the last harmonic load, a coarse grid and a fine one around its minimum (empty and
-    NaN when that load is not one sine)."""
-    if line.harmonic is None:
-        return np.zeros(0), np.zeros(0), float("nan")
-    span_length = line.span.length
-    scan_frequency, parts = line.harmonic
-    omega = 2 * np.pi * scan_frequency
-    modal_amplitude = sum(g * phasor_of(load, scan_frequency) for load, g, _ in parts)
-    static_amplitude = sum(s * phasor_of(load, scan_frequency) for load, _, s in parts)
-    loads = (omega, modal_amplitude, static_amplitude)
-    coarse = np.linspace(0.0, span_length, 4 * line.bare.n_elements + 1)[1:-1]
-    coarse_rms = np.array([steady_rms(line, x, *loads) for x in coarse])
-    i = int(np.argmin(coarse_rms))
-    step = coarse[1] - coarse[0]
-    fine = np.linspace(max(coarse[i] - 2 * step, 1e-9),
-                       min(coarse[i] + 2 * step, span_length - 1e-9), 41)
-    fine_rms = np.array([steady_rms(line, x, *loads) for x in fine])
-    positions = np.concatenate([coarse, fine])
-    order = np.argsort(positions)
-    return (positions[order], np.concatenate([coarse_rms, fine_rms])[order],
-            float(fine[int(np.argmin(fine_rms))]))
-
-
-def all_comparisons(line, robot: MDR, records, calibration,
-                 mask: np.ndarray, best_position: float, loop_power: np.ndarray) -> tuple:
-    """no robot, parked near a clamp, parked at the start, parked at the best position, and the
-    closed loop, over the same settled window."""
-    start_states, plant = calibration.start_states, line.plant
-    return (
-        parked_comparison("no_robot", None, line, robot, mask),
-        parked_comparison("near_clamp", line.clamp_distance, line, robot, mask),
-        window_comparison("start", robot.position, start_states, plant,
-                    damper_power(plant, robot, start_states, robot.position), line, mask),
-        parked_comparison("best", best_position, line, robot, mask)
-        if not np.isnan(best_position)
-        else Comparison("best", np.nan, np.nan, np.nan, np.nan,
-                        read_only(np.zeros(line.bare.n_nodes))),
-        window_comparison("closed_loop", records.position[-1], records.plant_states, plant,
-                    loop_power, line, mask),
+def steady_scan(line, robot: MDR, loads, positions: np.ndarray) -> ParkedSteadyState:
+    """The exact steady state along ``positions`` and refined around its minimum (41 points
+    over the two grid steps either side)."""
+    coarse = parked_steady_state(line.bare, loads, robot, positions)
+    if positions.size < 3:
+        return coarse
+    i = int(np.argmin(coarse.rms))
+    step = positions[1] - positions[0]
+    fine = np.linspace(max(positions[i] - 2 * step, positions[0]),
+                       min(positions[i] + 2 * step, positions[-1]), 41)
+    refined = parked_steady_state(line.bare, loads, robot, fine)
+    order = np.argsort(np.concatenate([positions, fine]), kind="stable")
+    return ParkedSteadyState(
+        frequency=coarse.frequency, positions=read_only(np.concatenate([positions, fine])[order]),
+        x=coarse.x, field=read_only(np.concatenate([coarse.field, refined.field])[order]),
+        rms=read_only(np.concatenate([coarse.rms, refined.rms])[order]),
+        robot_displacement=read_only(np.concatenate(
+            [coarse.robot_displacement, refined.robot_displacement])[order]),
+        damper_power=read_only(np.concatenate([coarse.damper_power, refined.damper_power])[order]),
     )
+
+
+def _steady_comparison(window: Comparison, state: ParkedSteadyState, index: int) -> Comparison:
+    """``window``'s placement in exact steady state (state's position ``index``)."""
+    envelope = np.abs(state.field[index])
+    rms = float(state.rms[index])
+    transient = abs(window.rms / rms - 1.0) > TRANSIENT_TOLERANCE if rms > 0 else False
+    return Comparison(window.name, window.position, rms, float(envelope.max()),
+                      float(state.damper_power[index]), read_only(envelope),
+                      window_rms=window.rms, steady=True, transient=bool(transient))
+
+
+def _window_only(window: Comparison, line, states, plant, mask) -> Comparison:
+    """A placement without a steady state: the window RMS, flagged when its halves differ."""
+    index = np.flatnonzero(mask)
+    halves = np.array_split(index, 2)
+    rms = [float(np.sqrt(np.mean(line.weights @ nodal_field(
+        plant, states[h], line.residual[:, h]) ** 2))) for h in halves if h.size]
+    transient = len(rms) == 2 and abs(rms[0] - rms[1]) > TRANSIENT_TOLERANCE * max(rms)
+    return dataclasses.replace(window, window_rms=window.rms, transient=bool(transient))
+
+
+def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, limits,
+                    bounds: tuple[float, float], travel_time: float, last_loads,
+                    loop_power: np.ndarray) -> tuple[tuple, ParkedSteadyState | None]:
+    """no robot, parked near a clamp, parked at the start, parked at the best position within
+    reach, and where the closed loop ended: in exact steady state when the last load is one
+    sine (with the settled window's RMS beside it), else over the settled window; and the
+    steady-state scan the best position comes from (None without a sine)."""
+    start_states, plant = calibration.start_states, line.plant
+    n_t = line.t.size
+    free_states = run_parked(line.free_plant, None, line.modal_force, n_t)
+    windows = {
+        "no_robot": (window_comparison("no_robot", np.nan, free_states, line.free_plant,
+                                       np.zeros(n_t), line, mask), free_states, line.free_plant),
+        "near_clamp": _parked_window("near_clamp", line.clamp_distance, line, robot, mask),
+        "start": (window_comparison("start", robot.position, start_states, plant,
+                                    damper_power(plant, robot, start_states, robot.position),
+                                    line, mask), start_states, plant),
+        "closed_loop": (window_comparison("closed_loop", records.position[-1],
+                                          records.plant_states, plant, loop_power, line, mask),
+                        records.plant_states, plant),
+    }
+    if line.harmonic is None:
+        best = Comparison("best", np.nan, np.nan, np.nan, np.nan,
+                          read_only(np.zeros(line.bare.n_nodes)))
+        out = {name: _window_only(c, line, states, p, mask)
+               for name, (c, states, p) in windows.items()}
+        return (out["no_robot"], out["near_clamp"], out["start"], best, out["closed_loop"]), None
+    scan = steady_scan(line, robot, last_loads,
+                       reachable_positions(line, limits, robot.position, bounds, travel_time))
+    windows["best"] = _parked_window("best", scan.best_position, line, robot, mask)
+    placed = parked_steady_state(
+        line.bare, last_loads, robot,
+        np.array([line.clamp_distance, robot.position, records.position[-1]]))
+    out = {"near_clamp": _steady_comparison(windows["near_clamp"][0], placed, 0),
+           "start": _steady_comparison(windows["start"][0], placed, 1),
+           "closed_loop": _steady_comparison(windows["closed_loop"][0], placed, 2),
+           "best": _steady_comparison(windows["best"][0], scan, int(np.argmin(scan.rms)))}
+    try:
+        out["no_robot"] = _steady_comparison(windows["no_robot"][0],
+                                             parked_steady_state(line.bare, last_loads, None), 0)
+    except ModelError:
+        # An undamped bare line driven exactly at a natural frequency has no steady state.
+        c, states, p = windows["no_robot"]
+        out["no_robot"] = _window_only(c, line, states, p, mask)
+    order = ("no_robot", "near_clamp", "start", "best", "closed_loop")
+    return tuple(out[name] for name in order), scan
+
+
+def _parked_window(name: str, x_park: float, line, robot: MDR, mask: np.ndarray):
+    """(window comparison, states, plant) of the run with the robot parked at ``x_park``."""
+    states = run_parked(line.plant, x_park, line.modal_force, line.t.size)
+    power = damper_power(line.plant, robot, states, x_park)
+    return window_comparison(name, x_park, states, line.plant, power, line, mask), states, \
+        line.plant
+
 
 
 # Thousands of small products per simulated second: one BLAS thread is several times faster than

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from .._spectral import dominant_frequency, fit_phasors
 from .._validation import (
     check_budget,
     check_indices,
@@ -17,13 +19,13 @@ from .._validation import (
     check_rng,
     read_only,
 )
-from ..errors import InputError
+from ..errors import InputError, ReachWarning
 from ..estimate import KalmanFilter
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
 from ..recipe import design_estimator
-from .evaluation import all_comparisons, settling_of, steady_state_scan
+from .evaluation import all_comparisons, settling_of
 from .motion import Motion
 from .plant import (
     SMALL_PLANT_MODES,
@@ -36,12 +38,12 @@ from .plant import (
     run_parked,
 )
 from .policy import (
+    MIN_GAIN,
     TRAVEL_FRACTION,
     Targeting,
     choose_target,
-    dominant_frequency,
-    fit_phasor,
     kernel_shape,
+    predicted_rms,
     reach_within,
 )
 from .result import ClosedLoopResult
@@ -351,6 +353,8 @@ def _build_line(robot, segments, settings: _Settings, sensors, *, n_modes,
         for b in [f.bind(bare) if hasattr(f, "bind") else f]
         if getattr(b, "frequency", None) is not None   # a user's load may say None: not a sine
     ]
+    for frequency in load_frequencies:  # a mesh too coarse for the load: TruncationWarning
+        bare.check_resolution(frequency, "load")
     if n_modes is None:
         n_modes = default_modes(span, bare, load_frequencies, settings.dt)
     else:
@@ -486,8 +490,8 @@ def _bare_shape(records: _Records, line: _Line, robot: MDR, x_r: float, lo: int,
                 frequency: float) -> np.ndarray:
     """The robot-free excited shape from the sensors' and the robot's own phasors on [lo, end]."""
     tt = line.t[lo : end + 1]
-    sensed = fit_phasor(records.measured[:, lo : end + 1], tt, frequency)
-    at_robot = fit_phasor(records.robot_measured[None, lo : end + 1], tt, frequency)[0]
+    sensed = fit_phasors(records.measured[:, lo : end + 1], tt, frequency)
+    at_robot = fit_phasors(records.robot_measured[None, lo : end + 1], tt, frequency)[0]
     return kernel_shape(line.plant, line.sensor_rows, sensed, robot, x_r, at_robot,
                          2 * np.pi * frequency)
 
@@ -528,6 +532,11 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
                            motion.position, low, high, reach)
     records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape)))
     if retarget:
+        note = _out_of_reach(choice, shape, line, robot, settings, 2 * np.pi * frequency, reach,
+                             (low, high))
+        if note is not None:
+            records.decisions.append((float(t[k]), note))
+    if retarget:
         records.retarget_times.append(float(t[k]))
         records.target_starts.append(k)
     decision = targeting.accept(choice, motion.position, float(line.span.loop_length(frequency)),
@@ -535,6 +544,42 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     records.decisions.append((float(t[k]), decision))
     if targeting.goal != motion.goal:
         motion.send(targeting.goal, float(t[k]))
+
+
+def _out_of_reach(choice, shape: np.ndarray, line: _Line, robot: MDR, settings: _Settings,
+                  omega: float, reach: float, bounds: tuple[float, float]) -> str | None:
+    """What keeps the robot from a position predicted clearly better (by MIN_GAIN) than the
+    best within reach, in words (None: nothing does). A ReachWarning when the robot cannot even
+    reach a quarter loop, or the obstacles hold it at the edge of its free interval; a far loop
+    beyond the travel budget (on a long span) is only noted: few sensors rank far loops poorly,
+    and the trip would cost most of the run."""
+    half, length = settings.limits.length / 2, line.span.length
+    anywhere = choose_target(shape, line.plant, robot, omega, line.weights, choice.position,
+                             half, length - half)
+    chosen, best = predicted_rms(shape, line.plant, robot, omega,
+                                 [choice.position, anywhere.position], line.weights)
+    if best >= (1 - MIN_GAIN) * chosen:
+        return None
+    limits, gain = settings.limits, 100 * (1 - best / chosen)
+    found = (f"{anywhere.position:.4g} m is predicted {gain:.0f} % better than "
+             f"{choice.position:.4g} m")
+    if not bounds[0] <= anywhere.position <= bounds[1]:
+        if min(abs(choice.position - edge) for edge in bounds) > 1e-6:
+            return None   # the best inside the free interval is a loop of its own
+        warnings.warn(
+            f"The robot cannot reach where it would damp best: {found}, but the 'obstacles' "
+            f"{list(settings.obstacles)} confine the robot (length {limits.length:g} m) to "
+            f"[{bounds[0]:.4g}, {bounds[1]:.4g}] m.", ReachWarning, stacklevel=4)
+        return f"blocked by an obstacle: {found}"
+    loop = float(line.span.loop_length(omega / (2 * np.pi)))
+    if reach < 0.25 * loop:
+        warnings.warn(
+            f"The robot cannot reach where it would damp best: {found}, but the 'limits' "
+            f"(v_max={limits.v_max:g} m/s, a_max={limits.a_max:g} m/s^2, j_max={limits.j_max}) "
+            f"let it travel only {reach:.3g} m (a quarter loop is {0.25 * loop:.3g} m) in half "
+            f"the rest of the {settings.duration:g} s run ('duration'): raise the limits or "
+            "lengthen the run.", ReachWarning, stacklevel=4)
+    return f"beyond the travel budget ({reach:.3g} m): {found}"
 
 
 def _move_robot(motion: Motion, records: _Records, t: np.ndarray, k: int, end: int) -> None:
@@ -642,24 +687,32 @@ def run_closed_loop(
 
     Parameters
     ----------
-    span : Span
-        The span.
+    model : LineModel or Span
+        The line: a :class:`~powerline_control.fem.LineModel` runs on its own mesh (graded
+        toward clamps), supports and damping (a model built with ``mdr=`` also gives the robot);
+        a :class:`~powerline_control.line.Span` is meshed with ``n_elements``, ``bc`` and
+        ``damping``.
     force : load, list of loads, or list of (start_time, load)
         The excitation (e.g. :class:`~powerline_control.excitation.HarmonicForce`); a schedule
         ``[(0.0, load_a), (8.0, load_b)]`` switches loads at the given times (a wind change).
-    robot : MDR
+    robot : MDR or None
         The robot; ``robot.position`` is where it starts (and stays parked in the baseline).
+        None: the robot the LineModel carries.
     limits : RobotLimits or None
-        Speed and acceleration limits (default v_max = 0.5 m/s, a_max = 1 m/s^2).
+        Speed, acceleration, jerk and body length (default v_max = 0.5 m/s, a_max = 1 m/s^2):
+        every field holds at every sample (the motion is :mod:`~powerline_control.plan`'s), and
+        the body stays inside the span and out of the obstacles
+        (:func:`~powerline_control.plan.free_interval`).
     sensors : sequence of int
         Measured node indices (not at a pinned support, where the line never moves).
     n_elements : int or None
-        Elements of the FE model whose modes play the real line (None: the mesh the physics
-        chooses for the aeolian band, see :class:`~powerline_control.fem.LineModel`).
+        With a Span: elements of the FE model whose modes play the real line (default 100;
+        None: the mesh the physics chooses for the aeolian band, see
+        :class:`~powerline_control.fem.LineModel`). Refused with a LineModel (it has its mesh).
     bc : str or (str, str)
-        Supports.
+        With a Span: supports (default ``"pinned"``).
     damping : None, ModalDamping or RayleighDamping
-        The line's own damping (none by default, as in the paper).
+        With a Span: the line's own damping (none by default, as in the paper).
     duration : float
         Total simulated time, s, calibration included.
     calibration : float
@@ -701,7 +754,9 @@ def run_closed_loop(
     obstacles : sequence of (left, right)
         Intervals the robot may not enter or cross, m.
     motion : {"closed_form", "mpc"}
-        Motion law: the closed-form time-optimal approach, or the receding-horizon planner.
+        Motion: each new goal a :func:`~powerline_control.plan.plan_motion` time-optimal move
+        (the S-curve with a jerk limit), or the receding-horizon
+        :class:`~powerline_control.plan.MotionPlanner`.
     planner_time_budget : float or None
         Wall-clock budget of one MPC step, s (``motion="mpc"`` only); None (default): the
         planner's iteration limits, so results do not depend on the machine's load.
@@ -722,9 +777,25 @@ def run_closed_loop(
     PowerlineControlError
         From the stages (identification, estimation, planning) when they report trouble.
 
+    Warns
+    -----
+    ReachWarning
+        When the limits and the run let the robot travel less than a quarter loop, or the
+        obstacles keep it from the best predicted position.
+    TruncationWarning
+        When the mesh does not resolve a load's frequency.
+
     Examples
     --------
-    See :class:`ClosedLoopResult`.
+    >>> import powerline_control as plc
+    >>> model = plc.LineModel(plc.Span.paper_lab(), 20, damping=plc.ModalDamping(0.01))
+    >>> robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
+    >>> result = plc.run_closed_loop(model, plc.HarmonicForce(1.0, 24.0, 0.5), robot,
+    ...                              sensors=[4, 9, 15], duration=6.0, calibration=1.0)
+    >>> result.comparison("closed_loop").steady     # compared in exact steady state
+    True
+    >>> bool(result.vibration_reduction > 3)         # parked at the start / where it ended
+    True
     """
     settings = _checked_settings(
         model, robot, limits, sensors, n_elements=n_elements, bc=bc, damping=damping,
@@ -777,9 +848,13 @@ def run_closed_loop(
     loop_length = float(span.loop_length(frequencies[-1])) if frequencies else float("nan")
     settling = settling_of(records, t, segments, n_cal, loop_length, settings.settle_margin)
     loop_power = damper_power(line.plant, robot, records.plant_states, records.position)
-    scan_positions, scan_rms, best_position = steady_state_scan(line)
-    comparisons = all_comparisons(line, robot, records, calibrated, settling.mask,
-                               best_position, loop_power)
+    travel_time = TRAVEL_FRACTION * (t[-1] - t[n_cal - 1])
+    bounds = free_interval(robot.position, limits, span.length, settings.obstacles)
+    comparisons, scan = all_comparisons(line, robot, records, calibrated, settling.mask, limits,
+                                        bounds, travel_time, segments[-1][1], loop_power)
+    scan_positions = scan.positions if scan is not None else np.zeros(0)
+    scan_rms = scan.rms if scan is not None else np.zeros(0)
+    best_position = scan.best_position if scan is not None else float("nan")
     timings["comparisons"] = time.perf_counter() - after_start
     return ClosedLoopResult(
         t=read_only(t),

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._spectral import dominant_frequency, fit_phasors
 from .._validation import check_array, read_only
 from ..errors import InputError
 from ..fem import MDR, LineModel
@@ -43,46 +44,6 @@ TRAVEL_FRACTION = 0.5
 # the robot is: below it the prediction (a few sensors' phasors) cannot tell the two apart, and
 # the robot holds still rather than wander between equally good loops.
 MIN_GAIN = 0.05
-
-# ---------------------------------------------------------------------------------- the policy
-def dominant_frequency(signals: np.ndarray, dt: float) -> float:
-    """Frequency of the largest spectral peak of (n_signals, n_t), Hann window, interpolated.
-
-    Not antinode's ``_dominant_harmonic`` (the same Hann window and log-parabola, but no zero
-    padding): padding to at least 2 n bins makes the estimate ~10x closer for a tone (measured:
-    errors of 2e-4 to 1.4e-3 Hz here against 3e-3 to 1.6e-2 Hz on 1-2 s windows at 1 kHz), and
-    the phasors are fitted at this frequency over a window, where its error turns into phase.
-    """
-    n = signals.shape[1]
-    window = np.hanning(n)
-    n_fft = max(2 * n, 1024)  # Hann + log-parabola: bias ~1 % of a bin for a pure tone
-    power = np.sum(
-        np.abs(np.fft.rfft((signals - signals.mean(axis=1, keepdims=True)) * window, n_fft))
-        ** 2,
-        axis=0,
-    )
-    power[0] = 0.0
-    k = int(np.argmax(power))
-    if 0 < k < power.size - 1:
-        a, b, c = np.log(power[k - 1 : k + 2] + 1e-300)
-        denom = a - 2 * b + c
-        k = k + (0.5 * (a - c) / denom if denom < 0 else 0.0)
-    return float(k / (n_fft * dt))
-
-
-def fit_phasor(signals: np.ndarray, t: np.ndarray, frequency: float) -> np.ndarray:
-    """Least-squares A per row: signal ~ Re(A exp(i omega t)) + constant.
-
-    The fit antinode's ``_dominant_harmonic`` makes too, but here at a frequency given (measured
-    on the longer frequency window) and on absolute time ``t``: the phasors of a window's two
-    halves, compared for the unsteadiness check, share one phase reference (antinode's are
-    referred to their own window's first sample, and only at the frequency it finds itself).
-    """
-    w = 2 * np.pi * frequency
-    basis = np.column_stack([np.cos(w * t), np.sin(w * t), np.ones_like(t)])
-    coef, *_ = np.linalg.lstsq(basis, signals.T, rcond=None)
-    return coef[0] - 1j * coef[1]
-
 
 def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
     """Robot-free excited shape at every node from the sensors' and the robot's phasors.
@@ -248,7 +209,7 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
     if not frequency > 0.0:
         raise InputError("The 'field' parameter shows no vibration (no spectral peak above 0 Hz).")
     t = dt * np.arange(field.shape[1])
-    shape = fit_phasor(field, t, frequency)
+    shape = fit_phasors(field, t, frequency)
     plant = ModalPlant(model, robot, default_modes(model.span, model, [frequency], dt), dt)
     low, high = free_interval(start, limits, model.span.length, obstacles)
     return choose_target(shape, plant, robot, 2 * np.pi * frequency, model.span_weights, start,
@@ -256,13 +217,18 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
 
 
 def reach_within(limits: RobotLimits, time_budget: float) -> float:
-    """Longest rest-to-rest move within ``time_budget`` s (triangle or trapezoid profile), m."""
-    a, v = limits.a_max, limits.v_max
+    """Longest rest-to-rest move within ``time_budget`` s under every limit (jerk included), m:
+    the inverse of :meth:`RobotLimits.rest_to_rest_time`, which grows with the distance."""
     if time_budget <= 0:
         return 0.0
-    if time_budget <= 2 * v / a:
-        return 0.25 * a * time_budget**2
-    return v * (time_budget - v / a)
+    if not np.isfinite(time_budget):
+        return np.inf
+    low, high = 0.0, limits.v_max * time_budget   # no move in time_budget goes farther
+    for _ in range(60):                           # bisection to ~1e-18 of high
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if limits.rest_to_rest_time(middle) <= time_budget else (
+            low, middle)
+    return low
 
 
 @dataclass

@@ -11,30 +11,41 @@ from ..errors import InputError
 
 @dataclass(frozen=True)
 class Comparison:
-    """The line's vibration over the settled window for one robot placement.
+    """The line's vibration for one robot placement, in steady state where it has one.
 
     Attributes
     ----------
     name : str
         ``"no_robot"``, ``"near_clamp"``, ``"start"`` (parked where the closed loop started),
-        ``"best"`` (parked at the best position of the steady-state scan) or ``"closed_loop"``.
+        ``"best"`` (parked at the best position within reach of the steady-state scan) or
+        ``"closed_loop"`` (parked where the loop ended).
     position : float
         Where the robot was parked, m (NaN without a robot; the final position for the loop).
     rms : float
-        RMS displacement over the span (length-weighted) and the settled window, m.
+        RMS displacement over the span (length-weighted), m: of the exact steady state with the
+        robot parked at ``position`` when the last load is one sine (``steady``), else over the
+        settled window of the run.
     peak : float
-        Largest absolute displacement over the span and the window, m.
+        Largest displacement amplitude over the span, m (steady state or window, as ``rms``).
     damper_power : float
-        Mean power dissipated in the robot's damper over the window, W.
+        Mean power dissipated in the robot's damper, W (as ``rms``).
     envelope : ndarray, shape (n_nodes,)
-        Largest absolute displacement at each node over the window, m.
+        Displacement amplitude at each node, m (as ``rms``).
+    window_rms : float
+        The time-domain RMS over the settled window, m (what the run itself showed).
+    steady : bool
+        True when ``rms``, ``peak``, ``damper_power`` and ``envelope`` are the exact steady state.
+    transient : bool
+        True when the settled window still rings: its RMS is more than 10 % away from the steady
+        state (or, without one, its two halves' RMS differ by more than 10 %), so ``window_rms``
+        says little about where the line settles.
 
     Examples
     --------
     >>> import numpy as np
     >>> c = Comparison("start", 1.2, 1e-3, 2e-3, 0.0, np.zeros(3))
-    >>> c.name, c.rms
-    ('start', 0.001)
+    >>> c.name, c.rms, c.steady
+    ('start', 0.001, False)
     """
 
     name: str
@@ -43,6 +54,9 @@ class Comparison:
     peak: float
     damper_power: float
     envelope: np.ndarray = field(repr=False)
+    window_rms: float = float("nan")
+    steady: bool = False
+    transient: bool = False
 
 
 @dataclass(frozen=True)
@@ -82,8 +96,10 @@ class ClosedLoopResult:
         no robot, parked near a clamp, parked at the start, parked at the best position, and
         the closed loop, over the same settled window.
     scan_positions, scan_rms : ndarray
-        The steady-state scan: RMS displacement over the span (m) with the robot parked at each
-        position, for the last harmonic load (empty when the load is not harmonic).
+        The exact steady-state scan (:func:`parked_steady_state`): RMS displacement over the
+        span (m) with the robot parked at each position it could reach in the run (rest-to-rest
+        within half the time after calibration, inside its free interval), for the last harmonic
+        load (empty when the load is not harmonic).
     best_position : float
         Minimiser of the scan, m (NaN without a harmonic load).
     loop_length : float
@@ -122,12 +138,14 @@ class ClosedLoopResult:
     >>> import powerline_control as plc
     >>> robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
     >>> result = plc.run_closed_loop(plc.Span.paper_lab(), plc.HarmonicForce(1.0, 24.0, 0.5),
-    ...                              robot, n_elements=20, sensors=[4, 9, 15], duration=2.0,
+    ...                              robot, n_elements=20, sensors=[4, 9, 15], duration=5.0,
     ...                              calibration=1.0)
-    >>> result.displacement.shape, len(result.statuses)      # 20 control steps of 50 ms
-    ((21, 2001), 20)
+    >>> result.displacement.shape, len(result.statuses)      # 80 control steps of 50 ms
+    ((21, 5001), 80)
     >>> [c.name for c in result.comparisons]
     ['no_robot', 'near_clamp', 'start', 'best', 'closed_loop']
+    >>> result.decisions[0]
+    (1.0, 'target 0.6852 m (predicted 96 % lower)')
     """
 
     t: np.ndarray
