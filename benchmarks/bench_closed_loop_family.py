@@ -31,7 +31,6 @@ import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import closed_loop_family as fam  # noqa: E402
 
 
-
 def code_version() -> str:
     """HEAD and a hash of the uncommitted changes to the package (the closed loop is edited
     concurrently: two runs are comparable only on the same version)."""

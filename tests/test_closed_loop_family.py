@@ -7,14 +7,13 @@ built by hand, so that the verdicts do not rest on the closed loop's plant nor o
 own sparse/Woodbury route.
 """
 
-import dataclasses
 from concurrent.futures import ProcessPoolExecutor
 
+import closed_loop_family as fam
 import numpy as np
 import pytest
 import scipy.linalg
 
-import closed_loop_family as fam
 import powerline_control as plc
 
 LAB = plc.Span.paper_lab()
