@@ -484,6 +484,22 @@ BAD_INPUT = [
     ("RobotLimits.length<0", lambda s: plc.RobotLimits(1.0, 1.0, length=-1.0), I, "length"),
     ("stopping_distance.velocity nan",
      lambda s: s["limits"].stopping_distance(math.nan), I, "velocity"),
+    ("free_interval.position nan",
+     lambda s: plc.free_interval(math.nan, s["limits"], 3.66), I, "position"),
+    ("free_interval.limits=str", lambda s: plc.free_interval(1.0, "fast", 3.66), I, "limits"),
+    ("free_interval.inside obstacle",
+     lambda s: plc.free_interval(1.0, s["limits"], 3.66, [(0.9, 1.1)]), I, "obstacle"),
+    ("parked_steady_state.force=str",
+     lambda s: plc.parked_steady_state(s["model"], "sine", s["mdr"]), I, "force"),
+    ("parked_steady_state.positions off the span",
+     lambda s: plc.parked_steady_state(s["model"], plc.HarmonicForce(1.0, 20.0, 1.0), s["mdr"],
+                                       [5.0]), I, "positions"),
+    ("choose_parked_position.field shape",
+     lambda s: plc.choose_parked_position(s["model"], np.zeros((3, 50)), 1e-3, s["mdr"], 1.2,
+                                          s["limits"]), I, "field"),
+    ("choose_parked_position.model=str",
+     lambda s: plc.choose_parked_position("lab", s["field"], 1e-3, s["mdr"], 1.2, s["limits"]),
+     I, "model"),
     ("plan_motion.start nan", lambda s: plc.plan_motion(math.nan, 1.0, s["limits"]), I, "start"),
     ("plan_motion.limits=str", lambda s: plc.plan_motion(0.0, 1.0, "fast"), I, "limits"),
     ("plan_motion.objective",
@@ -1060,7 +1076,7 @@ def test_bad_input_table_covers_every_public_callable():
                "ModalBasis", "ObservabilityReport",
                "SensorCountStudy", "SensorSelection", "SensorSetComparison", "Snapshots",
                "StabilityReport", "StudyResult", "Trajectory", "CatenaryCheck", "RobotValue",
-               "SeverityResult", "TimeDomainCheck"}
+               "SeverityResult", "TimeDomainCheck", "Choice", "ParkedSteadyState"}
     public = {n for n in dir(plc) if not n.startswith("_") and callable(getattr(plc, n))
               and not (isinstance(getattr(plc, n), type)
                        and issubclass(getattr(plc, n), BaseException | Warning))}

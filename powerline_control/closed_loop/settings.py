@@ -218,7 +218,8 @@ def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping) -> Lin
                  nbytes=8.0 * n_samples * (4 * (n_nodes or 2) + 16),
                  parameter="duration", value=duration,
                  fix=f"shorten duration ({duration:g} s), increase dt ({dt:g} s) or use a "
-                     f"coarser mesh ({n_nodes} nodes)")
+                     f"coarser mesh ({n_nodes} nodes"
+                     + (f": n_elements={n_elements})" if isinstance(n_elements, int) else ")"))
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
     if isinstance(model, LineModel):
