@@ -44,6 +44,9 @@ TRAVEL_FRACTION = 0.5
 # the robot is: below it the prediction (a few sensors' phasors) cannot tell the two apart, and
 # the robot holds still rather than wander between equally good loops.
 MIN_GAIN = 0.05
+# ... and a refinement inside the anchor's loop at least this much: near a minimum the RMS is flat
+# to second order, and a move of a few per cent of a loop would only restart the settling.
+REFINE_GAIN = 0.01
 
 def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
     """Robot-free excited shape at every node from the sensors' and the robot's phasors.
@@ -123,17 +126,24 @@ class Choice:
 
 
 def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high,
-                  reach=np.inf) -> Choice:
+                  reach=np.inf, obstacle_ends=(False, False)) -> Choice:
     """The predicted best parked position within reach: among the local minima of the predicted
     RMS no farther than ``reach`` from the robot, those within NEAR_OPTIMAL of the lowest of
-    them, the one nearest the robot (the nearest minimum when none is within reach)."""
+    them, the one nearest the robot (the nearest minimum when none is within reach; the robot's
+    own position when the prediction has no minimum). ``obstacle_ends``: whether an obstacle
+    (not a support) bounds the interval [low, high] on each side."""
     x = plant.model.node_positions
     grid = np.linspace(low, high, max(4 * x.size, 200))
     predicted = predicted_rms(bare_shape, plant, robot, omega, grid, weights)
     here = float(predicted_rms(bare_shape, plant, robot, omega, [robot_position], weights)[0])
+    # The ends of the grid count as minima only where an obstacle bounds it: at a support the
+    # robot does nothing (the line does not move there), so a "minimum" there is the prediction's
+    # edge, not a place to damp from (it sent the robot to the support itself).
     minima = [i for i in range(grid.size)
-              if (i == 0 or predicted[i] <= predicted[i - 1])
-              and (i == grid.size - 1 or predicted[i] <= predicted[i + 1])]
+              if (predicted[i] <= predicted[i - 1] if i > 0 else obstacle_ends[0])
+              and (predicted[i] <= predicted[i + 1] if i < grid.size - 1 else obstacle_ends[1])]
+    if not minima:
+        return Choice(robot_position, read_only(grid), read_only(predicted), here)
     nearest = min(minima, key=lambda i: abs(grid[i] - robot_position))
     reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach] or [nearest]
     lowest = min(predicted[i] for i in reachable)
@@ -213,7 +223,15 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
     plant = ModalPlant(model, robot, default_modes(model.span, model, [frequency], dt), dt)
     low, high = free_interval(start, limits, model.span.length, obstacles)
     return choose_target(shape, plant, robot, 2 * np.pi * frequency, model.span_weights, start,
-                         low, high, reach_within(limits, travel_time))
+                         low, high, reach_within(limits, travel_time),
+                         obstacle_ends((low, high), obstacles, limits.length))
+
+
+def obstacle_ends(bounds: tuple[float, float], obstacles, body_length: float) -> tuple[bool, bool]:
+    """Whether an obstacle (rather than a span end) sets each bound of a free interval."""
+    half = body_length / 2
+    return (any(abs(right + half - bounds[0]) < 1e-9 for _, right in obstacles),
+            any(abs(left - half - bounds[1]) < 1e-9 for left, _ in obstacles))
 
 
 def reach_within(limits: RobotLimits, time_budget: float) -> float:
@@ -312,8 +330,13 @@ class Targeting:
                     f"is only {100 * choice.gain:.1f} % lower (< {100 * MIN_GAIN:g} %)")
         if abs(choice.position - self.anchor) <= 0.25 * self.loop:
             # The same minimum, better estimated from a steady window: accept it (the
-            # gate is anchored to the choice, it never moves with the goal) and stop.
-            self.goal, self.confirmed = choice.position, True
+            # gate is anchored to the choice, it never moves with the goal) and stop; a
+            # refinement predicted to gain less than REFINE_GAIN is not worth the move.
+            self.confirmed = True
+            if choice.gain < REFINE_GAIN:
+                return (f"confirm {here:.4g} m (the refinement to {choice.position:.4g} m is "
+                        f"predicted only {100 * choice.gain:.1f} % lower)")
+            self.goal = choice.position
             return f"confirm {choice.position:.4g} m (anchor {self.anchor:.4g} m)"
         if self.choices < MAX_CHOICES:
             # Another loop, predicted better (by more than NEAR_OPTIMAL, or choose_target would
