@@ -9,6 +9,7 @@ closed loop -> report / CLI.  See ``docs/`` and the README.
 # CasADi. Add a new export as a line of this table (module -> names), not as an eager import.
 from .errors import (
     EstimationError,
+    EstimatorInconsistentWarning,
     ExcitationWarning,
     FileFormatError,
     IdentificationError,
@@ -164,6 +165,7 @@ __all__ = [
     "Estimate",
     "estimation_accuracy",
     "EstimationError",
+    "EstimatorInconsistentWarning",
     "EstimatorDesign",
     "ExcitationWarning",
     "FileFormatError",

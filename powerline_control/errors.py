@@ -91,4 +91,11 @@ class ReachWarning(UserWarning):
     obstacles keep it from every better position."""
 
 
-__all__ += ["UndetectableModeWarning", "ExcitationWarning", "ReachWarning"]
+class EstimatorInconsistentWarning(UserWarning):
+    """A filter's innovations contradict its own covariance: the model does not fit the record
+    (a load that drives modes the training never saw, a changed line), so neither the estimate
+    nor its reported uncertainty can be trusted."""
+
+
+__all__ += ["UndetectableModeWarning", "ExcitationWarning", "ReachWarning",
+            "EstimatorInconsistentWarning"]

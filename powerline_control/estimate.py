@@ -27,6 +27,7 @@ against their chi-square bands).
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -56,7 +57,12 @@ from ._validation import (
     check_real,
     read_only,
 )
-from .errors import EstimationError, InputError, UndetectableModeWarning
+from .errors import (
+    EstimationError,
+    EstimatorInconsistentWarning,
+    InputError,
+    UndetectableModeWarning,
+)
 
 __all__ = [
     "Estimate",
@@ -83,6 +89,12 @@ _SCAN_BLOCK = 16
 # rank-truncated model claims near-certainty in directions it does not model, and the true error
 # there would dominate the statistic.
 _NEES_RANK_RTOL = 1e-9
+#: Samples per window of the consistency test (design.md 4.7): 0.2 s at 1 kHz, long enough for a
+#: tight chi-square band (p = 5 sensors: 1000 degrees of freedom, +-12 % at 1 %), short enough to
+#: localise a change of load within a record.
+DEFAULT_CONSISTENCY_WINDOW = 200
+#: Two-sided level of each window's chi-square test, and of the run-level count of rejections.
+_WINDOW_LEVEL = 0.01
 
 
 @dataclass(frozen=True)
@@ -122,6 +134,11 @@ class Estimate:
     undetectable_modes : tuple of complex
         Eigenvalues on or outside the unit circle that the sensors cannot see (empty when the
         model is detectable). Their variance grows without bound and is reported as it grows.
+    consistency : Consistency or None
+        The windowed NIS test of this run (:func:`filter_consistency` with the filter's
+        ``consistency_window`` and ``nis_dof_fraction``); ``None`` when the filter's window is
+        ``None`` or no sample had a measurement. When it rejects, ``filter`` has warned
+        :class:`~powerline_control.errors.EstimatorInconsistentWarning`.
 
     All arrays are read-only.
 
@@ -146,6 +163,7 @@ class Estimate:
     field: np.ndarray | None = None
     field_variances: np.ndarray | None = None
     undetectable_modes: tuple[complex, ...] = ()
+    consistency: Consistency | None = None
 
     def __post_init__(self) -> None:
         _freeze_arrays(self)
@@ -194,6 +212,10 @@ class _Recursion:
         self.batch = None
         self.settled = 0  # consecutive full samples whose covariance changed by <= gain_rtol
         self.last_posterior: np.ndarray | None = None
+        # Windowed NIS of the real-time recursion (step): running sums of the open window and
+        # the sums of the windows closed so far (three numbers per window, never per sample).
+        self.w_sum, self.w_valid, self.w_used, self.w_len = 0.0, 0, 0, 0
+        self.closed: list[tuple[float, int, int]] = []
         if kf.steady_state:
             gain, posterior, predicted = kf._steady_solution()
             self.freeze(gain, posterior, predicted)
@@ -219,6 +241,17 @@ class _Recursion:
             s = s + kf._r_eff
             self.s_factor = sla.cho_factor((s + s.T) / 2, lower=True)
         self.batch = None
+
+    def monitor(self, nis: float, used: int) -> None:
+        """Add one sample's NIS to the open consistency window (closing it when full)."""
+        if used:
+            self.w_sum += nis
+            self.w_valid += 1
+            self.w_used += used
+        self.w_len += 1
+        if self.w_len == self.kf._window:
+            self.closed.append((self.w_sum, self.w_valid, self.w_used))
+            self.w_sum, self.w_valid, self.w_used, self.w_len = 0.0, 0, 0, 0
 
     def nis_frozen(self, e: np.ndarray) -> np.ndarray:
         """``e^T S^-1 e`` per column of ``e`` ``(p, L)`` with the frozen covariance."""
@@ -435,6 +468,19 @@ class KalmanFilter:
         tighter value may never trigger); 0 keeps the textbook recursion throughout. A model
         with undetectable modes (see ``undetectable_modes``) is never frozen: the covariance of
         what the sensors cannot see keeps growing as it truly does.
+    consistency_window : int or None
+        Samples per window of the consistency test run on every record (default 200; see
+        :class:`Consistency`); ``None`` turns the test (and its warning) off.
+    nis_dof_fraction : float
+        Share ``0 < f <= 1`` of each window's nominal chi-square degrees of freedom treated as
+        independent (default 1: the white innovations of an exact model). An identified model's
+        innovations are not quite white; :func:`~powerline_control.recipe.design_estimator`
+        measures the share on held-out data.
+    warn_inconsistent : bool
+        Warn :class:`~powerline_control.errors.EstimatorInconsistentWarning` from
+        :meth:`filter` when the test rejects (default False: the test always runs and
+        ``Estimate.consistency`` always says what it found; a filter on a textbook model with
+        an assumed ``Q`` would otherwise warn on every record it does not describe).
 
     Attributes
     ----------
@@ -451,6 +497,15 @@ class KalmanFilter:
         Whether the gain is the constant steady-state one.
     undetectable_modes : numpy.ndarray
         Eigenvalues on or outside the unit circle the sensors cannot see (empty if none).
+    consistency_window : int or None
+        Samples per consistency window (``None``: no test).
+    nis_dof_fraction : float
+        As given.
+    warn_inconsistent : bool
+        As given.
+    consistency : Consistency or None
+        Windowed NIS test of the real-time recursion (:meth:`step`) over the windows it has
+        completed since construction or :meth:`reset`.
 
     Raises
     ------
@@ -501,8 +556,18 @@ class KalmanFilter:
         *,
         field_map: object = None,
         gain_rtol: float = 1e-10,
+        consistency_window: int | None = DEFAULT_CONSISTENCY_WINDOW,
+        nis_dof_fraction: float = 1.0,
+        warn_inconsistent: bool = False,
     ) -> None:
         sys = check_discrete_system("sys", sys)
+        if not isinstance(warn_inconsistent, bool):
+            raise InputError("The 'warn_inconsistent' parameter must be True or False. Got "
+                             f"{warn_inconsistent!r}.")
+        self._warn = warn_inconsistent
+        self._window = (None if consistency_window is None
+                        else check_int("consistency_window", consistency_window, low=1))
+        self._dof_fraction = check_real("nis_dof_fraction", nis_dof_fraction, low=0.0, high=1.0)
         self._A = np.array(sys.A, dtype=float)
         self._B = np.array(sys.B, dtype=float)
         self._C = np.array(sys.C, dtype=float)
@@ -623,6 +688,47 @@ class KalmanFilter:
         """Eigenvalues on or outside the unit circle that the sensors cannot see (read-only)."""
         return self._undetectable
 
+    @property
+    def consistency_window(self) -> int | None:
+        """Samples per consistency window (``None``: the test is off)."""
+        return self._window
+
+    @property
+    def nis_dof_fraction(self) -> float:
+        """Share of each window's nominal chi-square degrees of freedom treated as independent."""
+        return self._dof_fraction
+
+    @property
+    def warn_inconsistent(self) -> bool:
+        """Whether :meth:`filter` warns when its consistency test rejects."""
+        return self._warn
+
+    @property
+    def consistency(self) -> Consistency | None:
+        """Windowed NIS test of the real-time recursion (:meth:`step`) so far.
+
+        Every completed window of ``consistency_window`` samples stepped since construction or
+        :meth:`reset` (or continued from ``filter(..., update_state=True)``), tested as
+        :meth:`filter` tests a record; ``None`` before a window with a measurement completes
+        or when the test is off. :meth:`step` itself never warns (it runs inside control
+        loops): read ``consistency.consistent`` there.
+        """
+        closed = self._running.closed
+        if self._window is None or not closed:
+            return None
+        sums, counts, used = (np.array(v, dtype=float) for v in zip(*closed, strict=True))
+        if not counts.sum():
+            return None
+        total, n_valid = float(used.sum()), int(counts.sum())
+        bounds = _chi2_band(total, n_valid)
+        mean = float(sums.sum() / n_valid)
+        return Consistency(
+            mean_nis=mean, nis_dof=total / n_valid, nis_bounds=bounds,
+            nis_consistent=bool(bounds[0] <= mean <= bounds[1]),
+            window_start=read_only(np.arange(sums.size) * self._window),
+            **_window_test(sums, counts, used, self._window, self._dof_fraction),
+        )
+
     def _apply_r_inv(self, values: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
         """``R_uu^-1 values`` for the sensors ``index`` (all without), diagonal fast path."""
         if self._r_diag is not None:
@@ -716,8 +822,11 @@ class KalmanFilter:
         """
         y = check_array("y_k", y_k, shape=(self._p,), allow_nan=True)
         u = self._check_input_sample(u_k)
-        self._running.advance(y, u)
-        return self._running.x.copy()
+        run = self._running
+        _, nis, used = run.advance(y, u)
+        if self._window is not None:
+            run.monitor(nis, used)
+        return run.x.copy()
 
     def _check_input_sample(self, u_k: object) -> np.ndarray:
         if u_k is None:
@@ -744,7 +853,8 @@ class KalmanFilter:
         Returns
         -------
         Estimate
-            States, variances, innovations, NIS (and the full field with a field map).
+            States, variances, innovations, NIS, the windowed consistency test (and the full
+            field with a field map).
 
         Raises
         ------
@@ -752,6 +862,13 @@ class KalmanFilter:
             If an array has the wrong shape or contains infinities (or NaN in the inputs).
         EstimationError
             If the innovation covariance becomes singular.
+
+        Warns
+        -----
+        EstimatorInconsistentWarning
+            With ``warn_inconsistent=True``, when the windowed NIS test rejects at 1 %
+            (``Estimate.consistency.consistent`` is False): the innovations contradict the
+            filter's own covariance.
         """
         if not isinstance(update_state, bool):
             raise InputError(
@@ -831,7 +948,7 @@ class KalmanFilter:
                     mapped_variances(run.P, field_map)[:, None], (field.shape[0], n_t)
                 )
         gain = run.last_full_gain if run.last_full_gain is not None else np.full((n, p), np.nan)
-        return Estimate(
+        estimate = Estimate(
             states=states,
             variances=variances,
             innovations=innovations,
@@ -845,6 +962,30 @@ class KalmanFilter:
             field_variances=field_variances,
             undetectable_modes=tuple(complex(v) for v in self._undetectable),
         )
+        if update_state and self._window is not None:
+            # The real-time monitor continues from this record's windows.
+            sums, counts, _ = _window_sums(nis, self._window)
+            used_sums = n_used[: sums.size * self._window].reshape(-1, self._window).sum(axis=1)
+            run.closed = list(zip(sums.tolist(), counts.tolist(), used_sums.tolist(),
+                                  strict=True))
+            tail = n_t - sums.size * self._window
+            rest_nis, rest_used = nis[n_t - tail:], n_used[n_t - tail:]
+            ok = ~np.isnan(rest_nis)
+            run.w_sum, run.w_valid = float(rest_nis[ok].sum()), int(ok.sum())
+            run.w_used, run.w_len = int(rest_used.sum()), tail
+        if self._window is None or not np.any(n_used):
+            return estimate
+        consistency = filter_consistency(estimate, window=self._window,
+                                         dof_fraction=self._dof_fraction)
+        if self._warn and not consistency.consistent:
+            warnings.warn(
+                consistency.message + " Neither the estimate nor its variances describe this "
+                "record (a load that drives modes the training never saw, or a changed line): "
+                "retrain on a record with this excitation, add sensors, or do not act on it.",
+                EstimatorInconsistentWarning,
+                stacklevel=2,
+            )
+        return dataclasses.replace(estimate, consistency=consistency)
 
     # ------------------------------------------------------------------ batch recursion
 
@@ -1097,6 +1238,14 @@ def estimation_accuracy(
 class Consistency:
     """NEES / NIS statistics: is the filter's covariance honest about its errors?
 
+    Two views of the same question (design.md 4.7). The whole-record means (``mean_nis``,
+    ``mean_nees``) with their 95 % bands; and the *windowed* test that
+    :meth:`KalmanFilter.filter` runs on every record: the NIS averaged over consecutive windows
+    of ``window`` samples, each compared with its two-sided 1 % chi-square bounds. The run is
+    ``consistent`` unless more windows reject than chance allows at 1 % (a binomial bound on
+    the count, so that a long record of an honest filter does not warn merely because it has
+    many windows).
+
     Attributes
     ----------
     mean_nis : float
@@ -1120,6 +1269,39 @@ class Consistency:
         ``mean_nees`` inside ``nees_bounds``.
     normalised_error : numpy.ndarray or None
         Per-signal mean of ``error^2 / variance`` ``(n_signals,)`` (1 for an honest variance).
+    window : int
+        Samples per window of the windowed test.
+    window_start : numpy.ndarray
+        First sample of each full window, ``(n_windows,)`` (a trailing partial window is left
+        out).
+    window_nis : numpy.ndarray
+        The statistic: mean NIS of each window, ``(n_windows,)`` (NaN for a window without a
+        measurement).
+    window_dof : numpy.ndarray
+        Degrees of freedom of each window's chi-square law: ``dof_fraction`` times the number
+        of scalar innovations in it (``window * p`` without dropouts). The window's sum of NIS
+        times ``dof_fraction`` is chi-square with this many degrees of freedom.
+    window_bounds : numpy.ndarray
+        Two-sided 1 % bounds of each window's mean NIS, ``(n_windows, 2)``.
+    rejected : numpy.ndarray
+        Indices of the tested windows whose mean NIS lies outside its bounds (int).
+    n_tested : int
+        Windows tested: every full window after the first (which holds the filter's transient
+        from its prior) that has a measurement.
+    consistent : bool
+        False when the number of rejected windows exceeds the 99 % quantile of a binomial law
+        with ``n_tested`` trials of probability 1 % (the run-level test at 1 %); True when no
+        window could be tested.
+    dof_fraction : float
+        Share of the nominal degrees of freedom treated as independent (1 for the white
+        innovations of an exact model; below 1 when a design measured on held-out data that its
+        innovations carry fewer independent samples, see
+        :func:`~powerline_control.recipe.design_estimator`).
+    window_nees : numpy.ndarray or None
+        Mean NEES of each window (with the truth, from the converged gain on), else ``None``.
+    nees_rejected : numpy.ndarray or None
+        Indices into ``window_nees`` of windows outside their 1 % chi-square bounds (estimation
+        errors are correlated in time: a guide, as ``nees_bounds``).
 
     Examples
     --------
@@ -1141,6 +1323,82 @@ class Consistency:
     nees_bounds: tuple[float, float] | None = None
     nees_consistent: bool | None = None
     normalised_error: np.ndarray | None = None
+    window: int = 0
+    window_start: np.ndarray = dataclasses.field(
+        default_factory=lambda: read_only(np.zeros(0, int)))
+    window_nis: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0)))
+    window_dof: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0)))
+    window_bounds: np.ndarray = dataclasses.field(
+        default_factory=lambda: read_only(np.zeros((0, 2))))
+    rejected: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, int)))
+    n_tested: int = 0
+    consistent: bool = True
+    dof_fraction: float = 1.0
+    window_nees: np.ndarray | None = None
+    nees_rejected: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        _freeze_arrays(self)
+
+    @property
+    def message(self) -> str:
+        """One sentence: what the windowed test found, for a warning or a report."""
+        if not self.n_tested:
+            return (f"No window of {self.window} samples could be tested (the record is shorter "
+                    "than two windows): the filter's consistency is unknown.")
+        tested = self.window_nis[1:][np.isfinite(self.window_nis[1:])]
+        expected = self.window_dof[1:] / self.dof_fraction / self.window
+        ratio = float(np.nanmedian(self.window_nis[1:] / np.where(expected > 0, expected, np.nan)))
+        verdict = ("consistent" if self.consistent else
+                   "INCONSISTENT: the model does not fit this record")
+        return (f"Windowed NIS test ({self.window} samples per window, 1 % two-sided chi-square "
+                f"bounds): {self.rejected.size} of {self.n_tested} windows rejected, mean NIS "
+                f"{float(np.mean(tested)):.3g} per sample against {float(np.mean(expected)):.3g}"
+                f" expected (median ratio {ratio:.3g}): {verdict}.")
+
+
+def _window_test(sums: np.ndarray, counts: np.ndarray, used: np.ndarray, window: int,
+                 dof_fraction: float) -> dict:
+    """Windowed NIS fields of :class:`Consistency` from per-window sums of NIS.
+
+    ``sums``: NIS summed over the valid samples of each window; ``counts``: valid samples;
+    ``used``: scalar innovations (sensors summed over the window). The sum times
+    ``dof_fraction`` is chi-square with ``dof_fraction * used`` degrees of freedom.
+    """
+    sums, counts, used = (np.asarray(v, dtype=float) for v in (sums, counts, used))
+    n_windows = sums.size
+    dof = dof_fraction * used
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(counts > 0, sums / np.where(counts > 0, counts, 1.0), np.nan)
+        scale = dof_fraction * np.where(counts > 0, counts, np.nan)
+        low, high = sstats.chi2.ppf([[_WINDOW_LEVEL / 2], [1 - _WINDOW_LEVEL / 2]],
+                                    np.where(dof > 0, dof, np.nan)) / scale
+    bounds = np.column_stack([low, high]) if n_windows else np.zeros((0, 2))
+    tested = np.zeros(n_windows, dtype=bool)
+    tested[1:] = counts[1:] > 0  # the first window holds the transient from the prior
+    outside = tested & ((mean < bounds[:, 0]) | (mean > bounds[:, 1]))
+    n_tested = int(tested.sum())
+    allowed = int(sstats.binom.ppf(1 - _WINDOW_LEVEL, n_tested, _WINDOW_LEVEL)) if n_tested else 0
+    rejected = np.flatnonzero(outside)
+    return {
+        "window": int(window),
+        "window_nis": read_only(mean),
+        "window_dof": read_only(dof),
+        "window_bounds": read_only(bounds),
+        "rejected": read_only(rejected),
+        "n_tested": n_tested,
+        "consistent": bool(rejected.size <= allowed),
+        "dof_fraction": float(dof_fraction),
+    }
+
+
+def _window_sums(values: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(sums over valid samples, valid counts, starts) of each full window of ``values``."""
+    n_windows = values.size // window
+    block = values[: n_windows * window].reshape(n_windows, window)
+    valid = ~np.isnan(block)
+    sums = np.where(valid, block, 0.0).sum(axis=1)
+    return sums, valid.sum(axis=1), np.arange(n_windows) * window
 
 
 def _chi2_band(total_dof: float, n_samples: int) -> tuple[float, float]:
@@ -1154,8 +1412,10 @@ def filter_consistency(
     *,
     discard: int = 0,
     field_map: object = None,
+    window: int = DEFAULT_CONSISTENCY_WINDOW,
+    dof_fraction: float = 1.0,
 ) -> Consistency:
-    """NIS (always) and NEES (with the truth) of a filter run.
+    """NIS (always) and NEES (with the truth) of a filter run, whole-record and windowed.
 
     Parameters
     ----------
@@ -1168,6 +1428,12 @@ def filter_consistency(
         Leading samples left out (the transient from the prior).
     field_map : array_like, optional
         The filter's field map, to map the final covariance to the field for the NEES.
+    window : int
+        Samples per window of the windowed test (default 200); windows tile the record from
+        ``discard`` on.
+    dof_fraction : float
+        Share ``0 < f <= 1`` of the nominal chi-square degrees of freedom of each window treated
+        as independent (1: white innovations, the textbook test).
 
     Returns
     -------
@@ -1179,7 +1445,8 @@ def filter_consistency(
     Raises
     ------
     InputError
-        If shapes disagree or ``discard`` leaves no samples.
+        If shapes disagree, ``discard`` leaves no samples, ``window`` is not a positive integer
+        or ``dof_fraction`` is outside ``(0, 1]``.
 
     Examples
     --------
@@ -1191,8 +1458,8 @@ def filter_consistency(
     ...     x[k] = 0.9 * x[k - 1] + rng.normal()
     >>> est = KalmanFilter(sys, Q=1.0, R=0.25).filter(x[None] + 0.5 * rng.normal(size=(1, 2000)))
     >>> c = filter_consistency(est, x[None], discard=10)
-    >>> c.nis_consistent, c.nees_consistent
-    (True, True)
+    >>> c.nis_consistent, c.nees_consistent, c.consistent, c.n_tested
+    (True, True, True, 8)
     """
     if not isinstance(estimate, Estimate):
         raise InputError(
@@ -1200,6 +1467,8 @@ def filter_consistency(
         )
     n_t = estimate.states.shape[1]
     discard = check_int("discard", discard, low=0, high=n_t - 1)
+    window = check_int("window", window, low=1)
+    dof_fraction = check_real("dof_fraction", dof_fraction, low=0.0, high=1.0)
     nis = estimate.nis[discard:]
     used = estimate.n_used[discard:]
     valid = ~np.isnan(nis)
@@ -1208,11 +1477,16 @@ def filter_consistency(
     mean_nis = float(np.mean(nis[valid]))
     total = float(np.sum(used[valid]))
     nis_bounds = _chi2_band(total, int(valid.sum()))
+    sums, counts, starts = _window_sums(nis, window)
+    used_sums = used[: starts.size * window].reshape(-1, window).sum(axis=1) if starts.size \
+        else np.zeros(0)
     result = {
         "mean_nis": mean_nis,
         "nis_dof": float(total / valid.sum()),
         "nis_bounds": nis_bounds,
         "nis_consistent": bool(nis_bounds[0] <= mean_nis <= nis_bounds[1]),
+        "window_start": read_only(starts + discard),
+        **_window_test(sums, counts, used_sums, window, dof_fraction),
     }
     if truth is None:
         return Consistency(**result)
@@ -1248,10 +1522,18 @@ def filter_consistency(
             dof = int(keep.sum())
             bounds = _chi2_band(dof * nees.size, nees.size)
             mean_nees = float(np.mean(nees))
+            nees_sums, nees_counts, _ = _window_sums(nees, window)
+            nees_windows = _window_test(nees_sums, nees_counts, dof * nees_counts, window, 1.0)
+            # Every NEES window is tested (the converged gain already left the transient out).
+            nees_mean = nees_windows["window_nis"]
+            nees_bounds_w = nees_windows["window_bounds"]
             result.update(
                 mean_nees=mean_nees,
                 nees_dof=dof,
                 nees_bounds=bounds,
                 nees_consistent=bool(bounds[0] <= mean_nees <= bounds[1]),
+                window_nees=nees_mean,
+                nees_rejected=read_only(np.flatnonzero(
+                    (nees_mean < nees_bounds_w[:, 0]) | (nees_mean > nees_bounds_w[:, 1]))),
             )
     return Consistency(**result)

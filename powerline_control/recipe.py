@@ -33,8 +33,10 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import control as ct
 import numpy as np
 import scipy.linalg as sla
+import scipy.stats as sstats
 
 from ._spectral import extract_lines, line_occupancy, line_power
 from ._validation import (
@@ -54,7 +56,7 @@ from .errors import (
     IllConditionedWarning,
     InputError,
 )
-from .estimate import KalmanFilter
+from .estimate import DEFAULT_CONSISTENCY_WINDOW, KalmanFilter
 from .identify import DMDModel, fit_dmd
 from .sensors import select_sensors
 
@@ -84,6 +86,10 @@ _UNSEEN_COUNT = 8
 _UNSEEN_NOISE = 100.0
 #: Relative alphas of the held-out sweep (0 first: exact on clean data, no damping bias).
 _DEFAULT_ALPHAS = np.array([0.0, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2])
+#: Factor between the alphas appended when the best one sits at the top of the sweep, and the
+#: largest relative alpha the widening reaches.
+_ALPHA_WIDEN = 100.0
+_ALPHA_CAP = 1.0
 #: Process-noise floor of the filter, as a fraction of the data's mean square (see _steady_filter).
 _Q_FLOOR_FRACTION = 1e-10
 # A sensor noise a million times the record's RMS carries no information, and its square (R)
@@ -105,7 +111,7 @@ class AlphaSweep:
     Attributes
     ----------
     alphas : ndarray
-        Relative Tikhonov alphas tried.
+        Relative Tikhonov alphas tried (the given or default grid, then any widening above it).
     held_out_error : ndarray
         Relative RMS error at the unmeasured moving nodes on the held-out part of the record,
         noise-corrected, with the provisional ``layout`` (``inf``: unstable model or failed filter).
@@ -164,6 +170,14 @@ class EstimatorDesign:
     excitation : ExcitationReport or None
         What the record excites above its noise (narrowband or broadband, its spectral lines)
         and which model was built ("modal" or "dmd").
+    covariance_scale : float
+        Common factor of the filter's ``Q`` and ``R`` found by covariance matching on the
+        held-out part of the record (the model fitted on the rest, filtered from the final
+        sensors: mean NIS over its nominal value); it scales the reported covariance and leaves
+        the estimate unchanged. 1 for the modal model and for records too short to measure it.
+    nis_dof_fraction : float
+        Share of each consistency window's chi-square degrees of freedom that the held-out
+        windows' spread supports (the filter's ``nis_dof_fraction``; 1 when not measured).
 
     Examples
     --------
@@ -188,6 +202,8 @@ class EstimatorDesign:
     n_stabilised: int = 0
     q_floor: float = 0.0
     excitation: ExcitationReport | None = None
+    covariance_scale: float = 1.0
+    nis_dof_fraction: float = 1.0
 
     @property
     def alpha_curve(self) -> AlphaSweep:
@@ -237,7 +253,9 @@ class EstimatorDesign:
             rms = math.sqrt(self.q_floor / _Q_FLOOR_FRACTION) if self.q_floor > 0 else math.nan
             noise_std = _check_noise_std(noise_std, rms)
             if noise_std != self.noise_std:
-                kf = _steady_filter(self.model, self.sensors, noise_std, self.q_floor)
+                kf = _steady_filter(self.model, self.sensors, noise_std, self.q_floor,
+                                    self.covariance_scale, self.nis_dof_fraction,
+                                    self.filter.warn_inconsistent)
         return read_only(kf.filter(y).field)
 
     def summary(self) -> str:
@@ -340,7 +358,8 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
                               rank=min(rank, train.shape[0] * delays))
         model = _stabilise(_lift(reduced, spatial))
         field = _steady_filter(model, layout, noise, q_floor).filter(held[layout]).field
-    except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError):
+    except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
+            ct.ControlDimension):
         return math.inf
     unmeasured = np.setdiff1d(candidates, layout)
     if unmeasured.size == 0:  # every moving node measured: score the filtered measured nodes
@@ -355,22 +374,69 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
 
 
 def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
-                   q_floor: float) -> KalmanFilter:
-    """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2.
+                   q_floor: float, scale: float = 1.0, dof_fraction: float = 1.0,
+                   warn: bool = False) -> KalmanFilter:
+    """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2,
+    both times ``scale`` (the covariance matching of :func:`_calibration`).
 
     The floor (1e-10 of the data's mean square per coordinate, far below any noisy record's
     residual) keeps the Riccati equation solvable on noise-free data, whose residual covariance
-    is round-off: undamped modes without process noise have no stabilising solution.
+    is round-off: undamped modes without process noise have no stabilising solution. A common
+    scale of Q and R scales the Riccati solution alike and leaves the gain, hence the estimate,
+    unchanged: only the reported covariance (and the NIS) changes.
     """
     q = np.array(model.residual_covariance)
     q[np.diag_indices_from(q)] += q_floor
     return KalmanFilter(
         model.to_statespace(measured=sensors.tolist()),
-        Q=q,
-        R=noise_std**2,
+        Q=scale * q,
+        R=scale * noise_std**2,
         steady_state=True,
         field_map=model.field_map,
+        nis_dof_fraction=dof_fraction,
+        warn_inconsistent=warn,
     )
+
+
+def _calibration(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: float,
+                 alpha: float, delays: int, rank: int, sensors: np.ndarray, noise: float,
+                 q_floor: float) -> tuple[float, float]:
+    """(covariance scale, NIS dof fraction) of the filter, measured on held-out data.
+
+    Covariance matching (Mehra 1972, with one common factor): the model fitted on the training
+    part filters the held-out part from the final sensors, and Q and R are scaled by the mean
+    NIS over its nominal value there, so that a record like the training one is consistent on
+    average. An identified model's innovations are not white, so the NIS averaged over a window
+    varies more than chi-square with ``window * p`` degrees of freedom says; the share of those
+    degrees of freedom that matches the spread of the held-out windows (Satterthwaite's
+    moment match, from the upper 95 % confidence bound of that spread, since the held-out part
+    gives only a few windows) is what the consistency test then uses. (1, 1) when the held-out
+    part holds fewer than three windows after the first (no spread to measure).
+    """
+    window = DEFAULT_CONSISTENCY_WINDOW
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IllConditionedWarning)
+            reduced = fit_dmd(train, dt, alpha=alpha, alpha_mode="relative", delays=delays,
+                              rank=min(rank, train.shape[0] * delays))
+        model = _stabilise(_lift(reduced, spatial))
+        nis = _steady_filter(model, sensors, noise, q_floor).filter(held[sensors]).nis
+    except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
+            ct.ControlDimension):
+        return 1.0, 1.0
+    n_windows = nis.size // window
+    if n_windows < 4 or not np.all(np.isfinite(nis)):
+        return 1.0, 1.0
+    means = nis[window: n_windows * window].reshape(-1, window).mean(axis=1) / sensors.size
+    scale = float(np.mean(means))
+    if not scale > 0:
+        return 1.0, 1.0
+    ratios = means / scale
+    spread = float(np.var(ratios, ddof=1)) * (ratios.size - 1) / float(
+        sstats.chi2.ppf(0.05, ratios.size - 1))
+    nominal = 2.0 / (window * sensors.size)  # variance of a window's mean NIS / p, chi-square
+    fraction = 1.0 if spread <= nominal else nominal / spread
+    return scale, float(fraction)
 
 
 def _check_noise_std(noise_std: object, rms: float) -> float:
@@ -473,10 +539,12 @@ def _lift(model: DMDModel, spatial: np.ndarray) -> DMDModel:
     if model.basis is None:
         raise IdentificationError("internal: the recipe always fits with a rank")
     basis = np.einsum("nk,dkr->dnr", spatial, model.basis.reshape(d, k, r)).reshape(d * n, r)
+    # The field map is the current snapshot's block of the basis; taking those very rows (not
+    # spatial @ field_map, equal only to round-off) keeps save_model / load_model bit-exact.
     return dataclasses.replace(
         model,
         n_nodes=n,
-        field_map=read_only(spatial @ model.field_map),
+        field_map=read_only(basis[:n].copy()),
         basis=read_only(basis),
     )
 
@@ -695,6 +763,7 @@ def design_estimator(
     seed: int | np.random.Generator | None = None,
     method: str = "auto",
     process_noise: float = DEFAULT_PROCESS_NOISE,
+    warn_inconsistent: bool = False,
 ) -> EstimatorDesign:
     """Identify a reduced model, select sensors and build the Kalman filter, in one call.
 
@@ -716,7 +785,9 @@ def design_estimator(
         are kept before the delay embedding; cost grows with it, not with ``n_nodes``.
     alphas : sequence of float, optional
         Relative Tikhonov alphas to try (default: 0 and 1e-10, 1e-8, ..., 1e-2); the one whose
-        estimator has the smallest error at unmeasured nodes on the held-out data wins.
+        estimator has the smallest error at unmeasured nodes on the held-out data wins. When the
+        best is the largest, the sweep widens by factors of 100 (up to relative alpha 1) until
+        its minimum lies inside (``alpha_sweep.alphas`` lists every alpha tried).
     noise_std : float, optional
         Sensor noise standard deviation, m.  Default: from Snapshots, else estimated from the
         noise floor of the data's singular values.
@@ -745,6 +816,10 @@ def design_estimator(
     process_noise : float, default 1
         Modal model only: process-noise variance per step and line coordinate, in units of the
         sensor noise variance (the unknown load of a new run, tracked from the sensors).
+    warn_inconsistent : bool, default False
+        Build the filter with ``warn_inconsistent=True``: its ``filter`` then warns
+        :class:`~powerline_control.errors.EstimatorInconsistentWarning` when a record fails the
+        windowed NIS test (``Estimate.consistency`` reports the test either way).
 
     Returns
     -------
@@ -781,6 +856,9 @@ def design_estimator(
                                 high_inclusive=False)
     method = check_choice("method", method, ("auto", "dmd", "modal"))
     process_noise = check_real("process_noise", process_noise, low=0.0, high=1e6)
+    if not isinstance(warn_inconsistent, bool):
+        raise InputError("The 'warn_inconsistent' parameter must be True or False. Got "
+                         f"{warn_inconsistent!r}.")
     if positions is None:
         positions = snap_positions
     if positions is not None:
@@ -797,6 +875,11 @@ def design_estimator(
     if not np.any(X):
         raise IdentificationError(
             "The 'snapshots' are all zeros: there are no dynamics to identify."
+        )
+    if not np.any(X != X[:, :1]):
+        raise IdentificationError(
+            "The 'snapshots' are constant in time (every node keeps its first value): there are "
+            "no dynamics to identify. Give a record of the vibrating span."
         )
 
     # 1. Spatial POD: the coordinates above round-off (at most spatial_rank).
@@ -826,6 +909,19 @@ def design_estimator(
     candidates = np.flatnonzero(node_rms > _MOTIONLESS_FRACTION * node_rms.max())
     if sensors is not None:
         given = np.sort(check_indices("sensors", sensors, n_nodes))
+        # Motionless: below the RMS floor, or reading nothing but the noise (a support of a
+        # noisy record: its mean square within 5 standard errors of the noise variance).
+        noise_only = node_rms**2 <= data_noise**2 * (1 + 5 * math.sqrt(2.0 / n_samples))
+        still = np.union1d(np.setdiff1d(given, candidates), given[noise_only[given]])
+        if still.size:
+            raise InputError(
+                f"The 'sensors' parameter holds nodes that do not move in the training record "
+                f"({still.tolist()}: supports, or nodes whose RMS is below "
+                f"{_MOTIONLESS_FRACTION:g} of the largest or no more than the noise); a sensor "
+                "there reads only noise. "
+                f"Got {np.asarray(sensors).tolist()}; choose among the moving nodes "
+                f"{candidates[0]}..{candidates[-1]}."
+            )
         provisional = given
     else:
         given = None
@@ -879,7 +975,8 @@ def design_estimator(
                                  unseen, _UNSEEN_NOISE * noise**2)
             return EstimatorDesign(
                 model=model, sensors=read_only(chosen),
-                filter=_steady_filter(model, chosen, noise, q_floor), noise_std=float(noise),
+                filter=_steady_filter(model, chosen, noise, q_floor, warn=warn_inconsistent),
+                noise_std=float(noise),
                 noise_source=source,
                 alpha_sweep=AlphaSweep(alphas=read_only(np.zeros(0)),
                                        held_out_error=read_only(np.zeros(0)),
@@ -906,6 +1003,17 @@ def design_estimator(
                         provisional, candidates, noise, data_noise, q_floor)
         for a in grid
     ])
+    # A best alpha at the top of the sweep says the held-out error may still be falling there:
+    # widen by factors of 100 until the minimum is inside the sweep, up to relative alpha 1
+    # (beyond which Tikhonov damping outweighs every direction of the data).
+    grid = np.array(grid, dtype=float)
+    while (np.isfinite(errors).any() and grid[-1] > 0 and grid[-1] < _ALPHA_CAP
+           and int(np.nanargmin(np.where(np.isfinite(errors), errors, np.nan))) == grid.size - 1):
+        wider = min(grid[-1] * _ALPHA_WIDEN, _ALPHA_CAP)
+        grid = np.append(grid, wider)
+        errors = np.append(errors, _held_out_error(
+            coords[:, :n_fit], X[:, n_fit:], spatial, dt, wider, delays, rank, provisional,
+            candidates, noise, data_noise, q_floor))
     if not np.isfinite(errors).any():
         raise IdentificationError(
             "No alpha of the sweep gives a usable estimator on the held-out data (every model "
@@ -923,7 +1031,9 @@ def design_estimator(
     chosen, selection = _choose_sensors(model, given, candidates, n_sensors, criterion, noise,
                                         positions, forbidden, seed)
 
-    kf = _steady_filter(model, chosen, noise, q_floor)
+    scale, fraction = _calibration(coords[:, :n_fit], X[:, n_fit:], spatial, dt, alpha, delays,
+                                   rank, chosen, noise, q_floor)
+    kf = _steady_filter(model, chosen, noise, q_floor, scale, fraction, warn_inconsistent)
     return EstimatorDesign(
         model=model,
         sensors=read_only(chosen),
@@ -937,6 +1047,8 @@ def design_estimator(
         n_stabilised=lifted.n_unstable,
         q_floor=q_floor,
         excitation=excitation,
+        covariance_scale=scale,
+        nis_dof_fraction=fraction,
     )
 
 

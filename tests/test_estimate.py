@@ -13,6 +13,7 @@ import control as ct
 import numpy as np
 import pytest
 import scipy.linalg as sla
+import scipy.stats as stats
 
 import powerline_control as plc
 from powerline_control.errors import EstimationError, InputError, UndetectableModeWarning
@@ -325,6 +326,125 @@ def test_consistency_honest_and_dishonest_filters():
     dishonest = filter_consistency(KalmanFilter(sys, q, r / 100).filter(y), x, discard=100)
     assert not dishonest.nis_consistent and dishonest.mean_nis > 5 * 3  # measured 26
     assert not dishonest.nees_consistent
+
+
+@pytest.mark.parametrize("steady", [False, True])
+def test_windowed_nis_of_the_true_model_rejects_at_the_nominal_rate(steady):
+    """The filter of the model that made the data: each window's sum of NIS is chi2(200 p).
+
+    Bounds from scipy.stats.chi2 at 0.5 % and 99.5 %; over 6 seeds x 49 tested windows each,
+    the fraction of windows outside them must be what 1 % two-sided allows (binomial: 294
+    windows at 1 % give 2.9 expected; 8 or more has probability 0.4 %), and no run may fail the
+    run-level test more often than its 1 % level allows (none of 6 here).
+    """
+    sys = lightly_damped_system(4, 3, seed=7)
+    q, r = 1e-3 * np.eye(sys.nstates), 1e-2 * np.eye(3)
+    rejected, tested, runs_failed = 0, 0, 0
+    for seed in range(6):
+        _, y = simulate_truth(sys, q, r, 10_000, seed=100 + seed)
+        c = KalmanFilter(sys, q, r, steady_state=steady).filter(y).consistency
+        low, high = stats.chi2.ppf([0.005, 0.995], 200 * 3) / 200
+        np.testing.assert_allclose(c.window_bounds[1:], [[low, high]] * 49, rtol=1e-12)
+        np.testing.assert_array_equal(c.window_dof, 600.0)
+        rejected += c.rejected.size
+        tested += c.n_tested
+        runs_failed += not c.consistent
+    assert tested == 6 * 49
+    assert rejected < 8
+    assert runs_failed == 0
+
+
+def test_windowed_nis_equals_window_means_of_the_textbook_nis():
+    sys = lightly_damped_system(3, 2, seed=8)
+    q, r = 1e-3 * np.eye(sys.nstates), 1e-2 * np.eye(2)
+    _, y = simulate_truth(sys, q, r, 1050, seed=9)
+    y[1, 300:320] = np.nan  # a dropout: fewer scalar innovations in that window
+    est = KalmanFilter(sys, q, r, gain_rtol=0.0).filter(y)
+    states, _, innovations = textbook_filter(sys, q, r, y)
+    a, c_mat = np.asarray(sys.A), np.asarray(sys.C)
+    p_mat, nis, used = np.eye(sys.nstates), np.zeros(y.shape[1]), np.zeros(y.shape[1])
+    for k in range(y.shape[1]):  # plain covariance recursion for S of every sample
+        if k:
+            p_mat = a @ p_mat @ a.T + q
+        rows = ~np.isnan(y[:, k])
+        s_mat = c_mat[rows] @ p_mat @ c_mat[rows].T + r[np.ix_(rows, rows)]
+        e = innovations[rows, k]
+        nis[k], used[k] = e @ np.linalg.solve(s_mat, e), rows.sum()
+        gain = p_mat @ c_mat[rows].T @ np.linalg.inv(s_mat)
+        i_kc = np.eye(sys.nstates) - gain @ c_mat[rows]
+        p_mat = i_kc @ p_mat @ i_kc.T + gain @ r[np.ix_(rows, rows)] @ gain.T
+    cons = est.consistency
+    np.testing.assert_allclose(cons.window_nis, nis[:1000].reshape(5, 200).mean(axis=1),
+                               rtol=1e-8)
+    np.testing.assert_array_equal(cons.window_dof, used[:1000].reshape(5, 200).sum(axis=1))
+    np.testing.assert_array_equal(cons.window_start, [0, 200, 400, 600, 800])
+    assert cons.n_tested == 4  # the first window (prior's transient) is not tested
+
+
+def test_windowed_nis_catches_a_mode_the_model_does_not_have():
+    """Data from a system with one more oscillator than the filter's model: it warns."""
+    true = lightly_damped_system(4, 3, seed=12)
+    a = np.asarray(true.A)
+    missing = true.nstates - 2
+    # The filter's model: the true one with the last oscillator's coupling to the rest cut
+    # and that oscillator removed from what it knows (A restricted to the others).
+    model = ct.ss(a[:missing, :missing], np.zeros((missing, 1)), np.asarray(true.C)[:, :missing],
+                  np.zeros((3, 1)), dt=1e-3)
+    q, r = 1e-3 * np.eye(true.nstates), 1e-2 * np.eye(3)
+    _, y = simulate_truth(true, q, r, 4000, seed=13)
+    kf = KalmanFilter(model, q[:missing, :missing], r, warn_inconsistent=True)
+    with pytest.warns(plc.EstimatorInconsistentWarning, match="windows rejected"):
+        est = kf.filter(y)
+    assert not est.consistency.consistent and est.consistency.rejected.size > 5
+    # The same filter without the opt-in reports the verdict and stays silent.
+    quiet = KalmanFilter(model, q[:missing, :missing], r).filter(y)
+    assert not quiet.consistency.consistent
+
+
+def test_step_monitor_matches_filter_windows():
+    sys = lightly_damped_system(3, 2, seed=14)
+    q, r = 1e-3 * np.eye(sys.nstates), 1e-2 * np.eye(2)
+    _, y = simulate_truth(sys, q, r, 1100, seed=15)
+    kf = KalmanFilter(sys, q, r, consistency_window=100)
+    assert kf.consistency is None
+    est = kf.filter(y)
+    for k in range(y.shape[1]):
+        kf.step(y[:, k])
+    online = kf.consistency
+    np.testing.assert_allclose(online.window_nis, est.consistency.window_nis, rtol=1e-9)
+    assert online.n_tested == est.consistency.n_tested == 10
+    assert online.consistent == est.consistency.consistent
+    # Warm start: the monitor continues from the record's windows.
+    warm = KalmanFilter(sys, q, r, consistency_window=100)
+    warm.filter(y[:, :550], update_state=True)
+    for k in range(550, y.shape[1]):
+        warm.step(y[:, k])
+    np.testing.assert_allclose(warm.consistency.window_nis, online.window_nis, rtol=1e-6)
+    assert KalmanFilter(sys, q, r, consistency_window=None).filter(y).consistency is None
+
+
+def test_windowed_nees_of_the_true_model():
+    sys = lightly_damped_system(3, 3, seed=16)
+    q, r = 1e-3 * np.eye(sys.nstates), 1e-2 * np.eye(3)
+    x, y = simulate_truth(sys, q, r, 3000, seed=17)
+    cons = filter_consistency(KalmanFilter(sys, q, r).filter(y), x, discard=100, window=500)
+    # NEES of the true model averages its dof, 6, per window (estimation errors are
+    # correlated in time, so the windows' spread is wider than chi-square: only the mean).
+    assert cons.window_nees.size == 5
+    assert np.mean(cons.window_nees) == pytest.approx(sys.nstates, rel=0.15)
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"consistency_window": 0}, "'consistency_window'"),
+    ({"consistency_window": 2.5}, "'consistency_window'"),
+    ({"nis_dof_fraction": 0.0}, "'nis_dof_fraction'"),
+    ({"nis_dof_fraction": 1.5}, "'nis_dof_fraction'"),
+    ({"warn_inconsistent": "yes"}, "'warn_inconsistent'"),
+])
+def test_consistency_options_reject_bad_values(kwargs, match):
+    sys = ct.ss([[0.5]], [[0.0]], [[1.0]], 0, dt=1.0)
+    with pytest.raises(InputError, match=match):
+        KalmanFilter(sys, 1.0, 1.0, **kwargs)
 
 
 def test_accuracy_closed_form():

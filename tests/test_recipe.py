@@ -7,6 +7,7 @@ and sensors), a plain-numpy filter loop written here, and independent FE simulat
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import control as ct
@@ -486,3 +487,52 @@ def test_excitation_message_of_a_record_the_lines_do_not_explain(occupancy, expe
     report = ExcitationReport(narrowband=False, occupancy=occupancy,
                               frequencies=np.zeros(0), residual_ratio=float("nan"), method="dmd")
     assert report.message.startswith(expected) and "time-delay DMD" in report.message
+
+
+# ------------------------------------------------------------------ issue 19, part 6: fixes
+
+def test_sensors_on_supports_are_refused(small_design):
+    """Node 0 and 20 are the pinned supports: with 1 % noise they read noise and nothing else."""
+    _, snap, _ = small_design
+    for sensors in ([0, 5, 10], [5, 10, 20]):
+        with pytest.raises(InputError, match=r"'sensors'.*do not move"):
+            plc.design_estimator(snap, sensors=sensors, delays=4, rank=12)
+
+
+@pytest.mark.parametrize("record", [
+    np.ones((21, 2000)),                                                   # constant
+    np.outer(np.arange(21.0), np.ones(2000)),                              # a constant shape
+    np.outer(np.sin(np.linspace(0, np.pi, 21)), np.arange(2000) == 5.0),   # rank 1, one event
+], ids=["constant", "constant-shape", "rank-1-impulse"])
+def test_constant_and_rank_deficient_records_raise_identification_error(record):
+    with pytest.raises(plc.IdentificationError):
+        plc.design_estimator(record, dt=1e-3, n_sensors=3, delays=4, rank=12)
+
+
+@pytest.mark.parametrize("method", ["dmd", "modal"])
+def test_every_design_model_round_trips_save_and_load_bit_exact(small_design, method, tmp_path):
+    _, snap, design = small_design
+    if method == "modal":
+        design = plc.design_estimator(snap, n_sensors=3, method="modal", seed=0)
+    path = tmp_path / f"{method}.npz"
+    plc.save_model(path, design.model)
+    loaded = plc.load_model(path)
+    for field in dataclasses.fields(design.model):
+        ours, theirs = getattr(design.model, field.name), getattr(loaded, field.name)
+        if isinstance(ours, np.ndarray):
+            np.testing.assert_array_equal(theirs, ours, err_msg=field.name)
+        else:
+            assert theirs == ours, field.name
+
+
+def test_alpha_sweep_widens_when_its_best_value_is_at_the_top(small_design):
+    """A grid of one tiny alpha: the best is its edge, so the sweep must grow until the held-out
+    minimum lies inside it (or the relative cap 1 is reached)."""
+    _, snap, _ = small_design
+    design = plc.design_estimator(snap, n_sensors=3, delays=4, rank=12, seed=0, alphas=[1e-14])
+    sweep = design.alpha_sweep
+    assert sweep.alphas.size > 1
+    np.testing.assert_allclose(sweep.alphas[1:] / sweep.alphas[:-1], 100.0)
+    best = int(np.argmin(sweep.held_out_error))
+    assert best < sweep.alphas.size - 1 or sweep.alphas[-1] == 1.0
+    assert design.model.alpha_relative == pytest.approx(sweep.alphas[best], rel=1e-12)
