@@ -447,6 +447,17 @@ def test_consistency_options_reject_bad_values(kwargs, match):
         KalmanFilter(sys, 1.0, 1.0, **kwargs)
 
 
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"window": 0}, "'window'"), ({"window": 1.5}, "'window'"),
+    ({"dof_fraction": 0.0}, "'dof_fraction'"), ({"dof_fraction": 2.0}, "'dof_fraction'"),
+])
+def test_filter_consistency_rejects_bad_window_options(kwargs, match):
+    sys = ct.ss([[0.5]], [[0.0]], [[1.0]], 0, dt=1.0)
+    est = KalmanFilter(sys, 1.0, 1.0).filter(np.ones((1, 10)))
+    with pytest.raises(InputError, match=match):
+        filter_consistency(est, **kwargs)
+
+
 def test_accuracy_closed_form():
     truth = np.array([[1.0, -1.0, 1.0, -1.0], [3.0, -3.0, 3.0, -3.0]])
     estimate = truth + np.array([[0.0], [0.5]])
