@@ -39,6 +39,7 @@ from .plant import (
 from .policy import (
     MIN_GAIN,
     TRAVEL_FRACTION,
+    UNSTEADY_LIMIT,
     Targeting,
     choose_target,
     kernel_shape,
@@ -304,11 +305,24 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     if retarget:
         records.retarget_times.append(float(t[k]))
         records.target_starts.append(k)
-    decision = targeting.accept(choice, motion.position, float(line.span.loop_length(frequency)),
-                                frequency, retarget)
+    measured = _sensed_power(records, line, k, frequency, settings.window)
+    decision = targeting.check_measured(measured, choice.predicted_here, motion.position,
+                                        retarget, unsteady <= UNSTEADY_LIMIT)
+    if decision is None:
+        decision = targeting.accept(choice, motion.position,
+                                    float(line.span.loop_length(frequency)), frequency, retarget)
     records.decisions.append((float(t[k]), decision))
     if targeting.goal != motion.goal:
         motion.send(targeting.goal, float(t[k]))
+
+
+def _sensed_power(records: _Records, line: _Line, k: int, frequency: float,
+                  window: int) -> float:
+    """Mean square amplitude the sensors measure at the load's frequency over the last window:
+    the vibration the robot can check its moves against (what it measures, not predicts)."""
+    lo = max(k + 1 - window, 0)
+    sensed = fit_phasors(records.measured[:, lo : k + 1], line.t[lo : k + 1], frequency)
+    return float(np.mean(np.abs(sensed) ** 2))
 
 
 def _out_of_reach(choice, shape: np.ndarray, line: _Line, robot: MDR, settings: Settings,

@@ -47,6 +47,9 @@ MIN_GAIN = 0.05
 # ... and a refinement inside the anchor's loop at least this much: near a minimum the RMS is flat
 # to second order, and a move of a few per cent of a loop would only restart the settling.
 REFINE_GAIN = 0.01
+# A move after which the sensors measure this much more vibration (mean square amplitude at the
+# load frequency, same load) than before it is undone: the robot goes back and stays.
+WORSE_TOLERANCE = 0.10
 
 def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
     """Robot-free excited shape at every node from the sensors' and the robot's phasors.
@@ -261,6 +264,9 @@ class Targeting:
     still_since: float | None = None    # since when the robot is still at its steer point
     choices: int = 0                    # loops tried for this excitation
     confirmed: bool = False             # the choice is final until the frequency changes
+    reference_power: float = np.nan     # what the sensors measured before this excitation's move
+    reference_position: float = np.nan  # ... and where the robot was then
+    reference_estimate: float = np.nan  # ... and the span RMS estimated there
 
     def update_clocks(self, now: float, robot_still: bool, frequency: float,
                       threshold: float) -> None:
@@ -311,6 +317,37 @@ class Targeting:
             self.confirmed = True
             return retarget, False
         return retarget, confirm
+
+    def check_measured(self, power: float, estimate: float, here: float, retarget: bool,
+                       steady: bool) -> str | None:
+        """Check a move against the run itself. ``power``: the sensors' mean square amplitude at
+        the load frequency over the last window; ``estimate``: the span RMS with the robot
+        where it is, estimated from that same window (``Choice.predicted_here``). At a new
+        target both are the reference; at a confirmation, a robot whose move made both worse
+        (by more than WORSE_TOLERANCE) goes back to where it was and stays. Both, because
+        either alone misleads: a few sensors can sit where the robot's move raised the
+        vibration while the span's fell (a family case: 41 % better, sensors +40 %), and the
+        estimate is the prediction that chose the move. Returns the decision in words when it
+        overrides the prediction, else None."""
+        if retarget:
+            # Only a steady window is a reference: a line still building up its response from
+            # rest (tens of seconds on a lightly damped long span) would make every later window
+            # look worse, whatever the move did.
+            self.reference_power = power if steady else np.nan
+            self.reference_position, self.reference_estimate = here, estimate
+            return None
+        moved = abs(here - self.reference_position) > 1e-6
+        worse = (power > (1 + WORSE_TOLERANCE) * self.reference_power
+                 and estimate > (1 + WORSE_TOLERANCE) * self.reference_estimate)
+        if moved and worse:
+            self.goal = self.anchor = self.reference_position
+            self.confirmed = True
+            return (f"return to {self.reference_position:.4g} m: at {here:.4g} m the sensors "
+                    f"measure {100 * (power / self.reference_power - 1):.0f} % more vibration "
+                    "and the span is estimated "
+                    f"{100 * (estimate / self.reference_estimate - 1):.0f} % worse than before "
+                    "the move")
+        return None
 
     def accept(self, choice: Choice, here: float, loop: float, frequency: float,
                retarget: bool) -> str:
