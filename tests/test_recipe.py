@@ -623,6 +623,11 @@ def test_consistency_warning_on_a_handful_of_lab_runs():
     assert all(1 / 1.5 < ratio < 1.5 for ratio in calibration)
 
 
+# Measured on this family (seeds 40-43): lab-pinned 3/6 false alarms and 5/6 detected,
+# lab-clamped 0/6 and 5/6, Cardinal pinned 0/6 and 2/6, Cardinal clamped 3/6 and 3/6.
+RATE_DETECTED, RATE_FALSE_ALARMS = 15, 6
+
+
 @pytest.mark.slow
 def test_consistency_warning_rates_on_lab_and_real_spans():
     """Issue 19 Must-show: detection and false-alarm rates, 24 runs each.
@@ -644,5 +649,3 @@ def test_consistency_warning_rates_on_lab_and_real_spans():
     assert len(matched) == len(mismatched) == 24
     assert sum(mismatched) >= RATE_DETECTED and sum(matched) <= RATE_FALSE_ALARMS
 
-
-RATE_DETECTED, RATE_FALSE_ALARMS = 0, 24  # placeholder until measured
