@@ -544,18 +544,26 @@ class _Study:
             seed=sc.simulation.seed)
         self.closed_loop = result
         final = float(result.robot_position[-1])
+        steady = result.comparison("closed_loop").steady
         reduction = float(result.vibration_reduction)
         rtf = float(result.real_time_factor)
         rows = [
             ("robot", f"body {robot.body_mass:g} kg + absorber {robot.suspended_mass:g} kg, "
              f"{tuning_text}; starts at {robot.position:g} m"),
             ("where it ended", f"{final:.4g} m", _where_it_ended(result, final)),
-            ("RMS displacement, settled window",
-             f"{_mm(result.rms_closed_loop)} moving vs {_mm(result.rms_baseline)} parked at "
-             "its start"),
+            ("plan and closed loop", _plan_agreement(self.parked_choice, result, final),
+             "The plan stage applies the closed loop's own targeting rule to the estimated "
+             "field; the closed loop decides from its own sensors while it runs."),
+            ("RMS displacement, steady state" if steady else "RMS displacement, settled window",
+             f"{_mm(result.rms_closed_loop)} parked where it ended vs "
+             f"{_mm(result.rms_baseline)} parked at its start",
+             "The exact steady state under the load with the robot parked there."
+             if steady else "Over the settled window (the load is not one sine)."),
             ("vibration reduction", f"{reduction:.2f}x",
              "RMS displacement over the span with the robot parked where it started, divided by "
-             "the same with the robot moving (> 1: moving helps)."),
+             "the same with the robot where the closed loop left it (> 1: moving helps)."),
+            ("decisions", "; ".join(f"{t:.3g} s: {what}" for t, what in result.decisions),
+             "What the robot decided, and when."),
             ("planner steps", f"{len(result.statuses)} ({result.statuses.count('safe_stop')} "
              "safe stops)"),
             ("real-time factor", f"{rtf:.2f}",
@@ -567,14 +575,17 @@ class _Study:
             rows.insert(2, ("settled window", f"{window[0]:.3g}-{window[1]:.3g} s"
                             + ("" if getattr(result, "settled", True) else
                                " (the robot did not settle: the last second)"),
-                            "Every RMS below is over this window, after the robot last "
-                            "arrived, so transients do not count."))
+                            "The window RMS (beside each steady state below) is over this "
+                            "window, after the robot last arrived."))
         for comparison in getattr(result, "comparisons", ()):
             label = _COMPARISON_WORDS.get(comparison.name, comparison.name)
             where = "" if not np.isfinite(comparison.position) else \
                 f" at {comparison.position:.4g} m"
-            rows.append((f"RMS: {label}", f"{_mm(comparison.rms)}{where}",
-                         f"peak {_mm(comparison.peak)}"))
+            note = f"peak {_mm(comparison.peak)}"
+            if comparison.steady:
+                note += (f"; settled window {_mm(comparison.window_rms)}"
+                         + (" (still ringing)" if comparison.transient else ""))
+            rows.append((f"RMS: {label}", f"{_mm(comparison.rms)}{where}", note))
         self.report.section(
             "Closed loop (robot driven to the estimated antinode)", rows,
             figures=[
@@ -642,8 +653,9 @@ def _where_it_ended(result, final: float) -> str:
 
     targets = np.asarray(result.target, dtype=float)
     targets = targets[np.isfinite(targets)]
-    text = ("The robot steers to where its absorber is predicted to dissipate most: an antinode "
-            "of the line's excited shape, estimated from the sensors.")
+    text = ("The robot steers to the parked position predicted to leave the line vibrating "
+            "least, from the sensors' and its own measurements, and undoes a move after which "
+            "the sensors measure more vibration.")
     if targets.size:
         text += f" Its last target was {targets[-1]:.4g} m."
     best = getattr(result, "best_position", float("nan"))
@@ -662,8 +674,20 @@ _COMPARISON_WORDS = {
     "near_clamp": "robot parked near a clamp",
     "start": "robot parked where it started",
     "best": "robot parked at the best position",
-    "closed_loop": "robot moving (closed loop)",
+    "closed_loop": "robot where the closed loop ended",
 }
+
+
+def _plan_agreement(choice, result, final: float) -> str:
+    """Whether the plan's target and where the closed loop ended agree, in words."""
+    if choice is None:
+        return "no plan stage in this run"
+    apart = abs(choice.position - final) / result.loop_length
+    verdict = "agree" if apart <= 0.25 else "differ"
+    return (f"{verdict}: the plan's target {choice.position:.4g} m, the closed loop ended at "
+            f"{final:.4g} m ({apart:.2g} loop lengths apart)"
+            + ("" if verdict == "agree" else
+               "; the closed loop judged from its own run (see its decisions)"))
 
 
 @dataclass
