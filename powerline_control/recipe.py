@@ -316,6 +316,13 @@ class EstimatorDesign:
             f"Predicted steady-state RMS field error {float(np.sqrt(np.mean(field_std**2))):.3g}"
             " m (from the model's own Riccati solution; check it on held-out data)."
         )
+        if self.covariance_scale != 1.0 or self.nis_dof_fraction != 1.0:
+            lines.append(
+                f"Q and R scaled by {self.covariance_scale:.3g} so that the held-out NIS is "
+                f"nominal (covariance matching); every record is checked by a windowed NIS "
+                f"test on {self.nis_dof_fraction:.3g} of the chi-square degrees of freedom "
+                "(Estimate.consistency)."
+            )
         return "\n".join(lines)
 
 
