@@ -49,7 +49,7 @@ MIN_GAIN = 0.05
 REFINE_GAIN = 0.01
 # A move after which the sensors measure this much more vibration (mean square amplitude at the
 # load frequency, same load) than before it is undone: the robot goes back and stays.
-WORSE_TOLERANCE = 0.10
+WORSE_TOLERANCE = 0.5
 
 def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
     """Robot-free excited shape at every node from the sensors' and the robot's phasors.
