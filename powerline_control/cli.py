@@ -564,6 +564,13 @@ class _Study:
              "the same with the robot where the closed loop left it (> 1: moving helps)."),
             ("decisions", "; ".join(f"{t:.3g} s: {what}" for t, what in result.decisions),
              "What the robot decided, and when."),
+            ("estimator consistency",
+             "no complete window" if result.estimator_consistency is None else
+             ("consistent" if result.estimator_consistency.consistent else "INCONSISTENT")
+             + " (windowed NIS of the Kalman filter over the run)",
+             "The filter's model was identified with the robot parked at its start; once the "
+             "robot damps the line it may no longer fit. The robot's targeting does not use "
+             "that estimate (it fits the sensors' phasors on the line's modes)."),
             ("planner steps", f"{len(result.statuses)} ({result.statuses.count('safe_stop')} "
              "safe stops)"),
             ("real-time factor", f"{rtf:.2f}",

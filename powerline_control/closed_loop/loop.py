@@ -666,4 +666,5 @@ def run_closed_loop(
         timings=timings,
         follow_times=settling.follow_times,
         decisions=tuple(records.decisions),
+        estimator_consistency=calibrated.kf.consistency,
     )

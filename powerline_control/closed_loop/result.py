@@ -126,6 +126,12 @@ class ClosedLoopResult:
         Every decision of the policy, in words: the time (s) and what it chose ("target ...",
         "confirm ...", "another loop ...", "final ...") or why it held still ("hold ...: the
         best predicted position is only 2 % lower").
+    estimator_consistency : Consistency or None
+        The windowed NIS test (:class:`~powerline_control.estimate.Consistency`) of the
+        estimator's filter over the calibration record and the loop (None when no window
+        completed): ``consistent`` False says the DMD model identified with the robot parked at
+        its start no longer fits (the robot's own damping changes the line). The policy does not
+        act on that estimate; it targets from the sensors' phasors and the line's modes.
     timings : dict
         Wall-clock seconds spent in: setup (modes, calibration, identification), plant (sample
         stepping and sensing), plant update (re-discretising after a move), filter (Kalman
@@ -176,6 +182,7 @@ class ClosedLoopResult:
     timings: dict = field(default_factory=dict, repr=False)
     follow_times: tuple = ()
     decisions: tuple = ()
+    estimator_consistency: object = field(default=None, repr=False)
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""
