@@ -307,7 +307,7 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
         records.target_starts.append(k)
     measured = _sensed_power(records, line, k, frequency, settings.window)
     decision = targeting.check_measured(measured, choice.predicted_here, motion.position,
-                                        retarget, unsteady <= UNSTEADY_LIMIT)
+                                        retarget, unsteady <= UNSTEADY_LIMIT, reach)
     if decision is None:
         decision = targeting.accept(choice, motion.position,
                                     float(line.span.loop_length(frequency)), frequency, retarget)

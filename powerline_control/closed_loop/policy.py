@@ -319,7 +319,7 @@ class Targeting:
         return retarget, confirm
 
     def check_measured(self, power: float, estimate: float, here: float, retarget: bool,
-                       steady: bool) -> str | None:
+                       steady: bool, reach: float = np.inf) -> str | None:
         """Check a move against the run itself. ``power``: the sensors' mean square amplitude at
         the load frequency over the last window; ``estimate``: the span RMS with the robot
         where it is, estimated from that same window (``Choice.predicted_here``). At a new
@@ -327,8 +327,10 @@ class Targeting:
         (by more than WORSE_TOLERANCE) goes back to where it was and stays. Both, because
         either alone misleads: a few sensors can sit where the robot's move raised the
         vibration while the span's fell (a family case: 41 % better, sensors +40 %), and the
-        estimate is the prediction that chose the move. Returns the decision in words when it
-        overrides the prediction, else None."""
+        estimate is the prediction that chose the move. A way back longer than ``reach`` (the
+        travel budget left) is not taken: a return cut off by the end of the run is worse than
+        either end. Returns the decision in words when it overrides the prediction, else
+        None."""
         if retarget:
             # Only a steady window is a reference: a line still building up its response from
             # rest (tens of seconds on a lightly damped long span) would make every later window
@@ -336,7 +338,7 @@ class Targeting:
             self.reference_power = power if steady else np.nan
             self.reference_position, self.reference_estimate = here, estimate
             return None
-        moved = abs(here - self.reference_position) > 1e-6
+        moved = 1e-6 < abs(here - self.reference_position) <= reach
         worse = (power > (1 + WORSE_TOLERANCE) * self.reference_power
                  and estimate > (1 + WORSE_TOLERANCE) * self.reference_estimate)
         if moved and worse:
