@@ -48,7 +48,7 @@ from .policy import (
     reach_within,
 )
 from .result import ClosedLoopResult
-from .settings import UNSET, Settings, checked_settings
+from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
 
 
 def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
@@ -440,9 +440,9 @@ def run_closed_loop(
     limits: RobotLimits | None = None,
     *,
     sensors: Sequence[int],
-    n_elements: int | None = UNSET,
-    bc: object = UNSET,
-    damping: object = UNSET,
+    n_elements: int | None = UNSET_ELEMENTS,
+    bc: object = UNSET_BC,
+    damping: object = UNSET_DAMPING,
     duration: float = 10.0,
     calibration: float = 2.0,
     dt: float = 1e-3,

@@ -170,7 +170,19 @@ def _checked_sampling(duration, calibration, dt, control_period, plant_period):
 
 
 # Marks an argument the caller did not give (a LineModel brings its own mesh, supports, damping).
-UNSET = object()
+class _Unset:
+    """The default of an argument the caller left out (shown as what a Span gets)."""
+
+    def __init__(self, shown: str):
+        self.shown = shown
+
+    def __repr__(self) -> str:
+        return self.shown
+
+
+UNSET_ELEMENTS, UNSET_BC, UNSET_DAMPING = (_Unset("100 (a Span)"), _Unset("'pinned' (a Span)"),
+                                           _Unset("None (a Span)"))
+
 
 
 def _robot_of(model, robot) -> MDR:
@@ -197,7 +209,7 @@ def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping) -> Lin
     if isinstance(model, LineModel):
         given = {name: value for name, value in
                  (("n_elements", n_elements), ("bc", bc), ("damping", damping))
-                 if value is not UNSET}
+                 if not isinstance(value, _Unset)}
         if given:
             raise InputError(
                 f"The {sorted(given)} parameter(s) apply to a Span; the LineModel given brings "
@@ -205,7 +217,7 @@ def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping) -> Lin
             )
         n_nodes = model.n_nodes
     else:
-        n_elements = 100 if n_elements is UNSET else n_elements
+        n_elements = 100 if isinstance(n_elements, _Unset) else n_elements
         if n_elements is not None:
             n_elements = check_int("n_elements", n_elements, low=2)
         n_nodes = None if n_elements is None else n_elements + 1
@@ -224,8 +236,8 @@ def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping) -> Lin
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
     if isinstance(model, LineModel):
         return model.with_robot(None) if model.mdr is not None else model
-    return LineModel(model, n_elements, "pinned" if bc is UNSET else bc,
-                     damping=None if damping is UNSET else damping)
+    return LineModel(model, n_elements, "pinned" if isinstance(bc, _Unset) else bc,
+                     damping=None if isinstance(damping, _Unset) else damping)
 
 
 def _checked_obstacles(obstacles, robot: MDR, limits: RobotLimits,
