@@ -606,7 +606,9 @@ def relative_velocity(plant: ModalPlant, states: np.ndarray, positions) -> np.nd
     if np.ndim(positions) == 0:
         line_velocity = states[:, nq : nq + r] @ plant.coupling(float(positions))
     else:
-        coupling = np.stack([plant.coupling(float(x)) for x in positions])
+        # one coupling per distinct position: the robot is parked most of a run
+        distinct, which = np.unique(np.asarray(positions, dtype=float), return_inverse=True)
+        coupling = np.stack([plant.coupling(float(x)) for x in distinct])[which.ravel()]
         line_velocity = np.einsum("ij,ij->i", states[:, nq : nq + r], coupling)
     return line_velocity - states[:, nq + r]
 
