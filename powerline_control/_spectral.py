@@ -507,8 +507,8 @@ def _split_line(res: np.ndarray, frequency: float, dt: float, bin_width: float,
     return ((f1, (design[:, :2] @ coef[:2]).T), (f2, (design[:, 2:] @ coef[2:]).T))
 
 
-# One BLAS thread: thousands of (4 x n) @ (n x k) products with k ~ 24, measured 50x slower
-# (72 ms against 1.4 ms each) with two contending threads on the shared 2-core machine.
+# One BLAS thread: thousands of small (4 x n) @ (n x k) products (k ~ 24), far slower with
+# contending threads than with one.
 @threadpool_limits.wrap(limits=1, user_api="blas")
 def extract_lines(signals: object, dt: object, max_lines: object
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -25,7 +25,6 @@ def arrival_index(position: np.ndarray, start: int, tolerance: float) -> int | N
     return index if index < position.size else None
 
 
-
 @dataclass(frozen=True)
 class Settling:
     """When the robot arrived and stayed: per target, per load change, and the settled window."""
@@ -66,7 +65,6 @@ def settling_of(records, t: np.ndarray, segments, n_cal: int, loop_length: float
     mask = t >= window_start - 1e-12
     return Settling(tuple(settle_times), tuple(follow_times), settled, mask,
                      (float(t[mask][0]), float(t[-1])))
-
 
 
 def window_comparison(name: str, position: float, states: np.ndarray, plant: ModalPlant,
@@ -193,7 +191,3 @@ def _parked_window(name: str, x_park: float, line, robot: MDR, mask: np.ndarray)
     power = damper_power(line.plant, robot, states, x_park)
     return window_comparison(name, x_park, states, line.plant, power, line, mask), states, \
         line.plant
-
-
-
-# Thousands of small products per simulated second: one BLAS thread is several times faster than

@@ -44,6 +44,7 @@ from .policy import (
     choose_target,
     kernel_shape,
     obstacle_ends,
+    pick_target,
     predicted_rms,
     reach_within,
 )
@@ -138,7 +139,6 @@ def _build_line(robot, segments, settings: Settings, sensors, *, n_modes,
         plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
         weights=bare.span_weights,
     )
-
 
 
 @dataclass(frozen=True)
@@ -238,8 +238,8 @@ def _observe(records: _Records, calibration: _Calibration, settings: Settings,
     # The spectrum of the sensors' velocities (first differences: a weight 4 sin^2(omega dt / 2)
     # ~ (omega dt)^2, bounded at Nyquist so noise is not amplified): the tone carrying the most
     # vibration energy. By displacement the fundamental's start-up ringing (or the ringing the
-    # robot's own motion excites) outweighed a load three times higher and sent the robot after
-    # it (held-out family seeds 3, 45, 61).
+    # robot's own motion excites) can outweigh a load three times higher and send the robot
+    # after it.
     frequency = dominant_frequency(
         np.diff(records.measured[:, max(k + 1 - settings.frequency_samples, 0) : k + 1],
                 axis=1), settings.dt)
@@ -333,8 +333,12 @@ def _out_of_reach(choice, shape: np.ndarray, line: _Line, robot: MDR, settings: 
     beyond the travel budget (on a long span) is only noted: few sensors rank far loops poorly,
     and the trip would cost most of the run."""
     half, length = settings.limits.length / 2, line.span.length
-    anywhere = choose_target(shape, line.plant, robot, omega, line.weights, choice.position,
-                             half, length - half)
+    if bounds == (half, length - half):   # no obstacle: the choice's own prediction covers it
+        anywhere = pick_target(choice.grid, choice.predicted, choice.predicted_here,
+                               choice.position)
+    else:
+        anywhere = choose_target(shape, line.plant, robot, omega, line.weights,
+                                 choice.position, half, length - half)
     chosen, best = predicted_rms(shape, line.plant, robot, omega,
                                  [choice.position, anywhere.position], line.weights)
     if best >= (1 - MIN_GAIN) * chosen:
@@ -430,8 +434,8 @@ def _kalman_steps(records: _Records, calibration: _Calibration, y_block: np.ndar
     records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
 
 
-
-# two contending ones on a shared 2-core machine. The limit applies inside this call only.
+# Thousands of small products per simulated second: one BLAS thread is several times faster than
+# two contending ones. The limit applies inside this call only.
 @threadpool_limits.wrap(limits=1, user_api="blas")
 def run_closed_loop(
     model: LineModel | Span,

@@ -288,9 +288,11 @@ class ModalPlant:
         return np.linalg.solve(stiff - omega**2 * mass + 1j * omega * damp, rhs)
 
     def modal_response(self, load: np.ndarray, omega: float) -> np.ndarray:
-        """Bare line's modal amplitudes under a harmonic modal load (diagonal when it can)."""
+        """Bare line's modal amplitudes under a harmonic modal load, (r,) or one per column of
+        (r, m) (diagonal when it can)."""
         if self._diagonal:
-            return load / (self.omega2 - omega**2 + 1j * omega * np.diag(self.line_damping))
+            dynamic = self.omega2 - omega**2 + 1j * omega * np.diag(self.line_damping)
+            return load / dynamic.reshape(dynamic.shape + (1,) * (np.ndim(load) - 1))
         dynamic = np.diag(self.omega2 - omega**2) + 1j * omega * self.line_damping
         return np.linalg.solve(dynamic, load)
 

@@ -79,17 +79,24 @@ def predicted_rms(bare_shape, plant, robot, omega, positions, weights):
     With one point attachment the parked field follows from the robot-free one exactly:
     ``W_p = W_bare + H(., p) D_r W_p(p)`` and ``W_p(p) = W_bare(p) / (1 - H(p, p) D_r)``,
     so only the bare line's receptance is needed (no modal force is inverted from the estimate).
+    The receptances of a block of positions are one matrix product.
     """
+    positions = np.asarray(positions, dtype=float).ravel()
+    out = np.empty(positions.size)
+    if not positions.size:
+        return out
     reaction = robot_dynamic_stiffness(robot, omega)
-    out = np.empty(len(positions))
-    for i, p in enumerate(positions):
-        h = plant.receptance(p, omega)
-        n = plant.coupling(p)
-        at_robot = complex(n @ plant.modal_response(n, omega))
-        w_bare_p = complex(np.interp(p, plant.model.node_positions, bare_shape.real)
-                           + 1j * np.interp(p, plant.model.node_positions, bare_shape.imag))
-        shape = bare_shape + h * reaction * w_bare_p / (1 - at_robot * reaction)
-        out[i] = np.sqrt(0.5 * weights @ np.abs(shape) ** 2)
+    x = plant.model.node_positions
+    w_bare = np.interp(positions, x, bare_shape.real) + 1j * np.interp(positions, x,
+                                                                        bare_shape.imag)
+    # blocks of 256 positions keep the (n_nodes, block) complex fields small on long spans
+    for block in np.array_split(np.arange(positions.size), -(-positions.size // 256)):
+        couplings = np.stack([plant.coupling(p) for p in positions[block]], axis=1)  # (r, b)
+        response = plant.modal_response(couplings, omega)
+        at_robot = np.einsum("ij,ij->j", couplings, response)
+        gain = reaction * w_bare[block] / (1 - at_robot * reaction)
+        fields = bare_shape[:, None] + (plant.nodal @ response) * gain
+        out[block] = np.sqrt(0.5 * weights @ np.abs(fields) ** 2)
     return out
 
 
@@ -135,13 +142,18 @@ def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low,
     them, the one nearest the robot (the nearest minimum when none is within reach; the robot's
     own position when the prediction has no minimum). ``obstacle_ends``: whether an obstacle
     (not a support) bounds the interval [low, high] on each side."""
-    x = plant.model.node_positions
-    grid = np.linspace(low, high, max(4 * x.size, 200))
+    grid = np.linspace(low, high, max(4 * plant.model.n_nodes, 200))
     predicted = predicted_rms(bare_shape, plant, robot, omega, grid, weights)
     here = float(predicted_rms(bare_shape, plant, robot, omega, [robot_position], weights)[0])
+    return pick_target(grid, predicted, here, robot_position, reach, obstacle_ends)
+
+
+def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_position: float,
+                reach: float = np.inf, obstacle_ends=(False, False)) -> Choice:
+    """:func:`choose_target`'s rule on a predicted RMS already computed on a uniform grid."""
     # The ends of the grid count as minima only where an obstacle bounds it: at a support the
     # robot does nothing (the line does not move there), so a "minimum" there is the prediction's
-    # edge, not a place to damp from (it sent the robot to the support itself).
+    # edge, not a place to damp from.
     minima = [i for i in range(grid.size)
               if (predicted[i] <= predicted[i - 1] if i > 0 else obstacle_ends[0])
               and (predicted[i] <= predicted[i + 1] if i < grid.size - 1 else obstacle_ends[1])]
@@ -326,11 +338,10 @@ class Targeting:
         target both are the reference; at a confirmation, a robot whose move made both worse
         (by more than WORSE_TOLERANCE) goes back to where it was and stays. Both, because
         either alone misleads: a few sensors can sit where the robot's move raised the
-        vibration while the span's fell (a family case: 41 % better, sensors +40 %), and the
-        estimate is the prediction that chose the move. A way back longer than ``reach`` (the
-        travel budget left) is not taken: a return cut off by the end of the run is worse than
-        either end. Returns the decision in words when it overrides the prediction, else
-        None."""
+        vibration while the span's fell, and the estimate is the prediction that chose the
+        move. A way back longer than ``reach`` (the travel budget left) is not taken: a return
+        cut off by the end of the run is worse than either end. Returns the decision in words
+        when it overrides the prediction, else None."""
         if retarget:
             # Only a steady window is a reference: a line still building up its response from
             # rest (tens of seconds on a lightly damped long span) would make every later window

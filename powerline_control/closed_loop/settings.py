@@ -53,7 +53,6 @@ def _check_multiple(name: str, value: float, dt: float) -> int:
     return steps
 
 
-
 @dataclass(frozen=True)
 class Settings:
     """run_closed_loop's options after checking, with the sample counts the run works in."""
@@ -182,7 +181,6 @@ class _Unset:
 
 UNSET_ELEMENTS, UNSET_BC, UNSET_DAMPING = (_Unset("100 (a Span)"), _Unset("'pinned' (a Span)"),
                                            _Unset("None (a Span)"))
-
 
 
 def _robot_of(model, robot) -> MDR:
