@@ -1001,8 +1001,8 @@ class _Output:
 
 def _write_outputs(out: _Output, study: _Study, report: _Report, *, full: bool = True) -> list:
     from . import __version__
-    from .config import scenario_to_toml
     from .report import write_report
+    from .scenario import scenario_to_toml
 
     scenario = study.scenario
     if full:
@@ -1133,7 +1133,7 @@ def run_scenario(scenario, out: Path | None = None, echo=print, *, stages=None,
 
 
 def _load(console, name_or_path):
-    from .config import load_scenario
+    from .scenario import load_scenario
 
     return load_scenario(name_or_path)
 
@@ -1250,7 +1250,7 @@ def _verb_report(args, console: _Console) -> int:
 
 
 def _verb_scenario(args, console: _Console) -> int:
-    from .config import load_scenario, scenario_to_toml, shipped_scenarios
+    from .scenario import load_scenario, scenario_to_toml, shipped_scenarios
 
     if args.name is None:
         shipped = shipped_scenarios()
@@ -1281,7 +1281,7 @@ def _parse_value(text: str):
 
 def _study_point(scenario_text: str, **overrides) -> dict:
     """One point of a ``study``: the scenario with ``overrides`` (dotted keys), estimation only."""
-    from .config import load_scenario
+    from .scenario import load_scenario
 
     # Grid keys are identifiers (section__key) so that any executor can pass them on.
     overrides = {key.replace("__", "."): value for key, value in overrides.items()}
@@ -1299,25 +1299,15 @@ def _study_point(scenario_text: str, **overrides) -> dict:
 
 
 def _override_toml(text: str, overrides: dict) -> str:
-    import tomllib
+    from .scenario import override_scenario_text
 
-    from .config import _toml_value
-
-    data = tomllib.loads(text)
-    for key, value in overrides.items():
-        section, _, name = key.partition(".")
-        data.setdefault(section, {})[name] = value
-    lines = []
-    for section, table in data.items():
-        lines.append(f"[{section}]")
-        lines += [f"{k} = {_toml_value(v)}" for k, v in table.items()]
-    return "\n".join(lines) + "\n"
+    return override_scenario_text(text, overrides)
 
 
 def _verb_study(args, console: _Console) -> int:
-    from .config import _resolve, load_scenario
+    from .scenario import load_scenario, read_scenario_text
 
-    text, source = _resolve(args.scenario) if args.scenario else ("", "<default>")
+    text, source = read_scenario_text(args.scenario) if args.scenario else ("", "<default>")
     axes = {}
     for item in args.vary or ():
         key, sep, values = item.partition("=")

@@ -1,0 +1,26 @@
+"""Scenarios: the TOML schema and its validation (config.py), and the one pipeline that runs a
+scenario stage by stage into a frozen ScenarioResult (pipeline.py; its words in sections.py)."""
+
+from .config import (
+    Scenario,
+    check_severity_inputs,
+    default_scenario,
+    load_scenario,
+    override_scenario_text,
+    read_scenario_text,
+    scenario_reference,
+    scenario_to_toml,
+    shipped_scenarios,
+)
+
+__all__ = [
+    "Scenario",
+    "check_severity_inputs",
+    "default_scenario",
+    "load_scenario",
+    "override_scenario_text",
+    "read_scenario_text",
+    "scenario_reference",
+    "scenario_to_toml",
+    "shipped_scenarios",
+]

@@ -1,0 +1,1060 @@
+"""Scenario files: a TOML description of one study (span, model, load, data, estimation, robot).
+
+A scenario is a frozen :class:`Scenario` of small frozen sections. Every key has a default, so a
+file names only what differs from the built-in default (the paper's lab span forced near its
+third resonance). One schema (the metadata on each section's fields: unit, meaning, allowed
+values, and when a key applies) drives three things: validation, the commented TOML template of
+``powerline-control scenario`` and the reference page ``docs/scenarios.md``
+(:func:`scenario_reference`).
+
+The whole file is validated before anything is computed: types, ranges, positions on the span,
+sensors on the span and off its fixed supports, and keys that conflict with the chosen preset or
+load kind. Every message names the file, the dotted TOML key (``robot.start``), the value and what
+is allowed. Unknown sections or keys are errors, never silently ignored: a typo in a file a user
+saved must not change the study without telling them.
+
+This module imports only the standard library at import time (the command's ``--help`` must stay
+fast); building the physical objects imports the package's numerical modules.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+import textwrap
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from os import PathLike
+from pathlib import Path
+
+from ..errors import InputError
+
+__all__ = [
+    "Scenario",
+    "load_scenario",
+    "scenario_to_toml",
+    "default_scenario",
+    "shipped_scenarios",
+    "scenario_reference",
+    "check_severity_inputs",
+    "read_scenario_text",
+    "override_scenario_text",
+]
+
+#: Largest number of samples a scenario may ask ``simulate`` for (duration / dt): beyond it the
+#: snapshot matrices of even a small model leave a laptop's memory.
+MAX_SAMPLES = 2_000_000
+#: Largest element count a scenario may ask for (dense sensor and estimator work is O(n^2)).
+MAX_ELEMENTS = 20_000
+
+
+def _key(default, unit: str, doc: str, *, kind: str | None = None, low=None, high=None,
+         low_inclusive: bool = False, high_inclusive: bool = True, choices=None, when=None,
+         allowed: str | None = None):
+    """A schema entry: the field's default plus metadata for validation and documentation.
+
+    ``kind`` is one of "real", "int", "str", "bool", "int_list", "real_list", "alpha",
+    "n_elements" (inferred from the default when None). ``when`` = (other key, values) says the
+    key applies only when that key of the same section has one of those values (setting it
+    otherwise is a conflict). ``allowed`` overrides the generated description of allowed values.
+    """
+    if kind is None:
+        kind = {bool: "bool", str: "str", int: "int", float: "real"}[type(default)]
+    meta = dict(unit=unit, doc=doc, kind=kind, low=low, high=high, low_inclusive=low_inclusive,
+                high_inclusive=high_inclusive, choices=choices, when=when, allowed=allowed)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class ScenarioInfo:
+    """Name and one-line description of the scenario (shown in the report)."""
+
+    name: str = _key("default", "", "Short name of the scenario, shown in the report.")
+    description: str = _key(
+        "The paper's 3.66 m lab span, forced near its third resonance.", "",
+        "One sentence saying what the scenario studies.")
+
+
+@dataclass(frozen=True)
+class SpanConfig:
+    """Which span: `preset = "paper_lab"` or a conductor preset with length and tension."""
+
+    preset: str = _key(
+        "paper_lab", "", "The paper's lab span (Table 1: 3.66 m, 395 N) or a conductor preset.",
+        choices=("paper_lab", "conductor"))
+    conductor: str = _key(
+        "drake", "", "Conductor from the catalogue (data/conductors.toml).",
+        when=("preset", ("conductor",)), allowed="a name in powerline_control.conductors")
+    length: float = _key(300.0, "m", "Span length between supports.", low=0.0, high=5000.0,
+                         when=("preset", ("conductor",)))
+    rts_fraction: float = _key(
+        0.20, "", "Everyday tension as a fraction of the conductor's rated tensile strength.",
+        low=0.0, high=0.6, when=("preset", ("conductor",)))
+    tension: float | None = _key(
+        None, "N", "Tension, instead of span.rts_fraction (unset: from rts_fraction).",
+        kind="real", low=0.0, when=("preset", ("conductor",)),
+        allowed="a real number > 0 N, below the conductor's rated strength")
+
+    def build(self):
+        """The :class:`~powerline_control.line.Span` this section describes."""
+        from ..line import Span, conductors
+
+        if self.preset == "paper_lab":
+            return Span.paper_lab()
+        if self.tension is not None:
+            return Span(length=self.length, tension=self.tension,
+                        conductor=conductors[self.conductor])
+        return Span.at_rts_fraction(self.length, conductors[self.conductor], self.rts_fraction)
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Finite-element model: elements, supports and a modal damping ratio."""
+
+    n_elements: int | str = _key(
+        100, "", "Finite elements along the span, or \"auto\" for the mesh the physics chooses "
+        "(resolves the aeolian band, graded toward clamped supports).", kind="n_elements",
+        low=2, high=MAX_ELEMENTS, allowed=f'an integer 2..{MAX_ELEMENTS} or "auto"')
+    bc: str = _key("pinned", "", "Supports at both ends.", choices=("pinned", "clamped"))
+    damping_ratio: float = _key(0.0, "", "Modal damping ratio of the line (every mode).",
+                                low=0.0, high=1.0, low_inclusive=True, high_inclusive=False)
+
+    def build(self, span):
+        """The :class:`~powerline_control.fem.LineModel` of ``span``."""
+        from ..fem import LineModel, ModalDamping
+
+        damping = ModalDamping(self.damping_ratio) if self.damping_ratio > 0 else None
+        if self.n_elements == "auto":
+            return LineModel(span, n_elements=None, bc=self.bc, damping=damping)
+        return LineModel(span, n_elements=self.n_elements, bc=self.bc, damping=damping)
+
+
+@dataclass(frozen=True)
+class ForcingConfig:
+    """The load: `kind` is "harmonic", "aeolian" or "random"."""
+
+    kind: str = _key("harmonic", "", "Point harmonic force, aeolian vortex shedding (distributed, "
+                     "Strouhal lock-in) or a band-limited random point force.",
+                     choices=("harmonic", "aeolian", "random"))
+    amplitude: float = _key(1.0, "N", "Force amplitude (harmonic) or standard deviation (random).",
+                            low=0.0, high=1e6, when=("kind", ("harmonic", "random")))
+    frequency: float = _key(24.0, "Hz", "Frequency of the harmonic force.", low=0.0, high=1e4,
+                            when=("kind", ("harmonic",)))
+    position: float = _key(0.5, "m", "Where the point force acts, from the left support.",
+                           kind="real", when=("kind", ("harmonic", "random")),
+                           allowed="0 < position < span length")
+    wind_speed: float = _key(3.0, "m/s", "Wind speed of the aeolian load (shedding at "
+                             "f = 0.185 V / d).", low=0.0, high=30.0, when=("kind", ("aeolian",)))
+    bandwidth: float = _key(100.0, "Hz", "Highest frequency of the random force.", low=0.0,
+                            high=1e4, when=("kind", ("random",)))
+    seed: int = _key(0, "", "Seed of the random force.", low=0, when=("kind", ("random",)))
+
+    def build(self):
+        """The load object this section describes."""
+        from ..excitation import AeolianForce, HarmonicForce, RandomForce
+
+        if self.kind == "harmonic":
+            return HarmonicForce(self.amplitude, self.frequency, self.position)
+        if self.kind == "aeolian":
+            return AeolianForce(wind_speed=self.wind_speed)
+        return RandomForce(self.amplitude, self.position, self.bandwidth, self.seed)
+
+    def load_frequency(self, span) -> float:
+        """The frequency the load drives, Hz: what the robot's absorber is tuned to.
+
+        The harmonic force's frequency, the Strouhal frequency of the wind for the aeolian load,
+        and the centre of the band (bandwidth / 2) for the random force.
+        """
+        if self.kind == "harmonic":
+            return self.frequency
+        if self.kind == "aeolian":
+            from ..excitation import strouhal_frequency
+
+            return strouhal_frequency(self.wind_speed, span.conductor.diameter)
+        return 0.5 * self.bandwidth
+
+    def describe(self, span) -> str:
+        """The load in words, with units."""
+        if self.kind == "harmonic":
+            return (f"harmonic point force of {self.amplitude:g} N at {self.frequency:g} Hz, "
+                    f"applied at x = {self.position:g} m")
+        if self.kind == "aeolian":
+            return (f"aeolian vortex shedding in a {self.wind_speed:g} m/s wind: a lift force "
+                    f"distributed along the whole span at the Strouhal frequency "
+                    f"{self.load_frequency(span):.3g} Hz (St = 0.185, d = "
+                    f"{1e3 * span.conductor.diameter:g} mm)")
+        return (f"random point force (Gaussian, std {self.amplitude:g} N, band 0-"
+                f"{self.bandwidth:g} Hz, seed {self.seed}) at x = {self.position:g} m")
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Data: duration, sample interval, sensor noise (fraction of RMS displacement), seed."""
+
+    duration: float = _key(10.0, "s", "Simulated time (the first 60 % identifies the model, "
+                           "the rest tests the estimator).", low=0.0, high=3600.0)
+    dt: float = _key(1e-3, "s", "Sample interval.", low=0.0, high=1.0)
+    noise_fraction: float = _key(0.01, "", "Sensor noise standard deviation as a fraction of the "
+                                 "RMS displacement.", low=0.0, high=1.0, low_inclusive=True,
+                                 high_inclusive=False)
+    seed: int = _key(0, "", "Seed of the sensor noise.", low=0)
+
+
+@dataclass(frozen=True)
+class IdentificationConfig:
+    """The estimator's identification: delays, alpha and rank (unset: the recipe chooses), and
+    the broadband shaker of the identification run."""
+
+    delays: int | None = _key(
+        None, "", "Snapshots stacked per model state (time-delay embedding); unset: the "
+        "package's recipe chooses.", kind="int", low=1, high=50)
+    alpha: float | str = _key(
+        "auto", "", "Tikhonov regularisation as a fraction of the largest squared singular "
+        "value of the training data, or \"auto\" to choose it on held-out data.", kind="alpha",
+        low=0.0, low_inclusive=True, high=1.0, allowed='"auto" or a real number in [0, 1]')
+    rank: int | None = _key(None, "", "Rank of the identified model (the filter's state size); "
+                            "unset: the package's recipe chooses.", kind="int", low=1, high=5000)
+    shaker: float = _key(
+        0.1, "N", "Standard deviation of a broadband shaker force, at 31 % of the span, added to "
+        "an identification run (the scenario's load plus the shaker, as long as the training "
+        "part) that trains the estimator: a harmonic record alone is not persistently exciting. "
+        "0: train on the first 60 % of the scenario's own record.", low=0.0, low_inclusive=True,
+        high=1e6)
+    shaker_bandwidth: float = _key(100.0, "Hz", "Highest frequency of the shaker force.",
+                                   low=0.0, high=1e4)
+
+
+@dataclass(frozen=True)
+class EstimationConfig:
+    """Kalman filter: the sensors (node indices or positions), or how many to choose optimally."""
+
+    sensors: tuple[int, ...] | None = _key(
+        None, "", "Measured node indices (0 = left support); unset: chosen optimally.",
+        kind="int_list", low=0, allowed="node indices inside the span, off the fixed supports")
+    sensor_positions: tuple[float, ...] | None = _key(
+        None, "m", "Measured positions (the nearest node is used); unset: chosen optimally.",
+        kind="real_list", allowed="0 < x < span length")
+    n_sensors: int = _key(3, "", "How many sensors to choose optimally (Kalman criterion).",
+                          low=1, high=50)
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """The damping robot: where it starts, its masses, absorber damping and limits.
+
+    The absorber is tuned to the line's mode nearest the load's frequency (see
+    :meth:`ForcingConfig.load_frequency`): by Den Hartog's rule, or with the given
+    ``damping_ratio`` at the Den Hartog frequency.
+    ``closed_loop`` is the simulated time of the closed-loop run (calibration included; 0 skips
+    it).
+    """
+
+    start: float = _key(1.2, "m", "Where the robot starts (and stays parked in the comparison).",
+                        kind="real", allowed="0 < start < span length")
+    body_mass: float = _key(0.02, "kg", "Mass of the robot's body, rigid on the line.",
+                            low=0.0, low_inclusive=True, high=1000.0)
+    suspended_mass: float = _key(0.05, "kg", "Mass of the tuned absorber.", low=0.0, high=1000.0)
+    damping_ratio: float = _key(
+        0.0, "", "Damping ratio of the absorber; 0 takes Den Hartog's optimum (frequency and "
+        "damping) for the line's mode nearest the load; > 0: this ratio, c / (2 m omega_a), at "
+        "Den Hartog's frequency.", low=0.0, low_inclusive=True, high=1.0,
+        high_inclusive=False)
+    v_max: float = _key(0.5, "m/s", "Largest robot speed.", low=0.0, high=20.0)
+    a_max: float = _key(1.0, "m/s^2", "Largest robot acceleration.", low=0.0, high=100.0)
+    closed_loop: float = _key(12.0, "s", "Simulated time of the closed loop (0 skips it).",
+                              low=0.0, low_inclusive=True, high=600.0)
+
+
+#: Outer-strand diameter of the paper's lab conductor, m: Table 1's 10.5 mm conductor is AAC 2/0
+#: "Oxlip", 7 strands of 3.50 mm (data/conductors.toml), so its outer strands are 3.50 mm.
+LAB_OUTER_STRAND_DIAMETER = 3.50e-3
+
+
+@dataclass(frozen=True)
+class SeverityConfig:
+    """Aeolian severity by the energy balance method (a report section when enabled)."""
+
+    enabled: bool = _key(False, "", "Add the energy-balance severity study to the run and report.")
+    wind_speeds: tuple[float, ...] = _key(
+        (1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0), "m/s", "Wind speeds of the severity study.",
+        kind="real_list", low=0.0, high=30.0, when=("enabled", (True,)))
+    outer_strand_diameter: float | None = _key(
+        None, "m", "Diameter of one outer strand, for the clamp stress (Poffenberger-Swart); "
+        "unset: the conductor preset's stranding (the lab span: 3.5 mm, the 7 x 3.50 mm "
+        "strands of AAC 2/0, the conductor Table 1 matches).", kind="real", low=0.0, high=0.05,
+        when=("enabled", (True,)))
+    outer_strand_modulus: float = _key(
+        68.9e9, "Pa", "Young's modulus of the outer strands (aluminium: 68.9 GPa).", low=0.0,
+        high=1e12, when=("enabled", (True,)))
+    clamp_distance: float = _key(
+        0.089, "m", "Where the bending amplitude Y_b is taken: this far from the last point of "
+        "contact at the clamp (IEEE: 89 mm).", low=0.0, high=10.0,
+        when=("enabled", (True,)))
+    ei: float | None = _key(
+        None, "N m^2", "Bending stiffness EI_min of the stranded conductor for the severity "
+        "study (loop lengths and clamp stress); unset: the conductor's own EI.", kind="real",
+        low=0.0, high=1e6, when=("enabled", (True,)))
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One study, as read from a TOML file (see :func:`load_scenario`).
+
+    Attributes
+    ----------
+    scenario, span, model, forcing, simulation, identification, estimation, robot, severity
+        The sections of the file, each a frozen dataclass with defaults.
+
+    Examples
+    --------
+    >>> scenario = default_scenario()
+    >>> scenario.model.n_elements, scenario.span.preset
+    (100, 'paper_lab')
+    """
+
+    scenario: ScenarioInfo = field(default_factory=ScenarioInfo)
+    span: SpanConfig = field(default_factory=SpanConfig)
+    model: ModelConfig = field(default_factory=ModelConfig)
+    forcing: ForcingConfig = field(default_factory=ForcingConfig)
+    simulation: SimulationConfig = field(default_factory=SimulationConfig)
+    identification: IdentificationConfig = field(default_factory=IdentificationConfig)
+    estimation: EstimationConfig = field(default_factory=EstimationConfig)
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    severity: SeverityConfig = field(default_factory=SeverityConfig)
+
+    @property
+    def name(self) -> str:
+        """The scenario's name."""
+        return self.scenario.name
+
+    def span_length(self) -> float:
+        """Length of the span this scenario describes, m (no model is built)."""
+        if self.span.preset == "paper_lab":
+            from ..line import Span
+
+            return Span.paper_lab().length
+        return self.span.length
+
+
+_SECTIONS = {f.name: f.default_factory for f in dataclasses.fields(Scenario)}
+
+
+def default_scenario() -> Scenario:
+    """The built-in scenario: the paper's lab span, 100 elements, forced at 24 Hz (near mode 3).
+
+    The robot starts at 1.2 m, next to a node of mode 3 (L/3 = 1.22 m): the worst place to damp it.
+
+    Examples
+    --------
+    >>> default_scenario().forcing.frequency
+    24.0
+    """
+    return Scenario()
+
+
+# ----------------------------------------------------------------------------- validation
+
+def _repr(value: object) -> str:
+    text = repr(value) if not isinstance(value, str) else f'"{value}"'
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _range_text(meta: dict) -> str:
+    if meta["allowed"]:
+        return meta["allowed"]
+    if meta["choices"]:
+        return "one of " + ", ".join(_repr(c) for c in meta["choices"])
+    kind = {"real": "a real number", "int": "an integer", "bool": "true or false",
+            "str": "a string", "int_list": "a list of integers",
+            "real_list": "a list of real numbers"}.get(meta["kind"], meta["kind"])
+    bounds = []
+    if meta["low"] is not None:
+        bounds.append((">= " if meta["low_inclusive"] or meta["kind"] in ("int", "int_list")
+                       else "> ") + f"{meta['low']:g}")
+    if meta["high"] is not None:
+        bounds.append(("<= " if meta["high_inclusive"] or meta["kind"] in ("int", "int_list")
+                       else "< ") + f"{meta['high']:g}")
+    unit = f" {meta['unit']}" if meta["unit"] else ""
+    return kind + (" " + " and ".join(bounds) + unit if bounds else "")
+
+
+class _Invalid(Exception):
+    """One key's value is refused (recorded by the checker; the key keeps its default)."""
+
+
+class _Checker:
+    """Validates one file's values and collects every problem, each naming the dotted key.
+
+    ``fail`` records a problem and raises :class:`_Invalid` (the key being read is skipped and
+    keeps its default, so the other checks still run); ``note`` records one without raising.
+    :meth:`raise_if_any` raises one :class:`InputError` naming the file and every problem.
+    """
+
+    def __init__(self, source: str):
+        self.source = source
+        self.problems: list[str] = []
+
+    def note(self, message: str) -> None:
+        """Record a problem (a sentence naming the dotted key) and go on checking."""
+        if message not in self.problems:
+            self.problems.append(message)
+
+    def refuse(self, key: str, value: object, allowed: str, why: str = "") -> None:
+        """Record that ``key = value`` is not allowed (no exception)."""
+        why = f" {why}" if why else ""
+        self.note(f"{key} = {_repr(value)} is not allowed.{why} Allowed: {allowed}.")
+
+    def fail(self, key: str, value: object, allowed: str, why: str = "") -> None:
+        """Record that ``key = value`` is not allowed and stop reading that key."""
+        self.refuse(key, value, allowed, why)
+        raise _Invalid(key)
+
+    def raise_if_any(self) -> None:
+        """One InputError naming the file and every problem found (none: return)."""
+        if not self.problems:
+            return
+        if len(self.problems) == 1:
+            raise InputError(f"{self.source}: {self.problems[0]}")
+        listed = " ".join(f"({i}) {p}" for i, p in enumerate(self.problems, 1))
+        raise InputError(f"{self.source}: {len(self.problems)} problems: {listed}")
+
+    def number(self, key: str, value: object, meta: dict, integer: bool) -> float | int:
+        ok_type = (isinstance(value, numbers.Integral) if integer
+                   else isinstance(value, numbers.Real)) and not isinstance(value, bool)
+        if not ok_type:
+            self.fail(key, value, _range_text(meta),
+                      f"It must be {'an integer' if integer else 'a number'}, "
+                      f"not {_toml_type(value)}.")
+        if not integer and not math.isfinite(value):
+            self.fail(key, value, _range_text(meta), "It must be finite.")
+        low, high = meta["low"], meta["high"]
+        low_ok = low is None or value > low or (value == low and (meta["low_inclusive"]
+                                                                  or integer))
+        high_ok = high is None or value < high or (value == high and (meta["high_inclusive"]
+                                                                      or integer))
+        if not (low_ok and high_ok):
+            self.fail(key, value, _range_text(meta))
+        return int(value) if integer else float(value)
+
+    def value(self, key: str, value: object, meta: dict) -> object:
+        kind = meta["kind"]
+        if kind == "bool":
+            if not isinstance(value, bool):
+                self.fail(key, value, "true or false", f"It is {_toml_type(value)}.")
+            return value
+        if kind == "str":
+            if not isinstance(value, str):
+                self.fail(key, value, _range_text(meta), f"It is {_toml_type(value)}.")
+            if meta["choices"] and value not in meta["choices"]:
+                self.fail(key, value, _range_text(meta))
+            return value
+        if kind in ("int", "real"):
+            return self.number(key, value, meta, integer=kind == "int")
+        if kind == "n_elements":
+            if isinstance(value, str):
+                if value != "auto":
+                    self.fail(key, value, _range_text(meta))
+                return value
+            return self.number(key, value, meta, integer=True)
+        if kind == "alpha":
+            if isinstance(value, str):
+                if value != "auto":
+                    self.fail(key, value, _range_text(meta))
+                return value
+            return self.number(key, value, meta, integer=False)
+        # lists
+        if not isinstance(value, list) or not value:
+            self.fail(key, value, _range_text(meta), "It must be a non-empty list.")
+        item_meta = dict(meta, allowed=None)
+        items = tuple(self.number(f"{key}[{i}]", v, item_meta, integer=kind == "int_list")
+                      for i, v in enumerate(value))
+        if len(set(items)) != len(items):
+            self.fail(key, value, "distinct values", "It repeats a value.")
+        return items
+
+
+def _toml_type(value: object) -> str:
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, numbers.Integral):
+        return "an integer"
+    if isinstance(value, numbers.Real):
+        return "a number"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, dict):
+        return "a table"
+    return type(value).__name__
+
+
+def _read_section(check: _Checker, cls, name: str, table: object):
+    if not isinstance(table, dict):
+        check.note(f"[{name}] must be a table of keys. Got {_repr(table)}.")
+        return cls()
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    values = {}
+    for key, raw in table.items():
+        if key not in fields:
+            check.note(f"unknown key {name}.{key}. The keys of [{name}] are: "
+                       f"{', '.join(fields)}.")
+            continue
+        try:
+            values[key] = check.value(f"{name}.{key}", raw, fields[key].metadata)
+        except _Invalid:
+            continue
+    # Keys that apply only to some values of another key (e.g. span.length with a preset).
+    for key in list(values):
+        when = fields[key].metadata["when"]
+        if when is None:
+            continue
+        other, allowed_values = when
+        current = values.get(other, fields[other].default)
+        if current not in allowed_values:
+            shown = " or ".join(_repr(v).lower() if isinstance(v, bool) else _repr(v)
+                                for v in allowed_values)
+            current_text = _repr(current).lower() if isinstance(current, bool) else _repr(current)
+            check.note(
+                f"{name}.{key} conflicts with {name}.{other} = {current_text}: "
+                f"{name}.{key} applies only when {name}.{other} = {shown}. Remove {name}.{key} "
+                f"or set {name}.{other} = {shown}.")
+            del values[key]
+    return cls(**values)
+
+
+def _check_scenario(check: _Checker, scenario: Scenario, given: dict) -> None:
+    """Cross-section checks that need the span: positions, sensors, sizes."""
+    span = scenario.span
+    if span.preset == "conductor":
+        from ..line import conductors
+
+        if span.conductor not in conductors:
+            check.refuse("span.conductor", span.conductor,
+                       "one of " + ", ".join(_repr(n) for n in conductors))
+        if span.tension is not None:
+            if "rts_fraction" in given.get("span", {}):
+                check.note("span.tension conflicts with span.rts_fraction: "
+                                 "give the tension in N or as a fraction of the rated strength, "
+                                 "not both.")
+            rated = conductors[span.conductor].rated_strength
+            if span.tension >= rated:
+                check.refuse("span.tension", span.tension,
+                           f"a real number > 0 N and < {rated:g} N (the rated strength of "
+                           f"{span.conductor})", "The conductor would break.")
+    length = scenario.span_length()
+    inside = f"0 < x < {length:g} m (the span length)"
+    if scenario.forcing.kind != "aeolian" and not 0 < scenario.forcing.position < length:
+        check.refuse("forcing.position", scenario.forcing.position, inside,
+                   "The force must act on the span.")
+    if not 0 < scenario.robot.start < length:
+        check.refuse("robot.start", scenario.robot.start, inside, "The robot must be on the span.")
+    est = scenario.estimation
+    if est.sensors is not None and est.sensor_positions is not None:
+        check.note("estimation.sensors conflicts with "
+                         "estimation.sensor_positions: give node indices or positions, not both.")
+    chosen = est.sensors if est.sensors is not None else est.sensor_positions
+    if chosen is not None and "n_sensors" in given.get("estimation", {}):
+        check.note("estimation.n_sensors conflicts with the sensors the "
+                         "scenario lists: n_sensors is how many to choose when none are listed. "
+                         "Remove one of them.")
+    if est.sensors is not None:
+        n_el = scenario.model.n_elements
+        if n_el == "auto":
+            check.note(
+                f"estimation.sensors = {_repr(list(est.sensors))} names node "
+                "indices, but model.n_elements = \"auto\" lets the physics choose the mesh, so "
+                "node numbers are not known in advance. Use estimation.sensor_positions (m) or "
+                "set model.n_elements.")
+        for i, node in enumerate(est.sensors if n_el != "auto" else ()):
+            if node > n_el:
+                check.refuse(f"estimation.sensors[{i}]", node,
+                           f"node indices 1..{n_el - 1} (model.n_elements = {n_el})",
+                           "It is not on the span.")
+            if node in (0, n_el):
+                check.refuse(f"estimation.sensors[{i}]", node,
+                           f"node indices 1..{n_el - 1} (model.n_elements = {n_el})",
+                           "Node 0 and the last node sit on the supports, which never move: a "
+                           "sensor there measures only noise.")
+    if est.sensor_positions is not None:
+        for i, x in enumerate(est.sensor_positions):
+            if not 0 < x < length:
+                check.refuse(f"estimation.sensor_positions[{i}]", x, inside,
+                           "Sensors must be on the span, off its fixed supports.")
+    sim = scenario.simulation
+    n_samples = sim.duration / sim.dt
+    if n_samples > MAX_SAMPLES:
+        check.refuse("simulation.duration", sim.duration,
+                   f"duration / dt <= {MAX_SAMPLES:.0e} samples",
+                   f"With dt = {sim.dt:g} s that is {n_samples:.3g} samples; shorten the "
+                   "duration or lengthen dt.")
+    if n_samples < 50:
+        check.refuse("simulation.duration", sim.duration,
+                   "at least 50 samples (duration / dt >= 50)",
+                   f"With dt = {sim.dt:g} s that is only {n_samples:.3g} samples.")
+    if scenario.forcing.kind == "harmonic" and scenario.forcing.frequency >= 0.5 / sim.dt:
+        check.refuse("forcing.frequency", scenario.forcing.frequency,
+                   f"below the Nyquist frequency 1 / (2 dt) = {0.5 / sim.dt:g} Hz "
+                   "(simulation.dt)")
+    if scenario.robot.closed_loop > sim.duration * 10:
+        check.refuse("robot.closed_loop", scenario.robot.closed_loop,
+                   f"at most 10 x simulation.duration = {10 * sim.duration:g} s")
+
+    n_el = scenario.model.n_elements
+    if chosen is None and n_el != "auto" and est.n_sensors > n_el - 1:
+        check.refuse("estimation.n_sensors", est.n_sensors,
+                     f"at most {n_el - 1}, the interior nodes of model.n_elements = {n_el} "
+                     "(the two end nodes sit on the supports)")
+    _check_severity(check, scenario, given)
+
+
+def _check_severity(check: _Checker, scenario: Scenario, given: dict) -> None:
+    """Severity needs an outer-strand diameter and EI > 0: refuse, naming the key to add."""
+    sev = scenario.severity
+    if not sev.enabled:
+        return
+    if sev.outer_strand_diameter is None and scenario.span.preset == "conductor":
+        table = _outer_strand_table()
+        if table is not None and scenario.span.conductor not in table:
+            check.note(f"severity.enabled = true needs the outer-strand diameter of conductor "
+                       f"{scenario.span.conductor!r}, which its preset does not carry: add "
+                       "severity.outer_strand_diameter (m).")
+    if sev.ei is None and scenario.span.preset == "conductor":
+        from ..line import conductors
+
+        if conductors[scenario.span.conductor].ei <= 0:
+            check.note("severity.enabled = true needs the conductor's bending stiffness for the "
+                       f"clamp stress, and conductor {scenario.span.conductor!r} has EI = 0: "
+                       "add severity.ei (N m^2).")
+    if sev.outer_strand_diameter is not None:
+        from ..line import Span, conductors
+
+        diameter = (Span.paper_lab().conductor.diameter if scenario.span.preset == "paper_lab"
+                    else conductors[scenario.span.conductor].diameter
+                    if scenario.span.conductor in conductors else None)
+        if diameter is not None and sev.outer_strand_diameter >= diameter:
+            check.refuse("severity.outer_strand_diameter", sev.outer_strand_diameter,
+                         f"below the conductor's diameter {1e3 * diameter:g} mm")
+
+
+def _outer_strand_table() -> dict | None:
+    """The severity module's outer-strand diameters of the presets (None: not importable)."""
+    import importlib
+
+    for name in ("..severity", "..severity.balance"):
+        try:
+            return dict(importlib.import_module(name, __package__).OUTER_STRAND_DIAMETER)
+        except (ImportError, AttributeError):
+            continue
+    return None
+
+
+def check_severity_inputs(scenario: Scenario, source: str = "<scenario>") -> None:
+    """Refuse a severity study this scenario cannot run, naming the key to add.
+
+    ``load_scenario`` runs this check when ``severity.enabled``; the ``severity`` verb runs it
+    for any scenario.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    source : str
+        Its name for messages.
+
+    Raises
+    ------
+    InputError
+        When the outer-strand diameter or the bending stiffness is unknown.
+
+    Examples
+    --------
+    >>> check_severity_inputs(default_scenario())   # the lab preset carries its strands
+    """
+    check = _Checker(source)
+    _check_severity(check, dataclasses.replace(
+        scenario, severity=dataclasses.replace(scenario.severity, enabled=True)), {})
+    check.raise_if_any()
+
+
+def _scenario_dir():
+    return resources.files("powerline_control").joinpath("data", "scenarios")
+
+
+def shipped_scenarios() -> dict[str, str]:
+    """The scenarios shipped with the package: name -> one-line description.
+
+    Run one by name: ``powerline-control run drake-300m``.
+
+    Examples
+    --------
+    >>> sorted(shipped_scenarios())
+    ['drake-300m', 'paper-lab-100', 'paper-lab-20']
+    """
+    found = {}
+    for entry in sorted(_scenario_dir().iterdir(), key=lambda e: e.name):
+        if entry.name.endswith(".toml"):
+            data = tomllib.loads(entry.read_text())
+            found[entry.name[:-5]] = data.get("scenario", {}).get("description", "")
+    return found
+
+
+_MAX_SCENARIO_BYTES = 1_000_000  # the shipped scenarios are ~1 kB
+
+
+def _resolve(path: str | Path) -> tuple[str, str]:
+    """The text and a display name of a scenario given as a file path or a shipped name."""
+    candidate = Path(path)
+    if candidate.is_file() or candidate.suffix == ".toml" or len(candidate.parts) > 1:
+        # A device or FIFO (/dev/zero) would be read without end, a huge file whole: a scenario
+        # is a few kilobytes of TOML, so only a regular file under the limit is read.
+        if candidate.exists() and not candidate.is_file():
+            raise InputError(f"The scenario path {str(candidate)!r} is not a regular file (a "
+                             "folder, device or pipe). Give a TOML file.")
+        if candidate.is_file() and candidate.stat().st_size > _MAX_SCENARIO_BYTES:
+            raise InputError(f"The scenario file {str(candidate)!r} has "
+                             f"{candidate.stat().st_size} bytes, over the {_MAX_SCENARIO_BYTES} "
+                             "a scenario may have. Give a TOML scenario file.")
+        try:
+            raw = candidate.read_bytes()
+            if b"\x00" in raw:
+                raise UnicodeDecodeError("utf-8", raw[:1], 0, 1, "a NUL byte")
+            return raw.decode("utf-8"), str(candidate)
+        except UnicodeDecodeError:
+            raise InputError(f"The scenario file {str(candidate)!r} is not text (it is not "
+                             "UTF-8, or holds NUL bytes): give a TOML scenario file.") from None
+        except OSError as exc:
+            names = ", ".join(shipped_scenarios())
+            raise InputError(f"Cannot read the scenario file {str(candidate)!r}: "
+                             f"{exc.strerror or exc}. Give a TOML file or a shipped scenario "
+                             f"name ({names}).") from exc
+    shipped = _scenario_dir().joinpath(f"{path}.toml")
+    if shipped.is_file():
+        return shipped.read_text(), f"{path} (shipped scenario)"
+    names = ", ".join(shipped_scenarios())
+    raise InputError(f"No scenario file or shipped scenario named {str(path)!r}. Shipped "
+                     f"scenarios: {names}; or give the path of a TOML file.")
+
+
+def read_scenario_text(path: str | Path) -> tuple[str, str]:
+    """The TOML text of a scenario file or shipped name, and a name for messages.
+
+    Only a regular UTF-8 text file under 1 MB is read (a device, a folder or a binary file is
+    refused in one sentence naming it).
+
+    Parameters
+    ----------
+    path : str or Path
+        A TOML file, or the name of a shipped scenario.
+
+    Returns
+    -------
+    (str, str)
+        The text and its display name.
+
+    Raises
+    ------
+    InputError
+        On a missing, unreadable, binary or oversized file, or an unknown name.
+
+    Examples
+    --------
+    >>> text, source = read_scenario_text("drake-300m")
+    >>> source, "[span]" in text
+    ('drake-300m (shipped scenario)', True)
+    """
+    return _resolve(path)
+
+
+def override_scenario_text(text: str, overrides: dict) -> str:
+    """The scenario ``text`` with dotted keys replaced (``{"estimation.n_sensors": 4}``).
+
+    The result is TOML for :func:`load_scenario`, which validates it (comments are dropped).
+
+    Parameters
+    ----------
+    text : str
+        TOML text of a scenario.
+    overrides : dict
+        Dotted keys (``section.key``) and their values.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> text = override_scenario_text("[model]\\nn_elements = 20", {"estimation.n_sensors": 4})
+    >>> load_scenario(text=text).estimation.n_sensors
+    4
+    """
+    data = tomllib.loads(text)
+    for key, value in overrides.items():
+        section, _, name = key.partition(".")
+        data.setdefault(section, {})[name] = value
+    lines = []
+    for section, table in data.items():
+        lines.append(f"[{section}]")
+        if isinstance(table, dict):
+            lines += [f"{k} = {_toml_value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
+def load_scenario(path: str | Path | None = None, *, text: str | None = None,
+                  source: str | None = None) -> Scenario:
+    """Read and fully validate a scenario from a TOML file, a shipped name, or ``text``.
+
+    Missing keys take their defaults. Nothing is computed: the checks need at most the span's
+    length and the conductor catalogue.
+
+    Parameters
+    ----------
+    path : str or Path or None
+        A TOML file, or the name of a shipped scenario (see :func:`shipped_scenarios`); None
+        with no ``text`` gives :func:`default_scenario`.
+    text : str or None
+        TOML text instead of a file.
+    source : str or None
+        Name of the text's origin for messages (default: the path, or "<text>").
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    InputError
+        On a missing or unreadable file, invalid TOML, unknown sections or keys, keys that
+        conflict with the preset or load kind, or bad values; the message names the file and
+        the dotted key.
+
+    Examples
+    --------
+    >>> load_scenario(text="[model]\\nn_elements = 20").model.n_elements
+    20
+    >>> load_scenario(text="[robot]\\nstart = 10.0")
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: <text>: robot.start = 10.0 is not allowed. The robot \
+must be on the span. Allowed: 0 < x < 3.66 m (the span length).
+    """
+    if text is not None and not isinstance(text, str):
+        # tomllib would fail with a raw AttributeError/TypeError ('float' has no 'replace').
+        raise InputError(
+            f"The 'text' parameter must be TOML text (a str) or None. Got {text!r:.60} of type "
+            f"{type(text).__name__}; read a file with load_scenario(path) instead."
+        )
+    if path is not None and not isinstance(path, str | PathLike):
+        raise InputError(
+            f"The 'path' parameter must be a file path, a shipped scenario name or None. Got "
+            f"{path!r:.60} of type {type(path).__name__}."
+        )
+    if source is not None and not isinstance(source, str):
+        raise InputError(
+            f"The 'source' parameter must be a str (a name for messages) or None. Got "
+            f"{type(source).__name__}."
+        )
+    if text is None:
+        if path is None:
+            return default_scenario()
+        text, name = _resolve(path)
+    else:
+        name = "<text>"
+    check = _Checker(source or name)
+    if len(text) > _MAX_SCENARIO_BYTES:
+        raise InputError(f"{check.source}: {len(text)} characters, over the "
+                         f"{_MAX_SCENARIO_BYTES} a scenario may have. Give a TOML scenario.")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{check.source}: not valid TOML: {exc}.") from exc
+    for section in data:
+        if section not in _SECTIONS:
+            check.note(f"unknown section [{section}]. The sections are: "
+                       f"{', '.join(f'[{s}]' for s in _SECTIONS)}.")
+    scenario = Scenario(**{
+        section: _read_section(check, type(factory()), section, data[section])
+        for section, factory in _SECTIONS.items() if section in data})
+    _check_scenario(check, scenario, data)
+    check.raise_if_any()
+    return scenario
+
+
+# ----------------------------------------------------------------------------- writing
+
+def _toml_value(value: object) -> str:
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return repr(value)
+
+
+# Keys made redundant by another key of their section (written commented out in templates, and
+# a conflict when a file sets both): key -> (the other keys, why).
+_SUPERSEDED = {
+    ("span", "rts_fraction"): (("tension",), "span.tension is set"),
+    ("estimation", "n_sensors"): (("sensors", "sensor_positions"), "the sensors are listed"),
+}
+
+
+def _applies(section_obj, meta: dict, section: str = "", key: str = "") -> bool:
+    others, _ = _SUPERSEDED.get((section, key), ((), ""))
+    if any(getattr(section_obj, other) is not None for other in others):
+        return False
+    if meta["when"] is None:
+        return True
+    other, allowed_values = meta["when"]
+    return getattr(section_obj, other) in allowed_values
+
+
+def _when_text(meta: dict) -> str:
+    other, allowed_values = meta["when"]
+    return f"{other} = " + " or ".join(_toml_value(v) for v in allowed_values)
+
+
+def scenario_to_toml(scenario: Scenario, *, comments: bool = True) -> str:
+    """Write a scenario as TOML text that :func:`load_scenario` reads back to an equal scenario.
+
+    With ``comments`` every key is preceded by its unit, meaning and allowed values, and keys
+    that do not apply under the chosen preset or load kind are written commented out, so the
+    template never shows a setting that would be ignored.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario to write.
+    comments : bool
+        Write the explanatory comments (default True).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> text = scenario_to_toml(default_scenario())
+    >>> load_scenario(text=text) == default_scenario()
+    True
+    >>> '# conductor = "drake"' in text      # the lab preset fixes the conductor
+    True
+    """
+    lines = ["# powerline_control scenario (SI units; positions in m from the left support).",
+             "# Reference of every key: docs/scenarios.md (powerline-control scenario --help)."]
+    for name in _SECTIONS:
+        section = getattr(scenario, name)
+        lines.append(f"\n[{name}]")
+        for f in dataclasses.fields(section):
+            meta = f.metadata
+            value = getattr(section, f.name)
+            if comments:
+                unit = f" Unit: {meta['unit']}." if meta["unit"] else ""
+                lines += textwrap.wrap(f"{meta['doc']}{unit} Allowed: {_range_text(meta)}.",
+                                       width=98, initial_indent="# ", subsequent_indent="# ")
+            active = _applies(section, meta, name, f.name)
+            alternative = _ALTERNATIVES.get((name, f.name))
+            if value is None and alternative is not None:
+                others = " and ".join(f"{name}.{o}" for o in alternative)
+                lines.append(f"# {f.name} = {_toml_value(_example(scenario, name, f.name))}"
+                             f"    # an alternative to {others}: set one, not both")
+            elif value is None:
+                lines.append(f"# {f.name} = (not set)")
+            elif not active:
+                others, reason = _SUPERSEDED.get((name, f.name), ((), ""))
+                superseded = any(getattr(section, other) is not None for other in others)
+                why = (f"unset because {reason}" if superseded
+                       else f"used only with {_when_text(meta)}")
+                lines.append(f"# {f.name} = {_toml_value(value)}    # {why}")
+            else:
+                unset = [o for o in _ALTERNATIVES_OF.get((name, f.name), ())
+                         if getattr(section, o) is None]
+                lines.append(f"{f.name} = {_toml_value(value)}" + (
+                    f"    # or set {' or '.join(f'{name}.{o}' for o in unset)} below instead "
+                    f"(then remove {f.name})" if comments and unset else ""))
+    return "\n".join(lines) + "\n"
+
+
+# Keys that replace another (alternatives: a file sets one of them): key -> what it replaces.
+_ALTERNATIVES = {
+    ("span", "tension"): ("rts_fraction",),
+    ("estimation", "sensors"): ("n_sensors", "sensor_positions"),
+    ("estimation", "sensor_positions"): ("n_sensors", "sensors"),
+}
+_ALTERNATIVES_OF = {("span", "rts_fraction"): ("tension",),
+                    ("estimation", "n_sensors"): ("sensors", "sensor_positions")}
+
+
+def _example(scenario: Scenario, section: str, key: str) -> object:
+    """A valid example value of an unset alternative key, for the template."""
+    est = scenario.estimation
+    if key == "tension":
+        from ..line import conductors
+
+        cond = conductors[scenario.span.conductor] if scenario.span.conductor in conductors \
+            else None
+        rated = getattr(cond, "rated_strength", None) or 1e5
+        return float(round(scenario.span.rts_fraction * rated, -1))
+    k = est.n_sensors
+    length = scenario.span_length()
+    if key == "sensor_positions":
+        return tuple(round(length * (j + 1) / (k + 1), 3) for j in range(k))
+    n_el = scenario.model.n_elements if scenario.model.n_elements != "auto" else 100
+    return tuple(max(1, round(n_el * (j + 1) / (k + 1))) for j in range(k))
+
+
+def scenario_reference() -> str:
+    """The Markdown reference of every scenario key, generated from the validating schema.
+
+    ``docs/scenarios.md`` is this text (a test checks that the committed page matches).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> "| `robot.start` |" in scenario_reference()
+    True
+    """
+    out = [
+        "# Scenario files",
+        "",
+        "<!-- Generated by powerline_control.config.scenario_reference(); do not edit by hand.",
+        "     Regenerate: python -c \"from powerline_control.config import scenario_reference;"
+        " print(scenario_reference(), end='')\" > docs/scenarios.md -->",
+        "",
+        "A scenario is a TOML file of the sections below; every key has a default, so a file "
+        "names only what differs. Run one with `powerline-control run FILE.toml` or a shipped "
+        "one by name (`powerline-control scenario` lists them; `powerline-control scenario NAME` "
+        "prints one as a commented template). The whole file is checked before anything is "
+        "computed; an error names the file, the dotted key, the value and what is allowed. "
+        "Units are SI; positions are in metres from the left support.",
+        "",
+        "Shipped scenarios:",
+        "",
+    ]
+    out += [f"- `{name}`: {text}" for name, text in shipped_scenarios().items()]
+    for name, factory in _SECTIONS.items():
+        cls = type(factory())
+        out += ["", f"## [{name}]", "", (cls.__doc__ or "").strip().splitlines()[0], "",
+                "| key | default | unit | allowed | meaning |", "|---|---|---|---|---|"]
+        for f in dataclasses.fields(cls):
+            meta = f.metadata
+            default = "(not set)" if f.default is None else f"`{_toml_value(f.default)}`"
+            doc = meta["doc"]
+            if meta["when"] is not None:
+                doc += f" Only with `{_when_text(meta)}`."
+            out.append(f"| `{name}.{f.name}` | {default} | {meta['unit'] or '-'} | "
+                       f"{_range_text(meta)} | {doc.replace('|', '/')} |")
+    out += ["", "Cross-checks: `forcing.position`, `robot.start` and "
+            "`estimation.sensor_positions` must lie strictly inside the span; "
+            "`estimation.sensors` must be node indices 1..n_elements-1 (the end nodes sit on "
+            "the supports, which never move) and need a numeric `model.n_elements`; "
+            "`simulation.duration / simulation.dt` must give 50 to "
+            f"{MAX_SAMPLES:.0e} samples; a harmonic `forcing.frequency` must lie below the "
+            "Nyquist frequency 1 / (2 dt).", ""]
+    return "\n".join(out)
