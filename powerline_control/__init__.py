@@ -37,7 +37,7 @@ _LAZY_EXPORTS = {
         "MDR", "LineModel", "ModalBasis", "ModalDamping", "RayleighDamping",
     ),
     "line": (
-        "Conductor", "Span", "conductors",
+        "Conductor", "Span", "conductors", "tension_at_temperature",
     ),
     "simulate": (
         "Snapshots", "simulate",
@@ -80,6 +80,9 @@ _LAZY_EXPORTS = {
         "damper_impedance", "damper_power", "harmonic_mean_position", "loop_length",
         "robot_value", "self_damping_power", "standing_wave_shape", "time_domain_check",
         "turbulence_factor", "wind_power",
+        # issue 23: wind records, damage over a record, rainflow counting
+        "FatigueOverRecord", "RainflowCount", "RecordDamage", "WindRecord", "fatigue_over_record",
+        "rainflow_count", "rainflow_damage",
     ),
     "closed_loop": (
         "Choice", "ClosedLoopResult", "ParkedSteadyState", "choose_parked_position",
@@ -243,6 +246,14 @@ __all__ = [
     "WIND_POWER_CURVES",
     "WindDistribution",
     "WindPowerCurve",
+    "tension_at_temperature",
+    "FatigueOverRecord",
+    "RainflowCount",
+    "RecordDamage",
+    "WindRecord",
+    "fatigue_over_record",
+    "rainflow_count",
+    "rainflow_damage",
 ]
 
 __version__ = "0.1.0"

@@ -15,7 +15,8 @@ import numpy as np
 from ._validation import check_int, check_real
 from .errors import InputError, PresetNotFoundError
 
-__all__ = ["Conductor", "Span", "conductors", "PAPER_LAB_MASS_PER_LENGTH"]
+__all__ = ["Conductor", "Span", "conductors", "tension_at_temperature",
+           "PAPER_LAB_MASS_PER_LENGTH"]
 
 #: Table 1 of the paper gives "mass 0.68 kg": the mass of the whole 3.66 m specimen.
 PAPER_LAB_MASS_PER_LENGTH = 0.68 / 3.66
@@ -37,12 +38,21 @@ class Conductor:
         Rated tensile strength (RTS), N (> 0), where known.
     name : str
         Label used in reports.
+    area : float or None
+        Total cross-section of the wires, m^2 (> 0), where known; with ``elastic_modulus`` and
+        ``thermal_expansion`` it sets the change of state (:func:`tension_at_temperature`).
+    elastic_modulus : float or None
+        Creep-free (final) elastic modulus of the whole conductor, Pa (> 0), where known.
+    thermal_expansion : float or None
+        Linear thermal expansion coefficient of the whole conductor, 1/K (> 0), where known.
 
     Examples
     --------
     >>> cond = Conductor(mass_per_length=1.628, diameter=0.02814, ei=44.0, rated_strength=140.1e3)
     >>> round(cond.tension_at(0.20))
     28020
+    >>> round(conductors["drake"].area * 1e6, 1)  # mm^2
+    468.0
     """
 
     mass_per_length: float
@@ -50,6 +60,9 @@ class Conductor:
     ei: float
     rated_strength: float | None = None
     name: str = "custom"
+    area: float | None = None
+    elastic_modulus: float | None = None
+    thermal_expansion: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(
@@ -61,6 +74,10 @@ class Conductor:
             object.__setattr__(
                 self, "rated_strength", check_real("rated_strength", self.rated_strength, low=0.0)
             )
+        for field_name in ("area", "elastic_modulus", "thermal_expansion"):
+            value = getattr(self, field_name)
+            if value is not None:
+                object.__setattr__(self, field_name, check_real(field_name, value, low=0.0))
 
     def tension_at(self, fraction_of_rts: float) -> float:
         """Everyday tension as a fraction of the rated strength, N.
@@ -292,6 +309,114 @@ class Span:
         return omega / (2 * np.pi)
 
 
+# Standard gravity (m/s^2), for the weight per metre m g of the change of state. The same value as
+# severity.GRAVITY; line.py sits above severity in the data flow, so it cannot import it.
+_STANDARD_GRAVITY = 9.80665
+#: Absolute zero, degC: a temperature at or below it is refused.
+_ABSOLUTE_ZERO = -273.15
+
+
+def tension_at_temperature(span: Span, temperature: float | np.ndarray,
+                           reference_temperature: float = 15.0, *,
+                           load: float | None = None,
+                           reference_load: float | None = None) -> float | np.ndarray:
+    """Horizontal tension (N) at a conductor temperature: the change of state of a level span.
+
+    ``span.tension`` is the tension at ``reference_temperature``. The conductor length of a level
+    parabolic span, S + w^2 S^3 / (24 H^2), must change with the elastic and thermal strain,
+    (H - H_ref) / (E A) + alpha (t - t_ref); that is the parabolic change-of-state equation
+
+        H^2 [H - H_ref + E A w_ref^2 S^2 / (24 H_ref^2) + E A alpha (t - t_ref)] = E A w^2 S^2 / 24
+
+    (S span length, w load per metre, E A axial stiffness, alpha expansion; creep-free, the
+    supports do not move), a cubic with one positive root, found by Newton's method from above
+    (the cubic is convex and increasing there, so the iteration converges monotonically).
+    Use it for a ruling span: the tension of a section of suspension spans is that of its
+    ruling span.
+
+    Parameters
+    ----------
+    span : Span
+        Length, tension at ``reference_temperature`` and conductor; the conductor needs
+        ``area``, ``elastic_modulus`` and ``thermal_expansion`` (every preset has them).
+    temperature : float or ndarray
+        Conductor temperature(s), degC.
+    reference_temperature : float
+        Temperature at which the span has ``span.tension``, degC (default 15, the everyday
+        temperature of CIGRE TB 273's tension criteria).
+    load : float or None
+        Load per metre at ``temperature``, N/m (default the conductor's weight m g; give the
+        resultant of weight, ice and wind for a loaded state).
+    reference_load : float or None
+        Load per metre in the reference state, N/m (default the conductor's weight m g).
+
+    Returns
+    -------
+    float or ndarray
+        Horizontal tension, N (a float for a scalar temperature).
+
+    Raises
+    ------
+    InputError
+        If the conductor lacks a change-of-state property, a temperature is not finite or at or
+        below absolute zero, or the tension would reach the conductor's rated strength.
+
+    Examples
+    --------
+    >>> span = Span.at_rts_fraction(300.0, "drake", 0.20)      # 28.02 kN at 15 degC
+    >>> round(tension_at_temperature(span, 15.0))
+    28020
+    >>> [round(t) for t in tension_at_temperature(span, np.array([-5.0, 40.0]))]
+    [32050, 24368]
+    """
+    if not isinstance(span, Span):
+        raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
+    cond = span.conductor
+    for name in ("area", "elastic_modulus", "thermal_expansion"):
+        if getattr(cond, name) is None:
+            raise InputError(
+                f"The change of state needs conductor.{name}; conductor {cond.name!r} has none. "
+                "Use a preset (conductors[...]) or give Conductor(..., area=, elastic_modulus=, "
+                "thermal_expansion=).")
+    if span.tension <= 0:
+        raise InputError("The change of state needs span.tension > 0 (a strung conductor). "
+                         f"Got {span.tension!r}.")
+    t_ref = check_real("reference_temperature", reference_temperature, low=_ABSOLUTE_ZERO)
+    scalar = np.ndim(temperature) == 0
+    t = np.atleast_1d(np.asarray(temperature))
+    if t.dtype.kind not in "iuf" or t.ndim != 1 or not np.all(np.isfinite(t)) \
+            or np.any(t <= _ABSOLUTE_ZERO):
+        raise InputError("The 'temperature' parameter must be a real number or 1-D array of "
+                         f"finite temperatures above {_ABSOLUTE_ZERO} degC. Got {temperature!r}.")
+    t = t.astype(float)
+    weight = cond.mass_per_length * _STANDARD_GRAVITY
+    w = weight if load is None else check_real("load", load, low=0.0)
+    w_ref = weight if reference_load is None else check_real("reference_load", reference_load,
+                                                             low=0.0)
+    ea = cond.elastic_modulus * cond.area
+    h_ref = span.tension
+    s2 = span.length**2
+    k = ea * w**2 * s2 / 24.0
+    c = ea * w_ref**2 * s2 / (24.0 * h_ref**2) - h_ref + ea * cond.thermal_expansion * (t - t_ref)
+    # f(H) = H^3 + c H^2 - k: f(H_hi) >= k - k = 0 at H_hi = max(0, -c) + k^(1/3), and f is
+    # convex and increasing on [root, H_hi] (the root exceeds max(0, -c) >= -c/3).
+    h = np.maximum(0.0, -c) + np.cbrt(k)
+    for _ in range(200):
+        f = h**3 + c * h**2 - k
+        step = f / (3 * h**2 + 2 * c * h)
+        h = h - step
+        if np.all(np.abs(step) <= 4 * np.finfo(float).eps * h):
+            break
+    rts = cond.rated_strength
+    if rts is not None and np.any(h >= rts):
+        worst = float(t[np.argmax(h)])
+        raise InputError(
+            f"The change of state gives a tension of {float(h.max()):.6g} N at {worst:g} degC, "
+            f"at or above the rated strength of {cond.name!r} ({rts:g} N): the span cannot be "
+            "strung at this reference tension for that temperature.")
+    return float(h[0]) if scalar else h
+
+
 class _ConductorCatalogue(Mapping[str, Conductor]):
     """Read-only mapping of preset names to :class:`Conductor`, loaded from the package data."""
 
@@ -302,6 +427,8 @@ class _ConductorCatalogue(Mapping[str, Conductor]):
             name: Conductor(
                 mass_per_length=entry["mass_per_length"], diameter=entry["diameter"],
                 ei=entry["ei"], rated_strength=entry.get("rated_strength"), name=name,
+                area=entry.get("area"), elastic_modulus=entry.get("elastic_modulus"),
+                thermal_expansion=entry.get("thermal_expansion"),
             )
             for name, entry in self._raw.items()
         }

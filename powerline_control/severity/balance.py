@@ -26,8 +26,8 @@ import numpy as np
 import scipy.interpolate
 import scipy.optimize
 
-from ._spectral import fit_phasors
-from ._validation import (
+from .._spectral import fit_phasors
+from .._validation import (
     check_array,
     check_budget,
     check_choice,
@@ -35,12 +35,12 @@ from ._validation import (
     check_real,
     read_only,
 )
-from .errors import InputError
-from .excitation import DEFAULT_STROUHAL, AeolianForce
-from .fem import DENSE_EIGEN_LIMIT, MDR, LineModel, ModalDamping
-from .line import Span
-from .plan import RobotLimits
-from .simulate import simulate
+from ..errors import InputError
+from ..excitation import DEFAULT_STROUHAL, AeolianForce
+from ..fem import DENSE_EIGEN_LIMIT, MDR, LineModel, ModalDamping
+from ..line import Span
+from ..plan import RobotLimits
+from ..simulate import simulate
 
 __all__ = [
     "WIND_POWER_CURVES",
@@ -1278,6 +1278,8 @@ class WindDistribution:
         Histogram bin edges, m/s, ascending (``kind="histogram"``).
     density : tuple of float
         Probability density in each histogram bin, 1/(m/s); sum(density * width) must be 1.
+    rtol : float
+        Tolerance of that normalisation check (default 1e-6).
 
     Examples
     --------
@@ -1291,6 +1293,7 @@ class WindDistribution:
     scale: float = 4.0
     edges: tuple = ()
     density: tuple = ()
+    rtol: float = 1e-6
 
     @classmethod
     def weibull(cls, shape: float = 2.0, scale: float = 4.0) -> WindDistribution:
@@ -1344,8 +1347,10 @@ class WindDistribution:
         """
         e = check_array("edges", edges, ndim=1)
         p = check_array("density", density, ndim=1)
+        rtol = check_real("rtol", rtol, low=0.0, high=1.0)
         _check_histogram(e, p, rtol)
-        return cls("histogram", edges=tuple(map(float, e)), density=tuple(map(float, p)))
+        return cls("histogram", edges=tuple(map(float, e)), density=tuple(map(float, p)),
+                   rtol=rtol)
 
     def __post_init__(self) -> None:
         # Direct construction is checked as strictly as the two factories.
@@ -1354,8 +1359,11 @@ class WindDistribution:
             object.__setattr__(self, "shape", check_real("shape", self.shape, low=0.0))
             object.__setattr__(self, "scale", check_real("scale", self.scale, low=0.0))
         else:
+            # the factory's tolerance is kept (a re-check at a fixed 1e-6 refused what
+            # histogram(..., rtol=...) had accepted)
+            rtol = check_real("rtol", self.rtol, low=0.0, high=1.0)
             _check_histogram(check_array("edges", self.edges, ndim=1),
-                             check_array("density", self.density, ndim=1), 1e-6)
+                             check_array("density", self.density, ndim=1), rtol)
 
     def cdf(self, speed: np.ndarray | float) -> np.ndarray:
         """Probability that the wind speed is below ``speed``.
@@ -1387,12 +1395,18 @@ class WindDistribution:
         Parameters
         ----------
         wind_speeds : ndarray
-            Ascending analysis wind speeds, m/s.
+            Strictly ascending analysis wind speeds, m/s (the bins lie between them).
 
         Returns
         -------
         ndarray
             Probabilities (they sum to the probability of the analysed band, <= 1).
+
+        Raises
+        ------
+        InputError
+            If the speeds are not strictly ascending (descending speeds would give bins of
+            negative width and negative probabilities).
 
         Examples
         --------
@@ -1400,7 +1414,11 @@ class WindDistribution:
         >>> dist.probability_of(np.array([1.0, 2.0, 3.0])).round(3)
         array([0.1, 0.1, 0.1])
         """
-        v = np.asarray(wind_speeds, dtype=float)
+        v = np.atleast_1d(check_array("wind_speeds", wind_speeds, ndim=(0, 1)))
+        if v.size == 0 or np.any(v < 0) or np.any(np.diff(v) <= 0):
+            raise InputError("The 'wind_speeds' parameter must be strictly ascending wind "
+                             "speeds >= 0 m/s (sorted, without repeats). Got "
+                             f"{v.tolist()[:8]}.")
         edges = _bin_edges(v)
         return np.diff(self.cdf(edges))
 
@@ -1526,11 +1544,17 @@ def robot_value(
     en_route : {"average", "undamped"}
         The span's state while the robot travels (see above).
     **severity_options
-        Passed to :func:`aeolian_severity` (curve, law, St, ...).
+        Passed to :func:`aeolian_severity` (curve, law, St, ...; not ``dampers`` or ``label``,
+        which this function sets).
 
     Returns
     -------
     RobotValue
+
+    Raises
+    ------
+    InputError
+        For bad arguments, or ``dampers=`` / ``label=`` among the severity options.
 
     Examples
     --------
@@ -1558,6 +1582,13 @@ def robot_value(
                          f"{type(distribution).__name__}.")
     persistence = check_real("persistence", persistence, low=0.0)
     en_route = check_choice("en_route", en_route, ("average", "undamped"))
+    for reserved in ("dampers", "label"):
+        if reserved in severity_options:
+            raise InputError(
+                f"The '{reserved}' option cannot be passed to robot_value: it compares its own "
+                "three configurations (no damper, the damper parked at x*, the robot at the "
+                "antinode), built from 'damper'. For another set of dampers call "
+                "aeolian_severity(span, wind_speeds, dampers=...) directly.")
     strouhal = severity_options.get("strouhal", DEFAULT_STROUHAL)
     x_star = harmonic_mean_position(span, speeds, strouhal)
     if isinstance(damper, MDR):
@@ -1819,6 +1850,12 @@ def catenary_check(span: Span, terrain: int = 1, limit: float | None = None) -> 
     -------
     CatenaryCheck
 
+    Raises
+    ------
+    InputError
+        For a terrain category other than 1-4, a bad limit, or a tension at or above the
+        conductor's rated strength.
+
     Examples
     --------
     >>> from powerline_control import Span
@@ -1828,6 +1865,11 @@ def catenary_check(span: Span, terrain: int = 1, limit: float | None = None) -> 
     """
     if not isinstance(span, Span):
         raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
+    rts = span.conductor.rated_strength
+    if rts is not None and span.tension >= rts:
+        raise InputError(
+            f"The 'span.tension' ({span.tension:g} N) must be below the conductor's rated "
+            f"strength ({rts:g} N): the conductor would have failed, and no H/w limit applies.")
     h_w = span.tension / (span.conductor.mass_per_length * GRAVITY)
     if limit is not None:
         value = check_real("limit", limit, low=0.0)

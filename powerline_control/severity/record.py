@@ -1,0 +1,352 @@
+"""Wind and temperature records: hourly or 10-minute means of wind speed, direction and air
+temperature (and turbulence intensity where measured), read from CSV and checked row by row.
+
+A record is the input of :func:`~powerline_control.severity.fatigue.fatigue_over_record`. The CSV
+reader uses the standard library only (pandas is not needed).
+"""
+
+from __future__ import annotations
+
+import contextvars
+import csv
+import math
+import os
+from dataclasses import dataclass
+from datetime import datetime
+
+import numpy as np
+
+from .._validation import read_only
+from ..errors import InputError
+
+__all__ = ["WindRecord"]
+
+#: Required CSV columns (the header names, case-insensitive) and the optional one.
+REQUIRED_COLUMNS = ("time", "wind_speed", "direction", "temperature")
+OPTIONAL_COLUMNS = ("turbulence_intensity",)
+#: Allowed ranges: wind speeds 0..50 m/s, air temperatures -50..80 degC (issue 23), wind
+#: directions 0..360 degrees, turbulence intensities 0..1.
+LIMITS = {"wind_speed": (0.0, 50.0), "temperature": (-50.0, 80.0), "direction": (0.0, 360.0),
+          "turbulence_intensity": (0.0, 1.0)}
+#: An interval longer than this multiple of the record's usual step is a gap.
+GAP_FACTOR = 1.5
+# While from_csv builds a record: data row -> file line, for the messages of the checks.
+_LINE_OF_ROW: contextvars.ContextVar = contextvars.ContextVar("line_of_row", default=None)
+UNITS = {"wind_speed": "m/s", "temperature": "degC", "direction": "degrees",
+         "turbulence_intensity": ""}
+
+
+def _where(row: int, line_of_row) -> str:
+    return f"row {row}" if line_of_row is None else f"row {row} (line {line_of_row(row)})"
+
+
+def _check_column(name: str, values: object, n: int | None, line_of_row=None) -> np.ndarray:
+    """A finite 1-D float column inside its LIMITS, or an InputError naming column and row."""
+    array = np.asarray(values)
+    if array.dtype == bool or array.dtype.kind not in "iuf" or array.ndim != 1:
+        raise InputError(f"The '{name}' column must be a 1-D array of real numbers. Got "
+                         f"{array.dtype} with shape {array.shape}.")
+    array = array.astype(float)
+    if n is not None and array.size != n:
+        raise InputError(f"The '{name}' column must have one value per record ({n}). Got "
+                         f"{array.size}.")
+    bad = np.flatnonzero(~np.isfinite(array))
+    if bad.size:
+        raise InputError(f"The '{name}' column must be finite: {_where(int(bad[0]), line_of_row)} "
+                         f"holds {array[bad[0]]!r}.")
+    if name in LIMITS:
+        low, high = LIMITS[name]
+        bad = np.flatnonzero((array < low) | (array > high))
+        if bad.size:
+            raise InputError(
+                f"The '{name}' column must lie in [{low:g}, {high:g}] {UNITS[name]}: "
+                f"{_where(int(bad[0]), line_of_row)} holds {array[bad[0]]:g}.")
+    return array
+
+
+def _check_time(time: np.ndarray, line_of_row=None) -> float:
+    """Strictly increasing, evenly spaced up to GAP_FACTOR; returns the usual step (s)."""
+    if time.size < 1:
+        raise InputError("A wind record needs at least one row. Got none.")
+    if time.size == 1:
+        return math.nan
+    step = np.diff(time)
+    bad = np.flatnonzero(step <= 0)
+    if bad.size:
+        row = int(bad[0]) + 1
+        raise InputError(
+            f"The 'time' column must increase strictly: {_where(row, line_of_row)} "
+            f"({time[row]:g} s) does not come after {_where(row - 1, line_of_row)} "
+            f"({time[row - 1]:g} s).")
+    usual = float(np.median(step))
+    bad = np.flatnonzero(step > GAP_FACTOR * usual)
+    if bad.size:
+        row = int(bad[0]) + 1
+        raise InputError(
+            f"The 'time' column has a gap: {_where(row, line_of_row)} comes {step[bad[0]]:g} s "
+            f"after the previous row; the record's step is {usual:g} s (more than "
+            f"{GAP_FACTOR:g} steps is a gap). Fill the gap (or split the record) before the "
+            "analysis; a fatigue total over missing hours would be silently low.")
+    return usual
+
+
+@dataclass(frozen=True)
+class WindRecord:
+    """A record of mean wind speed, direction and air temperature, one row per interval.
+
+    Each row stands for one interval of the record's step (the usual spacing of ``time``:
+    10 minutes or an hour) during which the mean values hold.
+
+    Parameters
+    ----------
+    time : ndarray
+        Start of each interval, s (strictly increasing; no gaps beyond 1.5 steps).
+    wind_speed : ndarray
+        Mean wind speed at conductor height, m/s, in [0, 50].
+    direction : ndarray
+        Direction the wind blows from, degrees clockwise from north, in [0, 360].
+    temperature : ndarray
+        Air temperature, degC, in [-50, 80] (taken as the conductor temperature: aeolian
+        vibration happens in light winds, when the conductor is close to ambient).
+    turbulence_intensity : ndarray or None
+        Turbulence intensity Iv per row, in [0, 1], where measured; None: laminar (Iv = 0).
+    start : str
+        The first row's time stamp when the file gave time stamps ("" otherwise).
+    source : str
+        Where the record came from (a path, or a description).
+
+    Raises
+    ------
+    InputError
+        For a value outside its range, a missing or non-finite value, time stamps that do not
+        increase, or a gap; the message names the column and the row.
+
+    Examples
+    --------
+    >>> rec = WindRecord(np.array([0.0, 600.0]), np.array([3.0, 4.0]), np.array([90.0, 80.0]),
+    ...                  np.array([12.0, 11.5]))
+    >>> rec.step, rec.duration
+    (600.0, 1200.0)
+    >>> rec.normal_speed(line_azimuth=0.0).round(3)
+    array([3.   , 3.939])
+    """
+
+    time: np.ndarray
+    wind_speed: np.ndarray
+    direction: np.ndarray
+    temperature: np.ndarray
+    turbulence_intensity: np.ndarray | None = None
+    start: str = ""
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        lines = _LINE_OF_ROW.get()
+        time = _check_column("time", self.time, None, lines)
+        n = time.size
+        step = _check_time(time, lines)
+        object.__setattr__(self, "time", read_only(time))
+        for name in ("wind_speed", "direction", "temperature"):
+            object.__setattr__(self, name, read_only(_check_column(name, getattr(self, name), n,
+                                                                   lines)))
+        if self.turbulence_intensity is not None:
+            object.__setattr__(self, "turbulence_intensity", read_only(_check_column(
+                "turbulence_intensity", self.turbulence_intensity, n, lines)))
+        object.__setattr__(self, "_step", step)
+
+    @property
+    def n_records(self) -> int:
+        """Number of rows."""
+        return int(self.time.size)
+
+    @property
+    def step(self) -> float:
+        """The record's interval, s: the median spacing of ``time`` (``step=`` of
+        :meth:`constant` for a one-row record)."""
+        return float(self._step)
+
+    @property
+    def duration(self) -> float:
+        """Time the record covers, s: rows x step."""
+        return self.n_records * self.step
+
+    def normal_speed(self, line_azimuth: float = 0.0) -> np.ndarray:
+        """Wind speed component normal to the line, V |sin(direction - azimuth)|, m/s.
+
+        Parameters
+        ----------
+        line_azimuth : float
+            Direction of the line, degrees clockwise from north (a line and its reverse,
+            azimuth + 180, are the same).
+
+        Returns
+        -------
+        ndarray
+
+        Examples
+        --------
+        >>> rec = WindRecord.constant(4.0, n_records=2, direction=30.0)
+        >>> rec.normal_speed(line_azimuth=0.0).round(6).tolist()
+        [2.0, 2.0]
+        """
+        azimuth = float(line_azimuth)
+        if not math.isfinite(azimuth) or isinstance(line_azimuth, bool):
+            raise InputError("The 'line_azimuth' parameter must be a finite angle in degrees. "
+                             f"Got {line_azimuth!r}.")
+        return self.wind_speed * np.abs(np.sin(np.radians(self.direction - azimuth)))
+
+    @classmethod
+    def constant(cls, wind_speed: float, *, n_records: int = 144, step: float = 600.0,
+                 direction: float = 90.0, temperature: float = 15.0,
+                 turbulence_intensity: float | None = None) -> WindRecord:
+        """A record of one steady wind (for checks against the steady analysis).
+
+        Parameters
+        ----------
+        wind_speed : float
+            m/s.
+        n_records : int
+            Rows (default 144: a day of 10-minute means).
+        step : float
+            Interval, s (default 600).
+        direction : float
+            Degrees from north (default 90: normal to a north-south line).
+        temperature : float
+            degC (default 15).
+        turbulence_intensity : float or None
+            Iv of every row (default None).
+
+        Returns
+        -------
+        WindRecord
+
+        Examples
+        --------
+        >>> WindRecord.constant(3.0, n_records=6, step=3600.0).duration
+        21600.0
+        """
+        if isinstance(n_records, bool) or not isinstance(n_records, int) or n_records < 1:
+            raise InputError(f"The 'n_records' parameter must be an int >= 1. Got {n_records!r}.")
+        step = float(step)
+        if not (math.isfinite(step) and step > 0):
+            raise InputError(f"The 'step' parameter must be > 0 s. Got {step!r}.")
+        full = np.full(n_records, 1.0)
+        ti = None if turbulence_intensity is None else full * turbulence_intensity
+        rec = cls(np.arange(n_records) * step, full * wind_speed, full * direction,
+                  full * temperature, ti, source=f"constant {wind_speed:g} m/s")
+        if n_records == 1:
+            object.__setattr__(rec, "_step", step)
+        return rec
+
+    @classmethod
+    def from_csv(cls, path: str | os.PathLike) -> WindRecord:
+        """Read a record from a CSV file with a header row.
+
+        Columns (header names, case-insensitive, any order; others are ignored): ``time``
+        (seconds, or ISO 8601 time stamps such as ``2024-01-01T00:10:00``), ``wind_speed``
+        (m/s), ``direction`` (degrees from north), ``temperature`` (degC) and, optionally,
+        ``turbulence_intensity``.
+
+        Parameters
+        ----------
+        path : str or path-like
+            The CSV file.
+
+        Returns
+        -------
+        WindRecord
+
+        Raises
+        ------
+        InputError
+            For a missing column, an empty or non-numeric cell, a value outside its range,
+            time stamps that do not increase, or a gap: the message names the column, the data
+            row (0-based) and the file's line.
+
+        Examples
+        --------
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "wind.csv"
+        >>> _ = path.write_text("time,wind_speed,direction,temperature\\n"
+        ...                     "0,3.1,270,12.0\\n600,2.8,265,11.6\\n")
+        >>> WindRecord.from_csv(path).wind_speed.tolist()
+        [3.1, 2.8]
+        """
+        path = os.fspath(path)
+        try:
+            with open(path, newline="", encoding="utf-8") as handle:
+                rows = list(csv.reader(handle))
+        except OSError as exc:
+            raise InputError(f"Cannot read the wind record {path!r}: {exc}.") from None
+        if not rows:
+            raise InputError(f"The wind record {path!r} is empty: it needs a header row with "
+                             f"the columns {', '.join(REQUIRED_COLUMNS)}.")
+        header = [name.strip().lower() for name in rows[0]]
+        missing = [name for name in REQUIRED_COLUMNS if name not in header]
+        if missing:
+            raise InputError(f"The wind record {path!r} has no column {missing[0]!r}: it needs "
+                             f"{', '.join(REQUIRED_COLUMNS)} (and optionally "
+                             f"{', '.join(OPTIONAL_COLUMNS)}). Its header is {rows[0]}.")
+        columns = [name for name in (*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS) if name in header]
+        index = {name: header.index(name) for name in columns}
+        data = [row for row in rows[1:] if any(cell.strip() for cell in row)]
+        lines = [i + 1 for i, row in enumerate(rows) if i > 0 and any(c.strip() for c in row)]
+        values = {name: np.empty(len(data)) for name in columns}
+        first_stamp = ""
+        origin = None
+        for r, row in enumerate(data):
+            for name in columns:
+                where = f"row {r} (line {lines[r]})"
+                cell = row[index[name]].strip() if index[name] < len(row) else ""
+                if not cell:
+                    raise InputError(f"The '{name}' column of {path!r} has no value in {where}.")
+                try:
+                    values[name][r] = float(cell)
+                    continue
+                except ValueError:
+                    pass
+                if name != "time":
+                    raise InputError(f"The '{name}' column of {path!r} must hold numbers: "
+                                     f"{where} holds {cell!r}.")
+                try:
+                    stamp = datetime.fromisoformat(cell)
+                except ValueError:
+                    raise InputError(f"The 'time' column of {path!r} must hold seconds or ISO "
+                                     f"8601 time stamps: {where} holds {cell!r}.") from None
+                if origin is None:
+                    origin, first_stamp = stamp, cell
+                try:
+                    values[name][r] = (stamp - origin).total_seconds()
+                except TypeError:
+                    raise InputError(f"The 'time' column of {path!r} mixes time stamps with and "
+                                     f"without a time zone: {where} holds {cell!r}.") from None
+        token = _LINE_OF_ROW.set(lambda row: lines[row])
+        try:
+            return cls(values["time"], values["wind_speed"], values["direction"],
+                       values["temperature"], values.get("turbulence_intensity"),
+                       start=first_stamp, source=path)
+        finally:
+            _LINE_OF_ROW.reset(token)
+
+    def to_csv(self, path: str | os.PathLike) -> None:
+        """Write the record as CSV (the columns :meth:`from_csv` reads; time in seconds).
+
+        Parameters
+        ----------
+        path : str or path-like
+            Where to write.
+
+        Examples
+        --------
+        >>> import pathlib, tempfile
+        >>> path = pathlib.Path(tempfile.mkdtemp()) / "wind.csv"
+        >>> WindRecord.constant(3.0, n_records=3).to_csv(path)
+        >>> WindRecord.from_csv(path).n_records
+        3
+        """
+        names = [*REQUIRED_COLUMNS] + (["turbulence_intensity"]
+                                       if self.turbulence_intensity is not None else [])
+        with open(os.fspath(path), "w", newline="", encoding="utf-8") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(names)
+            for i in range(self.n_records):
+                writer.writerow([f"{getattr(self, name)[i]:.10g}" for name in names])
