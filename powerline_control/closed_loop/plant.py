@@ -35,9 +35,10 @@ import numbers
 
 import numpy as np
 import scipy.linalg
+import scipy.sparse
 
 from .._spectral import load_phasor
-from .._validation import check_real
+from .._validation import check_real, read_only
 from ..errors import InputError, ModelError
 from ..fem import MDR, LineModel, ModalDamping, RayleighDamping
 from ..line import Span
@@ -85,13 +86,21 @@ class ModalPlant:
         self._cache: dict[float, tuple] = {}
         self._robot_cache: dict[float, tuple] = {}
         self._attachment_cache: dict[float, tuple] = {}
+        self._coupling_cache: dict[float, np.ndarray] = {}
         self._mass_band = model.mass_matrix @ self.shapes[:, : self.n_band]
 
     def coupling(self, x: float) -> np.ndarray:
         """The plant's basis displacements at x (shape functions restricted to the basis)."""
-        # the <= 4 non-zero shape-function entries: O(r) per call, not O(n_dofs r)
-        index, weights = self.model.shape_entries(x)
-        return weights @ self.shapes[index]
+        # Kept per exact position: the policy's candidate grid and a parked robot ask for the
+        # same positions at every decision and every block.
+        key = float(x)
+        if key not in self._coupling_cache:
+            # the <= 4 non-zero shape-function entries: O(r) per call, not O(n_dofs r)
+            index, weights = self.model.shape_entries(x)
+            if len(self._coupling_cache) > 8192:
+                self._coupling_cache.clear()
+            self._coupling_cache[key] = read_only(weights @ self.shapes[index])
+        return self._coupling_cache[key]
 
     def attachment(self, x: float) -> tuple[float, np.ndarray]:
         """(h, rho): what the basis leaves out of a unit force at x, at the plant's frequency.
@@ -573,9 +582,16 @@ def nodal_field(plant: ModalPlant, states: np.ndarray, residual: np.ndarray,
     if np.all(np.isnan(xs)):
         return field
     force = plant.robot_force(states, xs)
-    for key, columns in _position_groups(plant, xs):
-        field[:, columns] += np.outer(plant.attachment(key)[1], force[columns])
-    return field
+    groups = _position_groups(plant, xs)
+    # field += attachments (n_nodes, groups) @ (each sample's force in its group's row): one
+    # sparse product instead of an outer product per group
+    attachments = np.column_stack([plant.attachment(key)[1] for key, _ in groups])
+    group_of = np.empty(xs.size, dtype=np.intp)
+    for g, (_, columns) in enumerate(groups):
+        group_of[columns] = g
+    spread = scipy.sparse.csc_array((force, (group_of, np.arange(xs.size))),
+                                    shape=(len(groups), xs.size))
+    return field + (spread.T @ attachments.T).T
 
 
 # The robot's residual corrections of a record (its force's field, its re-tuned damper) are
