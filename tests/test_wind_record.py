@@ -1,0 +1,124 @@
+"""WindRecord: reading a CSV record and refusing bad rows with the column and row named."""
+
+import math
+
+import numpy as np
+import pytest
+
+import powerline_control as plc
+
+HEADER = "time,wind_speed,direction,temperature"
+GOOD = [(0, 3.1, 270, 12.0), (600, 2.8, 265, 11.6), (1200, 4.0, 250, 11.0)]
+
+
+def _write(tmp_path, rows, header=HEADER, name="wind.csv"):
+    path = tmp_path / name
+    lines = [header] + [",".join(str(v) for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_reads_seconds_and_values(tmp_path):
+    rec = plc.WindRecord.from_csv(_write(tmp_path, GOOD))
+    np.testing.assert_array_equal(rec.time, [0.0, 600.0, 1200.0])
+    np.testing.assert_array_equal(rec.wind_speed, [3.1, 2.8, 4.0])
+    assert rec.step == 600.0 and rec.duration == 1800.0 and rec.turbulence_intensity is None
+    assert not rec.wind_speed.flags.writeable
+
+
+def test_reads_iso_time_stamps_any_column_order_and_turbulence(tmp_path):
+    header = "Temperature, Direction ,time,wind_speed,turbulence_intensity,station"
+    rows = [(10.0, 90, "2024-03-01T00:00:00", 2.0, 0.05, "A"),
+            (9.5, 95, "2024-03-01T01:00:00", 2.5, 0.08, "A")]
+    rec = plc.WindRecord.from_csv(_write(tmp_path, rows, header))
+    np.testing.assert_array_equal(rec.time, [0.0, 3600.0])
+    np.testing.assert_array_equal(rec.temperature, [10.0, 9.5])
+    np.testing.assert_array_equal(rec.turbulence_intensity, [0.05, 0.08])
+    assert rec.start == "2024-03-01T00:00:00"
+
+
+def test_round_trip_through_to_csv(tmp_path):
+    rec = plc.WindRecord.constant(3.3, n_records=5, direction=40.0, temperature=-3.0,
+                                  turbulence_intensity=0.1)
+    rec.to_csv(tmp_path / "r.csv")
+    back = plc.WindRecord.from_csv(tmp_path / "r.csv")
+    for name in ("time", "wind_speed", "direction", "temperature", "turbulence_intensity"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(rec, name))
+
+
+def test_normal_component():
+    rec = plc.WindRecord(np.array([0.0, 1.0, 2.0]), np.array([4.0, 4.0, 4.0]),
+                         np.array([0.0, 90.0, 210.0]), np.zeros(3))
+    # sin of 0, 90 and 180 + 30 degrees to a north-south line
+    np.testing.assert_allclose(rec.normal_speed(0.0), [0.0, 4.0, 2.0], atol=1e-12)
+    np.testing.assert_allclose(rec.normal_speed(180.0), rec.normal_speed(0.0), atol=1e-12)
+
+
+# Each bad file names the column and the data row (0-based) and the file line.
+@pytest.mark.parametrize("rows, column, row", [
+    ([(0, 3.1, 270, 12.0), (600, -0.5, 265, 11.6)], "wind_speed", 1),
+    ([(0, 3.1, 270, 12.0), (600, 50.5, 265, 11.6)], "wind_speed", 1),
+    ([(0, 3.1, 270, 12.0), (600, 3.0, 265, 81.0)], "temperature", 1),
+    ([(0, 3.1, 270, -50.1), (600, 3.0, 265, 10.0)], "temperature", 0),
+    ([(0, 3.1, 370, 12.0)], "direction", 0),
+    ([(0, 3.1, 270, 12.0), (600, "", 265, 11.6)], "wind_speed", 1),
+    ([(0, 3.1, 270, 12.0), (600, "calm", 265, 11.6)], "wind_speed", 1),
+    ([(0, 3.1, 270, 12.0), (600, "nan", 265, 11.6)], "wind_speed", 1),
+    ([(0, 3.1, 270, 12.0), (600, 2.0, 265)], "temperature", 1),
+])
+def test_bad_values_name_column_and_row(tmp_path, rows, column, row):
+    with pytest.raises(plc.InputError, match=rf"'{column}'.*row {row} \(line {row + 2}\)"):
+        plc.WindRecord.from_csv(_write(tmp_path, rows))
+
+
+def test_non_monotonic_time_names_the_row(tmp_path):
+    rows = [(0, 3, 90, 10), (600, 3, 90, 10), (1200, 3, 90, 10), (1100, 3, 90, 10)]
+    with pytest.raises(plc.InputError, match=r"'time'.*increase.*row 3 \(line 5\)"):
+        plc.WindRecord.from_csv(_write(tmp_path, rows))
+    rows[3] = (1200, 3, 90, 10)           # a repeated time stamp
+    with pytest.raises(plc.InputError, match=r"'time'.*row 3"):
+        plc.WindRecord.from_csv(_write(tmp_path, rows))
+
+
+def test_a_gap_names_the_row(tmp_path):
+    rows = [(0, 3, 90, 10), (600, 3, 90, 10), (1200, 3, 90, 10), (3000, 3, 90, 10),
+            (3600, 3, 90, 10)]
+    with pytest.raises(plc.InputError, match=r"gap.*row 3 \(line 5\).*1800 s"):
+        plc.WindRecord.from_csv(_write(tmp_path, rows))
+
+
+def test_a_missing_column_is_named(tmp_path):
+    path = _write(tmp_path, [(0, 3.1, 12.0)], header="time,wind_speed,temperature")
+    with pytest.raises(plc.InputError, match="no column 'direction'"):
+        plc.WindRecord.from_csv(path)
+
+
+def test_an_empty_file_a_missing_file_and_a_bad_stamp(tmp_path):
+    (tmp_path / "empty.csv").write_text("")
+    with pytest.raises(plc.InputError, match="empty"):
+        plc.WindRecord.from_csv(tmp_path / "empty.csv")
+    with pytest.raises(plc.InputError, match="Cannot read"):
+        plc.WindRecord.from_csv(tmp_path / "absent.csv")
+    with pytest.raises(plc.InputError, match=r"'time'.*ISO 8601.*row 1"):
+        plc.WindRecord.from_csv(_write(tmp_path, [(0, 3, 90, 10), ("noon", 3, 90, 10)]))
+
+
+@pytest.mark.parametrize("column, value", [
+    ("wind_speed", math.inf), ("wind_speed", -1.0), ("temperature", 90.0),
+    ("turbulence_intensity", 1.5), ("direction", -10.0)])
+def test_the_constructor_checks_the_same_way(column, value):
+    base = dict(time=np.array([0.0, 600.0]), wind_speed=np.array([3.0, 3.0]),
+                direction=np.array([90.0, 90.0]), temperature=np.array([10.0, 10.0]),
+                turbulence_intensity=np.array([0.1, 0.1]))
+    base[column] = np.array([base[column][0], value])
+    with pytest.raises(plc.InputError, match=rf"'{column}'.*row 1"):
+        plc.WindRecord(**base)
+
+
+def test_columns_of_the_wrong_length_or_type_are_refused():
+    with pytest.raises(plc.InputError, match="one value per record"):
+        plc.WindRecord(np.array([0.0, 1.0]), np.array([3.0]), np.array([1.0, 1.0]),
+                       np.array([1.0, 1.0]))
+    with pytest.raises(plc.InputError, match="real numbers"):
+        plc.WindRecord(np.array([0.0, 1.0]), np.array([True, False]), np.array([1.0, 1.0]),
+                       np.array([1.0, 1.0]))
