@@ -50,7 +50,7 @@ _LAZY_EXPORTS = {
         "select_alpha",
     ),
     "io": (
-        "load_model", "save_model",
+        "load_model", "save_model", "Record", "load_record", "save_record",
     ),
     "recipe": (
         "EstimatorDesign", "design_estimator",
@@ -90,6 +90,12 @@ _LAZY_EXPORTS = {
     ),
     "studies": (
         "StudyResult", "parameter_grid", "point_seed", "run_study",
+    ),
+    "scenario": (
+        "Scenario", "load_scenario", "shipped_scenarios",
+    ),
+    "scenario.pipeline": (
+        "ScenarioResult", "run_scenario",
     ),
 }
 _MODULE_OF = {name: module for module, names in _LAZY_EXPORTS.items() for name in names}
@@ -185,6 +191,8 @@ __all__ = [
     "largest_antinode",
     "LineModel",
     "load_model",
+    "load_record",
+    "load_scenario",
     "locate_antinodes",
     "loop_length",
     "MDR",
@@ -213,10 +221,16 @@ __all__ = [
     "RobotLimits",
     "RobotValue",
     "run_closed_loop",
+    "Record",
+    "run_scenario",
     "run_study",
     "save_model",
+    "save_record",
+    "Scenario",
+    "ScenarioResult",
     "select_alpha",
     "select_sensors",
+    "shipped_scenarios",
     "SELF_DAMPING_LAWS",
     "self_damping_power",
     "SelfDampingLaw",

@@ -233,8 +233,11 @@ def test_identify(tiny):
 def test_sensors_and_progress(tiny):
     result = run_cli("sensors", tiny, "--json")
     numbers = _json(result)
-    assert len(numbers["sensors"]) == 2
-    assert all(0 < node < 12 for node in numbers["sensors"])  # off the supports
+    assert len(numbers["sensor_nodes"]) == 2
+    assert all(0 < node < 12 for node in numbers["sensor_nodes"])  # off the supports
+    # Sensors are positions in metres, with the node index beside them (issue 20: one unit).
+    x = [3.66 * j / 12 for j in range(13)]
+    assert numbers["sensor_positions_m"] == pytest.approx([x[i] for i in numbers["sensor_nodes"]])
     # Progress on stderr says what each stage does; stdout is pure JSON.
     assert "[1/4] building the finite-element model" in result.stderr  # 4 stages, no --out
     assert "choosing 2 sensor positions" in result.stderr
@@ -242,8 +245,11 @@ def test_sensors_and_progress(tiny):
 
 def test_estimate(tiny):
     numbers = _json(run_cli("estimate", tiny, "--json", "-q"))
-    assert 0 <= numbers["error_unmeasured"] < 1
-    assert "chosen" in numbers["error_unmeasured_baselines"]
+    # Issue 20: the error is a percentage everywhere (it was a fraction in the JSON and a
+    # percentage in the text).
+    assert 0 <= numbers["error_unmeasured_percent"] < 100
+    assert numbers["layouts"]["chosen"]["error_unmeasured_percent"] == \
+        numbers["error_unmeasured_percent"]
 
 
 def test_plan_with_sensors_from_the_scenario(tmp_path):
@@ -251,14 +257,14 @@ def test_plan_with_sensors_from_the_scenario(tmp_path):
     path.write_text(TINY.replace("n_sensors = 2", "sensor_positions = [0.9, 2.4]"))
     numbers = _json(run_cli("plan", path, "--json", "-q"))
     x = [3.66 * j / 12 for j in range(13)]                    # uniform mesh of the test
-    assert [round(x[i], 6) for i in numbers["sensors"]] == [round(x[3], 6), round(x[8], 6)]
-    assert 0 < numbers["antinode"] < 3.66 and numbers["move_duration"] > 0
+    assert [round(x[i], 6) for i in numbers["sensor_nodes"]] == [round(x[3], 6), round(x[8], 6)]
+    assert 0 < numbers["antinode_m"] < 3.66 and numbers["move_duration_s"] > 0
 
 
 def test_closed_loop(tiny):
     numbers = _json(run_cli("closed-loop", tiny, "--json", "-q"))
     assert numbers["vibration_reduction"] > 0
-    assert 0 < numbers["final_robot_position"] < 3.66
+    assert 0 < numbers["final_robot_position_m"] < 3.66
 
 
 def test_severity_verb(tmp_path):
@@ -267,7 +273,7 @@ def test_severity_verb(tmp_path):
                     "wind_speeds = [2.0, 4.0]\n")
     result = run_cli("severity", path, "--json", "-q")
     rows = _json(result)["severity"]
-    assert [row["wind_speed"] for row in rows] == [2.0, 4.0]
+    assert [row["wind_speed_m_s"] for row in rows] == [2.0, 4.0]
     assert all(row["amplitude_m"] > 0 for row in rows)
 
 
@@ -277,7 +283,7 @@ def test_study_runs_a_grid_and_writes_a_table(tiny, tmp_path):
                      "--out", out)
     rows = _json(result)
     assert [row["estimation.n_sensors"] for row in rows] == [1, 2]
-    assert [len(row["sensors"].split()) for row in rows] == [1, 2]
+    assert [len(row["sensor_positions_m"].split()) for row in rows] == [1, 2]
     assert (out / "study.csv").read_text().count("\n") == 3    # header + 2 rows
 
 
@@ -332,10 +338,12 @@ def test_ctrl_c_ends_with_one_line_and_status_130(tmp_path):
 # ------------------------------------------------------------------------ in-process
 
 def test_numerical_trouble_exits_1_with_one_line(tiny, monkeypatch, capsys):
-    def diverge(self):
+    def diverge(*args, **kwargs):
         raise plc.EstimationError("The filter diverged (test).")
 
-    monkeypatch.setattr(cli._Study, "simulate", diverge)
+    from powerline_control.scenario import pipeline
+
+    monkeypatch.setattr(pipeline, "_records", diverge)
     assert cli.main(["simulate", str(tiny), "-q"]) == cli.EXIT_NUMERICAL
     err = capsys.readouterr().err
     assert err == "powerline-control: numerical trouble: The filter diverged (test).\n"
@@ -412,7 +420,10 @@ def test_robot_absorber_damping_ratio_from_the_scenario(ratio):
                                   f"damping_ratio = {ratio}\n")
     model = plc.LineModel(scenario.span.build(), n_elements=30)
     load_frequency = scenario.forcing.load_frequency(model.span)
-    robot, text = cli._tuned_robot(scenario, model, load_frequency)
+    from powerline_control.scenario.pipeline import tune_robot
+
+    tuning = tune_robot(scenario, model)
+    robot, text = tuning.robot, tuning.how
     m, k, c = robot.suspended_mass, robot.stiffness, robot.damping
     zeta = c / (2 * np.sqrt(k * m))
     # Den Hartog's optimum (Den Hartog, Mechanical Vibrations, 1956): f_a = f / (1 + mu) and
@@ -441,6 +452,7 @@ def test_identification_run_with_a_shaker_trains_a_broadband_estimator(tmp_path,
     result = run_cli("estimate", path, "--json", "-q")
     numbers = _json(result)
     assert ("not persistently exciting" in result.stderr) == (shaker == 0)
-    print(f"shaker {shaker} N: error at unmeasured nodes {numbers['error_unmeasured']:.2%}")
+    print(f"shaker {shaker} N: error at unmeasured nodes "
+          f"{numbers['error_unmeasured_percent']:.2f} %")
     # Held-out truth from the FE model at 1 % sensor noise: 3 sensors on a 40-element span.
-    assert numbers["error_unmeasured"] < 0.03
+    assert numbers["error_unmeasured_percent"] < 3.0

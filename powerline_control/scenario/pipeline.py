@@ -1,0 +1,1194 @@
+"""The scenario pipeline: one scenario, stage by stage, into one frozen :class:`ScenarioResult`.
+
+Stages (each calls the package's own stage; none re-derives another's result)::
+
+    model           Span, LineModel, the load
+    records         the simulated record (and the identification run with its shaker), or a
+                    measured record given by the user
+    identification  design_estimator: the identified model, the sensors, the filter
+    sensors         (the sensor choice is part of the recipe; this stage marks that it chooses)
+    estimation      the design's filter on held-out data, against fair baseline layouts
+    plan            antinodes of the estimated field, the closed loop's target, the move
+    closed_loop     run_closed_loop: the robot driven by its sensors, against it parked
+    severity        aeolian_severity without and with the robot
+
+The scenario's decisions that no other stage owns live here, named: the share of the record
+that trains (:data:`TRAIN_FRACTION`), where the identification run's shaker acts
+(:data:`SHAKER_POSITION`), the closed loop's calibration (:func:`closed_loop_timing`).
+A stage that fails leaves the finished stages' results in the returned (or attached) result
+with the failure recorded (:class:`StageFailure`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from .config import LAB_OUTER_STRAND_DIAMETER, Scenario, load_scenario
+
+__all__ = [
+    "STAGES",
+    "VERB_STAGES",
+    "ScenarioResult",
+    "StageFailure",
+    "run_scenario",
+]
+
+#: Share of the simulated record that trains the estimator; the rest tests it (held out).
+TRAIN_FRACTION = 0.6
+#: Where the identification run's broadband shaker acts, as a fraction of the span: off the
+#: symmetry points 1/2, 1/3, 1/4, 1/5 of the low modes, so it drives every one of them.
+SHAKER_POSITION = 0.31
+#: The closed loop's control period, s, and the longest calibration (robot parked, estimator
+#: identified), s: a third of the run at most.
+CONTROL_PERIOD = 0.05
+MAX_CALIBRATION = 2.0
+#: Antinodes are located on the last this-many samples of the held-out estimate.
+ANTINODE_WINDOW = 500
+
+#: Every stage, in order.
+STAGES = ("model", "records", "identification", "sensors", "estimation", "plan",
+          "closed_loop", "severity")
+#: The stages each verb of the command runs.
+VERB_STAGES = {
+    "simulate": ("model", "records"),
+    "identify": ("model", "records", "identification"),
+    "sensors": ("model", "records", "identification", "sensors"),
+    "estimate": ("model", "records", "identification", "sensors", "estimation"),
+    "plan": ("model", "records", "identification", "sensors", "estimation", "plan"),
+    "closed-loop": ("model", "closed_loop"),
+    "severity": ("model", "severity"),
+    "run": STAGES,
+}
+
+
+# ----------------------------------------------------------------------------- stage results
+
+@dataclass(frozen=True)
+class Records:
+    """The data stage: the test record, the training record, and how they were made.
+
+    Attributes
+    ----------
+    test : Snapshots
+        The scenario's record; samples ``n_train:`` are held out to test the estimator.
+    train : Snapshots
+        The record the estimator is identified on (the identification run, or ``test`` itself).
+    n_train : int
+        Samples used for training.
+    shaker : RandomForce or None
+        The identification run's shaker (None: the scenario's own record trains).
+    shaker_position : float or None
+        Where it acts, m.
+    measured : Record or None
+        A measured record given to :func:`run_scenario` (its filter runs on it).
+    simulation_s : float
+        Wall-clock time of the simulation, s.
+    """
+
+    test: Any
+    train: Any
+    n_train: int
+    shaker: Any = None
+    shaker_position: float | None = None
+    measured: Any = None
+    simulation_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Identification:
+    """The estimator recipe's result and the plain-DMD fit it is compared with.
+
+    Attributes
+    ----------
+    design : EstimatorDesign
+        ``design_estimator``'s result: model, sensors, filter.
+    plain : DMDModel
+        Plain DMD (alpha = 0, one delay: the paper's eq. 11) on the same training data.
+    plain_ill_conditioned : bool
+        Whether that fit warned that it inverts round-off.
+    sensors_given : bool
+        True when the sensors came from the scenario (or the verb), not the optimisation.
+    sensors_how : str
+        Where the sensors came from, in words.
+    forbidden : tuple of (float, float)
+        The support intervals no sensor may occupy, m.
+    """
+
+    design: Any
+    plain: Any
+    plain_ill_conditioned: bool
+    sensors_given: bool
+    sensors_how: str
+    forbidden: tuple
+
+
+@dataclass(frozen=True)
+class Layout:
+    """One sensor layout estimated on held-out data.
+
+    Attributes
+    ----------
+    name : str
+        "chosen", or the baseline's label.
+    nodes : tuple of int
+        Sensor node indices.
+    positions : tuple of float
+        Sensor positions, m.
+    note : str
+        What the layout is, in words.
+    estimate : Estimate
+        The Kalman estimate on the held-out record.
+    accuracy : Accuracy
+        Against the true field.
+    error_along_span : ndarray
+        RMS error at each node over the span's RMS displacement (a fraction).
+    """
+
+    name: str
+    nodes: tuple
+    positions: tuple
+    note: str
+    estimate: Any = field(repr=False)
+    accuracy: Any = field(repr=False)
+    error_along_span: Any = field(repr=False)
+
+    @property
+    def error_unmeasured_percent(self) -> float:
+        """RMS error at the nodes without a sensor, % of the RMS displacement."""
+        return 100.0 * float(self.accuracy.relative_rms_error_unmeasured)
+
+
+@dataclass(frozen=True)
+class MeasuredEstimate:
+    """The designed filter run on a measured record (no truth: its consistency tells).
+
+    Attributes
+    ----------
+    record : Record
+        The measured record.
+    nodes : tuple of int
+        The node nearest each of its channels (the filter's sensors), ascending.
+    estimate : Estimate
+        The Kalman estimate of the whole span from it (NaN samples skipped by the filter).
+    """
+
+    record: Any = field(repr=False)
+    nodes: tuple
+    estimate: Any = field(repr=False)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Antinodes of the estimated field, the closed loop's target, and the robot's move.
+
+    Attributes
+    ----------
+    antinodes, true_antinodes : list of Antinode
+        Of the estimated and of the true held-out field.
+    choice : Choice
+        The closed loop's targeting rule on the estimated field.
+    target, truth : Antinode
+        The estimated and true antinodes nearest the chosen position.
+    trajectory : Trajectory
+        The minimum-time move from the robot's start.
+    envelope : ndarray
+        Largest |y| at each node over the held-out record, m.
+    """
+
+    antinodes: list
+    true_antinodes: list
+    choice: Any
+    target: Any
+    truth: Any
+    trajectory: Any
+    envelope: Any = field(repr=False)
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """The robot with its absorber tuned to the load.
+
+    Attributes
+    ----------
+    robot : MDR
+        Tuned, placed at its start.
+    mode : int
+        The line's mode nearest the load frequency (1-based).
+    mode_frequency : float
+        Its natural frequency, Hz.
+    load_frequency : float
+        The load's frequency, Hz.
+    antinode : float
+        The antinode of that mode nearest the start, where the absorber is tuned for, m.
+    how : str
+        "Den Hartog" or the scenario's damping ratio.
+    """
+
+    robot: Any
+    mode: int
+    mode_frequency: float
+    load_frequency: float
+    antinode: float
+    how: str
+
+
+@dataclass(frozen=True)
+class ClosedLoop:
+    """The closed loop stage: the tuned robot, its sensors and ``run_closed_loop``'s result.
+
+    Attributes
+    ----------
+    tuning : Tuning
+        The robot.
+    sensors : tuple of int
+        The sensors the loop reads (node indices).
+    result : ClosedLoopResult
+        The run.
+    calibration : float
+        Calibration time, s.
+    """
+
+    tuning: Tuning
+    sensors: tuple
+    result: Any = field(repr=False)
+    calibration: float = 0.0
+
+
+@dataclass(frozen=True)
+class Severity:
+    """The energy-balance severity without dampers and with the robot at each antinode.
+
+    Attributes
+    ----------
+    bare, robot : SeverityResult
+        Without dampers; with the robot's absorber parked at the antinode of each wind speed.
+    outer_strand_diameter : float
+        The outer-strand diameter used, m.
+    strand_source : str
+        Where it came from.
+    """
+
+    bare: Any
+    robot: Any
+    outer_strand_diameter: float
+    strand_source: str
+
+
+@dataclass(frozen=True)
+class StageFailure:
+    """The stage that failed and why (the stages before it finished).
+
+    Attributes
+    ----------
+    stage : str
+        The stage's name (see :data:`STAGES`).
+    kind : str
+        The exception's class name.
+    message : str
+        Its message, on one line.
+    error : BaseException
+        The exception itself.
+    """
+
+    stage: str
+    kind: str
+    message: str
+    error: BaseException = field(repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class ScenarioResult:
+    """Everything one scenario produced, stage by stage (None for a stage that did not run).
+
+    Attributes
+    ----------
+    scenario : Scenario
+        What ran.
+    stages : tuple of str
+        The stages asked for.
+    span, model, force
+        The Span, the LineModel and the load.
+    records : Records or None
+        The data.
+    identification : Identification or None
+        The estimator design.
+    sensor_count : SensorCountStudy or None
+        The predicted error against the number of sensors (each count optimised).
+    layouts : dict of str to Layout, or None
+        The chosen layout ("chosen") and the baselines, estimated on held-out data.
+    measured : MeasuredEstimate or None
+        The filter on a measured record given to :func:`run_scenario`.
+    plan : Plan or None
+        Antinodes, target and move.
+    closed_loop : ClosedLoop or None
+        The closed loop.
+    severity : Severity or None
+        The severity study.
+    failure : StageFailure or None
+        The stage that failed (the later ones did not run).
+    elapsed : dict of str to float
+        Wall-clock seconds of each stage that ran.
+
+    Examples
+    --------
+    >>> small = load_scenario(text="[model]\\nn_elements = 16\\n[simulation]\\nduration = 2.0\\n"
+    ...                            "[estimation]\\nn_sensors = 2\\n[robot]\\nclosed_loop = 0")
+    >>> result = run_scenario(small, stages=("model", "records"))
+    >>> result.model.n_nodes, result.records.test.displacement.shape
+    (17, (17, 2000))
+    >>> result.to_json()["n_nodes"]
+    17
+    """
+
+    scenario: Scenario
+    stages: tuple
+    span: Any = None
+    model: Any = None
+    force: Any = None
+    records: Records | None = None
+    identification: Identification | None = None
+    sensor_count: Any = None
+    layouts: dict | None = None
+    measured: MeasuredEstimate | None = None
+    plan: Plan | None = None
+    closed_loop: ClosedLoop | None = None
+    severity: Severity | None = None
+    failure: StageFailure | None = None
+    elapsed: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """True when every stage asked for finished."""
+        return self.failure is None
+
+    @property
+    def sensors(self) -> tuple:
+        """The chosen sensors' node indices (empty before identification)."""
+        if self.identification is None:
+            return ()
+        return tuple(int(i) for i in self.identification.design.sensors)
+
+    def to_json(self) -> dict:
+        """The headline numbers as plain JSON types, one unit per quantity, units in the keys.
+
+        A key ending in ``_m`` is metres, ``_s`` seconds, ``_hz`` Hz, ``_m_s`` m/s,
+        ``_percent`` per cent, ``_microstrain`` 1e-6; the ``units`` entry lists them.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        See :class:`ScenarioResult`.
+        """
+        from .summary import result_json
+
+        return result_json(self)
+
+    def sections(self) -> list:
+        """The report's sections (title, intro, rows, figures to draw), in words and units.
+
+        Returns
+        -------
+        list of dict
+
+        Examples
+        --------
+        >>> run_scenario(load_scenario(text="[model]\\nn_elements = 12"),
+        ...              stages=("model",)).sections()[0]["title"]
+        'Span and model'
+        """
+        from .summary import result_sections
+
+        return result_sections(self)
+
+    def report(self, path: str | Path, *, version: str | None = None) -> Path:
+        """Write the self-contained HTML report of this result.
+
+        Parameters
+        ----------
+        path : str or Path
+            The HTML file (its folder must exist).
+        version : str or None
+            Package version shown (default: this package's).
+
+        Returns
+        -------
+        Path
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> result = run_scenario(load_scenario(text="[model]\\nn_elements = 12"),
+        ...                       stages=("model",))
+        >>> result.report(folder / "r.html").name
+        'r.html'
+        """
+        from .summary import write_result_report
+
+        return write_result_report(self, Path(path), version=version)
+
+
+# ----------------------------------------------------------------------------- the stages
+
+def _model(scenario: Scenario) -> dict:
+    span = scenario.span.build()
+    model = scenario.model.build(span)
+    return {"span": span, "model": model, "force": scenario.forcing.build()}
+
+
+def _records(scenario: Scenario, model, force, record=None) -> Records:
+    from ..excitation import RandomForce
+    from ..simulate import simulate
+
+    sim, ident = scenario.simulation, scenario.identification
+    start = time.perf_counter()
+    test = simulate(model, force, duration=sim.duration, dt=sim.dt,
+                    noise_fraction=sim.noise_fraction, seed=sim.seed)
+    n_train = int(TRAIN_FRACTION * test.t.size)
+    train, shaker, where = test, None, None
+    if ident.shaker > 0:
+        # A harmonic load alone excites the other modes only through its start-up transient:
+        # the shaker makes the identification run persistently exciting; its own seed keeps
+        # its noise and force independent of the test record's.
+        where = SHAKER_POSITION * model.span.length
+        shaker = RandomForce(ident.shaker, where, ident.shaker_bandwidth, seed=sim.seed + 1)
+        train = simulate(model, [force, shaker], duration=n_train * sim.dt, dt=sim.dt,
+                         noise_fraction=sim.noise_fraction, seed=sim.seed + 1)
+    return Records(test=test, train=train, n_train=n_train, shaker=shaker, shaker_position=where,
+                   measured=record, simulation_s=time.perf_counter() - start)
+
+
+def support_intervals(x) -> tuple:
+    """The intervals at the supports no sensor may occupy (half an element at each end), m.
+
+    Parameters
+    ----------
+    x : array_like
+        Node positions, m.
+
+    Returns
+    -------
+    tuple of (float, float)
+
+    Examples
+    --------
+    >>> support_intervals([0.0, 1.0, 2.0])
+    ((0.0, 0.5), (1.5, 2.0))
+    """
+    import numpy as np
+
+    x = np.asarray(x, dtype=float)
+    half = 0.5 * float(min(x[1] - x[0], x[-1] - x[-2]))
+    return ((0.0, half), (float(x[-1] - half), float(x[-1])))
+
+
+def given_sensors(scenario: Scenario, x) -> tuple[list | None, str]:
+    """The scenario's own sensors as node indices (None when they are to be chosen).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    x : array_like
+        Node positions, m.
+
+    Returns
+    -------
+    (list of int or None, str)
+        The nodes and where they came from.
+
+    Examples
+    --------
+    >>> s = load_scenario(text="[model]\\nn_elements = 4\\n[estimation]\\n"
+    ...                        "sensor_positions = [1.0]")
+    >>> given_sensors(s, [0.0, 0.915, 1.83, 2.745, 3.66])
+    ([1], 'from the scenario (positions, nearest nodes)')
+    """
+    import numpy as np
+
+    est = scenario.estimation
+    x = np.asarray(x, dtype=float)
+    if est.sensors is not None:
+        return sorted(int(i) for i in est.sensors), "from the scenario (node indices)"
+    if est.sensor_positions is not None:
+        return (sorted({int(np.argmin(np.abs(x - p))) for p in est.sensor_positions}),
+                "from the scenario (positions, nearest nodes)")
+    return None, ""
+
+
+def evenly_spaced_nodes(x, k: int, shape=None) -> list:
+    """k sensors evenly spaced between the supports, optionally moved off a mode's nodes.
+
+    With ``shape`` (a mode shape at the nodes) the whole evenly spaced layout is shifted, by
+    less than half its spacing, to the offset whose smallest |shape| at the sensors is largest:
+    the layout stays evenly spaced but no sensor sits on a vibration node of that mode.
+
+    Parameters
+    ----------
+    x : array_like
+        Node positions, m.
+    k : int
+        Number of sensors.
+    shape : array_like or None
+        A mode shape at the nodes.
+
+    Returns
+    -------
+    list of int
+        Node indices, ascending.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.linspace(0.0, 3.0, 31)
+    >>> evenly_spaced_nodes(x, 2)
+    [10, 20]
+    >>> evenly_spaced_nodes(x, 2, np.sin(3 * np.pi * x / 3.0))   # mode 3's nodes: 1 m, 2 m
+    [5, 15]
+    """
+    import numpy as np
+
+    x = np.asarray(x, dtype=float)
+    length = x[-1]
+    base = length * np.arange(1, k + 1) / (k + 1)
+    if shape is None:
+        offsets = [0.0]
+    else:
+        spacing = length / (k + 1)
+        offsets = np.linspace(-0.5 * spacing, 0.5 * spacing, 41)
+        offsets = offsets[np.argsort(np.abs(offsets), kind="stable")]
+        shape = np.abs(np.asarray(shape, dtype=float))
+    best, best_score = None, -1.0
+    for offset in offsets:
+        nodes = np.clip(np.searchsorted(x, base + offset), 1, x.size - 2)
+        nodes = [int(i) if abs(x[i] - p) <= abs(x[i - 1] - p) else int(i - 1)
+                 for i, p in zip(nodes, base + offset, strict=True)]
+        nodes = sorted(set(min(max(i, 1), x.size - 2) for i in nodes))
+        if len(nodes) < k:
+            continue
+        score = 1.0 if shape is None else float(shape[nodes].min() / max(shape.max(), 1e-300))
+        if score > best_score + 1e-9:
+            best, best_score = nodes, score
+    return best if best is not None else list(range(1, k + 1))
+
+
+def _identification(scenario: Scenario, records: Records, model, *,
+                    choose_sensors: bool) -> Identification:
+    import numpy as np
+
+    from ..identify import fit_dmd
+    from ..recipe import design_estimator
+
+    cfg = scenario.identification
+    snap = records.train
+    train = snap.displacement[:, :records.n_train]
+    x = np.asarray(snap.x)
+    k = scenario.estimation.n_sensors
+    forbidden = support_intervals(x)
+    given, how = given_sensors(scenario, x)
+    if given is None and not choose_sensors:
+        given = evenly_spaced_nodes(x, k)
+        how = "evenly spaced (this verb does not optimise them)"
+    options = {key: value for key, value in (("delays", cfg.delays), ("rank", cfg.rank))
+               if value is not None}
+    if cfg.alpha != "auto":
+        options["alphas"] = [float(cfg.alpha)]
+    design = design_estimator(
+        train, n_sensors=k, dt=snap.dt, noise_std=snap.noise_std or None, sensors=given,
+        positions=x, forbidden=forbidden, seed=scenario.simulation.seed, **options)
+    if given is None:
+        how = "optimised (steady-state Kalman criterion)"
+    with warnings.catch_warnings(record=True) as caught:
+        # On noise-free data plain DMD inverts round-off and says so; here that is the point.
+        warnings.simplefilter("always")
+        plain = fit_dmd(train, snap.dt, alpha=0.0, delays=1)
+    return Identification(design=design, plain=plain, plain_ill_conditioned=bool(caught),
+                          sensors_given=given is not None, sensors_how=how, forbidden=forbidden)
+
+
+def layout_filter(design, nodes):
+    """A steady-state filter of ``design``'s model on other sensors, built as the recipe does.
+
+    The noise model and the covariance scale are the design's; only the measured rows differ,
+    so baselines are judged with the same model as the chosen layout.
+
+    Parameters
+    ----------
+    design : EstimatorDesign
+        The recipe's design.
+    nodes : sequence of int
+        The sensors.
+
+    Returns
+    -------
+    KalmanFilter
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> snap = plc.simulate(plc.LineModel(plc.Span.paper_lab(), n_elements=12),
+    ...                     plc.RandomForce(0.1, 0.8, 100.0, seed=1), duration=1.0,
+    ...                     noise_fraction=0.01, seed=1)
+    >>> design = plc.design_estimator(snap, n_sensors=2, seed=1)
+    >>> layout_filter(design, [3, 9]).sys.noutputs
+    2
+    """
+    import numpy as np
+
+    from ..estimate import KalmanFilter
+
+    nodes = [int(i) for i in nodes]
+    if list(map(int, design.sensors)) == nodes:
+        return design.filter
+    model = design.model
+    q = np.array(model.residual_covariance)
+    q[np.diag_indices_from(q)] += design.q_floor
+    scale = design.covariance_scale
+    return KalmanFilter(model.to_statespace(measured=nodes), Q=scale * q,
+                        R=scale * float(design.noise_std) ** 2, steady_state=True,
+                        field_map=model.field_map, nis_dof_fraction=design.nis_dof_fraction)
+
+
+#: Largest node count for which the sensor-count study (one optimisation per count) runs.
+SENSOR_COUNT_MAX_NODES = 201
+
+
+def _sensor_count(ident: Identification, model):
+    """The predicted steady-state error against the sensor count (None above the size)."""
+    import numpy as np
+
+    from ..sensors import sensor_count_study
+
+    design = ident.design
+    n_nodes = design.model.n_nodes
+    if ident.sensors_given or n_nodes > SENSOR_COUNT_MAX_NODES:
+        return None
+    dmd = design.model
+    q = np.array(dmd.residual_covariance)
+    q[np.diag_indices_from(q)] += design.q_floor
+    scale = design.covariance_scale
+    k = int(design.sensors.size)
+    return sensor_count_study(dmd.to_statespace(measured=list(range(n_nodes))),
+                              list(range(1, k + 3)), Q=scale * q,
+                              R=scale * float(design.noise_std) ** 2,
+                              positions=np.asarray(model.node_positions),
+                              forbidden=ident.forbidden, n_steps=500)
+
+
+def driven_mode(model, load_frequency: float) -> int:
+    """The line's mode (1-based) whose natural frequency is nearest the load's.
+
+    Parameters
+    ----------
+    model : LineModel
+        The line.
+    load_frequency : float
+        Hz.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> driven_mode(plc.LineModel(plc.Span.paper_lab(), n_elements=20), 24.0)
+    3
+    """
+    import numpy as np
+
+    n = min(400, model.n_dofs)
+    frequencies = np.asarray(model.natural_frequencies(n))
+    return int(np.argmin(np.abs(frequencies - load_frequency))) + 1
+
+
+def _layouts(scenario: Scenario, records: Records, ident: Identification, model) -> dict:
+    import numpy as np
+
+    from ..estimate import estimation_accuracy
+
+    snap, n_train = records.test, records.n_train
+    x = np.asarray(snap.x)
+    design = ident.design
+    chosen = [int(i) for i in design.sensors]
+    k = len(chosen)
+    mode = driven_mode(model, scenario.forcing.load_frequency(model.span))
+    shape = model.mode_shapes(mode)[:, mode - 1]
+    candidates = {"chosen": (chosen, ident.sensors_how)}
+    plain_even = evenly_spaced_nodes(x, k)
+    fair_even = evenly_spaced_nodes(x, k, shape)
+    phi = np.abs(shape) / np.abs(shape).max()
+    on_node = float(phi[plain_even].min())
+    if fair_even != plain_even:
+        candidates[f"evenly spaced ({k})"] = (
+            plain_even, f"{k} sensors at equal spacing L/{k + 1}; the smallest relative "
+            f"amplitude of the driven mode {mode} at them is {on_node:.2g} (0: on a node).")
+        candidates[f"evenly spaced, off mode {mode}'s nodes ({k})"] = (
+            fair_even, f"The same spacing shifted so that no sensor sits on a node of the driven "
+            f"mode {mode} (smallest relative amplitude {float(phi[fair_even].min()):.2g}).")
+    else:
+        candidates[f"evenly spaced ({k})"] = (
+            plain_even, f"{k} sensors at equal spacing L/{k + 1}, none on a node of the driven "
+            f"mode {mode} (smallest relative amplitude {on_node:.2g}).")
+    # The paper measured its first 10 states on 20 elements and its first 13 on 100 (Figs. 7-8);
+    # node 0 sits on the support, so the first measured node is node 1.
+    n_first = 10 if x.size == 21 else 13
+    first = list(range(1, min(n_first, x.size - 2) + 1))
+    covered = x[first[-1]]
+    candidates[f"the paper's layout: first {len(first)} nodes"] = (
+        first, f"The paper's own layout (its first {n_first} states): {len(first)} sensors, "
+        f"not {k}, covering only x <= {covered:.3g} m ({100 * covered / x[-1]:.2g} % of the "
+        "span).")
+    held = slice(n_train, None)
+    truth = snap.true_displacement[:, held]
+    span_rms = float(np.sqrt(np.mean(truth**2)))
+    discard = min(200, (snap.t.size - n_train) // 4)
+    out = {}
+    for name, (nodes, note) in candidates.items():
+        if name != "chosen" and nodes == chosen:
+            continue
+        estimate = layout_filter(design, nodes).filter(snap.displacement[nodes, held])
+        accuracy = estimation_accuracy(estimate.field, truth, measured=nodes, discard=discard)
+        along = np.sqrt(np.mean((estimate.field - truth) ** 2, axis=1)) / span_rms
+        out[name] = Layout(name=name, nodes=tuple(nodes),
+                           positions=tuple(float(x[i]) for i in nodes), note=note,
+                           estimate=estimate, accuracy=accuracy, error_along_span=along)
+    return out
+
+
+def tune_robot(scenario: Scenario, model) -> Tuning:
+    """The scenario's robot with its absorber tuned to the mode the load drives.
+
+    Tuned (Den Hartog, or the scenario's damping ratio at Den Hartog's frequency) for the
+    antinode of that mode nearest the robot's start (the modal mass seen at a node is
+    infinite), found by :func:`~powerline_control.antinode.locate_antinodes` on the mode shape;
+    then placed at its start.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``robot`` and ``forcing`` sections.
+    model : LineModel
+        The line.
+
+    Returns
+    -------
+    Tuning
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> s = load_scenario(text="[model]\\nn_elements = 30")
+    >>> tuning = tune_robot(s, plc.LineModel(s.span.build(), n_elements=30))
+    >>> tuning.mode, tuning.robot.position
+    (3, 1.2)
+    """
+    import numpy as np
+
+    from ..antinode import locate_antinodes, nearest_antinode
+    from ..tuning import tune_damper
+
+    cfg = scenario.robot
+    load_frequency = float(scenario.forcing.load_frequency(model.span))
+    mode = driven_mode(model, load_frequency)
+    frequency = float(model.natural_frequencies(mode)[mode - 1])
+    x = np.asarray(model.node_positions)
+    antinodes = locate_antinodes(model.mode_shapes(mode)[:, mode - 1], x)
+    antinode = float(nearest_antinode(antinodes, cfg.start).position) if antinodes else cfg.start
+    mdr = tune_damper(model, mode, antinode, cfg.suspended_mass, body_mass=cfg.body_mass)
+    how = "Den Hartog"
+    if cfg.damping_ratio > 0:
+        omega = np.sqrt(mdr.stiffness / mdr.suspended_mass)
+        mdr = dataclasses.replace(mdr, damping=2 * cfg.damping_ratio * mdr.suspended_mass * omega)
+        how = f"Den Hartog frequency, damping ratio {cfg.damping_ratio:g} from the scenario"
+    mdr = dataclasses.replace(mdr, position=cfg.start)
+    return Tuning(robot=mdr, mode=mode, mode_frequency=frequency, load_frequency=load_frequency,
+                  antinode=antinode, how=how)
+
+
+def closed_loop_timing(scenario: Scenario) -> tuple[float, float]:
+    """(dt, calibration) of the closed loop, s.
+
+    The calibration (robot parked, the estimator identified) is a third of the run, at most
+    :data:`MAX_CALIBRATION`, in whole :data:`CONTROL_PERIOD` control periods.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``simulation.dt`` and ``robot.closed_loop``.
+
+    Returns
+    -------
+    (float, float)
+
+    Examples
+    --------
+    >>> closed_loop_timing(load_scenario(text="[robot]\\nclosed_loop = 12.0"))
+    (0.001, 2.0)
+    """
+    dt = scenario.simulation.dt
+    period = max(dt, round(CONTROL_PERIOD / dt) * dt)
+    calibration = max(1, round(min(MAX_CALIBRATION, scenario.robot.closed_loop / 3) / period))
+    return dt, round(calibration * period / dt) * dt
+
+
+def _plan(scenario: Scenario, records: Records, layouts: dict, model, tuning: Tuning) -> Plan:
+    import numpy as np
+
+    from ..antinode import locate_antinodes, nearest_antinode
+    from ..closed_loop.policy import TRAVEL_FRACTION, choose_parked_position
+    from ..plan import RobotLimits, plan_motion
+
+    snap, n_train = records.test, records.n_train
+    estimate = layouts["chosen"].estimate
+    window = slice(-min(ANTINODE_WINDOW, estimate.field.shape[1]), None)
+    held_truth = snap.true_displacement[:, n_train:]
+    estimated = locate_antinodes(estimate.field[:, window], snap.x, dt=snap.dt)
+    true = locate_antinodes(held_truth[:, window], snap.x, dt=snap.dt)
+    robot = scenario.robot
+    limits = RobotLimits(v_max=robot.v_max, a_max=robot.a_max)
+    travel = float("inf")
+    if robot.closed_loop > 0:
+        travel = TRAVEL_FRACTION * (robot.closed_loop - closed_loop_timing(scenario)[1])
+    # The closed loop's own targeting rule on the whole held-out estimate (its resolution,
+    # 1 / length, must tell the load's line from a natural frequency's ringing next to it).
+    choice = choose_parked_position(model, estimate.field, snap.dt, tuning.robot, robot.start,
+                                    limits, travel_time=travel)
+    target = nearest_antinode(estimated, choice.position)
+    truth = nearest_antinode(true, choice.position)
+    trajectory = plan_motion(robot.start, choice.position, limits, span_length=model.span.length)
+    return Plan(antinodes=estimated, true_antinodes=true, choice=choice, target=target,
+                truth=truth, trajectory=trajectory, envelope=np.abs(held_truth).max(axis=1))
+
+
+def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, sensors) -> ClosedLoop:
+    from ..closed_loop import run_closed_loop
+    from ..plan import RobotLimits
+
+    cfg = scenario.robot
+    if not sensors:
+        import numpy as np
+
+        x = np.asarray(model.node_positions)
+        given, _ = given_sensors(scenario, x)
+        sensors = given if given is not None else evenly_spaced_nodes(
+            x, scenario.estimation.n_sensors)
+    dt, calibration = closed_loop_timing(scenario)
+    result = run_closed_loop(
+        model, force, tuning.robot, RobotLimits(cfg.v_max, cfg.a_max), sensors=list(sensors),
+        duration=cfg.closed_loop, calibration=calibration, dt=dt,
+        noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed)
+    return ClosedLoop(tuning=tuning, sensors=tuple(int(i) for i in sensors), result=result,
+                      calibration=calibration)
+
+
+def severity_inputs(scenario: Scenario, span) -> tuple[dict, str]:
+    """The keyword arguments of ``aeolian_severity`` the scenario sets, and the strand source.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``severity`` section.
+    span : Span
+        The span.
+
+    Returns
+    -------
+    (dict, str)
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> kwargs, source = severity_inputs(load_scenario(), plc.Span.paper_lab())
+    >>> kwargs["outer_strand_diameter"], source.startswith("the lab conductor")
+    (0.0035, True)
+    """
+    sev = scenario.severity
+    kwargs = {"outer_strand_modulus": sev.outer_strand_modulus, "x_b": sev.clamp_distance}
+    if sev.outer_strand_diameter is not None:
+        kwargs["outer_strand_diameter"] = sev.outer_strand_diameter
+        source = "severity.outer_strand_diameter"
+    elif scenario.span.preset == "paper_lab":
+        kwargs["outer_strand_diameter"] = LAB_OUTER_STRAND_DIAMETER
+        source = "the lab conductor's preset (AAC 2/0, 7 x 3.50 mm strands)"
+    else:
+        source = f"the {scenario.span.conductor} preset's stranding"
+    return kwargs, source
+
+
+def _severity(scenario: Scenario, span, model) -> Severity:
+    import numpy as np
+
+    from ..severity import AtAntinode, aeolian_severity
+
+    sev = scenario.severity
+    if sev.ei is not None:
+        span = dataclasses.replace(span, conductor=dataclasses.replace(span.conductor,
+                                                                       ei=sev.ei))
+    kwargs, source = severity_inputs(scenario, span)
+    speeds = np.asarray(sev.wind_speeds, dtype=float)
+    bare = aeolian_severity(span, wind_speeds=speeds, **kwargs)
+    robot = tune_robot(scenario, model).robot
+    with_robot = aeolian_severity(span, wind_speeds=speeds, dampers=[AtAntinode(robot)],
+                                  **kwargs)
+    strand = kwargs.get("outer_strand_diameter")
+    if strand is None:
+        strand = float(getattr(bare, "outer_strand_diameter", float("nan")))
+    return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
+                    strand_source=source)
+
+
+# ----------------------------------------------------------------------------- the pipeline
+
+def _check_stages(stages) -> tuple:
+    if stages is None:
+        return STAGES
+    if isinstance(stages, str) or not isinstance(stages, Sequence):
+        raise InputError(f"The 'stages' parameter must be a sequence of stage names from "
+                         f"{list(STAGES)}. Got {stages!r:.60}.")
+    unknown = [s for s in stages if s not in STAGES]
+    if unknown:
+        raise InputError(f"The 'stages' parameter names unknown stages {unknown}; the stages "
+                         f"are {list(STAGES)}.")
+    return tuple(s for s in STAGES if s in stages)
+
+
+def stage_plan(scenario: Scenario, stages=None) -> tuple:
+    """The stages that will run for ``scenario`` (closed loop and severity only when on).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    stages : sequence of str or None
+        Asked for (default: all).
+
+    Returns
+    -------
+    tuple of str
+
+    Examples
+    --------
+    >>> stage_plan(load_scenario(text="[robot]\\nclosed_loop = 0"))
+    ('model', 'records', 'identification', 'sensors', 'estimation', 'plan')
+    """
+    stages = _check_stages(stages)
+    alone = stages in (VERB_STAGES["severity"],)
+    out = []
+    for stage in stages:
+        if stage == "closed_loop" and scenario.robot.closed_loop <= 0:
+            continue
+        if stage == "severity" and not (scenario.severity.enabled or alone):
+            continue
+        if stage == "sensors" and given_sensors_declared(scenario):
+            continue
+        out.append(stage)
+    return tuple(out)
+
+
+def given_sensors_declared(scenario: Scenario) -> bool:
+    """True when the scenario lists its sensors (no sensor choice to make).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> given_sensors_declared(load_scenario())
+    False
+    """
+    est = scenario.estimation
+    return est.sensors is not None or est.sensor_positions is not None
+
+
+def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, record=None,
+                 progress=None, keep_partial: bool = False) -> ScenarioResult:
+    """Run a scenario's stages and return everything they produced as one frozen result.
+
+    Stages: model -> records (simulated, plus the identification run) -> identification and
+    sensor choice (``design_estimator``) -> Kalman estimation on held-out data, against fair
+    baselines -> antinodes, target and minimum-time move -> closed loop -> severity (each
+    when the scenario asks for it).
+
+    Parameters
+    ----------
+    scenario : Scenario, str, Path or None
+        A scenario, a TOML file or a shipped name (loaded with
+        :func:`~powerline_control.scenario.load_scenario`); None: the default scenario.
+    stages : sequence of str or None
+        The stages to run (default: all, see :data:`STAGES`); the ones they need must be in it.
+    record : Record or None
+        A measured record (:func:`~powerline_control.io.load_record`): the estimation stage
+        also runs the designed filter on it, at the sensors nearest its positions.
+    progress : callable or None
+        Called with a sentence as each stage starts (e.g. a progress line).
+    keep_partial : bool
+        When a stage fails, return the finished stages' result with ``failure`` set instead of
+        raising (the exception raised otherwise carries it as ``exc.scenario_result``).
+
+    Returns
+    -------
+    ScenarioResult
+
+    Raises
+    ------
+    InputError
+        Bad scenario or stages.
+    PowerlineControlError
+        The failing stage's own error (unless ``keep_partial``).
+
+    Examples
+    --------
+    >>> small = load_scenario(text="[model]\\nn_elements = 16\\n[simulation]\\nduration = 2.0\\n"
+    ...                            "[estimation]\\nn_sensors = 2\\n[robot]\\nclosed_loop = 0")
+    >>> result = run_scenario(small, stages=("model", "records", "identification", "sensors",
+    ...                                      "estimation"))
+    >>> len(result.sensors), result.layouts["chosen"].error_unmeasured_percent < 10
+    (2, True)
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if record is not None:
+        scenario = _with_record_sensors(scenario, record)
+    asked = _check_stages(stages)
+    plan = stage_plan(scenario, asked)
+    state: dict[str, Any] = {"scenario": scenario, "stages": asked, "elapsed": {}}
+    say = progress or (lambda text: None)
+    for stage in plan:
+        say(_STAGE_WORDS[stage](scenario))
+        start = time.perf_counter()
+        try:
+            _run_stage(stage, scenario, state, record, plan)
+        except Exception as exc:  # noqa: BLE001 (recorded, then re-raised or returned)
+            state["elapsed"][stage] = round(time.perf_counter() - start, 3)
+            failure = StageFailure(stage=stage, kind=type(exc).__name__,
+                                   message=" ".join(str(exc).split()), error=exc)
+            result = _result(state, failure)
+            if keep_partial:
+                return result
+            exc.scenario_result = result
+            raise
+        state["elapsed"][stage] = round(time.perf_counter() - start, 3)
+    return _result(state, None)
+
+
+def _result(state: dict, failure) -> ScenarioResult:
+    names = {f.name for f in dataclasses.fields(ScenarioResult)}
+    return ScenarioResult(**{k: v for k, v in state.items() if k in names}, failure=failure)
+
+
+def _with_record_sensors(scenario: Scenario, record) -> Scenario:
+    """The scenario measuring where the record's channels are (its sample interval checked)."""
+    import math
+
+    from ..io import Record
+
+    if not isinstance(record, Record):
+        raise InputError(f"The 'record' parameter must be a Record (load_record). Got "
+                         f"{type(record).__name__}.")
+    record.check_span(scenario.span_length())
+    if not math.isclose(record.dt, scenario.simulation.dt, rel_tol=1e-6):
+        raise InputError(f"{record.source}: sampled at dt = {record.dt:g} s, but the scenario's "
+                         f"model runs at simulation.dt = {scenario.simulation.dt:g} s: set "
+                         f"simulation.dt = {record.dt:g} or resample the record.")
+    est = dataclasses.replace(scenario.estimation, sensors=None,
+                              sensor_positions=tuple(float(x) for x in record.positions))
+    return dataclasses.replace(scenario, estimation=est)
+
+
+def _measured(record, ident: Identification, x) -> MeasuredEstimate:
+    import numpy as np
+
+    x = np.asarray(x)
+    nearest = [int(np.argmin(np.abs(x - p))) for p in record.positions]
+    order = sorted(range(len(nearest)), key=lambda i: nearest[i])
+    nodes, rows = [], []
+    for i in order:
+        if nearest[i] not in nodes:
+            nodes.append(nearest[i])
+            rows.append(i)
+    y = np.asarray(record.values)[rows]
+    estimate = layout_filter(ident.design, nodes).filter(y)
+    return MeasuredEstimate(record=record, nodes=tuple(nodes), estimate=estimate)
+
+
+def _need(state: dict, key: str, stage: str):
+    if state.get(key) is None:
+        raise InputError(f"The stage {stage!r} needs the stage that makes {key!r}; add it to "
+                         "'stages'.")
+    return state[key]
+
+
+def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> None:
+    if stage == "model":
+        state.update(_model(scenario))
+    elif stage == "records":
+        state["records"] = _records(scenario, _need(state, "model", stage), state["force"],
+                                    record)
+    elif stage == "identification":
+        state["identification"] = _identification(
+            scenario, _need(state, "records", stage), state["model"],
+            choose_sensors="sensors" in state["stages"])
+    elif stage == "sensors":
+        state["sensor_count"] = _sensor_count(_need(state, "identification", stage),
+                                              state["model"])
+    elif stage == "estimation":
+        state["layouts"] = _layouts(scenario, _need(state, "records", stage),
+                                    _need(state, "identification", stage), state["model"])
+        if record is not None:
+            state["measured"] = _measured(record, state["identification"],
+                                          state["model"].node_positions)
+    elif stage == "plan":
+        state["plan"] = _plan(scenario, state["records"], _need(state, "layouts", stage),
+                              state["model"], _tuning(state, scenario))
+    elif stage == "closed_loop":
+        sensors = ([int(i) for i in state["identification"].design.sensors]
+                   if state.get("identification") is not None else None)
+        state["closed_loop"] = _closed_loop(scenario, _need(state, "model", stage),
+                                            state["force"], _tuning(state, scenario), sensors)
+    elif stage == "severity":
+        state["severity"] = _severity(scenario, state["span"], _need(state, "model", stage))
+
+
+def _tuning(state: dict, scenario: Scenario) -> Tuning:
+    """The tuned robot, computed once per run."""
+    if state.get("_tuning") is None:
+        state["_tuning"] = tune_robot(scenario, state["model"])
+    return state["_tuning"]
+
+
+_STAGE_WORDS = {
+    "model": lambda s: "building the finite-element model",
+    "records": lambda s: (f"simulating {s.simulation.duration:g} s of motion at dt = "
+                          f"{s.simulation.dt:g} s"
+                          + (" and the identification run" if s.identification.shaker > 0
+                             else "")),
+    "identification": lambda s: (
+        "identifying the model" + ("" if given_sensors_declared(s) else
+                                   f" and choosing {s.estimation.n_sensors} sensor positions "
+                                   "(Kalman criterion)")
+        + " (the recipe's choices judged on held-out data)"),
+    "sensors": lambda s: (f"how many sensors: the predicted error of 1 to "
+                          f"{s.estimation.n_sensors + 2} sensors, each count optimised"),
+    "estimation": lambda s: "Kalman estimation of the whole span on held-out data",
+    "plan": lambda s: "locating antinodes and planning the robot's move",
+    "closed_loop": lambda s: (f"closed loop: {s.robot.closed_loop:g} s of the robot seeking "
+                              "the best parked position, and the same run parked"),
+    "severity": lambda s: "aeolian severity by the energy balance method",
+}

@@ -1,0 +1,650 @@
+"""A ScenarioResult in words and numbers: report sections, the JSON summary, the HTML report.
+
+One unit per quantity everywhere: displacements and noise in mm in text (m in JSON, ``_m``
+keys), estimation errors in per cent (``_percent`` keys), positions in m with the node index
+beside them, frequencies in Hz, times in s, strain in microstrain. Figures are handed over as
+functions that draw them; their captions are generated from the drawn figure
+(:func:`~powerline_control.plotting.figure_caption`), so a caption cannot contradict its figure.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+__all__ = ["result_json", "result_sections", "write_result_report", "UNITS"]
+
+#: The units of the JSON summary's key suffixes.
+UNITS = {
+    "_m": "metres", "_mm": "millimetres", "_s": "seconds", "_hz": "hertz",
+    "_m_s": "metres per second", "_m_s2": "metres per second squared",
+    "_percent": "per cent (of the RMS displacement over the span, for errors)",
+    "_microstrain": "1e-6 (peak-to-peak strain)", "_n": "newtons", "_kg": "kilograms",
+    "(no suffix)": "dimensionless (counts, ratios, indices, spectral radius, alpha)",
+}
+
+
+def mm(value: float) -> str:
+    """A displacement in millimetres, 4 significant digits (``0.01923 mm``)."""
+    return f"{1e3 * value:.4g} mm"
+
+
+def percent(fraction: float) -> str:
+    """A fraction as per cent, 3 significant digits (``0.523 %``)."""
+    return f"{100 * fraction:.3g} %"
+
+
+def positions_text(positions: Sequence[float], nodes: Sequence[int] | None = None,
+                   limit: int = 8) -> str:
+    """Positions in metres (node indices beside them when given); long lists summarised."""
+    import numpy as np
+
+    values = np.asarray(positions, dtype=float)
+    order = np.argsort(values, kind="stable")
+    values = values[order]
+    if values.size > limit:
+        spacing = float(np.median(np.diff(values)))
+        return (f"{values.size} positions from {values[0]:.3g} to {values[-1]:.3g} m, "
+                f"typically {spacing:.3g} m apart")
+    text = ", ".join(f"{v:.4g}" for v in values) + " m"
+    if nodes is not None:
+        ordered = [int(nodes[i]) for i in order]
+        text += f" (nodes {', '.join(str(i) for i in ordered)})"
+    return text
+
+
+def _figure(name: str, draw, purpose: str, look_for: str) -> dict:
+    return {"name": name, "draw": draw, "purpose": purpose, "look_for": look_for}
+
+
+def _plotting():
+    from .. import plotting
+
+    return plotting
+
+
+# ----------------------------------------------------------------------------- sections
+
+def _model_section(r) -> dict:
+    import numpy as np
+
+    sc, span, model = r.scenario, r.span, r.model
+    x = np.asarray(model.node_positions)
+    h = np.diff(x)
+    cond = span.conductor
+    mesh = (f"{model.n_elements} Hermite cubic beam elements of {h.min():.3g} m"
+            if np.ptp(h) < 1e-9 * h.max() else
+            f"{model.n_elements} Hermite cubic beam elements, {h.min():.3g}-{h.max():.3g} m "
+            "long (graded toward the supports)")
+    frequencies = model.natural_frequencies(min(5, model.n_dofs))
+    rows = [
+        ("span", f"{span.length:g} m between supports, tension {span.tension:.4g} N",
+         "The paper's laboratory span (Table 1)" if sc.span.preset == "paper_lab" else
+         f"{sc.span.rts_fraction:.0%} of the conductor's rated tensile strength"
+         if sc.span.tension is None else "tension from the scenario"),
+        ("conductor", f"{cond.name}: {cond.mass_per_length:.4g} kg/m, EI {cond.ei:g} N m^2, "
+         f"diameter {1e3 * cond.diameter:g} mm"),
+        ("wave speed sqrt(T/m)", f"{math.sqrt(span.tension / cond.mass_per_length):.4g} m/s"),
+        ("model", f"{mesh}; {model.n_nodes} nodes, {model.n_dofs} degrees of freedom; "
+         f"{model.bc[0]} / {model.bc[1]} supports",
+         "A Galerkin model of the taut Euler-Bernoulli line: bending stiffness EI plus the "
+         "tension's geometric stiffness."),
+        ("first natural frequencies", ", ".join(f"{f:.4g}" for f in frequencies) + " Hz"),
+        ("load", sc.forcing.describe(span)),
+    ]
+    return {"title": "Span and model", "rows": rows}
+
+
+def _records_section(r) -> dict:
+    import numpy as np
+
+    rec, sim = r.records, r.scenario.simulation
+    snap = rec.test
+    tail = snap.true_displacement[:, -snap.t.size // 4:]
+    rms = float(np.sqrt(np.mean(snap.true_displacement**2)))
+    use = ("the first {:.0%} identify the model, the rest test it" if rec.shaker is None else
+           "the last {:.0%} test the estimator (trained on the identification run below)")
+    share = rec.n_train / snap.t.size if rec.shaker is None else 1 - rec.n_train / snap.t.size
+    rows = [("record", f"{snap.t.size} samples at dt = {snap.dt:g} s ({sim.duration:g} s); "
+             + use.format(share))]
+    if rec.shaker is not None:
+        rows.append(("identification run",
+                     f"the scenario's load plus a broadband shaker ({rec.shaker.std:g} N std, "
+                     f"up to {rec.shaker.bandwidth:g} Hz, at {rec.shaker_position:.4g} m), "
+                     f"{rec.n_train} samples (its own noise): it trains the estimator"
+                     if hasattr(rec.shaker, "std") else
+                     f"the scenario's load plus a broadband shaker at "
+                     f"{rec.shaker_position:.4g} m, {rec.n_train} samples: it trains the "
+                     "estimator"))
+    rows += [
+        ("modes kept", f"{snap.n_modes} of {r.model.n_dofs}"),
+        ("RMS / peak displacement (last quarter)",
+         f"{mm(np.sqrt(np.mean(tail**2)))} / {mm(np.abs(tail).max())}"),
+        ("sensor noise std", f"{mm(snap.noise_std)} "
+         f"({percent(snap.noise_std / rms) if rms > 0 else '0 %'} of the RMS displacement)"),
+        ("simulation time", f"{rec.simulation_s:.2f} s"),
+    ]
+    if rec.measured is not None:
+        m = rec.measured
+        rows.append(("measured record", f"{m.values.shape[1]} samples at {1 / m.dt:g} Hz, "
+                     f"{m.values.shape[0]} channels at " + positions_text(m.positions)
+                     + f"; {int(m.n_missing)} missing samples", f"from {m.source}"))
+    return {"title": "Simulated data", "rows": rows}
+
+
+def _recipe_text(design) -> str:
+    m = design.model
+    excitation = getattr(design, "excitation", None)
+    if excitation is not None and getattr(excitation, "method", "") == "modal":
+        return (f"one undamped oscillator per spectral line of the record "
+                f"({excitation.n_lines} lines) plus white states for unexcited directions; "
+                f"{m.n_states} states in all, trained on {design.n_train} samples")
+    return (f"time-delay DMD, {m.delays} delays ({m.delays * m.dt * 1e3:.3g} ms of history), "
+            f"{m.n_states} states, Tikhonov alpha {m.alpha_relative:.3g} relative (chosen on "
+            f"held-out data), trained on {design.n_train} samples")
+
+
+def _identification_section(r) -> dict:
+    ident = r.identification
+    d, plain = ident.design, ident.plain
+    report = d.model.stability_report(warn=False)
+    radius, plain_radius = float(d.model.spectral_radius), float(plain.spectral_radius)
+    rows = [
+        ("recipe", "the package's recipe (design_estimator): " + _recipe_text(d)),
+        ("spectral radius / unstable eigenvalues",
+         f"{radius:.6f} / {int(report.n_unstable)}",
+         "Largest |eigenvalue| of the identified one-step map. Below 1 the model is stable: "
+         "a Kalman filter and python-control's dlqe accept it."),
+        ("plain DMD (alpha = 0, one delay)", f"spectral radius {plain_radius:.6f}"
+         + (" (ill-conditioned: it inverts round-off)" if ident.plain_ill_conditioned else ""),
+         "The unregularised fit (the paper's eq. 11) on the same training data."),
+        ("sensor noise std (the filter's R)", mm(float(d.noise_std)), d.noise_source),
+    ]
+    smaller = ("plain DMD" if plain_radius < radius else "the recipe's model")
+    compare = (f"Spectral radius: plain DMD {plain_radius:.6f}, the recipe's model "
+               f"{radius:.6f} ({smaller} has the smaller one).")
+    draw = functools.partial(_eigenvalue_figure, plain.eigenvalues, d.model.eigenvalues)
+    return {"title": "Identification", "rows": rows,
+            "intro": "The recipe fits a linear one-step map to the training record: time-delay "
+            "Dynamic Mode Decomposition with Tikhonov regularisation (the regularisation trades "
+            "fit for conditioning; it does not by itself move every eigenvalue inward), or, "
+            "for a narrowband record whose spectral lines explain it, one oscillator per line.",
+            "figures": [_figure("eigenvalues", draw,
+                                "Eigenvalues of plain DMD and of the recipe's model, with the "
+                                "unit circle. " + compare,
+                                "points outside the circle: those modes grow without bound")]}
+
+
+def _eigenvalue_figure(plain, model):
+    return _plotting().plot_eigenvalues({"plain DMD (alpha = 0)": plain,
+                                         "the recipe's model": model})
+
+
+def _sensors_section(r) -> dict:
+    ident = r.identification
+    d = ident.design
+    x = r.records.test.x
+    nodes = [int(i) for i in d.sensors]
+    rows = [("sensors", positions_text([x[i] for i in nodes], nodes), ident.sensors_how)]
+    selection = d.sensor_selection
+    if selection is not None and not ident.sensors_given:
+        k = len(nodes)
+        if selection.certificate == "exhaustive" or selection.gap == 0:
+            text = f"{selection.certificate}: proved the best of all layouts of {k} sensors"
+        else:
+            text = (f"{selection.certificate}: the chosen layout's criterion is at most "
+                    f"{100 * selection.gap:.2g} % above the best possible layout of {k} sensors")
+        rows.append(("optimality certificate", text,
+                     "The relaxation gives a bound no layout can beat; the gap says how far the "
+                     "chosen layout can be from the best possible one, at most."))
+    figures = []
+    if r.sensor_count is not None:
+        study = r.sensor_count
+        draw = functools.partial(_plotting().plot_sensor_count, list(study.k),
+                                 [float(v) for v in study.rms_error],
+                                 [float(v) for v in study.simulated_rms_error])
+        figures.append(_figure("sensor_count", draw,
+                               "How many sensors: the predicted steady-state RMS estimation "
+                               "error per state against the number of sensors, each count "
+                               "optimised, and the same measured on a simulation.",
+                               "where the curve flattens: more sensors than that buy little"))
+    return {"title": "Sensor placement", "rows": rows, "figures": figures}
+
+
+def _estimation_section(r) -> dict:
+    import numpy as np
+
+    snap, n_train = r.records.test, r.records.n_train
+    layouts = r.layouts
+    chosen = layouts["chosen"]
+    rows = []
+    for name, layout in layouts.items():
+        rows.append((f"error at unmeasured nodes: {name}",
+                     f"{layout.error_unmeasured_percent:.3g} % of the RMS displacement, "
+                     + positions_text(layout.positions, layout.nodes),
+                     "RMS over the nodes without a sensor of (estimate - truth), divided by the "
+                     "RMS displacement over the span, on data the model never saw."
+                     if name == "chosen" else layout.note))
+    others = {n: lay for n, lay in layouts.items() if n != "chosen"}
+    if others:
+        best_name = min(others, key=lambda n: others[n].error_unmeasured_percent)
+        ratio = others[best_name].error_unmeasured_percent / max(
+            chosen.error_unmeasured_percent, 1e-300)
+        rows.append(("chosen against the best baseline",
+                     f"{ratio:.3g} x lower error than {best_name}",
+                     "Against the best of the baselines above, not the worst."))
+    if r.records.measured is not None and "measured" in getattr(r, "_extra", {}):
+        pass
+    x = np.asarray(snap.x)
+    unmeasured = [i for i in np.linspace(0, x.size - 1, 5).astype(int)[1:-1]
+                  if i not in chosen.nodes][:3] or [x.size // 2]
+    held = slice(n_train, None)
+    estimate_draw = functools.partial(_plotting().plot_estimate, snap.t[held],
+                                      snap.true_displacement[:, held], chosen.estimate.field,
+                                      [int(i) for i in unmeasured], x)
+    along = {n: lay.error_along_span for n, lay in layouts.items()}
+    along_draw = functools.partial(_plotting().plot_error_along_span, x, along,
+                                   list(chosen.positions))
+    errors = {n: lay.error_unmeasured_percent for n, lay in layouts.items()}
+    positions = {n: list(lay.positions) for n, lay in layouts.items()}
+    layout_draw = functools.partial(_plotting().plot_layouts, errors, positions, float(x[-1]))
+    figures = [
+        _figure("estimate", estimate_draw,
+                "The chosen layout's Kalman estimate against the true displacement at nodes "
+                "without a sensor, on held-out data.",
+                "the estimate sitting on the truth after the first few periods"),
+        _figure("error_along_span", along_draw,
+                "RMS estimation error at every node, % of the RMS displacement over the span, "
+                "for each layout; the chosen sensors marked.",
+                "where each layout loses track of the line"),
+        _figure("layouts", layout_draw,
+                "The chosen layout against the baselines: error at the unmeasured nodes (% of "
+                "the RMS displacement) and where each layout puts its sensors (m).",
+                "the chosen layout's bar against the best baseline's"),
+    ]
+    return {"title": "Estimation (Kalman filter on held-out data)", "rows": rows,
+            "intro": "A steady-state Kalman filter on the identified model reconstructs the "
+            "displacement of every node from the few measured ones. Every layout uses the same "
+            "model and noise model; only the measured nodes differ.", "figures": figures}
+
+
+def _plan_section(r) -> dict:
+    p, robot = r.plan, r.scenario.robot
+    snap = r.records.test
+    loop = p.truth.loop_length
+    rows = [
+        ("antinodes (estimated field)", positions_text([a.position for a in p.antinodes])),
+        ("target", f"{p.choice.position:.4g} m (predicted "
+         f"{100 * p.choice.gain:.0f} % less vibration than at the start)",
+         "The closed loop's rule: the predicted best parked position within reach (the "
+         "nearest of those within 3 % of the best), from the estimated field."),
+        ("nearest antinode", f"{p.target.position:.4g} m (true field: {p.truth.position:.4g} m, "
+         f"{100 * abs(p.target.position - p.truth.position) / loop:.2g} % of a loop length "
+         "apart)", "The estimated antinode nearest the target, checked against the true field."),
+        ("minimum-time move", f"{robot.start:g} m -> {p.choice.position:.4g} m in "
+         f"{p.trajectory.duration:.3g} s (v_max {robot.v_max:g} m/s, a_max "
+         f"{robot.a_max:g} m/s^2)"),
+    ]
+    sensors = [float(snap.x[i]) for i in r.sensors]
+    envelope_draw = functools.partial(
+        _plotting().plot_envelope, snap.x, {"true amplitude": p.envelope},
+        {"estimated antinodes": [a.position for a in p.antinodes], "sensors": sensors})
+    path_draw = functools.partial(_plotting().plot_plan_path, snap.x, p.envelope,
+                                  p.trajectory.t, p.trajectory.position,
+                                  target=p.target.position, target_series=None)
+    figures = [
+        _figure("envelope", envelope_draw,
+                "Vibration amplitude along the span (largest |y| over the held-out record) "
+                "with the estimated antinodes and the sensors.",
+                "the antinode marks on the envelope's peaks"),
+        _figure("robot_path", path_draw,
+                "The robot's planned move under the amplitude envelope, zoomed to where it "
+                "travels.", "the path ending under an envelope peak"),
+    ]
+    return {"title": "Antinodes and motion plan", "rows": rows, "figures": figures}
+
+
+_COMPARISON_WORDS = {
+    "no_robot": "no robot on the line",
+    "near_clamp": "robot parked near a clamp",
+    "start": "robot parked where it started",
+    "best": "robot parked at the best position",
+    "closed_loop": "robot where the closed loop ended",
+}
+
+
+def _where_it_ended(result, final: float) -> str:
+    import numpy as np
+
+    targets = np.asarray(result.target, dtype=float)
+    targets = targets[np.isfinite(targets)]
+    text = ("The robot steers to the parked position predicted to leave the line vibrating "
+            "least, from the sensors' and its own measurements, and undoes a move after which "
+            "the sensors measure more vibration.")
+    if targets.size:
+        text += f" Its last target was {targets[-1]:.4g} m."
+    best = getattr(result, "best_position", float("nan"))
+    loop = getattr(result, "loop_length", float("nan"))
+    if np.isfinite(best) and np.isfinite(loop) and loop > 0:
+        text += (f" The best parked position found by a steady-state scan is {best:.4g} m, "
+                 f"{abs(final - best) / loop:.2g} loop lengths ({loop:.3g} m) from where it "
+                 "ended.")
+    if not getattr(result, "settled", True):
+        text += (" It had not settled when the run ended, so the numbers are over the last "
+                 "second; a longer robot.closed_loop lets it arrive.")
+    return text
+
+
+def _plan_agreement(plan, result, final: float) -> str:
+    if plan is None:
+        return "no plan stage in this run"
+    apart = abs(plan.choice.position - final) / result.loop_length
+    verdict = "agree" if apart <= 0.25 else "differ"
+    return (f"{verdict}: the plan's target {plan.choice.position:.4g} m, the closed loop ended "
+            f"at {final:.4g} m ({apart:.2g} loop lengths apart)"
+            + ("" if verdict == "agree" else
+               "; the closed loop judged from its own run (see its decisions)"))
+
+
+def _closed_loop_section(r) -> dict:
+    import numpy as np
+
+    cl = r.closed_loop
+    result, tuning = cl.result, cl.tuning
+    robot = tuning.robot
+    final = float(result.robot_position[-1])
+    steady = result.comparison("closed_loop").steady
+    x = np.asarray(result.x)
+    rows = [
+        ("robot", f"body {robot.body_mass:g} kg + absorber {robot.suspended_mass:g} kg, "
+         f"absorber tuned ({tuning.how}) to mode {tuning.mode} ({tuning.mode_frequency:.4g} Hz), "
+         f"the mode nearest the load's {tuning.load_frequency:.4g} Hz, for its antinode at "
+         f"{tuning.antinode:.4g} m; starts at {robot.position:g} m"),
+        ("sensors", positions_text([x[i] for i in cl.sensors], cl.sensors)),
+        ("where it ended", f"{final:.4g} m", _where_it_ended(result, final)),
+        ("plan and closed loop", _plan_agreement(r.plan, result, final),
+         "The plan stage applies the closed loop's own targeting rule to the estimated field; "
+         "the closed loop decides from its own sensors while it runs."),
+        ("RMS displacement, steady state" if steady else "RMS displacement, settled window",
+         f"{mm(result.rms_closed_loop)} parked where it ended vs {mm(result.rms_baseline)} "
+         "parked at its start",
+         "The exact steady state under the load with the robot parked there." if steady else
+         "Over the settled window (the load is not one sine)."),
+        ("vibration reduction", f"{float(result.vibration_reduction):.2f}x",
+         "RMS displacement over the span with the robot parked where it started, divided by "
+         "the same with the robot where the closed loop left it (> 1: moving helps)."),
+        ("decisions", "; ".join(f"{t:.3g} s: {what}" for t, what in result.decisions)
+         or "none", "What the robot decided, and when."),
+        ("estimator consistency",
+         "no complete window" if result.estimator_consistency is None else
+         ("consistent" if result.estimator_consistency.consistent else "INCONSISTENT")
+         + " (windowed NIS of the Kalman filter over the run)",
+         "The filter's model was identified with the robot parked at its start; once the robot "
+         "damps the line it may no longer fit. The robot's targeting does not use that "
+         "estimate."),
+        ("planner steps", f"{len(result.statuses)} ({result.statuses.count('safe_stop')} "
+         "safe stops)"),
+        ("real-time factor", f"{float(result.real_time_factor):.2f}",
+         "Simulated seconds per second of computing: above 1 the loop runs faster than the line "
+         "moves, as a controller on the robot must."),
+    ]
+    window = getattr(result, "settled_window", None)
+    if window is not None and window[1] > window[0]:
+        rows.insert(3, ("settled window", f"{window[0]:.3g}-{window[1]:.3g} s"
+                        + ("" if getattr(result, "settled", True) else
+                           " (the robot did not settle: the last second)"),
+                        "The window RMS (beside each steady state below) is over this window, "
+                        "after the robot last arrived."))
+    for comparison in getattr(result, "comparisons", ()):
+        label = _COMPARISON_WORDS.get(comparison.name, comparison.name)
+        where = "" if not np.isfinite(comparison.position) else \
+            f" at {comparison.position:.4g} m"
+        note = f"peak {mm(comparison.peak)}"
+        if comparison.steady:
+            note += (f"; settled window {mm(comparison.window_rms)}"
+                     + (" (still ringing)" if comparison.transient else ""))
+        rows.append((f"RMS: {label}", f"{mm(comparison.rms)}{where}", note))
+    figures = [
+        _figure("closed_loop", functools.partial(_plotting().plot_closed_loop, result),
+                "The closed loop against time: the robot's position and its target, and the "
+                "RMS displacement over the span, robot moving against parked.",
+                "the moving curve falling below the parked one once the robot arrives"),
+        _figure("closed_loop_path", functools.partial(_closed_loop_path, result),
+                "The robot's path in the closed loop over the line's vibration envelope.",
+                "the path settling where the envelope is largest near it, and staying there"),
+    ]
+    return {"title": "Closed loop (robot seeking the best parked position)", "rows": rows,
+            "figures": figures}
+
+
+def _closed_loop_path(result):
+    return _plotting().plot_closed_loop_path(result)
+
+
+def _severity_section(r) -> dict:
+    sev = r.severity
+    bare, robot = sev.bare, sev.robot
+    rows = [("outer strand diameter", f"{1e3 * sev.outer_strand_diameter:.3g} mm",
+             f"from {sev.strand_source}"),
+            ("Poffenberger-Swart distance", f"{1e3 * r.scenario.severity.clamp_distance:g} mm",
+             "Y_b is taken this far from the last point of contact at the clamp.")]
+    for i, speed in enumerate(bare.wind_speed):
+        rows.append((f"wind {speed:g} m/s",
+                     f"{bare.frequency[i]:.3g} Hz, loops {bare.loop_length[i]:.3g} m; antinode "
+                     f"amplitude {mm(bare.amplitude[i])}, clamp strain "
+                     f"{1e6 * bare.strain_pp[i]:.3g} µε peak-to-peak; with the robot "
+                     f"{mm(robot.amplitude[i])}, {1e6 * robot.strain_pp[i]:.3g} µε"))
+    draw = functools.partial(_plotting().plot_severity, [bare, robot])
+    return {"title": "Aeolian severity (energy balance)", "rows": rows,
+            "intro": "For each wind speed the steady antinode amplitude is where the wind's "
+            "power input equals the power the conductor's self-damping (and any damper) "
+            "dissipates; the clamp strain follows from it (Poffenberger-Swart). With the robot: "
+            "its absorber parked at the antinode of each wind speed.",
+            "notes": ["150 µε peak-to-peak is the endurance limit commonly used for ACSR "
+                      "conductors (CIGRE / EPRI)."],
+            "figures": [_figure("severity", draw,
+                                "Antinode amplitude (zero to peak) and peak-to-peak bending "
+                                "strain at the clamp (µε) against wind speed, from the energy "
+                                "balance, without dampers and with the robot.",
+                                "strains above the endurance line: those winds fatigue the "
+                                "conductor")]}
+
+
+def _failure_section(r) -> dict:
+    f = r.failure
+    return {"title": f"Stage failed: {f.stage}",
+            "rows": [("error", f"{f.kind}: {f.message}",
+                      "The stages above finished; their results are kept. The stages after "
+                      "this one did not run.")]}
+
+
+def result_sections(result) -> list:
+    """The report's sections of a :class:`ScenarioResult`, in the order the stages ran.
+
+    Parameters
+    ----------
+    result : ScenarioResult
+        The result.
+
+    Returns
+    -------
+    list of dict
+        Each with "title", "rows" ((label, value, explanation) tuples), optionally "intro",
+        "notes" and "figures" (mappings with "name", "draw", "purpose", "look_for").
+
+    Examples
+    --------
+    >>> from powerline_control.scenario.pipeline import run_scenario
+    >>> [s["title"] for s in result_sections(run_scenario(stages=("model",)))]
+    ['Span and model']
+    """
+    builders = [("model", _model_section), ("records", _records_section),
+                ("identification", _identification_section),
+                ("identification", _sensors_section), ("layouts", _estimation_section),
+                ("plan", _plan_section), ("closed_loop", _closed_loop_section),
+                ("severity", _severity_section)]
+    sections = []
+    for attribute, build in builders:
+        if getattr(result, attribute, None) is not None:
+            if build is _sensors_section and "sensors" not in result.stages \
+                    and not result.identification.sensors_given:
+                continue
+            sections.append(build(result))
+    if result.failure is not None:
+        sections.append(_failure_section(result))
+    return sections
+
+
+# ----------------------------------------------------------------------------- JSON
+
+def _f(value) -> float:
+    return float(value)
+
+
+def result_json(result) -> dict:
+    """The JSON summary of a :class:`ScenarioResult`: units in the keys and a units table.
+
+    Parameters
+    ----------
+    result : ScenarioResult
+        The result.
+
+    Returns
+    -------
+    dict
+        Plain JSON types only.
+
+    Examples
+    --------
+    >>> from powerline_control.scenario.pipeline import run_scenario
+    >>> data = result_json(run_scenario(stages=("model",)))
+    >>> data["n_nodes"], data["span_length_m"], data["units"]["_hz"]
+    (101, 3.66, 'hertz')
+    """
+    r = result
+    out: dict = {"scenario": r.scenario.name, "stages": list(r.stages),
+                 "failure": None if r.failure is None else
+                 {"stage": r.failure.stage, "kind": r.failure.kind,
+                  "message": r.failure.message},
+                 "elapsed_s": dict(r.elapsed)}
+    if r.model is not None:
+        model = r.model
+        out.update(n_nodes=int(model.n_nodes), n_elements=int(model.n_elements),
+                   span_length_m=_f(r.span.length), tension_n=_f(r.span.tension),
+                   frequencies_hz=[_f(f) for f in model.natural_frequencies(
+                       min(5, model.n_dofs))],
+                   load_frequency_hz=_f(r.scenario.forcing.load_frequency(r.span)))
+    if r.records is not None:
+        snap = r.records.test
+        out.update(n_samples=int(snap.t.size), dt_s=_f(snap.dt), n_train=int(r.records.n_train),
+                   noise_std_m=_f(snap.noise_std))
+    if r.identification is not None:
+        d = r.identification.design
+        x = r.records.test.x
+        out.update(spectral_radius=_f(d.model.spectral_radius),
+                   spectral_radius_plain_dmd=_f(r.identification.plain.spectral_radius),
+                   alpha=_f(d.model.alpha), alpha_relative=_f(d.model.alpha_relative),
+                   delays=int(d.model.delays), n_states=int(d.model.n_states),
+                   filter_noise_std_m=_f(d.noise_std),
+                   sensor_nodes=[int(i) for i in d.sensors],
+                   sensor_positions_m=[_f(x[int(i)]) for i in d.sensors])
+    if r.sensor_count is not None:
+        out["sensor_count"] = {"n_sensors": [int(k) for k in r.sensor_count.k],
+                               "predicted_rms_error_m": [_f(v) for v in
+                                                         r.sensor_count.rms_error]}
+    if r.layouts is not None:
+        out["error_unmeasured_percent"] = r.layouts["chosen"].error_unmeasured_percent
+        out["layouts"] = {name: {"error_unmeasured_percent": lay.error_unmeasured_percent,
+                                 "sensor_nodes": list(lay.nodes),
+                                 "sensor_positions_m": list(lay.positions)}
+                          for name, lay in r.layouts.items()}
+    if r.plan is not None:
+        p = r.plan
+        out.update(target_m=_f(p.choice.position), antinode_m=_f(p.target.position),
+                   true_antinode_m=_f(p.truth.position), n_antinodes=len(p.antinodes),
+                   move_duration_s=_f(p.trajectory.duration))
+    if r.closed_loop is not None:
+        res = r.closed_loop.result
+        out.update(vibration_reduction=_f(res.vibration_reduction),
+                   final_robot_position_m=_f(res.robot_position[-1]),
+                   rms_closed_loop_m=_f(res.rms_closed_loop), rms_baseline_m=_f(res.rms_baseline),
+                   real_time_factor=_f(res.real_time_factor),
+                   closed_loop_sensor_nodes=list(r.closed_loop.sensors))
+    if r.severity is not None:
+        bare, robot = r.severity.bare, r.severity.robot
+        out["outer_strand_diameter_m"] = _f(r.severity.outer_strand_diameter)
+        out["severity"] = [
+            {"wind_speed_m_s": _f(bare.wind_speed[i]), "frequency_hz": _f(bare.frequency[i]),
+             "loop_length_m": _f(bare.loop_length[i]), "amplitude_m": _f(bare.amplitude[i]),
+             "strain_pp_microstrain": 1e6 * _f(bare.strain_pp[i]),
+             "robot_amplitude_m": _f(robot.amplitude[i]),
+             "robot_strain_pp_microstrain": 1e6 * _f(robot.strain_pp[i])}
+            for i in range(bare.wind_speed.size)]
+    out["units"] = dict(UNITS)
+    return out
+
+
+# ----------------------------------------------------------------------------- the report
+
+def draw_sections(sections: list) -> list:
+    """Draw each section's figures and caption them from what they draw.
+
+    Parameters
+    ----------
+    sections : list of dict
+        As :func:`result_sections` returns.
+
+    Returns
+    -------
+    list of dict
+        The same sections, each figure with "figure" (matplotlib) and "caption".
+
+    Examples
+    --------
+    >>> draw_sections([{"title": "T", "rows": []}])[0]["figures"]
+    []
+    """
+    plotting = _plotting()
+    out = []
+    for section in sections:
+        figures = []
+        for spec in section.get("figures", ()):
+            fig = spec["draw"]()
+            figures.append({"name": spec["name"], "figure": fig,
+                            "caption": plotting.figure_caption(fig, spec["purpose"],
+                                                               spec["look_for"])})
+        out.append({**section, "figures": figures})
+    return out
+
+
+def write_result_report(result, path: Path, *, version: str | None = None) -> Path:
+    """Write the HTML report of a :class:`ScenarioResult` (one self-contained file).
+
+    Parameters
+    ----------
+    result : ScenarioResult
+        The result.
+    path : Path
+        The HTML file.
+    version : str or None
+        Package version shown (default: this package's).
+
+    Returns
+    -------
+    Path
+
+    Examples
+    --------
+    See :meth:`ScenarioResult.report`.
+    """
+    from .. import __version__
+    from ..report import write_report
+
+    sections = draw_sections(result_sections(result))
+    scenario = result.scenario
+    return write_report(path, f"powerline_control: {scenario.name}", sections,
+                        __version__ if version is None else version,
+                        scenario_name=scenario.name,
+                        scenario_description=scenario.scenario.description)
