@@ -237,3 +237,17 @@ def test_rainflow_of_a_constant_signal_has_no_range_and_no_damage():
     assert np.all(plc.rainflow_count([1.0, 1.0, 1.0]).ranges == 0.0)   # as the library says
     assert plc.rainflow_count([]).counts.size == 0
     assert plc.rainflow_damage(np.zeros(10)) == 0.0
+
+
+def test_with_limits_equals_a_fresh_run_with_those_limits():
+    record = _changing_record()
+    life = plc.fatigue_over_record(DRAKE, record, ROBOT, LIMITS)
+    for limits in (plc.RobotLimits(0.01, 0.05), plc.RobotLimits(2.0, 4.0, j_max=10.0)):
+        fresh = plc.fatigue_over_record(DRAKE, record, ROBOT, limits)
+        swapped = life.with_limits(limits)
+        for name in fresh:
+            assert swapped[name].damage_per_year == fresh[name].damage_per_year
+        np.testing.assert_array_equal(swapped.move_time, fresh.move_time)
+        assert swapped.assumptions == fresh.assumptions
+    with pytest.raises(plc.InputError, match="limits"):
+        life.with_limits(0.3)

@@ -1058,11 +1058,13 @@ def _clamp_stress(span: Span, frequency: float, amplitude: float, *, strand: flo
     return bending, k_ps * bending, sigma_fy
 
 
-def _solve_balance(balance, y_high: float, scale: float) -> tuple[float, str]:
+def _solve_balance(balance, y_high: float, scale: float, on_grid=None) -> tuple[float, str]:
     """Root of balance(y) = P_w - P_c - P_d on (0, y_high]: the first sign change on a
-    logarithmic scan, polished by Brent's method."""
+    logarithmic scan, polished by Brent's method. ``on_grid`` evaluates the same balance on an
+    array at once (the scan, elementwise the same arithmetic as ``balance``)."""
     grid = np.geomspace(1e-9 * scale, y_high, 240)
-    values = np.array([balance(y) for y in grid])
+    values = (np.array([balance(y) for y in grid]) if on_grid is None
+              else np.asarray(on_grid(grid), dtype=float))
     if values[0] <= 0:
         return 0.0, "no vibration"
     negative = np.flatnonzero(values <= 0)
@@ -1209,7 +1211,11 @@ def aeolian_severity(
             return float(base * curve.reduced_power(y / d) - law.power(y, f, span)
                          - coefficient * y * y)
 
-        y, state = _solve_balance(balance, y_high, d)
+        def on_grid(y, f=f, base=base, coefficient=coefficient):
+            return base * curve.reduced_power(y / d) - law.power(y, f, span) \
+                - coefficient * y * y
+
+        y, state = _solve_balance(balance, y_high, d, on_grid)
         status.append(state)
         yb, sps, sfy = _clamp_stress(span, f, y, strand=strand, modulus=modulus, x_b=x_b)
         out["frequency"][i], out["loop"][i], out["amplitude"][i] = f, loop, y
