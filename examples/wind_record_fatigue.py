@@ -1,0 +1,97 @@
+"""Fatigue life of a Drake span over a wind record, and what the robot is worth (issue 23).
+
+Reads the shipped synthetic record examples/data/wind_record_28d.csv (four weeks of 10-minute
+means, made by examples/make_wind_record.py with seed 2026) and, for a 300 m Drake ruling span at
+20 % RTS at 15 degC on a north-south line:
+
+1. tension per record from the change of state at the air temperature, wind normal to the line,
+   turbulence per record; the energy balance, clamp strain and Miner damage on the safe border
+   line for no damper, the robot's damper fixed at x*, and the robot moving to the nearest
+   antinode whenever the loop pattern changes (6 kg body, 1.5 kg absorber at 15 Hz, zeta 0.3;
+   v_max 0.3 m/s, a_max 0.5 m/s^2);
+2. how the robot's life changes with its speed limit;
+3. figures: damage by wind speed, and the robot's positions over the first week.
+
+Run: python examples/wind_record_fatigue.py OUTPUT_FOLDER   (about 10 s; writes
+wind_record_damage_by_speed.png and wind_record_robot_week.png there)
+"""
+
+from __future__ import annotations
+
+import pathlib
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402 (after the backend is chosen)
+import numpy as np  # noqa: E402
+
+import powerline_control as plc  # noqa: E402
+
+RECORD = pathlib.Path(__file__).resolve().parent / "data" / "wind_record_28d.csv"
+SPEED_LIMITS = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+LABELS = {"no_damper": "no damper", "fixed_damper": "fixed damper at x*", "robot": "robot"}
+
+
+def main(output: pathlib.Path) -> dict:
+    output.mkdir(parents=True, exist_ok=True)
+    record = plc.WindRecord.from_csv(RECORD)
+    span = plc.Span.at_rts_fraction(300.0, "drake", 0.20)
+    robot = plc.MDR.tuned(0.0, body_mass=6.0, suspended_mass=1.5, frequency=15.0,
+                          damping_ratio=0.3)
+    limits = plc.RobotLimits(v_max=0.3, a_max=0.5)
+    life = plc.fatigue_over_record(span, record, robot, limits, line_azimuth=0.0)
+    print(f"Record: {record.n_records} x {record.step:g} s; tension "
+          f"{life.tension.min() / 1e3:.2f}-{life.tension.max() / 1e3:.2f} kN over "
+          f"{record.temperature.min():.1f}-{record.temperature.max():.1f} degC")
+    print(life.summary())
+
+    print("Robot's life against its speed limit (a_max 0.5 m/s^2):")
+    print("  v_max (m/s)  mean move time per record (s)  damage/year  life (years)")
+    sweep = {}
+    for v_max in SPEED_LIMITS:
+        other = life.with_limits(plc.RobotLimits(v_max=v_max, a_max=0.5))
+        sweep[v_max] = other["robot"].life_years
+        print(f"  {v_max:10.3f}  {other.move_time[other.vibrating].mean():29.1f}  "
+              f"{other['robot'].damage_per_year:11.3g}  {other['robot'].life_years:12.3g}")
+
+    # Damage by normal wind speed (0.5 m/s bins), per configuration.
+    edges = np.arange(1.0, 7.51, 0.5)
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    fig, ax = plt.subplots(figsize=(7, 4))
+    width = 0.14
+    for k, name in enumerate(life.configurations):
+        per_bin = np.array([life[name].damage[(life.normal_speed >= a) & (life.normal_speed < b)]
+                            .sum() for a, b in zip(edges[:-1], edges[1:], strict=True)])
+        ax.bar(centres + (k - 1) * width, per_bin / life.years, width, label=LABELS[name])
+    ax.set_yscale("log")
+    ax.set_xlabel("wind speed normal to the line (m/s)")
+    ax.set_ylabel("Miner damage per year from the bin")
+    ax.set_title("Drake 300 m, 20 % RTS at 15 degC: damage by wind speed over the record")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(output / "wind_record_damage_by_speed.png", dpi=110)
+    plt.close(fig)
+
+    # The robot's positions over the first week.
+    week = record.time < 7 * 86400.0
+    days = record.time[week] / 86400.0
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    top.plot(days, life.normal_speed[week], lw=0.8)
+    top.axhspan(1.0, 7.0, color="0.9", zorder=0)
+    top.set_ylabel("normal wind (m/s)")
+    bottom.step(days, life.robot_position[week], where="post", lw=0.8, label="robot")
+    bottom.axhline(life.fixed_position, color="k", ls="--", lw=0.8, label="fixed damper x*")
+    bottom.set_ylabel("position from the clamp (m)")
+    bottom.set_xlabel("day of the record")
+    bottom.legend(loc="upper right")
+    top.set_title("The robot's parking position over a week (nearest antinode of each pattern)")
+    fig.tight_layout()
+    fig.savefig(output / "wind_record_robot_week.png", dpi=110)
+    plt.close(fig)
+    return {"life": {name: life[name].life_years for name in life}, "speed_limit": sweep}
+
+
+if __name__ == "__main__":
+    main(pathlib.Path(sys.argv[1]) if len(sys.argv) > 1 else pathlib.Path("."))
