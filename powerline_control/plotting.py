@@ -554,7 +554,8 @@ def plot_closed_loop_path(result, ax=None) -> Figure:
     field = np.abs(np.asarray(result.displacement)[:, : n_blocks * block])
     envelope = field.reshape(field.shape[0], n_blocks, block).max(axis=2)
     image = ax.pcolormesh(result.x, t[: n_blocks * block : block] + 0.5 * block * dt,
-                          1e3 * envelope.T, shading="nearest", cmap="magma")
+                          1e3 * envelope.T, shading="nearest", cmap="magma",
+                          rasterized=True)  # one image in the SVG: no seams between cells
     fig.colorbar(image, ax=ax, label="envelope (mm)")
     ax.plot(result.robot_position, t, "c-", lw=1.5, label="robot")
     ax.plot(result.target, t, "w:", lw=1, label="target")
@@ -590,7 +591,7 @@ def _colour_mapped(ax) -> bool:
 
 
 def _plain(label: str) -> str:
-    return " ".join(str(label).replace("\n", " ").split())
+    return " ".join(str(label).replace("\n", ", ").split())
 
 
 _LINESTYLES = {"-": "solid", "--": "dashed", ":": "dotted", "-.": "dash-dot"}
@@ -637,7 +638,13 @@ def describe_figure(fig) -> dict:
     ['a']
     """
     panels = []
-    for ax in _panels(fig):
+    ordered = _panels(fig)
+    for ax in ordered:
+        xlabel = ax.get_xlabel()
+        if not xlabel:  # a shared axis is labelled once, under the bottom panel
+            xlabel = next((other.get_xlabel() for other in ordered if other is not ax
+                           and other.get_xlabel()
+                           and ax.get_shared_x_axes().joined(ax, other)), "")
         legend = ax.get_legend()
         labels = []
         if legend:
@@ -645,7 +652,7 @@ def describe_figure(fig) -> dict:
             for text, handle in zip(legend.get_texts(), handles, strict=False):
                 style = _style(handle)
                 labels.append(_plain(text.get_text()) + (f" {style}" if style else ""))
-        panels.append({"xlabel": _plain(ax.get_xlabel()), "ylabel": _plain(ax.get_ylabel()),
+        panels.append({"xlabel": _plain(xlabel), "ylabel": _plain(ax.get_ylabel()),
                        "legend": labels, "y_inverted": bool(ax.yaxis_inverted()),
                        "x_inverted": bool(ax.xaxis_inverted()),
                        "colour_map": _colour_mapped(ax)})

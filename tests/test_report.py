@@ -135,7 +135,7 @@ def test_report_has_no_network_reference_and_words_not_reprs(report):
 
 
 def test_long_lists_are_summarised():
-    from powerline_control.cli import _summarise_positions
+    from powerline_control.scenario.summary import positions_text as _summarise_positions
 
     # 90 antinodes 3.3 m apart: one line of count, range and spacing, not 90 numbers.
     line = _summarise_positions([1.65 + 3.3 * i for i in range(90)])
