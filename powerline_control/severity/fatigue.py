@@ -145,7 +145,8 @@ class FatigueOverRecord(Mapping):
     years: float
     assumptions: tuple = ()
     parameters: dict = field(default_factory=dict, repr=False)
-    _robot_inputs: dict = field(default_factory=dict, repr=False)
+    # what with_limits needs to redo the robot's moves (set by fatigue_over_record)
+    _robot_inputs: dict = field(default_factory=dict, repr=False, init=False)
 
     def with_limits(self, limits: RobotLimits) -> FatigueOverRecord:
         """The same record with another robot: only the robot's moves are recomputed (the
@@ -181,10 +182,12 @@ class FatigueOverRecord(Mapping):
                 f"{self.parameters['en_route']}")
         assumptions = tuple(text if a.startswith("fixed damper at") else a
                             for a in self.assumptions)
-        return dataclasses.replace(self, results={**self.results, "robot": robot},
-                                   robot_position=read_only(positions),
-                                   move_time=read_only(move_time), assumptions=assumptions,
-                                   parameters={**self.parameters, "limits": limits})
+        other = dataclasses.replace(self, results={**self.results, "robot": robot},
+                                    robot_position=read_only(positions),
+                                    move_time=read_only(move_time), assumptions=assumptions,
+                                    parameters={**self.parameters, "limits": limits})
+        object.__setattr__(other, "_robot_inputs", self._robot_inputs)
+        return other
 
     def __getitem__(self, configuration: str) -> RecordDamage:
         try:
@@ -524,7 +527,7 @@ def fatigue_over_record(
     assumptions = _assumptions(span, reference_temperature, line_azimuth, low, high, layers,
                                fixed_position, move, limits, en_route, speed_step, tension_step,
                                turbulence_step)
-    return FatigueOverRecord(
+    result = FatigueOverRecord(
         configurations=CONFIGURATIONS, results=results, normal_speed=read_only(normal),
         tension=read_only(tension), frequency=read_only(out["robot"]["frequency"].copy()),
         loop_length=read_only(out["robot"]["loop_length"].copy()),
@@ -535,8 +538,9 @@ def fatigue_over_record(
                         band=(low, high), move=move, en_route=en_route, speed_step=speed_step,
                         tension_step=tension_step, turbulence_step=turbulence_step,
                         step=step, layers=layers, endurance_strain_pp=endurance,
-                        limits=limits, **options),
-        _robot_inputs=inputs)
+                        limits=limits, **options))
+    object.__setattr__(result, "_robot_inputs", inputs)
+    return result
 
 
 # --------------------------------------------------------------------------- rainflow
