@@ -251,3 +251,25 @@ def test_with_limits_equals_a_fresh_run_with_those_limits():
         assert swapped.assumptions == fresh.assumptions
     with pytest.raises(plc.InputError, match="limits"):
         life.with_limits(0.3)
+
+
+def test_rainflow_of_the_time_domain_stress_history_matches_the_energy_balance():
+    """time_domain_check's simulated history (Drake 30 m, 20 % RTS, ~2 m/s, 60 elements),
+    counted by rainflow: 8 cycles in 8 periods, and a damage rate equal to the energy balance's
+    f / N_SBL(sigma_a) to the simulated amplitude's error raised to the S-N slope (1/0.17 = 5.9:
+    -0.13 % in amplitude is -0.8 % in damage), and to f / N_SBL at the simulated amplitude to
+    the sampling of the peaks (64 samples per period: cos(pi / 64) - 1 = -0.12 % at worst)."""
+    check = plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
+                                  n_elements=60)
+    count = plc.rainflow_count(check.clamp_stress)
+    assert count.counts.sum() == pytest.approx(8.0)
+    duration = check.clamp_time[-1] - check.clamp_time[0]
+    rate = plc.rainflow_damage(check.clamp_stress) / duration
+    ebm_rate = check.frequency / _sbl_cycles(check.ebm_stress, "multi")
+    assert rate == pytest.approx(ebm_rate, rel=0.02)
+    simulated_stress = check.ebm_stress * (1 + check.relative_error)
+    assert rate == pytest.approx(check.frequency / _sbl_cycles(simulated_stress, "multi"),
+                                 rel=6 * 0.0013)
+    pinned = plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
+                                   n_elements=40, bc="pinned")
+    assert pinned.clamp_stress is None          # no clamp, no Poffenberger-Swart history

@@ -1664,6 +1664,16 @@ class TimeDomainCheck:
         C_L of the aeolian load whose power at Y equals P_w(Y): q = 4 P_w / (omega Y).
     n_elements : int
         FE mesh of the simulation.
+    clamp_time : ndarray or None
+        Sample times of ``clamp_stress``, s (clamped supports only; None otherwise).
+    clamp_stress : ndarray or None
+        Clamp stress history, Pa: the simulated antinode displacement y(t) times the energy
+        balance's sigma_a / Y (its clamp stress per metre of antinode amplitude; the FE mesh
+        does not resolve the clamp's few-centimetre boundary layer, so the clamp displacement
+        is not read from it). Eight periods at 64 samples per period, for a rainflow count
+        (:func:`~powerline_control.severity.fatigue.rainflow_damage`).
+    ebm_stress : float or None
+        The energy balance's Poffenberger-Swart stress amplitude at the clamp, Pa.
 
     Examples
     --------
@@ -1681,6 +1691,9 @@ class TimeDomainCheck:
     damping_ratio: float
     lift_coefficient: float
     n_elements: int
+    clamp_time: np.ndarray | None = field(default=None, repr=False)
+    clamp_stress: np.ndarray | None = field(default=None, repr=False)
+    ebm_stress: float | None = None
 
 
 def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str = "clamped",
@@ -1799,11 +1812,28 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     snap = simulate(model, force, duration=4 * period, dt=period / samples,
                     initial_state=settling.final_state, start_time=float(settling.t[-1]))
     # The steady response to a sine has no mean: the fit needs no constant.
-    simulated = float(np.max(np.abs(fit_phasors(snap.true_displacement, snap.t, f,
-                                                constant=False))))
+    phasors = np.abs(fit_phasors(snap.true_displacement, snap.t, f, constant=False))
+    simulated = float(np.max(phasors))
+    clamp_time = clamp_stress = ebm_stress = None
+    if bc == "clamped":
+        # A stress history for a rainflow count: the simulated antinode displacement, on a fine
+        # grid continuing the same steady state, times the energy balance's clamp stress per
+        # metre of antinode amplitude (sigma_a / Y: the clamped standing wave's shape at x_b
+        # and Poffenberger-Swart's K). The FE mesh does not resolve the clamp's boundary layer
+        # (1/alpha, a few cm), so the clamp displacement itself is not read from it.
+        antinode = float(snap.x[int(np.argmax(phasors))])
+        history = simulate(model, force, duration=8 * period, dt=period / 64,
+                           initial_state=settling.final_state,
+                           start_time=float(settling.t[-1]), outputs=[antinode])
+        clamp_time = read_only(np.asarray(history.t, dtype=float))
+        clamp_stress = read_only(float(sev.stress_ps[0]) / y
+                                 * np.asarray(history.true_displacement[0], dtype=float))
+        ebm_stress = float(sev.stress_ps[0])
     return TimeDomainCheck(wind_speed=speed, frequency=f, mode=index + 1, ebm_amplitude=y,
                            simulated_amplitude=simulated, relative_error=simulated / y - 1,
-                           damping_ratio=zeta, lift_coefficient=lift, n_elements=n_elements)
+                           damping_ratio=zeta, lift_coefficient=lift, n_elements=n_elements,
+                           clamp_time=clamp_time, clamp_stress=clamp_stress,
+                           ebm_stress=ebm_stress)
 
 
 # --------------------------------------------------------------------------- TB 273 H/w
