@@ -583,7 +583,7 @@ span (0 < x < 3.66 m).
 
 
 def _column(x: float) -> str:
-    return f"x_{x:.6g}_m"
+    return f"x_{x:.10g}_m"
 
 
 def save_record(path: str | os.PathLike[str], record: Record) -> list:

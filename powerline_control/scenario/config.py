@@ -292,6 +292,11 @@ class SeverityConfig:
         0.089, "m", "Where the bending amplitude Y_b is taken: this far from the last point of "
         "contact at the clamp (IEEE: 89 mm).", low=0.0, high=10.0,
         when=("enabled", (True,)))
+    rated_strength: float | None = _key(
+        None, "N", "Rated tensile strength for the self-damping normalisation (Lilien: k = "
+        "D / sqrt(m RTS)); unset: the conductor's (the lab span: the catalogue value of AAC "
+        "2/0 Oxlip, the conductor Table 1 matches, about 11 kN).", kind="real", low=0.0,
+        high=1e7, when=("enabled", (True,)))
     ei: float | None = _key(
         None, "N m^2", "Bending stiffness EI_min of the stranded conductor for the severity "
         "study (loop lengths and clamp stress); unset: the conductor's own EI.", kind="real",

@@ -926,15 +926,56 @@ def severity_inputs(scenario: Scenario, span) -> tuple[dict, str]:
     return kwargs, source
 
 
+def severity_span(scenario: Scenario, span):
+    """The span the severity study uses: the scenario's EI and rated strength, when set.
+
+    The lab span's conductor (Table 1) has no rated strength; the severity study takes the
+    catalogue value of AAC 2/0 Oxlip, the conductor Table 1 matches (:data:`LAB_CONDUCTOR`).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``severity`` and ``span`` sections.
+    span : Span
+        The span.
+
+    Returns
+    -------
+    Span
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> span = severity_span(load_scenario(), plc.Span.paper_lab())
+    >>> span.conductor.rated_strength == plc.conductors[LAB_CONDUCTOR].rated_strength
+    True
+    """
+    from ..line import conductors
+
+    sev = scenario.severity
+    changes = {}
+    if sev.ei is not None:
+        changes["ei"] = sev.ei
+    if sev.rated_strength is not None:
+        changes["rated_strength"] = sev.rated_strength
+    elif span.conductor.rated_strength is None and scenario.span.preset == "paper_lab":
+        changes["rated_strength"] = conductors[LAB_CONDUCTOR].rated_strength
+    if not changes:
+        return span
+    return dataclasses.replace(span, conductor=dataclasses.replace(span.conductor, **changes))
+
+
+#: The catalogue conductor the paper's lab span (Table 1) matches.
+LAB_CONDUCTOR = "oxlip"
+
+
 def _severity(scenario: Scenario, span, model) -> Severity:
     import numpy as np
 
     from ..severity import AtAntinode, aeolian_severity
 
+    span = severity_span(scenario, span)
     sev = scenario.severity
-    if sev.ei is not None:
-        span = dataclasses.replace(span, conductor=dataclasses.replace(span.conductor,
-                                                                       ei=sev.ei))
     kwargs, source = severity_inputs(scenario, span)
     speeds = np.asarray(sev.wind_speeds, dtype=float)
     bare = aeolian_severity(span, wind_speeds=speeds, **kwargs)

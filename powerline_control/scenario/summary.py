@@ -428,6 +428,8 @@ def _severity_section(r) -> dict:
     bare, robot = sev.bare, sev.robot
     rows = [("outer strand diameter", f"{1e3 * sev.outer_strand_diameter:.3g} mm",
              f"from {sev.strand_source}"),
+            ("rated strength (self-damping)", f"{_rated(r) / 1e3:.4g} kN",
+             "Normalises the self-damping law (Lilien k = D / sqrt(m RTS))."),
             ("Poffenberger-Swart distance", f"{1e3 * r.scenario.severity.clamp_distance:g} mm",
              "Y_b is taken this far from the last point of contact at the clamp.")]
     for i, speed in enumerate(bare.wind_speed):
@@ -450,6 +452,12 @@ def _severity_section(r) -> dict:
                                 "balance, without dampers and with the robot.",
                                 "strains above the endurance line: those winds fatigue the "
                                 "conductor")]}
+
+
+def _rated(r) -> float:
+    from .pipeline import severity_span
+
+    return float(severity_span(r.scenario, r.span).conductor.rated_strength or float("nan"))
 
 
 def _failure_section(r) -> dict:
