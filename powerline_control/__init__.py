@@ -53,7 +53,10 @@ _LAZY_EXPORTS = {
         "load_model", "save_model", "Record", "load_record", "save_record",
     ),
     "recipe": (
-        "EstimatorDesign", "design_estimator",
+        "Coverage", "EstimatorDesign", "design_estimator",
+    ),
+    "_severity_clamp": (
+        "ClampStrainEstimate", "estimate_clamp_strain",
     ),
     "estimate": (
         "Accuracy", "Consistency", "Estimate", "KalmanFilter", "estimation_accuracy",
@@ -158,6 +161,7 @@ __all__ = [
     "Baseline",
     "catenary_check",
     "CatenaryCheck",
+    "ClampStrainEstimate",
     "Choice",
     "choose_parked_position",
     "ClosedLoopResult",
@@ -165,6 +169,7 @@ __all__ = [
     "Conductor",
     "conductors",
     "Consistency",
+    "Coverage",
     "damper_impedance",
     "damper_power",
     "DampingReport",
@@ -172,6 +177,7 @@ __all__ = [
     "design_estimator",
     "DMDModel",
     "Estimate",
+    "estimate_clamp_strain",
     "estimation_accuracy",
     "EstimationError",
     "EstimatorInconsistentWarning",

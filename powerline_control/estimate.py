@@ -37,6 +37,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.stats as sstats
 
+from ._estimate_spectrum import spectral_test, whitened_psd, whitening_factor
 from ._riccati import (
     describe_modes,
     filter_gain,
@@ -481,6 +482,16 @@ class KalmanFilter:
         :meth:`filter` when the test rejects (default False: the test always runs and
         ``Estimate.consistency`` always says what it found; a filter on a textbook model with
         an assumed ``Q`` would otherwise warn on every record it does not describe).
+    spectral_reference : array_like, optional
+        ``(segment // 2 + 1,)`` whitened innovation power per frequency bin on records the model
+        describes (measured on held-out data by
+        :func:`~powerline_control.recipe.design_estimator`). With it, :meth:`filter` also runs
+        the spectral test (see :class:`Consistency`): a bin whose power exceeds the reference by
+        far rejects the record, which catches a load driving modes the training never saw even
+        when the NIS summed over all frequencies hardly moves. Default ``None``: no spectral
+        test.
+    spectral_reference_count : int
+        Segments times channels averaged in ``spectral_reference`` (its sampling spread).
 
     Attributes
     ----------
@@ -559,6 +570,8 @@ class KalmanFilter:
         consistency_window: int | None = DEFAULT_CONSISTENCY_WINDOW,
         nis_dof_fraction: float = 1.0,
         warn_inconsistent: bool = False,
+        spectral_reference: object = None,
+        spectral_reference_count: int = 1,
     ) -> None:
         sys = check_discrete_system("sys", sys)
         if not isinstance(warn_inconsistent, bool):
@@ -568,6 +581,18 @@ class KalmanFilter:
         self._window = (None if consistency_window is None
                         else check_int("consistency_window", consistency_window, low=1))
         self._dof_fraction = check_real("nis_dof_fraction", nis_dof_fraction, low=0.0, high=1.0)
+        self._spectral_ref = None
+        self._spectral_count = check_int("spectral_reference_count", spectral_reference_count,
+                                         low=1)
+        if spectral_reference is not None:
+            ref = check_array("spectral_reference", spectral_reference, ndim=1)
+            if ref.size < 3 or ref.size % 2 == 0 or np.any(ref < 0):
+                raise InputError(
+                    "The 'spectral_reference' parameter must hold the whitened innovation power "
+                    "of segment // 2 + 1 bins (an odd count >= 3, every value >= 0). Got "
+                    f"{ref.size} values, smallest {float(ref.min()):.3g}."
+                )
+            self._spectral_ref = read_only(ref.copy())
         self._A = np.array(sys.A, dtype=float)
         self._B = np.array(sys.B, dtype=float)
         self._C = np.array(sys.C, dtype=float)
@@ -760,6 +785,34 @@ class KalmanFilter:
     def steady_covariance(self) -> np.ndarray:
         """Steady-state posterior covariance ``P[k|k]`` from the Riccati equation, ``(n, n)``."""
         return read_only(self._steady_solution()[1].copy())
+
+    @property
+    def innovation_covariance(self) -> np.ndarray:
+        """Steady-state innovation covariance ``S = C P C^T + R + epsilon I``, ``(p, p)``.
+
+        ``P`` is the steady predicted covariance of the Riccati equation; the innovations of a
+        consistent filter have this covariance, and the NIS is ``e^T S^-1 e``.
+
+        Examples
+        --------
+        >>> import control as ct
+        >>> kf = KalmanFilter(ct.ss([[1.0]], [[0.0]], [[1.0]], 0, dt=1.0), Q=1.0, R=1.0)
+        >>> float(kf.innovation_covariance[0, 0].round(4))   # P = (1 + sqrt 5) / 2, S = P + 1
+        2.618
+        """
+        predicted = self._steady_solution()[2]
+        s = self._C @ predicted @ self._C.T + self._r_eff
+        return read_only((s + s.T) / 2)
+
+    @property
+    def spectral_reference(self) -> np.ndarray | None:
+        """Reference whitened innovation power per bin of the spectral test (``None``: off)."""
+        return self._spectral_ref
+
+    @property
+    def spectral_reference_count(self) -> int:
+        """Segments times channels averaged in :attr:`spectral_reference` (as given)."""
+        return self._spectral_count
 
     def _measure(self, x: np.ndarray) -> np.ndarray:
         return x[self._sel] if self._sel is not None else self._C @ x
@@ -977,6 +1030,8 @@ class KalmanFilter:
             return estimate
         consistency = filter_consistency(estimate, window=self._window,
                                          dof_fraction=self._dof_fraction)
+        if self._spectral_ref is not None:
+            consistency = self._spectral_consistency(consistency, innovations, run)
         if self._warn and not consistency.consistent:
             warnings.warn(
                 consistency.message + " Neither the estimate nor its variances describe this "
@@ -986,6 +1041,26 @@ class KalmanFilter:
                 stacklevel=2,
             )
         return dataclasses.replace(estimate, consistency=consistency)
+
+    def _spectral_consistency(self, consistency: Consistency, innovations: np.ndarray,
+                              run: _Recursion) -> Consistency:
+        """``consistency`` with the spectral test of the whitened innovations added."""
+        if not run.converged:
+            return consistency
+        if run.s_factor is not None:
+            factor = np.tril(run.s_factor[0])
+        else:
+            s = self._C @ run.predicted_ss @ self._C.T + self._r_eff
+            factor = whitening_factor(s)
+        segment = 2 * (self._spectral_ref.size - 1)
+        psd, n_avg = whitened_psd(innovations, factor, discard=self._window, segment=segment)
+        fields = spectral_test(psd, n_avg, self._spectral_ref, self._spectral_count)
+        fields["spectral_ratio"] = read_only(fields["spectral_ratio"])
+        fields["spectral_rejected"] = read_only(fields["spectral_rejected"])
+        dt = 1.0 if self.dt is None else self.dt
+        fields["spectral_frequencies"] = read_only(np.fft.rfftfreq(segment, dt))
+        consistent = consistency.consistent and fields["spectral_consistent"] is not False
+        return dataclasses.replace(consistency, consistent=consistent, **fields)
 
     # ------------------------------------------------------------------ batch recursion
 
@@ -1289,9 +1364,17 @@ class Consistency:
         Windows tested: every full window after the first (which holds the filter's transient
         from its prior) that has a measurement.
     consistent : bool
-        False when the number of rejected windows exceeds the 99 % quantile of a binomial law
-        with ``n_tested`` trials of probability 1 % (the run-level test at 1 %); True when no
-        window could be tested.
+        False when the number of windows rejected *above* their bounds (innovations larger than
+        the filter's covariance says: an overconfident estimate) exceeds the 99 % quantile of a
+        binomial law with ``n_tested`` trials of probability 1 % (the run-level test at 1 %), or
+        when the spectral test rejects; True when no window could be tested. Windows below
+        their bounds make the run ``pessimistic`` instead.
+    pessimistic : bool
+        As many windows rejected *below* their bounds: the innovations are smaller than the
+        filter's covariance says (a reported sigma larger than the error, the safe side; typical
+        of a record still ringing up from rest, whose model error grows with the field). Not a
+        reason to warn: a load the model does not know raises the innovations at some
+        frequency, which the spectral test sees even when the total NIS falls.
     dof_fraction : float
         Share of the nominal degrees of freedom treated as independent (1 for the white
         innovations of an exact model; below 1 when a design measured on held-out data that its
@@ -1302,6 +1385,23 @@ class Consistency:
     nees_rejected : numpy.ndarray or None
         Indices into ``window_nees`` of windows outside their 1 % chi-square bounds (estimation
         errors are correlated in time: a guide, as ``nees_bounds``).
+    spectral_frequencies : numpy.ndarray or None
+        Frequencies (Hz; cycles per sample without ``dt``) of the spectral test's bins, when the
+        filter carries a ``spectral_reference`` (every filter
+        :func:`~powerline_control.recipe.design_estimator` builds from a broadband record).
+    spectral_ratio : numpy.ndarray or None
+        The record's whitened innovation power in each bin over the reference's (1: like the
+        held-out part of the training record; far above 1: power the model does not predict,
+        a load that drives modes the training never saw).
+    spectral_threshold : float or None
+        The ratio above which a bin is rejected: the larger of a fixed factor (two matched
+        records of an identified model differ by more than sampling) and the F quantile at 1 %
+        with a Bonferroni correction over the bins.
+    spectral_rejected : numpy.ndarray or None
+        Indices of the rejected bins.
+    spectral_consistent : bool or None
+        No bin rejected (``None``: no spectral test). ``consistent`` is False when either the
+        windowed NIS test or the spectral test rejects.
 
     Examples
     --------
@@ -1333,9 +1433,15 @@ class Consistency:
     rejected: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, int)))
     n_tested: int = 0
     consistent: bool = True
+    pessimistic: bool = False
     dof_fraction: float = 1.0
     window_nees: np.ndarray | None = None
     nees_rejected: np.ndarray | None = None
+    spectral_frequencies: np.ndarray | None = None
+    spectral_ratio: np.ndarray | None = None
+    spectral_threshold: float | None = None
+    spectral_rejected: np.ndarray | None = None
+    spectral_consistent: bool | None = None
 
     def __post_init__(self) -> None:
         _freeze_arrays(self)
@@ -1351,10 +1457,21 @@ class Consistency:
         ratio = float(np.nanmedian(self.window_nis[1:] / np.where(expected > 0, expected, np.nan)))
         verdict = ("consistent" if self.consistent else
                    "INCONSISTENT: the model does not fit this record")
+        if self.consistent and self.pessimistic:
+            verdict += " (pessimistic: the innovations are smaller than the covariance says)"
+        spectral = ""
+        if self.spectral_consistent is not None:
+            worst = int(np.nanargmax(np.where(np.arange(self.spectral_ratio.size) > 0,
+                                              self.spectral_ratio, np.nan)))
+            spectral = (" Innovation spectrum against the training's: "
+                        f"{self.spectral_rejected.size} of {self.spectral_ratio.size - 1} bins "
+                        f"above {self.spectral_threshold:.3g} times the reference (largest "
+                        f"{self.spectral_ratio[worst]:.3g} at "
+                        f"{self.spectral_frequencies[worst]:.4g} Hz).")
         return (f"Windowed NIS test ({self.window} samples per window, 1 % two-sided chi-square "
                 f"bounds): {self.rejected.size} of {self.n_tested} windows rejected, mean NIS "
                 f"{float(np.mean(tested)):.3g} per sample against {float(np.mean(expected)):.3g}"
-                f" expected (median ratio {ratio:.3g}): {verdict}.")
+                f" expected (median ratio {ratio:.3g}).{spectral} Verdict: {verdict}.")
 
 
 def _window_test(sums: np.ndarray, counts: np.ndarray, used: np.ndarray, window: int,
@@ -1376,18 +1493,20 @@ def _window_test(sums: np.ndarray, counts: np.ndarray, used: np.ndarray, window:
     bounds = np.column_stack([low, high]) if n_windows else np.zeros((0, 2))
     tested = np.zeros(n_windows, dtype=bool)
     tested[1:] = counts[1:] > 0  # the first window holds the transient from the prior
-    outside = tested & ((mean < bounds[:, 0]) | (mean > bounds[:, 1]))
+    above = tested & (mean > bounds[:, 1])
+    below = tested & (mean < bounds[:, 0])
     n_tested = int(tested.sum())
     allowed = int(sstats.binom.ppf(1 - _WINDOW_LEVEL, n_tested, _WINDOW_LEVEL)) if n_tested else 0
-    rejected = np.flatnonzero(outside)
+    rejected = np.flatnonzero(above | below)
     return {
+        "pessimistic": bool(int(below.sum()) > allowed),
         "window": int(window),
         "window_nis": read_only(mean),
         "window_dof": read_only(dof),
         "window_bounds": read_only(bounds),
         "rejected": read_only(rejected),
         "n_tested": n_tested,
-        "consistent": bool(rejected.size <= allowed),
+        "consistent": bool(int(above.sum()) <= allowed),
         "dof_fraction": float(dof_fraction),
     }
 

@@ -38,6 +38,8 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.stats as sstats
 
+from ._estimate_spectrum import whitened_psd, whitening_factor
+from ._recipe_coverage import Coverage, build_coverage
 from ._spectral import extract_lines, line_occupancy, line_power
 from ._validation import (
     check_array,
@@ -178,6 +180,11 @@ class EstimatorDesign:
     nis_dof_fraction : float
         Share of each consistency window's chi-square degrees of freedom that the held-out
         windows' spread supports (the filter's ``nis_dof_fraction``; 1 when not measured).
+    coverage : Coverage or None
+        The field of view: the band the training record covered at the sensors, the model's
+        modes with the share of each that the sensors see, the filter's steady sigma at every
+        node; ``coverage.check(measurements)`` warns when a record's power lies outside the
+        band (``None`` for designs built by hand).
 
     Examples
     --------
@@ -204,6 +211,7 @@ class EstimatorDesign:
     excitation: ExcitationReport | None = None
     covariance_scale: float = 1.0
     nis_dof_fraction: float = 1.0
+    coverage: Coverage | None = None
 
     @property
     def alpha_curve(self) -> AlphaSweep:
@@ -382,7 +390,8 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
 
 def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
                    q_floor: float, scale: float = 1.0, dof_fraction: float = 1.0,
-                   warn: bool = False) -> KalmanFilter:
+                   warn: bool = False,
+                   reference: tuple[np.ndarray, int] | None = None) -> KalmanFilter:
     """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2,
     both times ``scale`` (the covariance matching of :func:`_calibration`).
 
@@ -402,13 +411,15 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
         field_map=model.field_map,
         nis_dof_fraction=dof_fraction,
         warn_inconsistent=warn,
+        spectral_reference=None if reference is None else reference[0],
+        spectral_reference_count=1 if reference is None else reference[1],
     )
 
 
 def _calibration(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: float,
                  alpha: float, delays: int, rank: int, sensors: np.ndarray, noise: float,
-                 q_floor: float) -> tuple[float, float]:
-    """(covariance scale, NIS dof fraction) of the filter, measured on held-out data.
+                 q_floor: float) -> tuple[float, float, tuple[np.ndarray, int] | None]:
+    """(covariance scale, NIS dof fraction, spectral reference) measured on held-out data.
 
     Covariance matching (Mehra 1972, with one common factor): the model fitted on the training
     part filters the held-out part from the final sensors, and Q and R are scaled by the mean
@@ -427,23 +438,29 @@ def _calibration(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: f
             reduced = fit_dmd(train, dt, alpha=alpha, alpha_mode="relative", delays=delays,
                               rank=min(rank, train.shape[0] * delays))
         model = _stabilise(_lift(reduced, spatial))
-        nis = _steady_filter(model, sensors, noise, q_floor).filter(held[sensors]).nis
+        kf = _steady_filter(model, sensors, noise, q_floor)
+        held_est = kf.filter(held[sensors])
+        nis = held_est.nis
     except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
             ct.ControlDimension):
-        return 1.0, 1.0
+        return 1.0, 1.0, None
     n_windows = nis.size // window
     if n_windows < 4 or not np.all(np.isfinite(nis)):
-        return 1.0, 1.0
+        return 1.0, 1.0, None
     means = nis[window: n_windows * window].reshape(-1, window).mean(axis=1) / sensors.size
     scale = float(np.mean(means))
     if not scale > 0:
-        return 1.0, 1.0
+        return 1.0, 1.0, None
     ratios = means / scale
     spread = float(np.var(ratios, ddof=1)) * (ratios.size - 1) / float(
         sstats.chi2.ppf(0.05, ratios.size - 1))
     nominal = 2.0 / (window * sensors.size)  # variance of a window's mean NIS / p, chi-square
     fraction = 1.0 if spread <= nominal else nominal / spread
-    return scale, float(fraction)
+    # The spectral test's reference: the held-out innovations whitened by the scaled S.
+    factor = whitening_factor(scale * np.asarray(kf.innovation_covariance))
+    psd, count = whitened_psd(held_est.innovations, factor, discard=window)
+    reference = (psd, count) if count and np.all(np.isfinite(psd)) else None
+    return scale, float(fraction), reference
 
 
 def _check_noise_std(noise_std: object, rms: float) -> float:
@@ -980,9 +997,11 @@ def design_estimator(
                                                               fields.shape[1] + _UNSEEN_COUNT))
             model = _modal_model(freqs, fields, dt, n_samples - 2, process_noise * noise**2,
                                  unseen, _UNSEEN_NOISE * noise**2)
+            kf = _steady_filter(model, chosen, noise, q_floor, warn=warn_inconsistent)
             return EstimatorDesign(
                 model=model, sensors=read_only(chosen),
-                filter=_steady_filter(model, chosen, noise, q_floor, warn=warn_inconsistent),
+                filter=kf,
+                coverage=build_coverage(X[chosen], dt, data_noise, model, kf, chosen),
                 noise_std=float(noise),
                 noise_source=source,
                 alpha_sweep=AlphaSweep(alphas=read_only(np.zeros(0)),
@@ -1038,9 +1057,10 @@ def design_estimator(
     chosen, selection = _choose_sensors(model, given, candidates, n_sensors, criterion, noise,
                                         positions, forbidden, seed)
 
-    scale, fraction = _calibration(coords[:, :n_fit], X[:, n_fit:], spatial, dt, alpha, delays,
-                                   rank, chosen, noise, q_floor)
-    kf = _steady_filter(model, chosen, noise, q_floor, scale, fraction, warn_inconsistent)
+    scale, fraction, reference = _calibration(coords[:, :n_fit], X[:, n_fit:], spatial, dt,
+                                              alpha, delays, rank, chosen, noise, q_floor)
+    kf = _steady_filter(model, chosen, noise, q_floor, scale, fraction, warn_inconsistent,
+                        reference)
     return EstimatorDesign(
         model=model,
         sensors=read_only(chosen),
@@ -1056,6 +1076,7 @@ def design_estimator(
         excitation=excitation,
         covariance_scale=scale,
         nis_dof_fraction=fraction,
+        coverage=build_coverage(X[chosen], dt, data_noise, model, kf, chosen),
     )
 
 

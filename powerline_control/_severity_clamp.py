@@ -1,0 +1,181 @@
+"""Clamp bending amplitude and strain from an estimated field (issue 19, part 5).
+
+The fatigue engineer's quantity (design.md 4.7): the bending amplitude ``Y_b``, the peak-to-peak
+displacement 89 mm from the last point of contact at the clamp relative to the clamp, and the
+clamp stress and strain it gives by Poffenberger-Swart. Here it comes from the sensors through
+the estimator: the estimated field at ``x_b``, its RMS as the peak-to-peak of a harmonic
+(aeolian lock-in is one tone), and its sigma from the filter's field variances. The
+Poffenberger-Swart conversion is the severity stage's (``aeolian_severity``'s stress and strain
+per unit ``Y_b``, read from a one-wind-speed call): it is a linear map, so the relative error and
+sigma of the stress and strain are those of ``Y_b``.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._validation import check_array, check_choice, check_int, check_real, read_only
+from .errors import InputError
+from .line import Span
+from .severity import POFFENBERGER_SWART_DISTANCE, aeolian_severity
+
+__all__ = ["ClampStrainEstimate", "estimate_clamp_strain"]
+
+
+@dataclass(frozen=True)
+class ClampStrainEstimate:
+    """Estimated clamp bending amplitude, stress and strain with their sigma.
+
+    Attributes
+    ----------
+    bending_amplitude : float
+        ``Y_b``, m peak-to-peak: ``2 sqrt(2)`` times the RMS of the estimated displacement at
+        ``x_b`` from the clamp (the peak-to-peak of a harmonic with that RMS).
+    bending_sigma : float
+        Its standard deviation, m: ``2 sqrt(2)`` times the filter's RMS sigma at ``x_b`` (an
+        error of that RMS in phase with the vibration; an upper bound for one out of phase).
+    stress : float
+        Idealised outer-strand stress amplitude (zero-to-peak) at the clamp, Pa, by
+        Poffenberger-Swart (``K Y_b``).
+    stress_sigma : float
+        ``K`` times ``bending_sigma``, Pa.
+    strain_pp : float
+        Peak-to-peak bending strain at the clamp, ``2 stress / E_a``.
+    strain_sigma : float
+        Its standard deviation.
+    x_b : float
+        Distance from the clamp, m (default 0.089, IEEE 1960).
+    side : str
+        "left" (x = 0) or "right" (x = L).
+    displacement : numpy.ndarray
+        The estimated displacement at ``x_b`` over the record, m ``(n_t,)``.
+
+    Examples
+    --------
+    See :func:`estimate_clamp_strain`.
+    """
+
+    bending_amplitude: float
+    bending_sigma: float
+    stress: float
+    stress_sigma: float
+    strain_pp: float
+    strain_sigma: float
+    x_b: float
+    side: str
+    displacement: np.ndarray
+
+
+def _at(values: np.ndarray, positions: np.ndarray, x: float, p: float) -> np.ndarray:
+    """Rows of ``values`` (one per node) at distance ``x`` from the clamp at ``positions[0]``.
+
+    Inside the first element the clamp's boundary layer is resolved by its shape,
+    ``y ~ s (x - (1 - exp(-p x)) / p)`` with ``p = sqrt(T / EI)`` (the taut beam's static
+    solution next to a clamp, design.md 4.5), scaled to the first interior node; further out,
+    linear interpolation between the bracketing nodes (a mesh graded toward the clamp).
+    """
+    d = np.abs(positions - positions[0])
+    if x <= d[1]:
+        def g(s):
+            return s - (-math.expm1(-p * s)) / p
+        return values[1] * (g(x) / g(d[1]))
+    j = int(np.searchsorted(d, x))
+    w = (x - d[j - 1]) / (d[j] - d[j - 1])
+    return (1 - w) * values[j - 1] + w * values[j]
+
+
+def estimate_clamp_strain(design, measurements: object, span: Span, positions: object, *,
+                          side: str = "left", x_b: float = POFFENBERGER_SWART_DISTANCE,
+                          discard: int = 0, outer_strand_diameter: float | None = None
+                          ) -> ClampStrainEstimate:
+    """Clamp bending amplitude ``Y_b`` and strain from the sensors, with sigma.
+
+    Parameters
+    ----------
+    design : EstimatorDesign
+        The estimator (:func:`~powerline_control.recipe.design_estimator`), trained on the
+        span's nodes at ``positions``.
+    measurements : array_like, shape (n_sensors, n_t)
+        A record of the design's sensors, m.
+    span : Span
+        The span (tension and conductor for Poffenberger-Swart); its supports must be clamped.
+    positions : array_like, shape (n_nodes,)
+        Node positions of the design's field, m (``model.node_positions``).
+    side : {"left", "right"}
+        The clamp: x = 0 or x = L.
+    x_b : float
+        Distance from the last point of contact, m (default 0.089).
+    discard : int
+        Leading samples left out (the filter's transient, a record ringing up).
+    outer_strand_diameter : float, optional
+        Outer strand diameter, m; default the severity stage's for the conductor.
+
+    Returns
+    -------
+    ClampStrainEstimate
+
+    Raises
+    ------
+    InputError
+        Bad arguments, named: positions of the wrong shape or not ascending, ``x_b`` outside
+        the first half of the span, ``discard`` leaving no samples.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> import powerline_control as plc
+    >>> span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
+    >>> model = plc.LineModel(span, bc="clamped", max_frequency=8.0)
+    >>> load = [plc.HarmonicForce(5.0, 3.0, 61.0), plc.RandomForce(1.0, 130.0, 6.0, seed=1)]
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")
+    ...     train = plc.simulate(model, load, 12.0, 4e-3, noise_fraction=0.01, seed=0)
+    ...     design = plc.design_estimator(train, n_sensors=5, seed=0)
+    ...     clamp = plc.estimate_clamp_strain(design, train.displacement[design.sensors],
+    ...                                       span, model.node_positions, discard=500)
+    >>> bool(clamp.bending_amplitude > 0 and clamp.strain_sigma > 0)
+    True
+    """
+    side = check_choice("side", side, ("left", "right"))
+    x = check_array("positions", positions, ndim=1)
+    if x.size != design.n_nodes or np.any(np.diff(x) <= 0):
+        raise InputError(
+            f"The 'positions' parameter must hold the design's {design.n_nodes} node positions "
+            f"in ascending order (model.node_positions). Got {x.size} values"
+            f"{'' if x.size < 2 or np.all(np.diff(x) > 0) else ', not ascending'}."
+        )
+    x_b = check_real("x_b", x_b, low=0.0, high=float(x[-1] - x[0]) / 2)
+    y = check_array("measurements", measurements, ndim=2, allow_nan=True)
+    discard = check_int("discard", discard, low=0, high=y.shape[1] - 1)
+    est = design.filter.filter(y)
+    field, variances = np.asarray(est.field), np.asarray(est.field_variances)
+    order = slice(None) if side == "left" else slice(None, None, -1)
+    p = math.sqrt(span.tension / span.conductor.ei)
+    y_b = _at(field[order], x[order], x_b, p)
+    # The sigma of a node's estimate scales as its value does (inside the first element by the
+    # clamp shape, linearly between nodes): interpolate the standard deviation.
+    sigma = _at(np.sqrt(np.maximum(variances[order], 0.0)), x[order], x_b, p)
+    amplitude = 2 * math.sqrt(2) * float(np.sqrt(np.mean(y_b[discard:] ** 2)))
+    amp_sigma = 2 * math.sqrt(2) * float(np.sqrt(np.mean(sigma[discard:] ** 2)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # only the conversion factors are read
+        kwargs = {} if outer_strand_diameter is None else {
+            "outer_strand_diameter": outer_strand_diameter}
+        sev = aeolian_severity(span, wind_speeds=[3.0], x_b=x_b, bc="clamped", **kwargs)
+    yb_ref = float(sev.bending_amplitude[0])
+    if not yb_ref > 0:
+        raise InputError("The span's severity gives no bending amplitude to convert with "
+                         "(zero vibration at 3 m/s); cannot convert Y_b to stress.")
+    k_stress = float(sev.stress_ps[0]) / yb_ref
+    k_strain = float(sev.strain_pp[0]) / yb_ref
+    return ClampStrainEstimate(
+        bending_amplitude=amplitude, bending_sigma=amp_sigma,
+        stress=k_stress * amplitude, stress_sigma=k_stress * amp_sigma,
+        strain_pp=k_strain * amplitude, strain_sigma=k_strain * amp_sigma,
+        x_b=float(x_b), side=side, displacement=read_only(y_b.copy()),
+    )

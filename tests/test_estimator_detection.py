@@ -1,0 +1,110 @@
+"""Issue 19, part 2-3: the spectral consistency test and the coverage check.
+
+Truth here is independent of the code under test: the innovations of an exact model are white
+with covariance S (a closed form: their whitened spectrum is 1 in every bin), and the family's
+runs are judged by how they were built (a matched load or one that drives modes the training
+never saw) and by the simulation's true field.
+"""
+
+import warnings
+
+import control as ct
+import numpy as np
+import pytest
+from estimator_family import runs_of
+
+import powerline_control as plc
+from powerline_control.estimate import KalmanFilter
+
+
+def _oscillator(seed: int, tone: float = 0.0):
+    """A lightly damped oscillator measured in noise (exact model), optionally plus a tone at
+    0.3 cycles/sample that the model does not contain."""
+    rng = np.random.default_rng(seed)
+    r, theta = 0.99, 2 * np.pi * 0.05
+    a = r * np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+    sys = ct.ss(a, np.zeros((2, 1)), [[1.0, 0.0]], 0, dt=1.0)
+    n = 4000
+    x = np.zeros((2, n))
+    for k in range(1, n):
+        x[:, k] = a @ x[:, k - 1] + rng.normal(scale=0.1, size=2)
+    y = x[:1] + 0.1 * rng.normal(size=(1, n)) + tone * np.sin(2 * np.pi * 0.3 * np.arange(n))
+    return sys, y
+
+
+def test_spectral_test_of_an_exact_model_against_the_white_closed_form():
+    """The whitened innovations of an exact model have unit power in every bin (closed form),
+    so with a reference of ones no bin rejects; a tone the model lacks, at 0.3 the power of the
+    noise, rejects its own bin and only bins next to it."""
+    ones = np.ones(129)
+    sys, y = _oscillator(0)
+    kf = KalmanFilter(sys, Q=0.01, R=0.01, steady_state=True, spectral_reference=ones,
+                      spectral_reference_count=10**6)
+    c = kf.filter(y).consistency
+    # 4000 samples: 30 segments, 15 independent: the worst of 128 bins ~ 1.6 (F quantile 2.2)
+    assert c.spectral_consistent and np.nanmax(c.spectral_ratio[1:]) < c.spectral_threshold
+    assert 0.8 < np.nanmean(c.spectral_ratio[1:]) < 1.2  # unit power on average
+    sys, y = _oscillator(0, tone=0.055)
+    c = kf.filter(y).consistency
+    assert not c.spectral_consistent and not c.consistent
+    assert np.all(np.abs(c.spectral_frequencies[c.spectral_rejected] - 0.3) < 2 / 256)
+
+
+def test_spectral_reference_is_checked():
+    sys, _ = _oscillator(0)
+    with pytest.raises(plc.InputError, match="'spectral_reference'.*odd count"):
+        KalmanFilter(sys, Q=0.01, R=0.01, spectral_reference=np.ones(128))
+    with pytest.raises(plc.InputError, match="'spectral_reference_count'"):
+        KalmanFilter(sys, Q=0.01, R=0.01, spectral_reference=np.ones(129),
+                     spectral_reference_count=0)
+
+
+def test_held_out_family_runs_warn_when_mismatched():
+    """Held-out seeds 1-11 of ``tests/estimator_family.py`` (one design of each case: lab pinned
+    and clamped, Drake 300 m clamped, Cardinal 400 m pinned, Condor 350 m clamped, Aster 570
+    250 m pinned; two matched and two mismatched runs each). Measured: 1 of 12 matched runs
+    warns (lab pinned, seed 1: a bin near mode 5 at 2.8 x its reference); every mismatched run
+    whose field at the sensors stands above their noise (RMS SNR > 1, 11 of 12) warns; the
+    sub-noise sine (SNR 0.12) does not, and no test on the sensors could. Asserted as measured
+    (the family's full table is ``benchmarks/bench_detection.py``)."""
+    runs = [run for seed in range(1, 12, 2) for run in runs_of(seed)]
+    matched = [r for r in runs if r.kind == "matched"]
+    visible = [r for r in runs if r.kind != "matched" and r.sensor_snr > 1]
+    assert len(matched) == 12 and len(visible) >= 10
+    assert sum(r.warned for r in matched) <= 1, [r.seed for r in matched if r.warned]
+    assert all(r.warned for r in visible), [(r.seed, r.kind) for r in visible if not r.warned]
+
+
+def test_coverage_band_and_check_on_the_lab_span():
+    """The band covered by a 60 Hz low-passed broadband load lies inside 0-200 Hz; a matched
+    record has (nearly) all its power inside it and does not warn; a sine at 150 Hz has
+    nearly all of its outside and warns. Observability shares lie in [0, 1]. (The reported
+    sigma at a pinned support is not zero: the training record's sensor noise there enters the
+    POD basis.)"""
+    model = plc.LineModel(plc.Span.paper_lab(), n_elements=40)
+    train = plc.simulate(model, plc.RandomForce(1.0, 0.7, 60.0, seed=1), 4.0, 1e-3,
+                         noise_fraction=0.01, seed=0)
+    design = plc.design_estimator(train, n_sensors=4, seed=0)
+    cov = design.coverage
+    assert 0 < cov.band[0] < cov.band[1] < 200.0
+    assert np.all((cov.mode_observability >= 0) & (cov.mode_observability <= 1 + 1e-12))
+    same = plc.simulate(model, plc.RandomForce(1.0, 0.7, 60.0, seed=5), 2.0, 1e-3,
+                        noise_std=design.noise_std, seed=3)
+    # node_sigma against the simulation's truth on a matched record: the median over unmeasured
+    # interior nodes of reported sigma / actual RMS error within a factor 2 (measured 1.0-1.3
+    # on the lab family's matched runs).
+    field = design.filter.filter(same.displacement[design.sensors]).field
+    inner = np.setdiff1d(np.arange(1, 40), design.sensors)
+    actual = np.sqrt(np.mean((field[inner, 200:] - same.true_displacement[inner, 200:]) ** 2,
+                             axis=1))
+    assert cov.node_sigma.shape == (41,)
+    assert 0.5 < np.median(cov.node_sigma[inner] / actual) < 2.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", plc.EstimatorInconsistentWarning)
+        assert cov.check(same.displacement[design.sensors]) < 0.05
+    high = plc.simulate(model, plc.HarmonicForce(1.0, 150.0, 1.3), 2.0, 1e-3,
+                        noise_std=design.noise_std, seed=4)
+    with pytest.warns(plc.EstimatorInconsistentWarning, match="outside the band"):
+        assert cov.check(high.displacement[design.sensors]) > 0.5
+    with pytest.raises(plc.InputError, match="'warn'"):
+        cov.check(same.displacement[design.sensors], warn="yes")
