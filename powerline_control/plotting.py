@@ -51,7 +51,8 @@ def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray]) -> Figure:
         values = np.asarray(values)
         ax.plot(values.real, values.imag, marker, ms=4, mfc="none", label=label)
     ax.set(xlabel="Re λ", ylabel="Im λ", aspect="equal")
-    ax.legend(loc="upper left", fontsize=8)
+    # off the curves
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     return fig
 
 
@@ -88,7 +89,8 @@ def plot_estimate(
         ax.plot(t, 1e3 * truth[node], "k-", lw=1.0, label="truth")
         ax.plot(t, 1e3 * estimate[node], "r--", lw=1.0, label="estimate")
         ax.set_ylabel(f"x = {x[node]:.2f} m\ny (mm)")
-    axes[0].legend(loc="upper right", fontsize=8)
+    # off the curves
+    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     axes[-1].set_xlabel("t (s)")
     fig.tight_layout()
     return fig
@@ -137,7 +139,8 @@ def plot_envelope(
                 position, color=style[0], ls=style[1:], lw=1, label=label if i == 0 else None
             )
     ax.set(xlabel="x (m)", ylabel="amplitude (mm)")
-    ax.legend(fontsize=8)
+    # off the curves
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     fig.tight_layout()
     return fig
 
@@ -174,7 +177,8 @@ def plot_error_along_span(
         ax.axvline(position, color="g", ls="--", lw=1, label="chosen sensors" if i == 0 else None)
     ax.set(xlabel="x (m)", ylabel="RMS error (% of RMS displacement)")
     ax.set_yscale("log")
-    ax.legend(fontsize=8)
+    # off the curves
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     return fig
 
 
@@ -259,7 +263,8 @@ def plot_sensor_count(
     ax.set(xlabel="number of sensors", ylabel="RMS estimation error (mm)")
     ax.set_yscale("log")
     ax.set_xticks(list(k))
-    ax.legend(fontsize=8)
+    # off the curves
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     return fig
 
 
@@ -318,7 +323,8 @@ def plot_plan_path(
         bottom.plot([], [], "r--", label="targeted antinode")
     bottom.plot(position[0], t[0], "go", label="start")
     bottom.set(xlabel="x (m)", ylabel="t (s)")
-    bottom.legend(fontsize=8, loc="best")
+    # off the curves
+    bottom.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     visited = np.concatenate([position[np.isfinite(position)],
                               [target] if target is not None else []])
     reach = np.ptp(visited) if visited.size else 0.0
@@ -357,7 +363,8 @@ def plot_closed_loop(result) -> Figure:
     top.plot(result.t, result.target, "k:", label="antinode target")
     top.axvline(result.calibration_time, color="grey", lw=0.8)
     top.set_ylabel("x (m)")
-    top.legend(fontsize=8)
+    # off the curves
+    top.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     window = max(int(0.1 / max(result.t[1] - result.t[0], 1e-12)), 1)
 
     def moving_rms(field):
@@ -367,7 +374,7 @@ def plot_closed_loop(result) -> Figure:
     bottom.plot(result.t, 1e3 * moving_rms(result.baseline_displacement), label="robot parked")
     bottom.plot(result.t, 1e3 * moving_rms(result.displacement), label="closed loop")
     bottom.set(xlabel="t (s)", ylabel="RMS over span (mm)")
-    bottom.legend(fontsize=8)
+    bottom.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     fig.tight_layout()
     return fig
 
@@ -422,13 +429,14 @@ def plot_severity(result, ax=None, *, endurance: bool = True) -> Figure:
             axes[1].semilogy(res.wind_speed, 1e6 * np.maximum(res.strain_pp, 1e-12), "-o",
                              color=line.get_color(), ms=4, label=res.label)
     axes[0].set(ylabel="antinode amplitude (mm, 0-pk)")
-    axes[0].legend(fontsize=8)
+    # off the curves
+    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     if len(axes) > 1:
         if endurance and results:
             limit = results[0].parameters.get("endurance_strain_pp", 150e-6)
             axes[1].axhline(1e6 * limit, color="k", ls=":", lw=1, label="endurance limit")
         axes[1].set(ylabel="clamp bending strain (µε, pk-pk)")
-        axes[1].legend(fontsize=8)
+        axes[1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     axes[-1].set_xlabel("wind speed (m/s)")
     fig.tight_layout()
     return fig
@@ -513,7 +521,8 @@ def plot_closed_loop_envelope(result, ax=None) -> Figure:
     t0, t1 = result.settled_window
     ax.set(xlabel="x (m)", ylabel="envelope (mm)",
            title=f"largest |w| over the settled window {t0:.1f}-{t1:.1f} s")
-    ax.legend(fontsize=7)
+    # off the curves
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=7)
     fig.tight_layout()
     return fig
 
@@ -564,7 +573,8 @@ def plot_closed_loop_path(result, ax=None) -> Figure:
     ax.axhline(result.calibration_time, color="grey", lw=0.8)
     ax.set(xlabel="x (m)", ylabel="t (s)")
     ax.invert_yaxis()
-    ax.legend(fontsize=7, loc="lower right")
+    # under the axes: the colour bar holds the right-hand side
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=7)
     fig.tight_layout()
     return fig
 

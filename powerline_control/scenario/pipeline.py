@@ -984,7 +984,9 @@ def _severity(scenario: Scenario, span, model) -> Severity:
                                   **kwargs)
     strand = kwargs.get("outer_strand_diameter")
     if strand is None:
-        strand = float(getattr(bare, "outer_strand_diameter", float("nan")))
+        from .config import _outer_strand_table
+
+        strand = (_outer_strand_table() or {}).get(span.conductor.name, float("nan"))
     return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
                     strand_source=source)
 
