@@ -390,9 +390,11 @@ def tension_at_temperature(span: Span, temperature: float | np.ndarray,
                          f"finite temperatures above {_ABSOLUTE_ZERO} degC. Got {temperature!r}.")
     t = t.astype(float)
     weight = cond.mass_per_length * _STANDARD_GRAVITY
-    w = weight if load is None else check_real("load", load, low=0.0)
+    # loads up to 1e5 N/m (a hundred times a heavily iced conductor's): a bound that keeps the
+    # cubic's coefficients finite
+    w = weight if load is None else check_real("load", load, low=0.0, high=1e5)
     w_ref = weight if reference_load is None else check_real("reference_load", reference_load,
-                                                             low=0.0)
+                                                             low=0.0, high=1e5)
     ea = cond.elastic_modulus * cond.area
     h_ref = span.tension
     s2 = span.length**2

@@ -448,7 +448,7 @@ def fatigue_over_record(
     move = check_choice("move", move, ("tracked", "worst"))
     en_route = check_choice("en_route", en_route, ("average", "undamped"))
     try:
-        low, high = (check_real("band", float(b), low=0.0) for b in band)
+        low, high = (check_real("band", b, low=0.0) for b in band)
     except (TypeError, ValueError):
         raise InputError(f"The 'band' parameter must be two wind speeds (low, high) in m/s. "
                          f"Got {band!r}.") from None
@@ -466,6 +466,12 @@ def fatigue_over_record(
 
     n = record.n_records
     step = record.step
+    if not math.isfinite(step):
+        raise InputError("The 'record' has one row and so no step (time per record): build it "
+                         "with WindRecord.constant(..., n_records=1, step=...) or give more rows.")
+    line_azimuth = check_real("line_azimuth", line_azimuth)
+    reference_temperature = check_real("reference_temperature", reference_temperature,
+                                       low=-273.15)
     normal = record.normal_speed(line_azimuth)
     tension = np.atleast_1d(tension_at_temperature(span, record.temperature,
                                                    reference_temperature))

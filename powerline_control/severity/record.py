@@ -16,7 +16,7 @@ from datetime import datetime
 
 import numpy as np
 
-from .._validation import read_only
+from .._validation import check_int, check_real, check_rng, read_only
 from ..errors import InputError
 
 __all__ = ["WindRecord"]
@@ -188,10 +188,7 @@ class WindRecord:
         >>> rec.normal_speed(line_azimuth=0.0).round(6).tolist()
         [2.0, 2.0]
         """
-        azimuth = float(line_azimuth)
-        if not math.isfinite(azimuth) or isinstance(line_azimuth, bool):
-            raise InputError("The 'line_azimuth' parameter must be a finite angle in degrees. "
-                             f"Got {line_azimuth!r}.")
+        azimuth = check_real("line_azimuth", line_azimuth)
         return self.wind_speed * np.abs(np.sin(np.radians(self.direction - azimuth)))
 
     @classmethod
@@ -224,13 +221,14 @@ class WindRecord:
         >>> WindRecord.constant(3.0, n_records=6, step=3600.0).duration
         21600.0
         """
-        if isinstance(n_records, bool) or not isinstance(n_records, int) or n_records < 1:
-            raise InputError(f"The 'n_records' parameter must be an int >= 1. Got {n_records!r}.")
-        step = float(step)
-        if not (math.isfinite(step) and step > 0):
-            raise InputError(f"The 'step' parameter must be > 0 s. Got {step!r}.")
+        n_records = check_int("n_records", n_records, low=1)
+        step = check_real("step", step, low=0.0)
+        wind_speed = check_real("wind_speed", wind_speed)
+        direction = check_real("direction", direction)
+        temperature = check_real("temperature", temperature)
         full = np.full(n_records, 1.0)
-        ti = None if turbulence_intensity is None else full * turbulence_intensity
+        ti = (None if turbulence_intensity is None
+              else full * check_real("turbulence_intensity", turbulence_intensity))
         rec = cls(np.arange(n_records) * step, full * wind_speed, full * direction,
                   full * temperature, ti, source=f"constant {wind_speed:g} m/s")
         if n_records == 1:
@@ -293,15 +291,17 @@ class WindRecord:
         """
         import scipy.special
 
-        rng = np.random.default_rng(seed)
+        rng = check_rng(seed)
         for name, value in (("days", days), ("step", step), ("shape", shape), ("scale", scale),
                             ("correlation_time", correlation_time)):
-            if isinstance(value, bool) or not isinstance(value, int | float) \
-                    or not math.isfinite(value) or value <= 0:
-                raise InputError(f"The '{name}' parameter must be a finite number > 0. "
-                                 f"Got {value!r}.")
-        if isinstance(diurnal, bool) or not 0 <= diurnal < 1:
-            raise InputError(f"The 'diurnal' parameter must lie in [0, 1). Got {diurnal!r}.")
+            check_real(name, value, low=0.0)
+        diurnal = check_real("diurnal", diurnal, low=0.0, low_inclusive=True, high=1.0,
+                             high_inclusive=False)
+        prevailing = check_real("prevailing", prevailing)
+        mean_temperature = check_real("mean_temperature", mean_temperature, low=-50.0,
+                                      high=80.0)
+        diurnal_temperature = check_real("diurnal_temperature", diurnal_temperature, low=0.0,
+                                         low_inclusive=True, high=50.0)
         n = int(round(days * 86400.0 / step))
         if n < 1 or n > 10_000_000:
             raise InputError(f"The record would have {n} rows; 'days' / 'step' must give "
@@ -370,6 +370,9 @@ class WindRecord:
         >>> WindRecord.from_csv(path).wind_speed.tolist()
         [3.1, 2.8]
         """
+        if not isinstance(path, str | os.PathLike):
+            raise InputError("The 'path' parameter must be a str or path-like. Got "
+                             f"{type(path).__name__}.")
         path = os.fspath(path)
         try:
             with open(path, newline="", encoding="utf-8") as handle:
