@@ -273,3 +273,20 @@ def test_rainflow_of_the_time_domain_stress_history_matches_the_energy_balance()
     pinned = plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
                                    n_elements=40, bc="pinned")
     assert pinned.clamp_stress is None          # no clamp, no Poffenberger-Swart history
+
+
+def test_best_fixed_position_is_the_least_damage_of_its_candidates():
+    record = _changing_record()
+    best = plc.fatigue_over_record(DRAKE, record, ROBOT, LIMITS, fixed_position="best")
+    search = best.parameters["fixed_search"]
+    assert best.fixed_position == search["positions"][int(np.argmin(search["damages"]))]
+    # the chosen position's damage, recomputed as a plain fixed position, is that minimum
+    again = plc.fatigue_over_record(DRAKE, record, ROBOT, LIMITS,
+                                    fixed_position=best.fixed_position)
+    assert again["fixed_damper"].damage_per_year == best["fixed_damper"].damage_per_year
+    assert best["fixed_damper"].damage.sum() == pytest.approx(min(search["damages"]), rel=1e-12)
+    harmonic = plc.fatigue_over_record(DRAKE, record, ROBOT, LIMITS)
+    assert best["fixed_damper"].damage_per_year <= harmonic["fixed_damper"].damage_per_year
+    assert harmonic.fixed_position == best.parameters["harmonic_mean_position"]
+    with pytest.raises(plc.InputError, match="fixed_position"):
+        plc.fatigue_over_record(DRAKE, record, fixed_position="worst")

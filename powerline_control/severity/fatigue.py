@@ -317,6 +317,37 @@ def _robot_over_record(inputs: dict, limits: RobotLimits):
     return positions, move_time, result
 
 
+def _balances(span: Span, configs: dict, speeds: np.ndarray, tensions: np.ndarray,
+              iv: np.ndarray, vibrating: np.ndarray, options: dict) -> tuple[dict, float, str]:
+    """Per-record balance results of each configuration: one aeolian_severity call per
+    configuration and group of (tension, Iv), over the group's distinct speeds."""
+    n = speeds.size
+    fields = ("amplitude", "frequency", "loop_length", "stress_ps", "strain_pp")
+    out = {c: {f: np.zeros(n) for f in fields} for c in configs}
+    endurance, layers = None, options.get("layers", "multi")
+    keys = np.stack([tensions, iv], axis=1)
+    for key in np.unique(keys[vibrating], axis=0):
+        rows = np.flatnonzero(vibrating & np.all(keys == key, axis=1))
+        group_span = Span(span.length, float(key[0]), span.conductor)
+        unique, inverse = np.unique(speeds[rows], return_inverse=True)
+        for name, dampers in configs.items():
+            sev: SeverityResult = aeolian_severity(group_span, unique, dampers,
+                                                   turbulence_intensity=float(key[1]),
+                                                   label=name, **options)
+            for f in fields:
+                out[name][f][rows] = np.asarray(getattr(sev, f))[inverse]
+            endurance = sev.parameters["endurance_strain_pp"]
+            layers = sev.parameters["layers"]
+    return out, endurance, layers
+
+
+def _parked(damper, position: float):
+    if isinstance(damper, MDR):
+        return MDR(position, damper.body_mass, damper.suspended_mass, damper.stiffness,
+                   damper.damping)
+    return ImpedanceDamper(position, damper.frequencies, damper.impedance, damper.label)
+
+
 def _assumptions(span, reference_temperature, line_azimuth, low, high, layers, fixed_position,
                  move, limits, en_route, speed_step, tension_step, turbulence_step) -> tuple:
     return (
@@ -346,7 +377,7 @@ def fatigue_over_record(
     line_azimuth: float = 0.0,
     reference_temperature: float = 15.0,
     band: Sequence[float] = (1.0, 7.0),
-    fixed_position: float | None = None,
+    fixed_position: float | str | None = None,
     robot_start: float | None = None,
     move: str = "tracked",
     en_route: str = "average",
@@ -394,9 +425,11 @@ def fatigue_over_record(
         degC at which the span has ``span.tension`` (default 15).
     band : (float, float)
         Normal wind speeds that excite aeolian vibration, m/s (default 1-7).
-    fixed_position : float or None
+    fixed_position : float, None or "best"
         Fixed damper position, m; None: the harmonic-mean position x* for the loop lengths of
-        the band's normal speeds that occur in the record (equal participation at both ends).
+        the band's normal speeds that occur in the record (equal participation at both ends);
+        ``"best"``: the least damage over the record among 13 positions from x*/4 to 4 x*
+        (geometric; the candidates and their damage in ``parameters["fixed_search"]``).
     robot_start : float or None
         The robot's position before the first record, m (default ``fixed_position``).
     move : {"tracked", "worst"}
@@ -481,41 +514,32 @@ def fatigue_over_record(
           else _quantise(np.asarray(record.turbulence_intensity), turbulence_step))
     vibrating = (speeds >= low) & (speeds <= high) & (speeds > 0)
 
-    if fixed_position is None:
-        active = speeds[vibrating]
-        edges = (low, high) if active.size == 0 else (float(active.min()), float(active.max()))
-        fixed_position = harmonic_mean_position(span, edges, strouhal)
+    active = speeds[vibrating]
+    edges = (low, high) if active.size == 0 else (float(active.min()), float(active.max()))
+    x_star = harmonic_mean_position(span, edges, strouhal)
+    search = None
+    if isinstance(fixed_position, str):
+        check_choice("fixed_position", fixed_position, ("best",))
+        candidates = np.unique(np.clip(x_star * np.geomspace(0.25, 4.0, 13), 1e-3,
+                                       0.5 * span.length))
+        damages = []
+        for x in candidates:
+            o, e, lay = _balances(span, {"fixed_damper": (_parked(damper, float(x)),)}, speeds,
+                                  tensions, iv, vibrating, options)
+            damages.append(float(_record_damage("fixed_damper", o["fixed_damper"], vibrating,
+                                                step, 1.0, lay, e or 0.0).damage.sum()))
+        fixed_position = float(candidates[int(np.argmin(damages))])
+        search = dict(positions=tuple(candidates.tolist()), damages=tuple(damages))
+    elif fixed_position is None:
+        fixed_position = x_star
     fixed_position = check_real("fixed_position", fixed_position, low=0.0, high=span.length)
     robot_start = fixed_position if robot_start is None else \
         check_real("robot_start", robot_start, low=0.0, low_inclusive=True, high=span.length)
-    if isinstance(damper, MDR):
-        parked = MDR(fixed_position, damper.body_mass, damper.suspended_mass, damper.stiffness,
-                     damper.damping)
-    else:
-        parked = ImpedanceDamper(fixed_position, damper.frequencies, damper.impedance,
-                                 damper.label)
-    configs = {"no_damper": (), "fixed_damper": (parked,), "robot": (AtAntinode(damper),)}
+    configs = {"no_damper": (), "fixed_damper": (_parked(damper, fixed_position),),
+               "robot": (AtAntinode(damper),)}
     if en_route == "average":
         configs["moving"] = (AtAntinode(damper, "robot moving", 0.5),)
-
-    # Energy balances, one call per configuration and group of (tension, Iv).
-    fields = ("amplitude", "frequency", "loop_length", "stress_ps", "strain_pp")
-    out = {c: {f: np.zeros(n) for f in fields} for c in configs}
-    endurance = None
-    layers = options.get("layers", "multi")
-    keys = np.stack([tensions, iv], axis=1)
-    for key in np.unique(keys[vibrating], axis=0):
-        rows = np.flatnonzero(vibrating & np.all(keys == key, axis=1))
-        group_span = Span(span.length, float(key[0]), span.conductor)
-        unique, inverse = np.unique(speeds[rows], return_inverse=True)
-        for name, dampers in configs.items():
-            sev: SeverityResult = aeolian_severity(group_span, unique, dampers,
-                                                   turbulence_intensity=float(key[1]),
-                                                   label=name, **options)
-            for f in fields:
-                out[name][f][rows] = np.asarray(getattr(sev, f))[inverse]
-            endurance = sev.parameters["endurance_strain_pp"]
-            layers = sev.parameters["layers"]
+    out, endurance, layers = _balances(span, configs, speeds, tensions, iv, vibrating, options)
     if "moving" not in out:
         out["moving"] = out["no_damper"]
     if endurance is None:  # nothing vibrates: the options are still checked once
@@ -544,7 +568,8 @@ def fatigue_over_record(
                         band=(low, high), move=move, en_route=en_route, speed_step=speed_step,
                         tension_step=tension_step, turbulence_step=turbulence_step,
                         step=step, layers=layers, endurance_strain_pp=endurance,
-                        limits=limits, **options))
+                        limits=limits, harmonic_mean_position=x_star, fixed_search=search,
+                        **options))
     object.__setattr__(result, "_robot_inputs", inputs)
     return result
 
