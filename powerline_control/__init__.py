@@ -58,6 +58,9 @@ _LAZY_EXPORTS = {
     "_severity_clamp": (
         "ClampStrainEstimate", "estimate_clamp_strain",
     ),
+    "_recipe_count": (
+        "EstimatorCountStudy", "estimator_count_study",
+    ),
     "estimate": (
         "Accuracy", "Consistency", "Estimate", "KalmanFilter", "estimation_accuracy",
         "filter_consistency",
@@ -179,6 +182,8 @@ __all__ = [
     "Estimate",
     "estimate_clamp_strain",
     "estimation_accuracy",
+    "estimator_count_study",
+    "EstimatorCountStudy",
     "EstimationError",
     "EstimatorInconsistentWarning",
     "EstimatorDesign",
