@@ -556,3 +556,36 @@ def test_catenary_check_refuses_a_tension_at_or_above_the_rated_strength():
             plc.catenary_check(span)
     below = plc.catenary_check(plc.Span(300.0, 0.99 * drake.rated_strength, drake))
     assert below.catenary_parameter == pytest.approx(0.99 * 140.1e3 / (1.628 * 9.80665))
+
+
+@pytest.mark.parametrize("call, name", [
+    (lambda: plc.AtAntinode(plc.MDR(1.0, 1.0), label=None), "label"),
+    (lambda: plc.ImpedanceDamper(1.0, (5.0, 50.0), (1 + 0j, 2 + 0j), label=3), "label"),
+    (lambda: plc.WindPowerCurve("x", None, "s", (1.0, 0.0)), "label"),
+    (lambda: plc.WindPowerCurve("x", "x", "s", None, (0.1, 0.2), (1.0, 2.0)), "coefficients"),
+    (lambda: plc.WindPowerCurve("x", "x", "s", (), (0.1, 0.2), (1.0, -2.0)), "powers"),
+    (lambda: plc.WindDistribution("weibull", edges=None), "edges"),
+    (lambda: plc.WindDistribution("weibull", rtol=math.nan), "rtol"),
+    (lambda: plc.aeolian_severity(plc.Span.at_rts_fraction(300.0, "drake", 0.2), [2.0],
+                                  label=3), "label"),
+    (lambda: plc.aeolian_severity(plc.Span.at_rts_fraction(300.0, "drake", 0.2), [2.0],
+                                  self_damping_exponents=2.0), "self_damping_exponents"),
+    (lambda: plc.aeolian_severity(plc.Span.at_rts_fraction(300.0, "drake", 0.2), [2.0],
+                                  strouhal=1e-300), "strouhal"),
+    (lambda: plc.harmonic_mean_position(plc.Span.at_rts_fraction(300.0, "drake", 0.2),
+                                        strouhal=1e-300), "strouhal"),
+    (lambda: plc.aeolian_severity(plc.Span.at_rts_fraction(300.0, "drake", 0.2), [2.0],
+                                  x_b=1e-300), "x_b"),
+    (lambda: plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
+                                   n_elements=20, settle=1e-300), "settle"),
+    (lambda: plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
+                                   n_elements=20, samples_per_period=10**9), "samples_per_period"),
+    (lambda: plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 1e-9,
+                                   n_elements=20), "wind_speed"),
+])
+def test_sweep_findings_are_refused_by_name(call, name):
+    """Cases found by the input sweep (tests/test_input_sweep.py): each now an InputError
+    naming the parameter (were: accepted, ZeroDivisionError, TypeError, or a refusal naming
+    simulate's arguments)."""
+    with pytest.raises(InputError, match=f"'{name}'"):
+        call()

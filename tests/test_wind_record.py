@@ -97,7 +97,7 @@ def test_an_empty_file_a_missing_file_and_a_bad_stamp(tmp_path):
     (tmp_path / "empty.csv").write_text("")
     with pytest.raises(plc.InputError, match="empty"):
         plc.WindRecord.from_csv(tmp_path / "empty.csv")
-    with pytest.raises(plc.InputError, match="Cannot read"):
+    with pytest.raises(plc.InputError, match="does not exist"):
         plc.WindRecord.from_csv(tmp_path / "absent.csv")
     with pytest.raises(plc.InputError, match=r"'time'.*ISO 8601.*row 1"):
         plc.WindRecord.from_csv(_write(tmp_path, [(0, 3, 90, 10), ("noon", 3, 90, 10)]))
@@ -154,3 +154,27 @@ def test_synthetic_is_reproducible_and_refuses_bad_arguments():
     for kwargs in (dict(days=0.0), dict(step=-1.0), dict(diurnal=1.5), dict(shape=math.nan)):
         with pytest.raises(plc.InputError):
             plc.WindRecord.synthetic(**kwargs)
+
+
+def test_paths_that_are_not_csv_files_are_refused_naming_path(tmp_path):
+    import os
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    binary = tmp_path / "blob.csv"
+    binary.write_bytes(b"\xff\xfe\x00\x81" * 50)
+    for path in (fifo, tmp_path, binary, ""):
+        with pytest.raises(plc.InputError, match="'path'"):
+            plc.WindRecord.from_csv(path)
+    with pytest.raises(plc.InputError, match="'path'"):
+        plc.WindRecord.from_csv(3.0)
+
+
+def test_start_and_source_are_strings_and_start_a_time_stamp():
+    args = (np.array([0.0, 600.0]), np.ones(2), np.ones(2), np.ones(2))
+    for bad in (dict(start=None), dict(source=3), dict(start="yesterday")):
+        with pytest.raises(plc.InputError, match="'start'|'source'"):
+            plc.WindRecord(*args, **bad)
+    assert plc.WindRecord(*args, start="2024-01-01T00:00:00").start == "2024-01-01T00:00:00"
+    with pytest.raises(plc.InputError, match="'time'"):
+        plc.WindRecord(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))

@@ -70,6 +70,14 @@ __all__ = [
     "catenary_check",
 ]
 
+def _check_text(name: str, value: object) -> str:
+    """A label or source: a string (None or a number is a mistake, not a name)."""
+    if not isinstance(value, str):
+        raise InputError(f"The '{name}' parameter must be a string. Got {value!r:.60} of type "
+                         f"{type(value).__name__}.")
+    return value
+
+
 GRAVITY = 9.80665
 AIR_DENSITY = 1.225  # kg/m^3, for the lift coefficient of the time-domain check's load
 SECONDS_PER_YEAR = 365.25 * 86400.0
@@ -124,14 +132,25 @@ class WindPowerCurve:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise InputError(f"The 'name' parameter must be a non-empty string. Got {self.name!r}.")
-        if bool(self.coefficients) == bool(self.amplitudes):
+        _check_text("label", self.label)
+        _check_text("source", self.source)
+        for field_name in ("coefficients", "amplitudes", "powers"):
+            if not isinstance(getattr(self, field_name), Sequence | np.ndarray) \
+                    or isinstance(getattr(self, field_name), str):
+                raise InputError(f"The '{field_name}' parameter must be a sequence of numbers "
+                                 f"(empty if unused). Got {getattr(self, field_name)!r:.60}.")
+        if len(self.coefficients) == len(self.amplitudes) == 0 or \
+                (len(self.coefficients) > 0 and len(self.amplitudes) > 0):
             raise InputError("A WindPowerCurve needs either 'coefficients' (a polynomial) or "
                              "'amplitudes' and 'powers' (digitised points), not both or neither.")
         if self.coefficients:
             check_array("coefficients", self.coefficients, ndim=1)
         else:
             a = check_array("amplitudes", self.amplitudes, ndim=1)
-            check_array("powers", self.powers, shape=(a.size,))
+            powers = check_array("powers", self.powers, shape=(a.size,))
+            if np.any(powers < 0):
+                raise InputError("The 'powers' parameter must be >= 0 (the wind feeds the "
+                                 f"vibration). Got min {powers.min():g}.")
             if np.any(np.diff(a) <= 0) or a[0] <= 0:
                 raise InputError("The 'amplitudes' parameter must be ascending values > 0 "
                                  f"(reduced amplitudes Y/D). Got {self.amplitudes!r}.")
@@ -436,7 +455,8 @@ def _resolve_law(self_damping: object, k: float | None,
                                               tuple(SELF_DAMPING_LAWS))]
     l, m, n = base.l, base.m, base.n
     if exponents is not None:
-        if len(exponents) != 3:
+        if not isinstance(exponents, Sequence | np.ndarray) or isinstance(exponents, str) \
+                or len(exponents) != 3:
             raise InputError("The 'self_damping_exponents' parameter must be (l, m, n). "
                              f"Got {exponents!r}.")
         l = check_real("self_damping_exponents[0] (l)", exponents[0], low=0.0)
@@ -627,6 +647,7 @@ class ImpedanceDamper:
                              f"dissipates). Got min Re Z = {z.real.min():g}.")
         object.__setattr__(self, "frequencies", tuple(float(v) for v in f))
         object.__setattr__(self, "impedance", tuple(complex(v) for v in z))
+        _check_text("label", self.label)
 
     def impedance_at(self, frequency: float) -> complex:
         """Z at ``frequency`` (Hz), N s/m.
@@ -691,6 +712,7 @@ class AtAntinode:
         if not isinstance(self.damper, MDR | ImpedanceDamper):
             raise InputError("The 'damper' parameter of AtAntinode must be an MDR or an "
                              f"ImpedanceDamper. Got {type(self.damper).__name__}.")
+        _check_text("label", self.label)
 
 
 def damper_impedance(damper: MDR | ImpedanceDamper, frequency: float) -> complex:
@@ -823,7 +845,7 @@ def harmonic_mean_position(span: Span, wind_speeds: Sequence[float] | np.ndarray
     """
     span = _check_span(span)
     speeds = _check_wind_speeds(wind_speeds)
-    st = check_real("strouhal", strouhal, low=0.0, high=1.0)
+    st = check_real("strouhal", strouhal, low=0.01, low_inclusive=True, high=1.0)
     d = span.conductor.diameter
     l_max = loop_length(span, st * speeds.min() / d)
     l_min = loop_length(span, st * speeds.max() / d)
@@ -1165,17 +1187,20 @@ def aeolian_severity(
     (array([27.7,  1.5]), [27, 188])
     """
     span = _check_span(span)
+    if label is not None:
+        _check_text("label", label)
     if isinstance(wind_speeds, np.ndarray):  # refuse before the finiteness checks copy it
         _check_severity_budget(wind_speeds.size)
     speeds = _check_wind_speeds(wind_speeds)
     _check_severity_budget(speeds.size)
     dampers = _check_dampers(dampers, span)
-    st = check_real("strouhal", strouhal, low=0.0, high=1.0)
+    st = check_real("strouhal", strouhal, low=0.01, low_inclusive=True, high=1.0)
     curve = _curve(wind_curve)
     law = _resolve_law(self_damping, self_damping_k, self_damping_exponents)
     bc = check_choice("bc", bc, ("clamped", "pinned"))
     layers = check_choice("layers", layers, tuple(SAFE_BORDER_LINES))
-    x_b = check_real("x_b", x_b, low=0.0, high=span.length / 2)
+    # x_b from 0.1 mm: Poffenberger-Swart's K divides by e^{-p x_b} - 1 + p x_b ~ (p x_b)^2 / 2
+    x_b = check_real("x_b", x_b, low=1e-4, low_inclusive=True, high=span.length / 2)
     modulus = check_real("outer_strand_modulus", outer_strand_modulus, low=0.0)
     endurance = check_real("endurance_strain_pp", endurance_strain_pp, low=0.0)
     reference_cycles = check_real("reference_cycles", reference_cycles, low=1.0)
@@ -1361,13 +1386,19 @@ class WindDistribution:
     def __post_init__(self) -> None:
         # Direct construction is checked as strictly as the two factories.
         check_choice("kind", self.kind, ("weibull", "histogram"))
+        rtol = check_real("rtol", self.rtol, low=0.0, high=1.0)
         if self.kind == "weibull":
             object.__setattr__(self, "shape", check_real("shape", self.shape, low=0.0))
             object.__setattr__(self, "scale", check_real("scale", self.scale, low=0.0))
+            for field_name in ("edges", "density"):
+                if not (isinstance(getattr(self, field_name), tuple | list)
+                        and len(getattr(self, field_name)) == 0):
+                    raise InputError(f"The '{field_name}' parameter belongs to a histogram; a "
+                                     "Weibull distribution takes shape and scale only. Got "
+                                     f"{getattr(self, field_name)!r:.60}.")
         else:
             # the factory's tolerance is kept (a re-check at a fixed 1e-6 refused what
             # histogram(..., rtol=...) had accepted)
-            rtol = check_real("rtol", self.rtol, low=0.0, high=1.0)
             _check_histogram(check_array("edges", self.edges, ndim=1),
                              check_array("density", self.density, ndim=1), rtol)
 
@@ -1727,9 +1758,11 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     damper : MDR or None
         A robot/damper attached to the FE model at its position (and to the EBM).
     settle : float
-        Decay times to simulate before measuring (default 8: transient e^-8 of the start).
+        Decay times to simulate before measuring, 1-50 (default 8: transient e^-8 of the
+        start); refused when the settling run would exceed 1e6 samples (a very lightly damped
+        mode: a very low wind speed).
     samples_per_period : int
-        Samples per vibration period.
+        Samples per vibration period, 4-1024.
     **severity_options
         Passed to :func:`aeolian_severity` (not ``dampers``).
 
@@ -1752,8 +1785,9 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     span = _check_span(span)
     speed = check_real("wind_speed", wind_speed, low=0.0, high=MAX_WIND_SPEED)
     n_elements = check_int("n_elements", n_elements, low=2)
-    settle = check_real("settle", settle, low=0.0)
-    samples = check_int("samples_per_period", samples_per_period, low=4)
+    # settle: 1-50 decay times (e^-1 .. e^-50 of the start-up left); 4-1024 samples a period
+    settle = check_real("settle", settle, low=1.0, low_inclusive=True, high=50.0)
+    samples = check_int("samples_per_period", samples_per_period, low=4, high=1024)
     if damper is not None:
         _check_dampers((damper,), span)
         if not isinstance(damper, MDR):
@@ -1800,6 +1834,15 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     zeta = 2 * float(sev.self_damping_power[0]) / (cond.mass_per_length * omega**3 * y**2)
     q = 4 * float(sev.wind_power[0]) / (omega * y)
     lift = q / (0.5 * AIR_DENSITY * speed**2 * cond.diameter)
+    # The settling run samples 4 times a period for settle / ((zeta + decay) omega) seconds:
+    # refuse here, naming this function's arguments, when that is beyond any reasonable run.
+    settling_samples = 4 * settle / (2 * math.pi * (zeta + modal_decay))
+    if not math.isfinite(settling_samples) or settling_samples > 1e6:
+        raise InputError(
+            f"The 'wind_speed' ({speed:g} m/s after lock-in, mode {index + 1}) gives a damping "
+            f"ratio of {zeta + modal_decay:.3g}: 'settle' = {settle:g} decay times would take "
+            f"{settling_samples:.3g} samples (at most 1e6). Choose a higher wind speed (a "
+            "higher mode, more damped) or a smaller settle.")
     model = LineModel(span, n_elements=n_elements, bc=bc, damping=ModalDamping(zeta), mdr=damper)
     force = AeolianForce(wind_speed=speed, strouhal=strouhal, lift_coefficient=lift,
                          air_density=AIR_DENSITY)

@@ -503,8 +503,9 @@ def fatigue_over_record(
         raise InputError("The 'record' has one row and so no step (time per record): build it "
                          "with WindRecord.constant(..., n_records=1, step=...) or give more rows.")
     line_azimuth = check_real("line_azimuth", line_azimuth)
+    # the record's own range of air temperatures
     reference_temperature = check_real("reference_temperature", reference_temperature,
-                                       low=-273.15)
+                                       low=-50.0, low_inclusive=True, high=80.0)
     normal = record.normal_speed(line_azimuth)
     tension = np.atleast_1d(tension_at_temperature(span, record.temperature,
                                                    reference_temperature))

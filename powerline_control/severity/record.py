@@ -67,7 +67,8 @@ def _check_column(name: str, values: object, n: int | None, line_of_row=None) ->
 def _check_time(time: np.ndarray, line_of_row=None) -> float:
     """Strictly increasing, evenly spaced up to GAP_FACTOR; returns the usual step (s)."""
     if time.size < 1:
-        raise InputError("A wind record needs at least one row. Got none.")
+        raise InputError("The 'time' column must have at least one row (a wind record needs "
+                         "one row per interval). Got none.")
     if time.size == 1:
         return math.nan
     step = np.diff(time)
@@ -140,6 +141,16 @@ class WindRecord:
     source: str = ""
 
     def __post_init__(self) -> None:
+        for name in ("start", "source"):
+            if not isinstance(getattr(self, name), str):
+                raise InputError(f"The '{name}' parameter must be a string. Got "
+                                 f"{getattr(self, name)!r:.60}.")
+        if self.start:
+            try:
+                datetime.fromisoformat(self.start)
+            except ValueError:
+                raise InputError("The 'start' parameter must be an ISO 8601 time stamp (or ''). "
+                                 f"Got {self.start!r:.60}.") from None
         lines = _LINE_OF_ROW.get()
         time = _check_column("time", self.time, None, lines)
         n = time.size
@@ -374,11 +385,19 @@ class WindRecord:
             raise InputError("The 'path' parameter must be a str or path-like. Got "
                              f"{type(path).__name__}.")
         path = os.fspath(path)
+        if not os.path.isfile(path):
+            # a folder, a FIFO (reading it would block) or nothing at all
+            what = "is not a regular file" if os.path.exists(path) else "does not exist"
+            raise InputError(f"The 'path' parameter must name a CSV file. Got {path!r}, which "
+                             f"{what}.")
         try:
             with open(path, newline="", encoding="utf-8") as handle:
                 rows = list(csv.reader(handle))
         except OSError as exc:
-            raise InputError(f"Cannot read the wind record {path!r}: {exc}.") from None
+            raise InputError(f"The 'path' parameter {path!r} cannot be read: {exc}.") from None
+        except (UnicodeDecodeError, csv.Error) as exc:
+            raise InputError(f"The 'path' parameter {path!r} is not a UTF-8 CSV text file "
+                             f"({exc}).") from None
         if not rows:
             raise InputError(f"The wind record {path!r} is empty: it needs a header row with "
                              f"the columns {', '.join(REQUIRED_COLUMNS)}.")
