@@ -1,5 +1,6 @@
 """A sensor-placement report for the paper's lab span: where to instrument, how many sensors,
-how close to the best possible layout, and how much better than the paper's first 13 nodes.
+how close to the best possible layout, and how it compares with the obvious layouts of the same
+size (the paper's first 13 nodes among them).
 
 Run: python examples/sensor_report.py [out_dir]     (default out/; about 15 s; writes
 sensor_count.png and sensor_report.md)
@@ -36,10 +37,11 @@ noise_var = float(np.var(snap.displacement - snap.true_displacement))  # R: the 
 dmd = plc.fit_dmd(snap.displacement, dt=snap.dt, alpha=0.1, delays=1)
 sys_all, Q = dmd.to_statespace(), dmd.residual_covariance  # every node is a candidate
 
-# The paper's layout: the first 13 nodes.
-paper = plc.select_sensors(sys_all, k=13, Q=Q, R=noise_var, positions=model.node_positions)
-first13 = paper.baselines["first-k"].objective
-print(paper.summary())
+# 13 optimised sensors, against the paper's layout (its first 13 nodes) as a baseline.
+optimised13 = plc.select_sensors(sys_all, k=13, Q=Q, R=noise_var,
+                                 positions=model.node_positions)
+first13 = optimised13.baselines["first-k"].objective
+print(optimised13.summary())
 print()
 
 ks = [1, 2, 3, 4, 6, 9, 13]
@@ -59,8 +61,15 @@ practical = plc.select_sensors(sys_all, k=3, Q=Q, R=noise_var, positions=model.n
                                min_spacing=0.4)
 print(f"practical layout (clamps +-0.2 m forbidden, >= 0.4 m apart): positions "
       f"{[round(x, 3) for x in practical.positions]} m, trace P {practical.objective:.3e} m^2, "
-      f"certified gap {100 * practical.gap:.0f} % ({practical.certificate}), "
-      f"{first13 / practical.objective:.1f}x better than the first 13 nodes")
+      f"certified gap {100 * practical.gap:.0f} % ({practical.certificate})")
+# Each ratio says against what: layouts of the same size first, then the paper's 13 sensors.
+same_size = {name: b.objective for name, b in practical.baselines.items()
+             if b.nodes is not None and len(b.nodes) == 3 and np.isfinite(b.objective)}
+for name, objective in sorted(same_size.items(), key=lambda item: item[1]):
+    print(f"  against 3 sensors, {name}: trace P {objective:.3e} m^2, the optimised layout's "
+          f"is {100 * (1 - practical.objective / objective):.1f} % lower")
+print(f"  against the paper's first 13 nodes (13 sensors, not 3): trace P {first13:.3e} m^2, "
+      f"{first13 / practical.objective:.1f}x the optimised 3-sensor layout's")
 
 fig, ax = plt.subplots(figsize=(6, 3.5))
 ax.semilogy(study.k, 1e6 * study.rms_error, "o-", label="optimised (Riccati)")
@@ -72,6 +81,7 @@ fig.tight_layout()
 fig.savefig(out / "sensor_count.png", dpi=110)
 print(f"figure: {out / 'sensor_count.png'}")
 (out / "sensor_report.md").write_text(
-    "# Sensor placement, paper span\n\n## The paper's first 13 nodes\n\n" + paper.summary()
+    "# Sensor placement, paper span\n\n## 13 optimised sensors, against the paper's first 13 "
+    "nodes (a baseline)\n\n" + optimised13.summary()
     + "\n\n## A practical 3-sensor layout\n\n" + practical.summary() + "\n")
 print(f"summary: {out / 'sensor_report.md'}")

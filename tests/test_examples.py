@@ -32,6 +32,7 @@ OUTPUTS = {
     "paper_kalman.py": ["paper_fig7_20_elements.png", "paper_fig8_100_elements.png",
                         "paper_fig8_100_elements_between_resonances.png",
                         "better_recipe_100_elements.png", "error_along_span.png"],
+    "scenario_report.py": ["report.html", "summary.json", "layouts.csv"],
     "sensor_report.py": ["sensor_count.png", "sensor_report.md"],
     "simulate_paper_span.py": ["span_response.png"],
     "wind_speed_study.py": ["wind_speed_study.csv", "wind_speed_study.json"],
@@ -115,7 +116,24 @@ def _dask_table(out: pathlib.Path) -> None:
     assert np.all((errors > 0) & (errors < 1))
 
 
-CONTENT_CHECKS = {"wind_speed_study.py": _wind_speed_table, "dask_study.py": _dask_table}
+def _scenario_report(out: pathlib.Path) -> None:
+    """The report and the summary describe the same run: sensors at the 20-element mesh's
+    nodes (x_j = j L / 20), the CSV's errors those of the JSON, every figure embedded."""
+    import json
+
+    summary = json.loads((out / "summary.json").read_text())
+    nodes = np.asarray(summary["sensor_nodes"])
+    np.testing.assert_allclose(summary["sensor_positions_m"], 3.66 * nodes / 20, rtol=1e-12)
+    with (out / "layouts.csv").open() as handle:
+        rows = {r["layout"]: float(r["error_unmeasured_percent"]) for r in csv.DictReader(handle)}
+    assert rows == {name: lay["error_unmeasured_percent"]
+                    for name, lay in summary["layouts"].items()}
+    html = (out / "report.html").read_text()
+    assert html.count("<figure") >= 7 and "data:image/svg+xml;base64," in html
+
+
+CONTENT_CHECKS = {"wind_speed_study.py": _wind_speed_table, "dask_study.py": _dask_table,
+                  "scenario_report.py": _scenario_report}
 
 
 def test_the_output_folder_detection():
