@@ -589,10 +589,11 @@ def _column(x: float) -> str:
 def save_record(path: str | os.PathLike[str], record: Record) -> list:
     """Write a record as ``PATH.npz`` (arrays + JSON metadata) and ``PATH.csv`` (text).
 
-    The CSV has a ``time_s`` column and one column per channel named ``x_<position>_m``
-    (displacement in m, an empty cell for a missing sample): ``pandas.read_csv`` and
-    ``numpy.genfromtxt(..., delimiter=",", names=True)`` read it. The ``.npz`` holds ``t``,
-    ``positions``, ``values`` (and ``truth`` when known) and needs no pickle.
+    The CSV starts with a comment line ``# sample_rate_hz = ...``, then a ``time_s`` column and
+    one column per channel named ``x_<position>_m`` (displacement in m, an empty cell for a
+    missing sample): ``pandas.read_csv(path, comment="#")`` and
+    ``numpy.genfromtxt(path, delimiter=",", names=True, skip_header=1)`` read it. The
+    ``.npz`` holds ``t``, ``positions``, ``values`` (and ``truth`` when known), no pickle.
 
     Parameters
     ----------
@@ -633,6 +634,7 @@ def save_record(path: str | os.PathLike[str], record: Record) -> list:
     np.savez(npz, **arrays, **{_METADATA_KEY: np.array(json.dumps(header))})
     columns = ["time_s", *(_column(x) for x in record.positions)]
     with open(csv, "w", encoding="utf-8") as handle:
+        handle.write(f"# sample_rate_hz = {1.0 / record.dt!r}\n")
         handle.write(",".join(columns) + "\n")
         for k in range(record.t.size):
             cells = [repr(float(record.t[k]))] + [
@@ -648,7 +650,8 @@ def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = Non
     ``.npz`` files are those :func:`save_record` writes. A ``.csv`` file has a header row, a
     time column (``time_s``, or ``t``/``time``, s) and one column per channel named
     ``x_<position>_<unit>`` (unit ``m``, ``mm`` or ``um``; e.g. ``x_0.915_m``); an empty cell,
-    ``nan`` or ``NA`` is a missing sample. Lines starting with ``#`` are comments.
+    ``nan`` or ``NA`` is a missing sample. Lines starting with ``#`` are comments, except
+    ``# sample_rate_hz = 1000``, which the time column must agree with.
 
     Parameters
     ----------
@@ -736,7 +739,17 @@ def _load_record_csv(name: str, units: str | None) -> Record:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise InputError(f"{name}: not UTF-8 text; a record is CSV text or .npz.") from None
-    lines = [(i + 1, line) for i, line in enumerate(text.splitlines())
+    all_lines = text.splitlines()
+    declared = None
+    for i, line in enumerate(all_lines):
+        match = re.match(r"^\s*#\s*sample_rate_hz\s*[=:]\s*(\S+)\s*$", line)
+        if match:
+            try:
+                declared = float(match.group(1))
+            except ValueError:
+                raise InputError(f"{name}: line {i + 1}: sample_rate_hz {match.group(1)!r} is "
+                                 "not a number of Hz.") from None
+    lines = [(i + 1, line) for i, line in enumerate(all_lines)
              if line.strip() and not line.lstrip().startswith("#")]
     if len(lines) < 3:
         raise InputError(f"{name}: a record needs a header row and at least 2 samples.")
@@ -784,4 +797,8 @@ def _load_record_csv(name: str, units: str | None) -> Record:
                 raise InputError(f"{name}: line {number}, column {header[col]!r}: {cell!r:.30} "
                                  "is not a number.") from None
     values = table[:, 1:].T * np.asarray(scales)[:, None]
-    return Record(table[:, 0], positions, values, name)
+    record = Record(table[:, 0], positions, values, name)
+    if declared is not None and not math.isclose(1.0 / record.dt, declared, rel_tol=1e-6):
+        raise InputError(f"{name}: the header says sample_rate_hz = {declared:g}, but the "
+                         f"time column {header[0]!r} gives {1.0 / record.dt:.6g} Hz.")
+    return record

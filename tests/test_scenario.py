@@ -231,13 +231,13 @@ def test_record_round_trip_of_a_simulated_record(tmp_path, result):
 def test_a_record_readable_by_numpy_and_pandas(tmp_path):
     record = Record([0.0, 0.5, 1.0], [1.0, 2.0], [[0.0, 1e-3, np.nan], [0.0, 2e-3, 1e-3]])
     npz, csv = save_record(tmp_path / "r", record)
-    table = np.genfromtxt(csv, delimiter=",", names=True)
+    table = np.genfromtxt(csv, delimiter=",", names=True, skip_header=1)
     assert table.dtype.names == ("time_s", "x_1_m", "x_2_m")
     assert np.isnan(table["x_1_m"][2]) and table["x_2_m"][1] == 2e-3
     with np.load(npz, allow_pickle=False) as data:
         assert data["values"].shape == (2, 3)
     pandas = pytest.importorskip("pandas")
-    frame = pandas.read_csv(csv)
+    frame = pandas.read_csv(csv, comment="#")
     assert list(frame.columns) == ["time_s", "x_1_m", "x_2_m"]
 
 
@@ -276,6 +276,8 @@ def test_a_record_with_gaps_goes_through_estimate(tmp_path, result):
     ("time_s,x_1.0_m\n0,0.1\n0.001,0.2\n0.003,0.3\n", "not uniformly sampled"),
     ("time_s,x_1.0_m\n0,0.1\n0.002,0.2\n0.004,0.3\n", "simulation.dt"),
     ("time_s,position\n0,0.1\n0.001,0.2\n0.002,0.3\n", "column 'position'"),
+    ("# sample_rate_hz = 500\ntime_s,x_1.0_m\n0,0.1\n0.001,0.2\n0.002,0.3\n",
+     "sample_rate_hz = 500, but the time column 'time_s' gives 1000 Hz"),
 ])
 def test_bad_records_exit_2_with_one_line_naming_the_column(tmp_path, text, names):
     path = tmp_path / "bad.csv"
