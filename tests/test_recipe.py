@@ -623,9 +623,12 @@ def test_consistency_warning_on_a_handful_of_lab_runs():
     assert all(1 / 1.5 < ratio < 1.5 for ratio in calibration)
 
 
-# Measured on this family (seeds 40-43): lab-pinned 3/6 false alarms and 5/6 detected,
-# lab-clamped 0/6 and 5/6, Cardinal pinned 0/6 and 2/6, Cardinal clamped 3/6 and 3/6.
-RATE_DETECTED, RATE_FALSE_ALARMS = 15, 6
+# Measured on this family (seeds 40-43), windowed NIS alone (before the spectral test): lab-pinned
+# 3/6 false alarms and 5/6 detected, lab-clamped 0/6 and 5/6, Cardinal pinned 0/6 and 2/6,
+# Cardinal clamped 3/6 and 3/6 (15/24, 6/24). With the spectral test of the innovations and the
+# low-side NIS no longer a rejection: every case 6/6 detected; false alarms lab-pinned 3/6, the
+# others 0/6 (24/24, 3/24). The held-out family of tests/estimator_family.py is the main measure.
+RATE_DETECTED, RATE_FALSE_ALARMS = 24, 3
 
 
 @pytest.mark.slow
@@ -633,8 +636,8 @@ def test_consistency_warning_rates_on_lab_and_real_spans():
     """Issue 19 Must-show: detection and false-alarm rates, 24 runs each.
 
     Lab span and Cardinal 400 m at 25 % RTS, pinned and clamped, two designs per case, three
-    matched and three mismatched runs per design. Targets were >= 95 % detection and <= 5 %
-    false alarms; measured (see the report of issue 19) far from them, and asserted as
+    matched and three mismatched runs per design. Targets >= 95 % detection and <= 5 % false
+    alarms; measured 24/24 and 3/24 (12.5 %, all on the lab-pinned designs), asserted as
     measured so that a change that makes them worse fails.
     """
     matched, mismatched = [], []
