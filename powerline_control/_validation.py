@@ -30,6 +30,7 @@ __all__ = [
     "MEMORY_BUDGET_BYTES",
     "WORK_BUDGET",
     "check_budget",
+    "check_budget_value",
 ]
 
 # Default budgets for what one public call may commit before it starts (documented in
@@ -167,6 +168,13 @@ def check_array(
             f"The {name!r} parameter must be a numeric array. Got a boolean array of shape "
             f"{raw.shape} (a mask?); convert it explicitly (x.astype(float)) if 0/1 is meant."
         )
+    # Budget before the conversion: converting (an int array, a broadcast view) copies, and a
+    # 0-byte broadcast view of 1e9 entries would become 8 GB here.
+    itemsize = np.dtype(dtype).itemsize
+    if raw.dtype != np.dtype(dtype) or 0 in raw.strides:
+        check_budget(f"The {name!r} parameter's {raw.size:.3g} entries as {np.dtype(dtype)}",
+                     nbytes=float(raw.size) * itemsize, parameter=name, value=raw.shape,
+                     fix="pass a smaller array")
     try:
         array = np.asarray(raw, dtype=dtype)
     except (TypeError, ValueError) as exc:
@@ -190,14 +198,38 @@ def check_array(
                 f"The {name!r} parameter has the wrong shape: expected {expected} "
                 f"but found {array.shape}."
             )
-    bad = np.isinf(array) if allow_nan else ~np.isfinite(array)
-    if np.any(bad):
+    if not _all_finite(array, allow_nan):
         what = "infinite" if allow_nan else "NaN or infinite"
+        count = ""
+        if array.size <= 10**7:   # counting allocates a mask the size of the input
+            bad = np.isinf(array) if allow_nan else ~np.isfinite(array)
+            count = f"{int(np.count_nonzero(bad))} "
         raise InputError(
-            f"The {name!r} parameter contains {int(np.count_nonzero(bad))} {what} value(s); "
-            "all entries must be finite."
+            f"The {name!r} parameter contains {count}{what} value(s); all entries must be "
+            "finite."
         )
     return array
+
+
+def _all_finite(array: np.ndarray, allow_nan: bool = False) -> bool:
+    """Whether every entry is finite (NaN allowed with ``allow_nan``), without a mask.
+
+    Reductions allocate nothing the size of the input (``~np.isfinite(x)`` would: 37 GiB of
+    bools on a broadcast view): the maximum is NaN if any entry is, and +-inf show in the
+    maximum and minimum (of the real and imaginary parts for complex input).
+    """
+    if array.size == 0:
+        return True
+    parts = (array.real, array.imag) if np.iscomplexobj(array) else (array,)
+    for part in parts:
+        with np.errstate(invalid="ignore"):
+            if allow_nan:
+                high, low = np.fmax.reduce(part, axis=None), np.fmin.reduce(part, axis=None)
+                if np.isinf(high) or np.isinf(low):
+                    return False
+            elif not (np.isfinite(part.max()) and np.isfinite(part.min())):
+                return False
+    return True
 
 
 def check_snapshot_matrix(name: str, value: object) -> np.ndarray:
@@ -352,6 +384,10 @@ def check_budget(
     ...
     powerline_control.errors.InputError: ...
     """
+    if memory_budget is not _NOT_GIVEN:
+        check_budget_value("memory_budget", memory_budget)
+    if work_budget is not _NOT_GIVEN:
+        check_budget_value("work_budget", work_budget)
     memory_hint = _budget_hint("memory_budget", memory_budget, "POWERLINE_CONTROL_MEMORY_BUDGET")
     work_hint = _budget_hint("work_budget", work_budget, "POWERLINE_CONTROL_WORK_BUDGET")
     memory_budget = (MEMORY_BUDGET_BYTES if memory_budget is None or memory_budget is _NOT_GIVEN
@@ -369,6 +405,27 @@ def check_budget(
             f"parameter is {_describe(value)}), over the budget of {work_budget:.2g}. "
             f"To fix: {fix}, or raise the budget ({work_hint})."
         )
+
+
+def check_budget_value(name: str, value: object) -> float | None:
+    """``None`` or a budget (a limit in bytes or operations): a finite real number > 0.
+
+    A budget is a guard: ``nan`` would make every ``estimate > budget`` comparison false and
+    switch the guard off, ``inf`` says the same in words the caller did not mean, and a string
+    (``"1e6"``) or a bool is not a number. Validate every budget before anything is estimated.
+
+    Examples
+    --------
+    >>> check_budget_value("memory_budget", 2**30)
+    1073741824.0
+    >>> check_budget_value("memory_budget", float("nan"))
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: The 'memory_budget' parameter must be finite...
+    """
+    if value is None:
+        return None
+    return check_real(name, value, low=0.0)
 
 
 def _budget_hint(argument: str, given: object, variable: str) -> str:

@@ -143,6 +143,12 @@ class AeolianForce:
         check_real("strouhal", self.strouhal, low=0.0, high=1.0)
         check_real("lift_coefficient", self.lift_coefficient, low=0.0)
         check_real("air_density", self.air_density, low=0.0)
+        if self.position is not None:
+            # The lift is distributed along the span: a point would be silently ignored.
+            raise InputError(
+                "The 'position' parameter of an AeolianForce must be None: the lift acts along "
+                f"the whole span (got {self.position!r:.40}). Use HarmonicForce for a point load."
+            )
         if not isinstance(self.correlated, bool | np.bool_):
             # 'no' or 0.0 would be truthy or silently cast: a flag must be a bool.
             raise InputError(

@@ -668,6 +668,12 @@ class DMDModel:
         C = self.field_map[nodes]
         self._warn_if_python_control_refuses(C, nodes)
         B = np.zeros((self.n_states, 0)) if self.B is None else self.B
+        if inputs is not None and (isinstance(inputs, str) or not isinstance(inputs, Sequence)
+                                   or not all(isinstance(n, str) for n in inputs)):
+            raise InputError(
+                "The 'inputs' parameter must be None or a sequence of input names (str). Got "
+                f"{inputs!r:.60} of type {type(inputs).__name__}."
+            )
         if inputs is None:
             input_names = [f"u{i}" for i in range(self.n_inputs)]
         elif self.B is None and len(list(inputs)) == 0:
@@ -1472,7 +1478,8 @@ def select_alpha(
     train_fraction = check_real("train_fraction", train_fraction, low=0.0, high=1.0,
                                 high_inclusive=False)
     horizon = check_int("horizon", horizon, low=1)
-    n_windows = check_int("n_windows", n_windows, low=1)
+    # No more windows than samples (more would only repeat starts, after allocating them all).
+    n_windows = check_int("n_windows", n_windows, low=1, high=X.shape[1])
     if u is not None and u.shape[1] == X.shape[1] - 1:
         u = np.hstack([u, np.zeros((u.shape[0], 1))])  # the last column drives nothing
     n_samples = X.shape[1]

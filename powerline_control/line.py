@@ -12,7 +12,7 @@ from importlib import resources
 
 import numpy as np
 
-from ._validation import check_int, check_real
+from ._validation import check_array, check_budget, check_int, check_real
 from .errors import InputError, PresetNotFoundError
 
 __all__ = ["Conductor", "Span", "conductors", "tension_at_temperature",
@@ -65,6 +65,9 @@ class Conductor:
     thermal_expansion: float | None = None
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise InputError(f"The 'name' parameter must be a string (a label). Got "
+                             f"{self.name!r:.60} of type {type(self.name).__name__}.")
         object.__setattr__(
             self, "mass_per_length", check_real("mass_per_length", self.mass_per_length, low=0.0)
         )
@@ -149,6 +152,15 @@ class Span:
         if self.tension == 0.0 and self.conductor.ei == 0.0:
             raise InputError(
                 "A span needs tension > 0 or conductor.ei > 0: with both zero it has no stiffness."
+            )
+        rts = self.conductor.rated_strength
+        if rts is not None and self.tension >= rts:
+            # At or above the rated tensile strength the conductor breaks: no answer about its
+            # vibration means anything (everyday tensions are 15-25 % RTS).
+            raise InputError(
+                f"The 'tension' parameter ({self.tension:.6g} N) must be below the conductor's "
+                f"rated tensile strength ({rts:.6g} N): {100 * self.tension / rts:.3g} % RTS "
+                "breaks it. Everyday tensions are 15-25 % RTS."
             )
 
     @classmethod
@@ -256,16 +268,29 @@ class Span:
         >>> round(float(span.wavenumber(span.pinned_frequencies(10)[-1])) * 300 / np.pi, 6)
         10.0
         """
-        f = np.asarray(frequency, dtype=float)
-        if np.any(~np.isfinite(f)) or np.any(f < 0):
+        # check_array refuses text ("1.0" would parse), bools, complex and NaN/inf
+        f = check_array("frequency", frequency)
+        if np.any(f < 0):
             raise InputError(
                 f"The 'frequency' parameter must be finite and >= 0. Got {frequency!r}."
             )
         cond = self.conductor
-        mw2 = cond.mass_per_length * (2 * np.pi * f) ** 2
+        omega = 2 * np.pi * f
         t = self.tension
-        k2 = 2 * mw2 / (t + np.sqrt(t**2 + 4 * cond.ei * mw2)) if t > 0 else np.sqrt(mw2 / cond.ei)
-        k = np.sqrt(k2)
+        with np.errstate(over="ignore", invalid="ignore"):
+            # k = omega sqrt(2 m / (T + sqrt(T^2 + 4 EI m omega^2))): omega^2 never stands alone,
+            # so a tiny frequency does not underflow to k = 0 (an infinite loop)
+            if t > 0:
+                k = omega * np.sqrt(2 * cond.mass_per_length
+                                    / (t + np.sqrt(t**2 + 4 * cond.ei * cond.mass_per_length
+                                                   * omega**2)))
+            else:
+                k = np.sqrt(omega) * (cond.mass_per_length / cond.ei) ** 0.25
+        if not np.all(np.isfinite(k)) or np.any((k == 0) & (f > 0)):
+            raise InputError(
+                f"The 'frequency' parameter is out of range: {frequency!r} Hz has no finite "
+                "wavenumber on this span."
+            )
         return float(k) if np.ndim(k) == 0 else k
 
     def loop_length(self, frequency: float | np.ndarray) -> float | np.ndarray:
@@ -275,8 +300,13 @@ class Span:
         --------
         >>> round(Span.at_rts_fraction(300.0, "drake", 0.20).loop_length(46.0), 3)
         1.431
+        >>> Span.paper_lab().loop_length(0.0)   # a static load has no loops
+        inf
         """
-        return np.pi / self.wavenumber(frequency)
+        k = np.asarray(self.wavenumber(frequency), dtype=float)
+        with np.errstate(divide="ignore"):
+            loop = np.pi / k   # inf at f = 0: a static load has no finite loop
+        return float(loop) if np.ndim(loop) == 0 else loop
 
     def frequency_of_wavenumber(self, wavenumber: float | np.ndarray) -> float | np.ndarray:
         """Frequency (Hz) of a free wave of wavenumber k (rad/m): the inverse of :meth:`wavenumber`.
@@ -303,6 +333,8 @@ class Span:
         array([ 6.534, 14.388])
         """
         n_modes = check_int("n_modes", n_modes, low=1)
+        check_budget(f"pinned_frequencies({n_modes})", nbytes=32.0 * n_modes,
+                     parameter="n_modes", value=n_modes, fix="ask for fewer modes")
         k = np.arange(1, n_modes + 1) * np.pi / self.length
         cond = self.conductor
         omega = np.sqrt((cond.ei * k**4 + self.tension * k**2) / cond.mass_per_length)
@@ -314,6 +346,9 @@ class Span:
 _STANDARD_GRAVITY = 9.80665
 #: Absolute zero, degC: a temperature at or below it is refused.
 _ABSOLUTE_ZERO = -273.15
+#: Melting point of aluminium, degC: no conductor temperature above it has a change of state
+#: (1e300 degC overflowed the cubic to NaN).
+_ALUMINIUM_MELTING = 660.3
 
 
 def tension_at_temperature(span: Span, temperature: float | np.ndarray,
@@ -381,13 +416,15 @@ def tension_at_temperature(span: Span, temperature: float | np.ndarray,
     if span.tension <= 0:
         raise InputError("The change of state needs span.tension > 0 (a strung conductor). "
                          f"Got {span.tension!r}.")
-    t_ref = check_real("reference_temperature", reference_temperature, low=_ABSOLUTE_ZERO)
+    t_ref = check_real("reference_temperature", reference_temperature, low=_ABSOLUTE_ZERO,
+                       high=_ALUMINIUM_MELTING)
     scalar = np.ndim(temperature) == 0
     t = np.atleast_1d(np.asarray(temperature))
     if t.dtype.kind not in "iuf" or t.ndim != 1 or not np.all(np.isfinite(t)) \
-            or np.any(t <= _ABSOLUTE_ZERO):
+            or np.any(t <= _ABSOLUTE_ZERO) or np.any(t > _ALUMINIUM_MELTING):
         raise InputError("The 'temperature' parameter must be a real number or 1-D array of "
-                         f"finite temperatures above {_ABSOLUTE_ZERO} degC. Got {temperature!r}.")
+                         f"finite temperatures above {_ABSOLUTE_ZERO} degC and at most "
+                         f"{_ALUMINIUM_MELTING} degC (aluminium melts). Got {temperature!r}.")
     t = t.astype(float)
     weight = cond.mass_per_length * _STANDARD_GRAVITY
     # loads up to 1e5 N/m (a hundred times a heavily iced conductor's): a bound that keeps the

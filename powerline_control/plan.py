@@ -273,6 +273,11 @@ class Trajectory:
 def _check_obstacles(
     obstacles: Sequence[tuple[float, float]], span_length: float | None
 ) -> list[tuple[float, float]]:
+    if isinstance(obstacles, str | bytes) or not isinstance(obstacles, Sequence | np.ndarray):
+        raise InputError(
+            "The 'obstacles' parameter must be a sequence of (left, right) pairs in metres "
+            f"(() for none). Got {obstacles!r:.60} of type {type(obstacles).__name__}."
+        )
     checked = []
     for i, item in enumerate(obstacles):
         try:
@@ -1172,8 +1177,10 @@ def _ipopt_plan(
 def _check_velocity_state(start_velocity: float, end_velocity: float, limits: RobotLimits) -> None:
     for name, value in (("start_velocity", start_velocity), ("end_velocity", end_velocity)):
         if abs(value) > limits.v_max * (1 + _STATE_RTOL):
-            raise PlanningError(
-                f"The {name} {value:g} m/s exceeds the speed limit v_max={limits.v_max:g} m/s."
+            # Bad input, not an infeasible plan: no robot can start (or end) above its limit.
+            raise InputError(
+                f"The {name!r} parameter ({value:g} m/s) exceeds the speed limit "
+                f"v_max={limits.v_max:g} m/s."
             )
 
 

@@ -28,7 +28,15 @@ import scipy.signal
 from threadpoolctl import threadpool_limits
 
 from ._spectral import load_phasor
-from ._validation import check_array, check_budget, check_int, check_real, check_rng, read_only
+from ._validation import (
+    check_array,
+    check_budget,
+    check_budget_value,
+    check_int,
+    check_real,
+    check_rng,
+    read_only,
+)
 from .errors import InputError, ModelError, TruncationWarning
 from .excitation import BoundAeolianForce, HarmonicForce, RandomForce
 from .fem import LineModel
@@ -251,6 +259,7 @@ def simulate(
     >>> snap.displacement.shape
     (21, 1001)
     """
+    memory_budget = check_budget_value("memory_budget", memory_budget)  # a guard: first
     if not isinstance(model, LineModel):
         raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
     duration = check_real("duration", duration, low=0.0)
@@ -540,6 +549,11 @@ def _initial_modal_state(model, basis, displacement, velocity, modes, state) -> 
         q[:r] = basis.shapes.T @ (mass @ _initial_dofs(model, "initial_displacement", displacement))
     if velocity is not None:
         q[r:] = basis.shapes.T @ (mass @ _initial_dofs(model, "initial_velocity", velocity))
+    if modes is not None and not isinstance(modes, dict):
+        raise InputError(
+            "The 'initial_modes' parameter must be None or a dict {mode index: amplitude (m)}. "
+            f"Got {modes!r:.60} of type {type(modes).__name__}."
+        )
     if modes:
         nodal = model.displacement_map() @ basis.shapes
         for index, amplitude in modes.items():

@@ -34,13 +34,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validation import check_budget, check_int
+from ._validation import check_budget, check_int, check_real
 from .errors import FileFormatError, InputError
 
 __all__ = ["parameter_grid", "point_seed", "run_study", "StudyResult"]
 
 _FORMAT = "powerline_control.study"
-_FORMAT_VERSION = 1
+_FORMAT_VERSION = 2   # 2: non-finite floats as {"$float": "nan"}; 1 wrote them as null
+_FLOAT_TAG = "$float"
 _SEED_KEY = "seed"
 
 
@@ -200,6 +201,39 @@ class StudyResult:
     base_seed: int | None = None
     wall_time: float = field(default=0.0, compare=False)
 
+    def __post_init__(self) -> None:
+        for label in ("parameters", "results"):
+            rows = getattr(self, label)
+            if not isinstance(rows, tuple) or not all(isinstance(r, Mapping) for r in rows):
+                raise InputError(
+                    f"The {label!r} parameter must be a tuple of dicts (one per grid point). "
+                    f"Got {rows!r:.60} of type {type(rows).__name__}."
+                )
+        if not self.parameters or len(self.results) != len(self.parameters):
+            raise InputError(
+                f"The 'parameters' and 'results' parameters must hold one dict per grid point, "
+                f"at least one. Got {len(self.parameters)} points and {len(self.results)} results."
+            )
+        if self.seeds is not None and (
+            not isinstance(self.seeds, tuple) or len(self.seeds) != len(self.parameters)
+            or not all(isinstance(s, numbers.Integral) and not isinstance(s, bool)
+                       for s in self.seeds)):
+            raise InputError(
+                f"The 'seeds' parameter must be None or a tuple of {len(self.parameters)} "
+                f"integers (one per grid point). Got {self.seeds!r:.60}."
+            )
+        if self.base_seed is not None:
+            check_int("base_seed", self.base_seed, low=0)
+        check_real("wall_time", self.wall_time, low=0.0, low_inclusive=True)
+        for label, rows in (("parameters", self.parameters), ("results", self.results)):
+            for row in rows:
+                for key, value in row.items():
+                    if not isinstance(key, str):
+                        raise InputError(f"The {label!r} parameter has the key {key!r}; keys "
+                                         "must be strings.")
+                    _plain(value, f"The {label!r} parameter's value {key!r}")
+        _check_keys(self.parameters, self.results, self.seeds is not None)
+
     @property
     def columns(self) -> list[str]:
         """Column names of the table: parameters, then the seed (if any), then the results."""
@@ -224,8 +258,9 @@ class StudyResult:
             If there is no such column.
         """
         rows = self.table()
-        if name not in rows[0]:
-            raise InputError(f"No column {name!r}; the columns are {sorted(rows[0])}.")
+        if not isinstance(name, str) or name not in rows[0]:
+            raise InputError(f"The 'name' parameter must be a column of the study, one of "
+                             f"{sorted(rows[0])}. Got {name!r:.60}.")
         return np.array([row[name] for row in rows])
 
     def table(self) -> list[dict]:
@@ -258,7 +293,7 @@ class StudyResult:
     def to_csv(self, path: str | Path) -> Path:
         """Write the table as CSV (a file to open in any spreadsheet) and return its path."""
         rows = self.table()
-        path = Path(path)
+        path = _study_path(path, reading=False)
         with path.open("w", newline="") as handle:
             writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
             writer.writeheader()
@@ -268,21 +303,20 @@ class StudyResult:
     def to_json(self, path: str | Path) -> Path:
         """Write the study as JSON (read back with :meth:`from_json`) and return its path.
 
-        NaN and infinite results are written as ``null`` (standard JSON has no NaN).
+        Lossless: standard JSON has no NaN or infinity, so a non-finite float (a result or a
+        parameter) is written as the object ``{"$float": "nan"}`` (``"inf"``, ``"-inf"``), which
+        :meth:`from_json` reads back as the float (format version 2; version 1 wrote ``null``).
         """
         document = {
             "format": _FORMAT,
             "version": _FORMAT_VERSION,
             "base_seed": self.base_seed,
             "columns": self.columns,
-            "parameters": list(self.parameters),
+            "parameters": [_encode_floats(point) for point in self.parameters],
             "seeds": None if self.seeds is None else list(self.seeds),
-            "results": [
-                {key: _finite_or_none(value) for key, value in result.items()}
-                for result in self.results
-            ],
+            "results": [_encode_floats(result) for result in self.results],
         }
-        path = Path(path)
+        path = _study_path(path, reading=False)
         path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
         return path
 
@@ -295,21 +329,30 @@ class StudyResult:
         FileFormatError
             If the file is not a study written by :meth:`to_json`.
         """
-        path = Path(path)
+        path = _study_path(path, reading=True)
         try:
-            document = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as error:
+            document = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
             raise FileFormatError(f"Cannot read the study file {str(path)!r}: {error}") from error
         if not isinstance(document, dict) or document.get("format") != _FORMAT:
             raise FileFormatError(
                 f"The file {str(path)!r} is not a study written by StudyResult.to_json "
                 f"(its 'format' must be {_FORMAT!r})."
             )
+        if "version" not in document:
+            raise FileFormatError(f"The study file {str(path)!r} is incomplete or damaged: it "
+                                  "has no 'version'.")
+        version = document["version"]
+        if version not in (1, _FORMAT_VERSION) or isinstance(version, bool):
+            raise FileFormatError(
+                f"The study file {str(path)!r} has format version {version!r}; this version of "
+                f"powerline_control reads versions 1 and {_FORMAT_VERSION}."
+            )
         seeds = document.get("seeds")
         try:
             return cls(
-                parameters=tuple(dict(p) for p in document["parameters"]),
-                results=tuple(dict(r) for r in document["results"]),
+                parameters=tuple(_decode_floats(dict(p)) for p in document["parameters"]),
+                results=tuple(_decode_floats(dict(r)) for r in document["results"]),
                 seeds=None if seeds is None else tuple(int(s) for s in seeds),
                 base_seed=document.get("base_seed"),
             )
@@ -319,10 +362,73 @@ class StudyResult:
             ) from error
 
 
-def _finite_or_none(value: object) -> object:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
+def _study_path(path: object, *, reading: bool) -> Path:
+    """``path`` as a Path to a regular file (existing when ``reading``; its folder when writing).
+
+    A FIFO would block the call until another process opens it, a folder cannot be a file, and
+    ``''`` would mean the working folder: all refused by name, before anything is opened.
+    """
+    if isinstance(path, bytes):
+        path = os.fsdecode(path)
+    if not isinstance(path, str | os.PathLike) or not os.fspath(path):
+        raise InputError(
+            f"The 'path' parameter must be a non-empty file path (str or os.PathLike). Got "
+            f"{path!r:.60} of type {type(path).__name__}."
+        )
+    path = Path(path)
+    if path.exists() and not path.is_file():
+        kind = "a folder" if path.is_dir() else "not a regular file (a FIFO or a device)"
+        raise InputError(f"The 'path' parameter {str(path)!r} is {kind}; give a file.")
+    if reading and not path.exists():
+        raise InputError(f"The 'path' parameter {str(path)!r} names no file.")
+    if not reading and not path.parent.is_dir():
+        raise InputError(
+            f"The 'path' parameter {str(path)!r} is in the folder {str(path.parent)!r}, which "
+            "does not exist; create it first."
+        )
+    return path
+
+
+def _encode_floats(row: Mapping) -> dict:
+    """``row`` with each non-finite float as ``{"$float": "nan" | "inf" | "-inf"}``."""
+    return {key: {_FLOAT_TAG: repr(value)} if isinstance(value, float)
+            and not math.isfinite(value) else value for key, value in row.items()}
+
+
+def _decode_floats(row: dict) -> dict:
+    """The inverse of :func:`_encode_floats`; any other object in a row is damage."""
+    out = {}
+    for key, value in row.items():
+        if isinstance(value, dict):
+            if set(value) != {_FLOAT_TAG} or value[_FLOAT_TAG] not in ("nan", "inf", "-inf"):
+                raise ValueError(f"the value of {key!r} is {value!r:.60}, not a scalar")
+            value = float(value[_FLOAT_TAG])
+        out[key] = value
+    return out
+
+
+def _check_keys(parameters: Sequence[Mapping], results: Sequence[Mapping],
+                seeded: bool) -> None:
+    """Every point has the first point's keys, every result the first result's keys, and no
+    result is named like a parameter (or ``seed`` in a seeded study): the table would lose it."""
+    for what, rows in (("grid point", parameters), ("result of grid point", results)):
+        if not rows:
+            continue
+        first = list(rows[0])
+        for index, row in enumerate(rows):
+            if set(row) != set(first):
+                raise InputError(
+                    f"The {what} {index} has the keys {sorted(row)} but the {what} 0 has "
+                    f"{sorted(first)}: every row of a study table has the same columns."
+                )
+    if parameters and results:
+        names = set(parameters[0]) | ({_SEED_KEY} if seeded else set())
+        clash = sorted(names & set(results[0]))
+        if clash:
+            raise InputError(
+                f"The study function returns {clash}, named like the study's parameters (or its "
+                "seed): the table would overwrite one with the other. Rename the result keys."
+            )
 
 
 _BLAS_LOCK = threading.Lock()
@@ -462,6 +568,9 @@ def run_study(
         seed = check_int("seed", seed, low=0)
     if blas_threads is not None:
         blas_threads = check_int("blas_threads", blas_threads, low=1)
+    if not isinstance(description, str):
+        raise InputError(f"The 'description' parameter must be a string (the progress bar's "
+                         f"label). Got {description!r:.60} of type {type(description).__name__}.")
     if progress is not None and not isinstance(progress, bool):
         raise InputError(
             f"The 'progress' parameter must be True, False or None. Got {progress!r}."
@@ -492,6 +601,12 @@ def run_study(
                 "use one or the other."
             )
         _canonical(point)  # every value a scalar, checked before any work starts
+        if points and set(point) != set(points[0]):
+            raise InputError(
+                f"The 'grid' parameter's point {index} has the keys {sorted(point)} but point 0 "
+                f"has {sorted(points[0])}: every grid point needs the same keys (one column "
+                "each in the study table)."
+            )
         points.append(dict(point))
     if not points:
         raise InputError("The 'grid' parameter is empty: a study needs at least one point.")
@@ -516,6 +631,7 @@ def run_study(
         if executor is None:
             for index, call in enumerate(calls):
                 results[index] = _run_point(func, call, index, points[index], caller)
+                _check_result(results, index, points, seeds is not None)
                 bar.update()
         else:
             futures = {
@@ -526,6 +642,7 @@ def run_study(
                 for future in as_completed(futures):
                     index = futures[future]
                     results[index] = _result_of(future, index, points[index])
+                    _check_result(results, index, points, seeds is not None)
                     bar.update()
             except BaseException:
                 for future in futures:
@@ -538,6 +655,20 @@ def run_study(
         base_seed=seed,
         wall_time=time.perf_counter() - start,
     )
+
+
+def _check_result(results: list, index: int, points: list, seeded: bool) -> None:
+    """Refuse a result as soon as it arrives if its keys differ from the first result to
+    arrive (in whatever order) or clash with a parameter."""
+    result = results[index]
+    reference = next(r for r in results if r is not None)
+    if set(result) != set(reference):
+        raise InputError(
+            f"The study function returned the keys {sorted(result)} at grid point {index} "
+            f"({points[index]}) but {sorted(reference)} at an earlier point: every row of a "
+            "study table has the same columns."
+        )
+    _check_keys([points[0]], [result], seeded)
 
 
 def _run_point(func: Callable, call: Mapping, index: int, point: Mapping, caller: int) -> dict:

@@ -6,6 +6,8 @@ invalid ones), in ranges that keep one example cheap (small meshes, short record
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from hypothesis import strategies as st
 
@@ -61,8 +63,13 @@ def line_models(draw, max_elements: int = 12) -> plc.LineModel:
     bc = draw(boundary_conditions)
     # One element between two clamps has no free DOF: LineModel rejects it (a bad-input row).
     fewest = 2 if bc in ("clamped", ("clamped", "clamped")) else 1
-    return plc.LineModel(span, n_elements=draw(st.integers(fewest, max_elements)),
-                         bc=bc, damping=draw(dampings), mdr=mdr)
+    with warnings.catch_warnings():
+        # A coarse uniform mesh at a clamp is valid but does not resolve the boundary layer:
+        # it warns (issue 21); these strategies test properties that hold on any mesh.
+        warnings.filterwarnings("ignore", "The uniform mesh .* boundary layer",
+                                plc.TruncationWarning)
+        return plc.LineModel(span, n_elements=draw(st.integers(fewest, max_elements)),
+                             bc=bc, damping=draw(dampings), mdr=mdr)
 
 
 @st.composite

@@ -61,3 +61,10 @@ def test_uncorrelated_aeolian_lift_is_uniform():
 def test_bad_load_arguments_name_the_parameter(make, name):
     with pytest.raises(InputError, match=name):
         make()
+
+
+@pytest.mark.parametrize("position", [1.0, float("nan"), "mid", True])
+def test_aeolian_force_has_no_point_of_application(position):
+    # Old code kept any position (even nan) and ignored it: the lift is distributed.
+    with pytest.raises(InputError, match="'position' parameter of an AeolianForce"):
+        plc.AeolianForce(3.0, position=position)

@@ -533,3 +533,51 @@ def test_sparse_eigen_solve_is_repeatable_bit_for_bit():
     beta = j * np.pi / L
     exact = np.sqrt((T * beta**2 + EI * beta**4) / m)
     assert np.allclose(first.omega, exact, rtol=1e-6)
+
+
+# ------------------------------------------------------------------ issue 21: accuracy warns
+DRAKE_300 = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
+
+
+def test_uniform_clamped_mesh_that_misses_the_boundary_layer_warns_with_its_error():
+    # Truth: the graded physics mesh at a 1e-4 tolerance. 20 uniform elements on a clamped
+    # 300 m Drake span read every frequency ~1.2 % high; old code said nothing.
+    truth = plc.LineModel(DRAKE_300, bc="clamped", max_frequency=60.0,
+                          frequency_tolerance=1e-4).natural_frequencies(5)
+    with pytest.warns(plc.TruncationWarning, match=r"boundary layer.*read about 1.1 % high"):
+        coarse = plc.LineModel(DRAKE_300, n_elements=20, bc="clamped")
+    error = coarse.natural_frequencies(5) / truth - 1
+    assert np.all((error > 0.01) & (error < 0.013)), error   # the warned 1.1 %, within 20 %
+    # The estimate behind the warning, against the measured error at 100 elements (0.21 %).
+    from powerline_control.fem import clamp_error_estimate
+    fine = plc.LineModel(DRAKE_300, n_elements=100, bc="clamped").natural_frequencies(5)
+    assert clamp_error_estimate(DRAKE_300, 3.0) == pytest.approx(
+        float(np.mean(fine / truth - 1)), rel=0.05)
+
+
+def test_meshes_that_resolve_the_boundary_layer_do_not_warn():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plc.LineModel(DRAKE_300, n_elements=100, bc="clamped")      # 0.21 % < 1 %
+        plc.LineModel(DRAKE_300, n_elements=20, bc="pinned")         # no clamp, no layer
+        plc.LineModel(plc.Span.paper_lab(), n_elements=10, bc="clamped")  # h ~ sqrt(EI/T)
+        plc.LineModel(DRAKE_300, bc="clamped")                       # graded physics mesh
+    # One clamp: half the error (measured 0.58 %, estimated 0.53 %).
+    with pytest.warns(plc.TruncationWarning, match="0.53 % high"):
+        plc.LineModel(DRAKE_300, n_elements=20, bc=("clamped", "pinned"),
+                      frequency_tolerance=0.005)
+
+
+def test_to_statespace_names_outputs_and_natural_frequencies_wants_an_int():
+    model = plc.LineModel(plc.Span.paper_lab(), n_elements=10)
+    # Old code named displacement_map's internal 'positions' parameter.
+    for bad in ([np.nan, 1.0], [[0.5, 1.5]], [-0.5, 1.0], ["0.5"]):
+        with pytest.raises(InputError, match="'outputs'"):
+            model.to_statespace(outputs=bad)
+    # Old code: None silently meant "every mode".
+    with pytest.raises(InputError, match="'n_modes'"):
+        model.natural_frequencies(None)
+    with pytest.raises(InputError, match="'n_modes'"):
+        model.mode_shapes(None)

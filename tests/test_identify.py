@@ -1015,3 +1015,18 @@ def test_pod_fit_of_data_whose_squares_underflow_does_not_divide_by_zero():
     tiny = 1e-200 * np.random.default_rng(87).standard_normal((4, 40)).cumsum(axis=1)
     model = plc.fit_dmd(tiny, 0.01, alpha=1e-3, alpha_mode="relative", rank=2)
     assert np.all(np.isfinite(model.A)) and np.isfinite(model.alpha_relative)
+
+
+@pytest.mark.parametrize("bad", [0, 1.0, float("nan"), True, [1, 2]])
+def test_to_statespace_inputs_must_be_names(bad):
+    model = plc.fit_dmd(np.random.default_rng(0).standard_normal((3, 40)), 0.01, alpha=1e-3)
+    # Old code: TypeError "'int' object is not iterable".
+    with pytest.raises(plc.InputError, match="'inputs'"):
+        model.to_statespace(inputs=bad)
+
+
+def test_select_alpha_refuses_more_windows_than_samples():
+    X = np.random.default_rng(0).standard_normal((3, 200))
+    # Old code allocated 10**15 window starts (a MemoryError of 7 PiB).
+    with pytest.raises(plc.InputError, match="'n_windows' parameter must be <= 200"):
+        plc.select_alpha(X, 0.01, alphas=[1e-3], horizon=10, n_windows=10**15)

@@ -271,3 +271,30 @@ def test_round_trip_keeps_every_field_including_the_gram(tmp_path, kwargs):
                  "regressor_gram"):
         a, b = getattr(model, name), getattr(loaded, name)
         assert (a is None and b is None) or a.tobytes() == b.tobytes(), name
+
+
+# ------------------------------------------------------------------ issue 21: bad paths, limits
+def test_save_model_onto_a_folder_is_refused_not_written_beside_it(tmp_path):
+    model = small_model()
+    folder = tmp_path / "models"
+    folder.mkdir()
+    # Old code: np.savez wrote models.npz next to the folder and returned as if done.
+    with pytest.raises(plc.InputError, match="'path' parameter .* is a folder"):
+        plc.save_model(folder, model)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["models"]
+    with pytest.raises(plc.InputError, match="does not exist"):
+        plc.save_model(tmp_path / "no" / "m.npz", model)
+    if hasattr(os, "mkfifo"):   # np.savez onto a FIFO blocks until a reader comes
+        os.mkfifo(tmp_path / "pipe.npz")
+        with pytest.raises(plc.InputError, match="not a regular file"):
+            plc.save_model(tmp_path / "pipe.npz", model)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), "1e6", True, -1.0, 0.0, float("inf")])
+def test_load_model_validates_max_bytes_before_using_it(tmp_path, bad):
+    path = tmp_path / "m.npz"
+    plc.save_model(path, small_model())
+    # Old code: float("1e6") took the text as a number; nan made every "size > limit" false.
+    with pytest.raises(plc.InputError, match="'max_bytes'"):
+        plc.load_model(path, max_bytes=bad)
+    assert plc.load_model(path, max_bytes=1e6).A.shape == small_model().A.shape

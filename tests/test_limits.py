@@ -233,3 +233,69 @@ def test_huge_size_on_a_fast_path_stays_within_memory(small, call):
     print(f"peak {peak / 2**20:.1f} MB")
     assert outcome is True, repr(outcome)
     assert peak < PEAK_LIMIT, f"{peak / 2**20:.0f} MB traced"
+
+
+# ============================================================ issue 21: budgets validated first
+# Each snippet prints the refusal; run in a subprocess under a 2 GiB address-space limit, where
+# the old code (nan makes "estimate > budget" false, so the guard is off) died of a MemoryError
+# or an allocation of the would-be size.
+_REFUSE = """
+import math, powerline_control as plc
+try:
+    {call}
+except plc.InputError as error:
+    print(type(error).__name__, error)
+else:
+    print("ANSWERED")
+"""
+
+
+@pytest.mark.parametrize(("call", "name"), [
+    ("plc.LineModel(plc.Span.paper_lab(), n_elements=10**8, memory_budget=math.nan)",
+     "'memory_budget'"),
+    ("plc.LineModel(plc.Span.paper_lab(), n_elements=10**8, memory_budget='1e12')",
+     "'memory_budget'"),
+    ("plc.LineModel(plc.Span.paper_lab(), n_elements=10**8, memory_budget=True)",
+     "'memory_budget'"),
+    ("plc.LineModel(plc.Span.paper_lab(), n_elements=10**8, memory_budget=-1.0)",
+     "'memory_budget'"),
+    ("plc.simulate(plc.LineModel(plc.Span.paper_lab(), n_elements=10), duration=1e7, "
+     "memory_budget=math.nan)", "'memory_budget'"),
+    ("plc.simulate(plc.LineModel(plc.Span.paper_lab(), n_elements=10), duration=1e7, "
+     "memory_budget=math.inf)", "'memory_budget'"),
+    ("plc.MotionPlanner(plc.RobotLimits(0.5, 1.0), horizon=10**8, memory_budget=math.nan)",
+     "'memory_budget'"),
+])
+def test_a_budget_is_validated_before_it_guards(call, name):
+    import sweep_cases
+
+    out = sweep_cases.guarded(_REFUSE.format(call=call))
+    assert out.startswith("InputError") and name in out, out
+
+
+def test_check_budget_refuses_nan_and_text_budgets_itself():
+    for bad in (float("nan"), float("inf"), "1e6", True, -1.0, 0.0):
+        with pytest.raises(InputError, match="'memory_budget'"):
+            _validation.check_budget("x", nbytes=1e20, parameter="n", value=1, fix="less",
+                                     memory_budget=bad)
+        with pytest.raises(InputError, match="'work_budget'"):
+            _validation.check_budget("x", flops=1e20, parameter="n", value=1, fix="less",
+                                     work_budget=bad)
+
+
+def test_finiteness_check_allocates_nothing_the_size_of_the_input():
+    # Old code built ~np.isfinite(x): one bool per entry (100 MB here; 37 GiB for the issue's
+    # broadcast view) before any size check.
+    view = np.broadcast_to(3.0, (10**8,))          # 0 bytes of data, 1e8 entries
+    tracemalloc.start()
+    try:
+        _validation.check_array("x", view)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 2**20, peak                      # nothing near 1e8 bytes
+    with pytest.raises(InputError, match="'x' parameter contains NaN"):
+        _validation.check_array("x", np.broadcast_to(np.nan, (10**8,)))
+    # A conversion that would copy a broadcast view past the budget is refused by name first.
+    with pytest.raises(InputError, match="'x' parameter's 1e\\+10 entries"):
+        _validation.check_array("x", np.broadcast_to(3, (10**10,)))

@@ -54,3 +54,45 @@ def test_catalogue_behaves_as_a_mapping():
     assert plc.conductors.get("unobtainium") is None
     with pytest.raises(KeyError):
         plc.conductors["unobtainium"]
+
+
+# ------------------------------------------------------------------ issue 21: physics limits
+@pytest.mark.parametrize("fraction", [1.0, 1.5])
+def test_tension_at_or_above_the_rated_strength_is_refused(fraction):
+    drake = plc.conductors["drake"]
+    # Old code accepted 150 % RTS, and catenary_check answered it.
+    with pytest.raises(plc.InputError, match=r"'tension' parameter .* rated tensile strength"):
+        plc.Span(300.0, fraction * drake.rated_strength, drake)
+    with pytest.raises(plc.InputError, match="'fraction_of_rts'"):   # refused there already
+        plc.Span.at_rts_fraction(300.0, "drake", fraction)
+    plc.Span(300.0, 0.99 * drake.rated_strength, drake)   # below it: a (harsh) valid span
+    plc.Span(300.0, 1e9, plc.Conductor(1.6, 0.028, 44.0))  # no rated strength known: no limit
+
+
+@pytest.mark.parametrize("bad", ["20", True, 20 + 1j, float("nan"), 1e300])
+def test_span_wavenumber_refuses_text_bools_complex_and_out_of_range(bad):
+    # Old code: np.asarray("20", float) read the text as 20 Hz, and 1e300 Hz gave nan.
+    with pytest.raises(plc.InputError, match="'frequency'"):
+        plc.Span.paper_lab().loop_length(bad)
+
+
+def test_loop_length_at_tiny_and_zero_frequency_is_the_string_limit():
+    span = plc.Span.paper_lab()
+    # c / (2 f), the string limit, to 1e-12: old code underflowed k^2 and divided by zero.
+    c = span.wave_speed
+    assert span.loop_length(1e-300) == pytest.approx(c / 2e-300, rel=1e-12)
+    assert span.loop_length(0.0) == np.inf
+
+
+def test_conductor_name_must_be_text():
+    with pytest.raises(plc.InputError, match="'name'"):
+        plc.Conductor(1.6, 0.028, 44.0, name=None)
+
+
+def test_tension_at_temperature_refuses_temperatures_above_melting():
+    span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
+    # Old code: 1e300 degC overflowed the cubic and returned nan.
+    with pytest.raises(plc.InputError, match="'temperature'"):
+        plc.tension_at_temperature(span, 1e300)
+    with pytest.raises(plc.InputError, match="'reference_temperature'"):
+        plc.tension_at_temperature(span, 20.0, reference_temperature=1e300)

@@ -16,7 +16,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from powerline_control.errors import InputError, PlanningError
-from powerline_control.plan import MotionPlanner, RobotLimits, Trajectory, plan_motion
+from powerline_control.plan import (
+    MotionPlanner,
+    RobotLimits,
+    Trajectory,
+    free_interval,
+    plan_motion,
+)
 
 SPAN = 3.66  # the paper's laboratory span, m
 
@@ -196,7 +202,7 @@ def test_zero_distance_is_a_zero_duration_plan():
          "inside the span"),
         ({"duration": 2.0}, PlanningError, "v_max and a_max"),
         ({"target": 0.55, "duration": 0.1}, PlanningError, "a_max"),
-        ({"start_velocity": 0.6}, PlanningError, "v_max"),
+        ({"start_velocity": 0.6}, InputError, "v_max"),  # bad input (issue 21), not infeasible
         ({"start": 3.6, "start_velocity": 0.5, "target": 2.0}, PlanningError, "a_max"),
         ({"objective": "energy"}, InputError, "'duration'"),
         ({"objective": "fast"}, InputError, "'objective'"),
@@ -760,3 +766,13 @@ def test_jerk_limited_duration_below_the_s_curve_time_is_refused_up_front():
     limits = RobotLimits(0.4, 0.9, 6.0)
     with pytest.raises(PlanningError, match="too short.*j_max"):
         plan_motion(0.0, 3.7, limits, duration=9.75)
+
+
+@pytest.mark.parametrize("bad", [None, 1.0, "none"])
+def test_obstacles_must_be_a_sequence_of_pairs(bad):
+    limits = RobotLimits(0.5, 1.0)
+    # Old code: TypeError "'NoneType' object is not iterable" from the obstacle loop.
+    with pytest.raises(InputError, match="'obstacles'"):
+        free_interval(1.0, limits, 3.66, bad)
+    with pytest.raises(InputError, match="'obstacles'"):
+        plan_motion(0.2, 1.0, limits, span_length=3.66, obstacles=bad)

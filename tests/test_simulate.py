@@ -380,3 +380,11 @@ def test_snapshot_arrays_are_read_only():
     for array in arrays:
         with pytest.raises(ValueError, match="read-only"):
             array[..., 0] = 1.0
+
+
+@pytest.mark.parametrize("bad", [0, 0.0, float("nan"), "1", [1.0]])
+def test_initial_modes_must_be_a_dict(bad):
+    model = plc.LineModel(plc.Span.paper_lab(), n_elements=10)
+    # Old code: 0 was falsy and silently ignored, nan raised AttributeError ('items').
+    with pytest.raises(plc.InputError, match="'initial_modes'"):
+        plc.simulate(model, duration=0.01, initial_modes=bad)

@@ -2,6 +2,7 @@
 
 import csv
 import json
+import math
 import random
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 
@@ -160,11 +161,13 @@ def test_table_csv_json_and_dataframe_agree(tmp_path):
     assert [int(r["seed"]) for r in rows] == list(study.seeds)
     assert [r["label"] for r in rows] == ["a", "b"] * 3
     path = study.to_json(tmp_path / "s.json")
-    document = json.loads(path.read_text())  # standard JSON: NaN written as null
-    assert document["results"][0]["nan"] is None and document["columns"] == study.columns
+    document = json.loads(path.read_text())  # standard JSON (no NaN token): a tagged object
+    assert document["results"][0]["nan"] == {"$float": "nan"}
+    assert document["columns"] == study.columns and document["version"] == 2
     back = StudyResult.from_json(path)
     assert back.parameters == study.parameters and back.seeds == study.seeds
     assert [r["value"] for r in back.results] == list(study.column("value"))
+    assert all(math.isnan(r["nan"]) for r in back.results)   # NaN came back as NaN, not None
 
 
 def test_dataframe_holds_the_table():
@@ -198,7 +201,7 @@ def test_a_failing_point_is_named_in_the_error():
     def fails_at_two(k):
         if k == 2:
             raise ZeroDivisionError("boom")
-        return {"k": k}
+        return {"value": k}   # not {"k": ...}: a result named like a parameter is refused
 
     for executor in (None, ThreadPoolExecutor(2)):
         with pytest.raises(ZeroDivisionError, match="boom") as info:
@@ -240,7 +243,7 @@ def test_bad_studies_are_refused(func, grid, kwargs, match):
 def test_bad_grids_columns_and_files_are_refused(tmp_path):
     with pytest.raises(plc.InputError, match="'k' has no values"):
         parameter_grid(k=[])
-    with pytest.raises(plc.InputError, match="No column 'w'"):
+    with pytest.raises(plc.InputError, match="'name' parameter must be a column.*Got 'w'"):
         run_study(ok, parameter_grid(k=[1])).column("w")
     with pytest.raises(plc.InputError, match="'seed' parameter must be >= 0"):
         point_seed(-3, {"k": 1})
@@ -324,3 +327,76 @@ def test_dotted_keys_reach_a_function_that_takes_keyword_arguments():
     study = run_study(point, parameter_grid(**{"estimation.n_sensors": [2, 3]}), seed=1)
     assert list(study.column("n")) == [20, 30]
     assert study.columns == ["estimation.n_sensors", "seed", "n"]
+
+
+# ------------------------------------------------------------------ issue 21: results lose nothing
+def _same_row(a: dict, b: dict) -> bool:
+    """Equal keys, and values bit-for-bit (NaN equal to NaN, types kept: 1 is not 1.0)."""
+    return list(a) == list(b) and all(
+        type(a[k]) is type(b[k]) and (repr(a[k]) == repr(b[k])) for k in a)
+
+
+def test_json_round_trip_keeps_nan_and_infinities_bit_for_bit(tmp_path):
+    # Old code wrote NaN and +-inf as null and read them back as None.
+    values = {"nan": math.nan, "inf": math.inf, "minus_inf": -math.inf, "tiny": 5e-324,
+              "big": 1.7976931348623157e308, "third": 1 / 3, "int": 3, "text": "NaN",
+              "none": None, "flag": True}
+    study = run_study(lambda a: dict(values), parameter_grid(a=[math.nan, math.inf, 1.0]))
+    back = StudyResult.from_json(study.to_json(tmp_path / "s.json"))
+    assert all(_same_row(r, s) for r, s in zip(back.results, study.results, strict=True))
+    assert all(_same_row(r, s) for r, s in zip(back.parameters, study.parameters, strict=True))
+    assert back.results[0]["text"] == "NaN"     # a string "NaN" stays a string
+
+
+def test_json_version_1_files_still_read(tmp_path):
+    old = {"format": "powerline_control.study", "version": 1, "base_seed": None,
+           "columns": ["a", "b"], "parameters": [{"a": 1}], "seeds": None,
+           "results": [{"b": None}]}
+    (tmp_path / "v1.json").write_text(json.dumps(old))
+    assert StudyResult.from_json(tmp_path / "v1.json").results == ({"b": None},)
+    old["version"] = 3
+    (tmp_path / "v3.json").write_text(json.dumps(old))
+    with pytest.raises(plc.FileFormatError, match="version 3"):
+        StudyResult.from_json(tmp_path / "v3.json")
+
+
+def test_result_named_like_a_parameter_is_refused():
+    # Old code: table() let the result overwrite the parameter's column.
+    with pytest.raises(plc.InputError, match=r"\['k'\].*named like the study's parameters"):
+        run_study(lambda k: {"k": 2 * k}, parameter_grid(k=[1, 2]))
+    with pytest.raises(plc.InputError, match="'seed'"):
+        run_study(lambda k, seed: {"seed": seed}, parameter_grid(k=[1]), seed=3)
+    with pytest.raises(plc.InputError, match="named like"):
+        StudyResult(parameters=({"k": 1},), results=({"k": 2},))
+
+
+def test_points_with_different_keys_are_refused_before_any_runs():
+    calls = []
+
+    def count(**point):
+        calls.append(point)
+        return {"n": len(point)}
+
+    # Old code ran both points and failed later in to_csv.
+    with pytest.raises(plc.InputError, match="point 1 has the keys \\['b'\\] but point 0"):
+        run_study(count, [{"a": 1}, {"b": 2}])
+    assert calls == []
+
+
+def test_results_with_different_keys_are_refused_when_they_arrive():
+    with pytest.raises(plc.InputError, match="returned the keys \\['y'\\] at grid point 1"):
+        run_study(lambda a: {"x": 1} if a == 1 else {"y": 1}, parameter_grid(a=[1, 2]))
+
+
+@pytest.mark.parametrize("where", ["folder", "fifo", "missing", "empty"])
+def test_study_files_refuse_a_folder_a_fifo_a_missing_folder_and_empty(tmp_path, where):
+    import os
+
+    study = run_study(lambda a: {"b": a}, parameter_grid(a=[1]))
+    target = {"folder": tmp_path, "missing": tmp_path / "no" / "s.json", "empty": ""}.get(where)
+    if where == "fifo":   # old code blocked forever opening it (no reader)
+        target = tmp_path / "fifo"
+        os.mkfifo(target)
+    for call in (study.to_json, study.to_csv, StudyResult.from_json):
+        with pytest.raises(plc.InputError, match="'path'"):
+            call(target)
