@@ -711,7 +711,7 @@ def figure_caption(fig, purpose: str, look_for: str = "") -> str:
     >>> fig = Figure()
     >>> top, bottom = fig.subplots(2, 1)
     >>> _ = top.set(xlabel="t (s)", ylabel="y (mm)"); _ = bottom.set(ylabel="x (m)")
-    >>> figure_caption(fig, "Motion.", "the curves meeting")[:40]
+    >>> figure_caption(fig, "Motion.", "the curves meeting")[:39]
     'Motion. Two panels: top, y (mm) against'
     """
     facts = describe_figure(fig)

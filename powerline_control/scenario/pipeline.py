@@ -342,7 +342,7 @@ class ScenarioResult:
     ...                            "[estimation]\\nn_sensors = 2\\n[robot]\\nclosed_loop = 0")
     >>> result = run_scenario(small, stages=("model", "records"))
     >>> result.model.n_nodes, result.records.test.displacement.shape
-    (17, (17, 2000))
+    (17, (17, 2001))
     >>> result.to_json()["n_nodes"]
     17
     """
@@ -554,7 +554,7 @@ def evenly_spaced_nodes(x, k: int, shape=None) -> list:
     >>> evenly_spaced_nodes(x, 2)
     [10, 20]
     >>> evenly_spaced_nodes(x, 2, np.sin(3 * np.pi * x / 3.0))   # mode 3's nodes: 1 m, 2 m
-    [5, 15]
+    [15, 25]
     """
     import numpy as np
 
@@ -640,7 +640,7 @@ def layout_filter(design, nodes):
     ...                     plc.RandomForce(0.1, 0.8, 100.0, seed=1), duration=1.0,
     ...                     noise_fraction=0.01, seed=1)
     >>> design = plc.design_estimator(snap, n_sensors=2, seed=1)
-    >>> layout_filter(design, [3, 9]).sys.noutputs
+    >>> layout_filter(design, [3, 9]).n_outputs
     2
     """
     import numpy as np
