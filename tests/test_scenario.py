@@ -256,6 +256,8 @@ def test_a_record_with_gaps_goes_through_estimate(tmp_path, result):
     assert out.returncode == 0, out.stderr
     data = json.loads(out.stdout)
     assert data["sensor_nodes"] == rows
+    assert data["measured_record"]["n_missing"] == 210
+    assert data["measured_record"]["channel_positions_m"] == pytest.approx(snap.x[rows].tolist())
     # In Python: the estimate of the whole span from the gapped record is finite everywhere.
     rec = load_record(tmp_path / "field.csv")
     res = run_scenario(load_scenario(text=SMALL), record=rec,

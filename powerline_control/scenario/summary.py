@@ -275,6 +275,37 @@ def _estimation_section(r) -> dict:
             "model and noise model; only the measured nodes differ.", "figures": figures}
 
 
+def _measured_section(r) -> dict:
+    import numpy as np
+
+    m = r.measured
+    rec = m.record
+    x = np.asarray(r.model.node_positions)
+    consistency = getattr(m.estimate, "consistency", None)
+    verdict = ("no complete window" if consistency is None else
+               "consistent" if consistency.consistent else "INCONSISTENT")
+    field = np.asarray(m.estimate.field)
+    envelope = np.nanmax(np.abs(field[:, field.shape[1] // 2:]), axis=1)
+    rows = [
+        ("record", f"{rec.values.shape[1]} samples at {1 / rec.dt:.6g} Hz from {rec.source}; "
+         f"{rec.n_missing} missing samples (the filter predicts through them)"),
+        ("channels", positions_text(rec.positions) + "; measured at "
+         + positions_text([x[i] for i in m.nodes], m.nodes)),
+        ("filter consistency", verdict + " (windowed NIS)",
+         "Without the true field, the innovations tell whether the model explains the record: "
+         "an inconsistent filter's error bars are not to be trusted."),
+        ("largest estimated amplitude", f"{mm(float(envelope.max()))} at "
+         f"{x[int(np.argmax(envelope))]:.4g} m", "Over the second half of the record."),
+    ]
+    draw = functools.partial(_plotting().plot_envelope, x, {"estimated amplitude": envelope},
+                             {"sensors": [float(x[i]) for i in m.nodes]})
+    return {"title": "Measured record (the designed filter on it)", "rows": rows,
+            "figures": [_figure("measured_envelope", draw,
+                                "Amplitude along the span estimated from the measured record "
+                                "(largest |y| over its second half), with the sensors.",
+                                "where the estimated loops peak")]}
+
+
 def _plan_section(r) -> dict:
     p, robot = r.plan, r.scenario.robot
     snap = r.records.test
@@ -496,6 +527,7 @@ def result_sections(result) -> list:
     builders = [("model", _model_section), ("records", _records_section),
                 ("identification", _identification_section),
                 ("identification", _sensors_section), ("layouts", _estimation_section),
+                ("measured", _measured_section),
                 ("plan", _plan_section), ("closed_loop", _closed_loop_section),
                 ("severity", _severity_section)]
     sections = []
@@ -573,6 +605,15 @@ def result_json(result) -> dict:
                                  "sensor_nodes": list(lay.nodes),
                                  "sensor_positions_m": list(lay.positions)}
                           for name, lay in r.layouts.items()}
+    if r.measured is not None:
+        m = r.measured
+        consistency = getattr(m.estimate, "consistency", None)
+        out["measured_record"] = {
+            "source": m.record.source, "n_samples": int(m.record.values.shape[1]),
+            "n_missing": int(m.record.n_missing),
+            "channel_positions_m": [_f(v) for v in m.record.positions],
+            "sensor_nodes": list(m.nodes),
+            "consistent": None if consistency is None else bool(consistency.consistent)}
     if r.plan is not None:
         p = r.plan
         out.update(target_m=_f(p.choice.position), antinode_m=_f(p.target.position),
