@@ -1,33 +1,35 @@
-"""Aeolian severity: wind, self-damping, the energy balance, clamp strain and fatigue (balance),
-wind records (record), damage over a record and rainflow counting (fatigue), the robot's value.
+"""Aeolian severity: wind power and self-damping (wind), the standing wave and dampers (dampers),
+the energy balance and clamp strain (balance), wind climates and the robot's value (climate),
+checks (checks), wind records (record), damage over a record and rainflow counting (fatigue).
 
 ``powerline_control.severity`` keeps every name the single module ``severity.py`` had.
 """
 
-from .balance import *  # noqa: F403 (the energy balance's public names, its __all__)
-from .balance import (  # noqa: F401 (constants other modules and users import from here)
+from ._common import (  # noqa: F401 (constants other modules and users import from here)
+    AIR_DENSITY,
     ALUMINIUM_MODULUS,
     ENDURANCE_STRAIN_PP,
     GRAVITY,
+    MAX_FREQUENCY,
     MAX_WIND_SPEED,
     POFFENBERGER_SWART_DISTANCE,
-    SAFE_BORDER_LINES,
     SECONDS_PER_YEAR,
-    _sbl_cycles,
-    _sbl_stress,
 )
-from .balance import (
-    __all__ as _balance_all,
-)
-from .fatigue import (
-    FatigueOverRecord,
-    RainflowCount,
-    RecordDamage,
-    fatigue_over_record,
-    rainflow_count,
-    rainflow_damage,
-)
-from .record import WindRecord
+from .balance import *  # noqa: F403 (each module's public names: its __all__)
+from .balance import SAFE_BORDER_LINES, _sbl_cycles, _sbl_stress  # noqa: F401
+from .balance import __all__ as _balance_all
+from .checks import *  # noqa: F403
+from .checks import __all__ as _checks_all
+from .climate import *  # noqa: F403
+from .climate import __all__ as _climate_all
+from .dampers import *  # noqa: F403
+from .dampers import __all__ as _dampers_all
+from .fatigue import *  # noqa: F403
+from .fatigue import __all__ as _fatigue_all
+from .record import *  # noqa: F403
+from .record import __all__ as _record_all
+from .wind import *  # noqa: F403
+from .wind import __all__ as _wind_all
 
-__all__ = [*_balance_all, "WindRecord", "FatigueOverRecord", "RainflowCount", "RecordDamage",
-           "fatigue_over_record", "rainflow_count", "rainflow_damage"]
+__all__ = [*_wind_all, *_dampers_all, *_balance_all, *_climate_all, *_checks_all, *_record_all,
+           *_fatigue_all]

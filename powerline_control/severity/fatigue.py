@@ -22,17 +22,9 @@ from ..excitation import DEFAULT_STROUHAL
 from ..fem import MDR
 from ..line import Span, tension_at_temperature
 from ..plan import RobotLimits
-from .balance import (
-    SAFE_BORDER_LINES,
-    SECONDS_PER_YEAR,
-    AtAntinode,
-    ImpedanceDamper,
-    SeverityResult,
-    _check_span,
-    _sbl_cycles,
-    aeolian_severity,
-    harmonic_mean_position,
-)
+from ._common import SECONDS_PER_YEAR, _check_span
+from .balance import SAFE_BORDER_LINES, SeverityResult, _sbl_cycles, aeolian_severity
+from .dampers import AtAntinode, ImpedanceDamper, harmonic_mean_position
 from .record import WindRecord
 
 __all__ = ["RecordDamage", "FatigueOverRecord", "RainflowCount", "fatigue_over_record",

@@ -1,0 +1,76 @@
+"""What the severity modules share: constants with their sources and the argument checks of
+spans, frequencies, powers and labels."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._validation import check_array, check_real
+from ..errors import InputError
+from ..line import Span
+
+
+def _check_text(name: str, value: object) -> str:
+    """A label or source: a string (None or a number is a mistake, not a name)."""
+    if not isinstance(value, str):
+        raise InputError(f"The '{name}' parameter must be a string. Got {value!r:.60} of type "
+                         f"{type(value).__name__}.")
+    return value
+
+
+GRAVITY = 9.80665
+AIR_DENSITY = 1.225  # kg/m^3, for the lift coefficient of the time-domain check's load
+SECONDS_PER_YEAR = 365.25 * 86400.0
+#: Young's modulus of the aluminium outer strands, Pa (domain.md 2.6, E_Al).
+ALUMINIUM_MODULUS = 68.9e9
+#: Poffenberger-Swart measuring point: 89 mm from the last point of contact (IEEE 1966).
+POFFENBERGER_SWART_DISTANCE = 0.089
+#: Usual laboratory endurance strain, peak-to-peak (Diana et al., IEEE TPWRD 18(4), 2003).
+ENDURANCE_STRAIN_PP = 150e-6
+#: Outer-strand diameters of the presets, m (stranding in domain.md 2.6 and data/conductors.toml).
+OUTER_STRAND_DIAMETER = {
+    "drake": 4.44e-3, "condor": 3.08e-3, "cardinal": 3.38e-3, "aster570": 3.45e-3,
+    "oxlip": 3.50e-3,
+}
+
+
+# Upper bounds far above any aeolian case (~1-7 m/s, <= a few hundred Hz) and far below float
+# overflow of f^3, f^5.63 or omega^2 (a frequency of 1e300 Hz raised a raw OverflowError).
+MAX_FREQUENCY = 1e5
+MAX_WIND_SPEED = 100.0
+
+
+def _check_frequency(frequency: object) -> float:
+    return check_real("frequency", frequency, low=0.0, high=MAX_FREQUENCY)
+
+
+def _finite_power(power: np.ndarray, what: str) -> np.ndarray:
+    if not np.all(np.isfinite(power)):
+        raise InputError(f"The 'amplitude' parameter is too large: the {what} overflows. Give "
+                         "antinode amplitudes in m (a few conductor diameters at most).")
+    return power
+
+
+def _check_span(span: object) -> Span:
+    if not isinstance(span, Span):
+        raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
+    rts = span.conductor.rated_strength
+    if rts is not None and span.tension >= rts:
+        raise InputError(
+            f"The 'span.tension' ({span.tension:g} N) must be below the conductor's rated "
+            f"strength ({rts:g} N); everyday tensions are 15-25 % of it.")
+    if span.tension <= 0:
+        raise InputError("The 'span.tension' must be > 0 for the energy balance (aeolian "
+                         f"vibration of a taut conductor). Got {span.tension!r}.")
+    return span
+
+
+def _check_wind_speeds(wind_speeds: object) -> np.ndarray:
+    speeds = np.atleast_1d(check_array("wind_speeds", wind_speeds, ndim=(0, 1)))
+    if speeds.size == 0 or np.any(speeds <= 0) or np.any(speeds > MAX_WIND_SPEED):
+        bad = (speeds[(speeds <= 0) | (speeds > MAX_WIND_SPEED)].tolist()[:5] if speeds.size
+               else "an empty list")
+        raise InputError(f"The 'wind_speeds' parameter must hold wind speeds > 0 and <= "
+                         f"{MAX_WIND_SPEED:g} m/s (aeolian vibration occurs at about 1-7 m/s). "
+                         f"Got {bad}.")
+    return speeds

@@ -1,0 +1,373 @@
+"""The standing wave (loop length, clamped shape) and dampers on it: measured impedance
+tables, the robot at the antinode, the power a damper takes, the harmonic-mean position."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validation import (
+    check_array,
+    check_choice,
+    check_real,
+)
+from ..errors import InputError
+from ..excitation import DEFAULT_STROUHAL
+from ..fem import MDR
+from ..line import Span
+from ._common import (
+    _check_frequency,
+    _check_span,
+    _check_text,
+    _check_wind_speeds,
+    _finite_power,
+)
+
+__all__ = [
+    "ImpedanceDamper",
+    "AtAntinode",
+    "damper_impedance",
+    "damper_power",
+    "standing_wave_shape",
+    "loop_length",
+    "harmonic_mean_position",
+]
+
+
+# --------------------------------------------------------------------------- the standing wave
+def _wavenumbers(span: Span, frequency: float) -> tuple[float, float]:
+    """(beta, alpha): the travelling and the evanescent wavenumber of the taut beam at f.
+
+    beta from m omega^2 = EI k^4 + T k^2 (:meth:`Span.wavenumber`, domain.md 2.3, NOT dohl's
+    dimensionally wrong _wavelength); alpha^2 = beta^2 + T / EI (inf for a string).
+    """
+    beta = float(span.wavenumber(frequency))
+    ei = span.conductor.ei
+    return beta, (math.sqrt(beta**2 + span.tension / ei) if ei > 0 else math.inf)
+
+
+def loop_length(span: Span, frequency: float) -> float:
+    """Loop length (half wavelength) pi / beta of the taut beam at ``frequency``, m.
+
+    Parameters
+    ----------
+    span : Span
+        Tension and conductor.
+    frequency : float
+        Hz (> 0).
+
+    Returns
+    -------
+    float
+        m.
+
+    Examples
+    --------
+    >>> from powerline_control import Span
+    >>> round(loop_length(Span.at_rts_fraction(300.0, "drake", 0.2), 6.57), 3)   # string: 9.98
+    9.985
+    """
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
+    return math.pi / _wavenumbers(span, frequency)[0]
+
+
+def standing_wave_shape(span: Span, frequency: float, position: np.ndarray | float,
+                        bc: str = "clamped") -> np.ndarray:
+    """Relative amplitude phi(x) of the standing wave at ``position``, |phi| = 1 at antinodes.
+
+    Measured from the nearer support (a node). Pinned: phi = sin(beta d). Clamped: the exact
+    shape of a semi-infinite clamped taut beam, (sin beta d - (beta/alpha)(cos beta d -
+    exp(-alpha d))) / sqrt(1 + (beta/alpha)^2), whose bending boundary layer (width 1/alpha)
+    shifts the nodes slightly away from the clamp.
+
+    Parameters
+    ----------
+    span : Span
+        Length, tension, conductor.
+    frequency : float
+        Hz (> 0).
+    position : float or ndarray
+        m from the left support, in [0, L].
+    bc : {"clamped", "pinned"}
+        Support type.
+
+    Returns
+    -------
+    ndarray
+        phi at each position.
+
+    Examples
+    --------
+    >>> from powerline_control import Span
+    >>> span = Span.at_rts_fraction(300.0, "drake", 0.2)
+    >>> round(float(standing_wave_shape(span, 6.57, 0.0)), 12)
+    0.0
+    """
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
+    bc = check_choice("bc", bc, ("clamped", "pinned"))
+    x = check_array("position", position)
+    if np.any(x < 0) or np.any(x > span.length):
+        raise InputError(f"The 'position' parameter must lie in [0, {span.length:g}] m (the "
+                         f"span). Got values from {x.min():g} to {x.max():g}.")
+    d = np.minimum(x, span.length - x)
+    beta, alpha = _wavenumbers(span, frequency)
+    if bc == "pinned" or not math.isfinite(alpha):
+        return np.sin(beta * d)
+    ratio = beta / alpha
+    return (np.sin(beta * d) - ratio * (np.cos(beta * d) - np.exp(-alpha * d))) \
+        / math.sqrt(1 + ratio**2)
+
+
+# --------------------------------------------------------------------------- dampers
+@dataclass(frozen=True)
+class ImpedanceDamper:
+    """A damper given by its measured mechanical impedance Z(f) = F / v (a Stockbridge damper).
+
+    Z is interpolated linearly (real and imaginary parts) between the tabulated frequencies; it
+    is not extrapolated.
+
+    Parameters
+    ----------
+    position : float
+        Distance from the left support, m.
+    frequencies : sequence of float
+        Ascending frequencies of the table, Hz.
+    impedance : sequence of complex
+        Z at those frequencies, N s/m (Re Z >= 0: a passive damper).
+    label : str
+        Name in tables and figures.
+
+    Examples
+    --------
+    >>> damper = ImpedanceDamper(1.2, [5.0, 50.0], [20.0 + 5j, 40.0 - 5j])
+    >>> complex(damper.impedance_at(27.5))
+    (30+0j)
+    """
+
+    position: float
+    frequencies: tuple
+    impedance: tuple
+    label: str = "damper"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "position", check_real("position", self.position, low=0.0,
+                                                        low_inclusive=True))
+        f = check_array("frequencies", self.frequencies, ndim=1)
+        z = check_array("impedance", self.impedance, ndim=1, dtype=complex)
+        if f.size < 2 or f.size != z.size or np.any(np.diff(f) <= 0) or f[0] <= 0:
+            raise InputError("The 'frequencies' parameter must be >= 2 ascending positive values, "
+                             "one per 'impedance' value. Got "
+                             f"{f.size} frequencies and {z.size} impedances.")
+        if np.any(z.real < 0):
+            raise InputError("The 'impedance' parameter must have Re Z >= 0 (a passive damper "
+                             f"dissipates). Got min Re Z = {z.real.min():g}.")
+        object.__setattr__(self, "frequencies", tuple(float(v) for v in f))
+        object.__setattr__(self, "impedance", tuple(complex(v) for v in z))
+        _check_text("label", self.label)
+
+    def impedance_at(self, frequency: float) -> complex:
+        """Z at ``frequency`` (Hz), N s/m.
+
+        Parameters
+        ----------
+        frequency : float
+            Inside the tabulated range.
+
+        Returns
+        -------
+        complex
+
+        Examples
+        --------
+        >>> ImpedanceDamper(0.5, [1.0, 2.0], [1.0, 3.0]).impedance_at(1.5)
+        (2+0j)
+        """
+        low, high = self.frequencies[0], self.frequencies[-1]
+        frequency = check_real("frequency", frequency, low=0.0)
+        if not low <= frequency <= high:
+            raise InputError(
+                f"The 'frequency' ({frequency:g} Hz) is outside the impedance table of damper "
+                f"{self.label!r} ({low:g}-{high:g} Hz); extend the table or restrict the wind "
+                "speeds.")
+        z = np.asarray(self.impedance)
+        return complex(np.interp(frequency, self.frequencies, z.real)
+                       + 1j * np.interp(frequency, self.frequencies, z.imag))
+
+
+@dataclass(frozen=True)
+class AtAntinode:
+    """A damper (an :class:`~powerline_control.fem.MDR` or :class:`ImpedanceDamper`) that sits
+    at an antinode at every wind speed: the robot that has reached its target.
+
+    Its own ``position`` is ignored; the placement factor phi^2 is ``factor`` (1 at the
+    antinode; 1/2 is its average over a uniform traverse from a node to an antinode).
+
+    Parameters
+    ----------
+    damper : MDR or ImpedanceDamper
+        The device.
+    label : str
+        Name in tables and figures.
+    factor : float
+        Placement factor phi^2 in [0, 1] (default 1: at the antinode).
+
+    Examples
+    --------
+    >>> from powerline_control import MDR
+    >>> AtAntinode(MDR.tuned(0.0, 5.0, 1.0, frequency=20.0, damping_ratio=0.3)).label
+    'robot at antinode'
+    """
+
+    damper: MDR | ImpedanceDamper
+    label: str = "robot at antinode"
+    factor: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "factor", check_real("factor", self.factor, low=0.0,
+                                                      low_inclusive=True, high=1.0))
+        if not isinstance(self.damper, MDR | ImpedanceDamper):
+            raise InputError("The 'damper' parameter of AtAntinode must be an MDR or an "
+                             f"ImpedanceDamper. Got {type(self.damper).__name__}.")
+        _check_text("label", self.label)
+
+
+def damper_impedance(damper: MDR | ImpedanceDamper, frequency: float) -> complex:
+    """Mechanical impedance Z = F / v (N s/m) the damper presents to the line at ``frequency``.
+
+    For an MDR the body mass m_r gives i omega m_r (reactive, dissipates nothing) and the
+    suspended mass m_d on spring k and dashpot c gives
+    i omega m_d (k + i omega c) / (k + i omega c - omega^2 m_d), whose real part
+    omega^4 m_d^2 c / |k - omega^2 m_d + i omega c|^2 is what dissipates.
+
+    Parameters
+    ----------
+    damper : MDR or ImpedanceDamper
+        The device.
+    frequency : float
+        Hz (> 0).
+
+    Returns
+    -------
+    complex
+
+    Examples
+    --------
+    >>> from powerline_control import MDR
+    >>> robot = MDR.tuned(1.0, 0.0, 1.0, frequency=20.0, damping_ratio=0.25)
+    >>> round(damper_impedance(robot, 20.0).real, 3)     # omega m_d / (2 zeta) at tuning
+    251.327
+    """
+    if isinstance(damper, AtAntinode):
+        damper = damper.damper
+    frequency = check_real("frequency", frequency, low=0.0)
+    if isinstance(damper, ImpedanceDamper):
+        return damper.impedance_at(frequency)
+    if not isinstance(damper, MDR):
+        raise InputError("The 'damper' parameter must be an MDR, an ImpedanceDamper or an "
+                         f"AtAntinode. Got {type(damper).__name__}.")
+    omega = 2 * math.pi * frequency
+    z = 1j * omega * damper.body_mass
+    if damper.has_absorber:
+        spring = damper.stiffness + 1j * omega * damper.damping
+        z += 1j * omega * damper.suspended_mass * spring \
+            / (spring - omega**2 * damper.suspended_mass)
+    return complex(z)
+
+
+def _label_of(damper: object) -> str:
+    if isinstance(damper, ImpedanceDamper | AtAntinode):
+        return damper.label
+    return f"MDR at {damper.position:g} m"
+
+
+def damper_power(damper: MDR | ImpedanceDamper | AtAntinode, span: Span,
+                 amplitude: np.ndarray | float, frequency: float, *,
+                 bc: str = "clamped") -> np.ndarray:
+    """Power per metre of span dissipated by a damper, P_d = 1/2 Re Z omega^2 Y^2 phi(x_s)^2 / L.
+
+    First order in the damper (the standing wave is not perturbed by it): Foti's eq. 2.34 as
+    quoted by dohl (``stockbridge.power_foti``); phi^2 is the sin^2 placement factor, 1 at an
+    antinode, 0 at a node.
+
+    Parameters
+    ----------
+    damper : MDR, ImpedanceDamper or AtAntinode
+        The device and where it is.
+    span : Span
+        The span (the power is spread over its length).
+    amplitude : float or ndarray
+        Antinode amplitude Y, m.
+    frequency : float
+        Hz.
+    bc : {"clamped", "pinned"}
+        Supports, for the placement factor.
+
+    Returns
+    -------
+    ndarray
+        W/m.
+
+    Examples
+    --------
+    >>> from powerline_control import MDR, Span
+    >>> span = Span.at_rts_fraction(300.0, "drake", 0.2)
+    >>> robot = MDR.tuned(150.0, 0.0, 1.0, frequency=20.0, damping_ratio=0.25)
+    >>> float(damper_power(AtAntinode(robot), span, 0.001, 20.0)) > 0
+    True
+    """
+    span = _check_span(span)
+    frequency = _check_frequency(frequency)
+    y = check_array("amplitude", amplitude)
+    if isinstance(damper, AtAntinode):
+        factor = damper.factor
+    else:
+        if not isinstance(damper, MDR | ImpedanceDamper):
+            raise InputError("The 'damper' parameter must be an MDR, an ImpedanceDamper or an "
+                             f"AtAntinode. Got {type(damper).__name__}.")
+        if damper.position > span.length:
+            raise InputError(f"The damper position must lie in [0, {span.length:g}] m (the "
+                             f"span). Got {damper.position!r}.")
+        factor = float(standing_wave_shape(span, frequency, damper.position, bc)) ** 2
+    omega = 2 * math.pi * frequency
+    return _finite_power(0.5 * damper_impedance(damper, frequency).real * omega**2 * y**2
+                         * factor / span.length, "damper power")
+
+
+def harmonic_mean_position(span: Span, wind_speeds: Sequence[float] | np.ndarray = (1.0, 7.0),
+                           strouhal: float = DEFAULT_STROUHAL) -> float:
+    """Fixed-damper position x* = l_min l_max / (l_min + l_max) for the band of loop lengths.
+
+    It gives the same placement factor |sin(pi x / l)| at both band edges (domain.md 2.4).
+
+    Parameters
+    ----------
+    span : Span
+        The span.
+    wind_speeds : sequence of float
+        The wind band, m/s (its smallest and largest values are used).
+    strouhal : float
+        Strouhal number.
+
+    Returns
+    -------
+    float
+        Distance from the support, m.
+
+    Examples
+    --------
+    >>> from powerline_control import Span
+    >>> round(harmonic_mean_position(Span.at_rts_fraction(300.0, "drake", 0.2)), 3)
+    1.251
+    """
+    span = _check_span(span)
+    speeds = _check_wind_speeds(wind_speeds)
+    st = check_real("strouhal", strouhal, low=0.01, low_inclusive=True, high=1.0)
+    d = span.conductor.diameter
+    l_max = loop_length(span, st * speeds.min() / d)
+    l_min = loop_length(span, st * speeds.max() / d)
+    return l_min * l_max / (l_min + l_max)
