@@ -44,6 +44,9 @@ def table(split: str, n_designs: int) -> None:
     if missed:
         print("missed: " + ", ".join(f"{r.case} seed {r.seed} {r.kind} (SNR {r.sensor_snr:.2g})"
                                      for r in missed))
+    hidden = [r for r in runs if r.kind != "matched" and r.reported_over_actual < 1 / 1.5]
+    print(f"mismatched runs whose actual error exceeds 1.5 x the reported sigma (wrong without "
+          f"the sigma saying so): {sum(r.warned for r in hidden)}/{len(hidden)} warn")
     share = np.array([r.outside_share for r in runs if r.kind != "matched"])
     print(f"coverage check: {int(np.sum(share > 0.05))}/{share.size} mismatched and "
           f"{sum(r.outside_share > 0.05 for r in runs if r.kind == 'matched')}/"

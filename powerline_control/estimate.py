@@ -517,6 +517,10 @@ class KalmanFilter:
     consistency : Consistency or None
         Windowed NIS test of the real-time recursion (:meth:`step`) over the windows it has
         completed since construction or :meth:`reset`.
+    spectral_reference : numpy.ndarray or None
+        As given (read-only); ``spectral_reference_count`` likewise.
+    innovation_covariance : numpy.ndarray
+        Steady-state innovation covariance ``S`` (what whitens the spectral test).
 
     Raises
     ------

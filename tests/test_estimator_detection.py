@@ -73,6 +73,9 @@ def test_held_out_family_runs_warn_when_mismatched():
     assert len(matched) == 12 and len(visible) >= 10
     assert sum(r.warned for r in matched) <= 1, [r.seed for r in matched if r.warned]
     assert all(r.warned for r in visible), [(r.seed, r.kind) for r in visible if not r.warned]
+    # Wrong without saying so (actual error above 1.5 x the reported sigma): always warned.
+    hidden = [r for r in runs if r.kind != "matched" and r.reported_over_actual < 1 / 1.5]
+    assert all(r.warned for r in hidden), [(r.seed, r.kind) for r in hidden if not r.warned]
 
 
 def test_coverage_band_and_check_on_the_lab_span():
