@@ -419,15 +419,22 @@ def plot_severity(result, ax=None, *, endurance: bool = True) -> Figure:
     else:
         axes = list(ax)
         fig = axes[0].figure
-    for res in results:
-        line = axes[0].plot(res.wind_speed, 1e3 * res.amplitude, "-o", ms=4, label=res.label)[0]
+    # Each configuration its own marker and line style, the first ones larger and open: a
+    # configuration that changes nothing must not hide the one under it.
+    styles = [("o", "-", 8, "none"), ("s", "--", 4, None), ("^", ":", 5, None),
+              ("d", "-.", 5, None)]
+    for i, res in enumerate(results):
+        marker, dash, size, face = styles[i % len(styles)]
+        line = axes[0].plot(res.wind_speed, 1e3 * res.amplitude, marker=marker, ls=dash,
+                            ms=size, mfc=face, label=res.label)[0]
         unbalanced = ~np.asarray(res.balanced)
         if unbalanced.any():  # no balance in the curve's range: the value is a bound
             axes[0].plot(res.wind_speed[unbalanced], 1e3 * res.amplitude[unbalanced], "x",
                          color=line.get_color(), ms=9)
         if len(axes) > 1:
-            axes[1].semilogy(res.wind_speed, 1e6 * np.maximum(res.strain_pp, 1e-12), "-o",
-                             color=line.get_color(), ms=4, label=res.label)
+            axes[1].semilogy(res.wind_speed, 1e6 * np.maximum(res.strain_pp, 1e-12),
+                             marker=marker, ls=dash, ms=size, mfc=face,
+                             color=line.get_color(), label=res.label)
     axes[0].set(ylabel="antinode amplitude (mm, 0-pk)")
     # off the curves
     axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
