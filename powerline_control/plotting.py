@@ -731,10 +731,11 @@ def figure_caption(fig, purpose: str, look_for: str = "") -> str:
                 panel["ylabel"] or "the data")
         if panel["legend"]:
             text += " (" + ", ".join(panel["legend"]) + ")"
-        if panel["y_inverted"]:
-            text += f"; {panel['ylabel'] or 'the vertical axis'} increases downward"
-        if panel["x_inverted"]:
-            text += f"; {panel['xlabel'] or 'the horizontal axis'} increases to the left"
+        # An unlabelled inverted axis lists categories top to bottom: nothing to say about it.
+        if panel["y_inverted"] and panel["ylabel"]:
+            text += f"; {panel['ylabel']} increases downward"
+        if panel["x_inverted"] and panel["xlabel"]:
+            text += f"; {panel['xlabel']} increases to the left"
         parts.append(f"{where}, {text}" if where else text)
     head = _WORDS.get(n, f"{n} panels")
     body = f"{head}: " + "; ".join(parts) + "." if n else ""

@@ -169,6 +169,8 @@ def test_caption_says_which_way_an_inverted_axis_runs():
     assert "downward" not in figure_caption(fig, "P.")
     ax.invert_yaxis()
     assert "y (mm) increases downward" in figure_caption(fig, "P.")
+    ax.set_ylabel("")                       # categories listed top to bottom: not a direction
+    assert "downward" not in figure_caption(fig, "P.")
 
 
 def test_caption_names_line_styles_as_drawn():
@@ -189,7 +191,7 @@ def test_report_captions_match_their_figures(result):
             assert words in caption, (figure["name"], caption)
             has_colour = bool(facts["colorbars"])
             assert ("Colour:" in caption) == has_colour, figure["name"]
-            inverted = any(p["y_inverted"] for p in facts["panels"])
+            inverted = any(p["y_inverted"] and p["ylabel"] for p in facts["panels"])
             assert ("increases downward" in caption) == inverted, figure["name"]
             for panel in facts["panels"]:
                 for label in panel["legend"]:
