@@ -1036,7 +1036,10 @@ def scenario_reference() -> str:
         "names only what differs. Run one with `powerline-control run FILE.toml` or a shipped "
         "one by name (`powerline-control scenario` lists them; `powerline-control scenario NAME` "
         "prints one as a commented template). The whole file is checked before anything is "
-        "computed; an error names the file, the dotted key, the value and what is allowed. "
+        "computed, and every problem of it is reported at once, each naming the dotted key, "
+        "the value and what is allowed. Keys that are alternatives (`span.tension` or "
+        "`span.rts_fraction`; `estimation.sensors`, `estimation.sensor_positions` or "
+        "`estimation.n_sensors`) are set one at a time. "
         "Units are SI; positions are in metres from the left support.",
         "",
         "Shipped scenarios:",

@@ -969,7 +969,7 @@ def severity_span(scenario: Scenario, span):
 LAB_CONDUCTOR = "oxlip"
 
 
-def _severity(scenario: Scenario, span, model) -> Severity:
+def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
     import numpy as np
 
     from ..severity import AtAntinode, aeolian_severity
@@ -979,7 +979,7 @@ def _severity(scenario: Scenario, span, model) -> Severity:
     kwargs, source = severity_inputs(scenario, span)
     speeds = np.asarray(sev.wind_speeds, dtype=float)
     bare = aeolian_severity(span, wind_speeds=speeds, **kwargs)
-    robot = tune_robot(scenario, model).robot
+    robot = tuning.robot
     with_robot = aeolian_severity(span, wind_speeds=speeds, dampers=[AtAntinode(robot)],
                                   **kwargs)
     strand = kwargs.get("outer_strand_diameter")
@@ -1206,7 +1206,8 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
         state["closed_loop"] = _closed_loop(scenario, _need(state, "model", stage),
                                             state["force"], _tuning(state, scenario), sensors)
     elif stage == "severity":
-        state["severity"] = _severity(scenario, state["span"], _need(state, "model", stage))
+        _need(state, "model", stage)
+        state["severity"] = _severity(scenario, state["span"], _tuning(state, scenario))
 
 
 def _tuning(state: dict, scenario: Scenario) -> Tuning:
