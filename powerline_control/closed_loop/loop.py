@@ -72,7 +72,8 @@ def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
 
 @dataclass(frozen=True)
 class _Line:
-    """The simulated line: the bare FE model, the plant with and without the robot, the loads."""
+    """The simulated line: the bare FE model, the plant with and without the robot, the loads;
+    and the controller's model of the line, which knows the robot but not the loads."""
 
     span: Span
     bare: LineModel
@@ -82,6 +83,8 @@ class _Line:
     t: np.ndarray               # (n_t,) sample times, s
     plant: ModalPlant          # with the robot
     free_plant: ModalPlant     # without it (the "no_robot" comparison)
+    model: ModalPlant           # the policy's receptances: the band's bare modes, no load basis
+    model_rows: np.ndarray      # (p, r_model): its modes' displacements at the sensors
     plant_steps: int            # samples per plant block (the robot's position held)
     modal_force: np.ndarray     # (n_t, r)
     residual: np.ndarray        # (n_nodes, n_t): the dropped modes' response to the loads
@@ -132,10 +135,14 @@ def _build_line(robot, segments, settings: Settings, sensors, *, n_modes,
             else max(1, min(settings.steps_per_period, int(round(0.01 / settings.dt))))
         )
     free_plant = ModalPlant(bare, None, n_modes, settings.dt, loads=loads)
+    # The plant's basis carries the loads' own Ritz vectors (where they act): the simulation
+    # needs them, the controller does not know them.
+    model = ModalPlant(bare, robot, n_modes, settings.dt)
     modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
     return _Line(
         span=span, bare=bare, sensors=sensors, sensor_rows=plant.nodal[list(sensors)],
-        clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant,
+        clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant, model=model,
+        model_rows=model.nodal[list(sensors)],
         plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
         weights=bare.span_weights,
     )
@@ -257,7 +264,7 @@ def _bare_shape(records: _Records, line: _Line, robot: MDR, x_r: float, lo: int,
     tt = line.t[lo : end + 1]
     sensed = fit_phasors(records.measured[:, lo : end + 1], tt, frequency)
     at_robot = fit_phasors(records.robot_measured[None, lo : end + 1], tt, frequency)[0]
-    return kernel_shape(line.plant, line.sensor_rows, sensed, robot, x_r, at_robot,
+    return kernel_shape(line.model, line.model_rows, sensed, robot, x_r, at_robot,
                          2 * np.pi * frequency)
 
 
@@ -293,7 +300,7 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
         return
     low, high = motion.bounds()
     reach = reach_within(settings.limits, TRAVEL_FRACTION * (t[-1] - t[k]))
-    choice = choose_target(shape, line.plant, robot, 2 * np.pi * frequency, line.weights,
+    choice = choose_target(shape, line.model, robot, 2 * np.pi * frequency, line.weights,
                            motion.position, low, high, reach,
                            obstacle_ends((low, high), settings.obstacles, settings.limits.length))
     records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape)))
@@ -337,9 +344,9 @@ def _out_of_reach(choice, shape: np.ndarray, line: _Line, robot: MDR, settings: 
         anywhere = pick_target(choice.grid, choice.predicted, choice.predicted_here,
                                choice.position)
     else:
-        anywhere = choose_target(shape, line.plant, robot, omega, line.weights,
+        anywhere = choose_target(shape, line.model, robot, omega, line.weights,
                                  choice.position, half, length - half)
-    chosen, best = predicted_rms(shape, line.plant, robot, omega,
+    chosen, best = predicted_rms(shape, line.model, robot, omega,
                                  [choice.position, anywhere.position], line.weights)
     if best >= (1 - MIN_GAIN) * chosen:
         return None
