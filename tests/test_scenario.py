@@ -264,6 +264,11 @@ def test_a_record_with_gaps_goes_through_estimate(tmp_path, result):
     rec = load_record(tmp_path / "field.csv")
     res = run_scenario(load_scenario(text=SMALL), record=rec,
                        stages=pipeline.VERB_STAGES["estimate"])
+    # The record's own model (DMD on its two channels) finds the load's 24 Hz line.
+    from powerline_control.scenario.summary import _least_damped
+
+    frequencies = _least_damped(res.identification.record_model)
+    assert min(abs(f - 24.0) for f in frequencies) < 0.5, frequencies
     field = res.measured.estimate.field
     assert field.shape == (snap.x.size, snap.t.size) and np.isfinite(field).all()
     # Where the record has no gap the estimate follows the truth of the simulated record.

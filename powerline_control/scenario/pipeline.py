@@ -119,6 +119,9 @@ class Identification:
         Where the sensors came from, in words.
     forbidden : tuple of (float, float)
         The support intervals no sensor may occupy, m.
+    record_model : DMDModel or None
+        With a measured record: DMD on the record's own channels (its longest stretch without
+        a missing sample, the design's delays and relative alpha).
     """
 
     design: Any
@@ -127,6 +130,7 @@ class Identification:
     sensors_given: bool
     sensors_how: str
     forbidden: tuple
+    record_model: Any = None
 
 
 @dataclass(frozen=True)
@@ -582,6 +586,52 @@ def evenly_spaced_nodes(x, k: int, shape=None) -> list:
     return best if best is not None else list(range(1, k + 1))
 
 
+def longest_complete_run(values) -> slice:
+    """The longest stretch of columns without a NaN, as a slice.
+
+    Parameters
+    ----------
+    values : array_like, shape (n_channels, n_t)
+        A record; NaN = missing.
+
+    Returns
+    -------
+    slice
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> longest_complete_run([[1.0, np.nan, 1.0, 2.0, 3.0, np.nan]])
+    slice(2, 5, None)
+    """
+    import numpy as np
+
+    ok = ~np.isnan(np.asarray(values, dtype=float)).any(axis=0)
+    best, start, run = slice(0, 0), None, 0
+    for k, good in enumerate([*ok, False]):
+        if good and start is None:
+            start = k
+        elif not good and start is not None:
+            if k - start > run:
+                best, run = slice(start, k), k - start
+            start = None
+    return best
+
+
+def _record_model(record, design):
+    from ..identify import fit_dmd
+
+    run = longest_complete_run(record.values)
+    data = record.values[:, run]
+    delays = int(design.model.delays)
+    if data.shape[1] < 10 * (delays * data.shape[0] + 1):
+        raise InputError(f"{record.source}: its longest stretch without a missing sample has "
+                         f"{data.shape[1]} samples, too few to identify a model with "
+                         f"{delays} delays; give a record with fewer gaps.")
+    return fit_dmd(data, record.dt, alpha=float(design.model.alpha_relative), delays=delays,
+                   alpha_mode="relative")
+
+
 def _identification(scenario: Scenario, records: Records, model, *,
                     choose_sensors: bool) -> Identification:
     import numpy as np
@@ -612,8 +662,12 @@ def _identification(scenario: Scenario, records: Records, model, *,
         # On noise-free data plain DMD inverts round-off and says so; here that is the point.
         warnings.simplefilter("always")
         plain = fit_dmd(train, snap.dt, alpha=0.0, delays=1)
+    record_model = None
+    if records.measured is not None:
+        record_model = _record_model(records.measured, design)
     return Identification(design=design, plain=plain, plain_ill_conditioned=bool(caught),
-                          sensors_given=given is not None, sensors_how=how, forbidden=forbidden)
+                          sensors_given=given is not None, sensors_how=how, forbidden=forbidden,
+                          record_model=record_model)
 
 
 def layout_filter(design, nodes):

@@ -162,6 +162,15 @@ def _identification_section(r) -> dict:
          "The unregularised fit (the paper's eq. 11) on the same training data."),
         ("sensor noise std (the filter's R)", mm(float(d.noise_std)), d.noise_source),
     ]
+    if ident.record_model is not None:
+        rm = ident.record_model
+        freqs = _least_damped(rm)
+        rows.append(("the measured record's own model",
+                     f"DMD on its {rm.n_nodes} channels ({rm.delays} delays): spectral radius "
+                     f"{float(rm.spectral_radius):.6f}; least-damped frequencies "
+                     + ", ".join(f"{f:.4g}" for f in freqs) + " Hz",
+                     "Fitted on the record's longest stretch without a missing sample; compare "
+                     "its frequencies with the model's natural frequencies above."))
     smaller = ("plain DMD" if plain_radius < radius else "the recipe's model")
     compare = (f"Spectral radius: plain DMD {plain_radius:.6f}, the recipe's model "
                f"{radius:.6f} ({smaller} has the smaller one).")
@@ -175,6 +184,20 @@ def _identification_section(r) -> dict:
                                 "Eigenvalues of plain DMD and of the recipe's model, with the "
                                 "unit circle. " + compare,
                                 "points outside the circle: those modes grow without bound")]}
+
+
+def _least_damped(model, n: int = 3) -> list:
+    """The damped frequencies (Hz, > 0, distinct) of the n eigenvalues nearest the unit circle."""
+    import numpy as np
+
+    order = np.argsort(-np.abs(np.asarray(model.eigenvalues)))
+    found = []
+    for f in np.asarray(model.damped_frequencies)[order]:
+        if f > 0 and all(abs(f - g) > 1e-6 * max(f, 1.0) for g in found):
+            found.append(float(f))
+        if len(found) == n:
+            break
+    return found
 
 
 def _eigenvalue_figure(plain, model):
@@ -595,6 +618,10 @@ def result_json(result) -> dict:
                    filter_noise_std_m=_f(d.noise_std),
                    sensor_nodes=[int(i) for i in d.sensors],
                    sensor_positions_m=[_f(x[int(i)]) for i in d.sensors])
+        rm = r.identification.record_model
+        if rm is not None:
+            out["record_model"] = {"spectral_radius": _f(rm.spectral_radius),
+                                   "least_damped_frequencies_hz": _least_damped(rm)}
     if r.sensor_count is not None:
         out["sensor_count"] = {"n_sensors": [int(k) for k in r.sensor_count.k],
                                "predicted_rms_error_m": [_f(v) for v in
