@@ -209,7 +209,8 @@ def build_coverage(train_sensors: np.ndarray, dt: float, noise_std: float, model
     order = np.argsort(mode_f)
     p = np.asarray(kf.steady_covariance)
     m = np.asarray(model.field_map)
-    sigma = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", m, p, m), 0.0))
+    sigma = np.sqrt(np.maximum(kf.field_variance_scale * np.einsum("ij,jk,ik->i", m, p, m),
+                               0.0))
     return Coverage(band=band, frequencies=read_only(freqs), training_power=read_only(power),
                     noise_power=noise_power, covered=read_only(covered),
                     mode_frequencies=read_only(mode_f[order]),

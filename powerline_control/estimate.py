@@ -241,6 +241,10 @@ class _Recursion:
             )
             s = s + kf._r_eff
             self.s_factor = sla.cho_factor((s + s.T) / 2, lower=True)
+            # e^T S^-1 e = |L^-1 e|^2: L^-1 once, then one small product per sample (a
+            # triangular solve per sample cost as much as the rest of the step)
+            self.whitener = sla.solve_triangular(self.s_factor[0], np.eye(s.shape[0]),
+                                                 lower=True)
         self.batch = None
 
     def monitor(self, nis: float, used: int) -> None:
@@ -258,7 +262,7 @@ class _Recursion:
         """``e^T S^-1 e`` per column of ``e`` ``(p, L)`` with the frozen covariance."""
         kf = self.kf
         if self.s_factor is not None:
-            whitened = sla.solve_triangular(self.s_factor[0], e, lower=True)
+            whitened = self.whitener @ e
             return np.einsum("ij,ij->j", whitened, whitened)
         # Woodbury: S^-1 = R^-1 - R^-1 C P+ C^T R^-1 (P+ the posterior), never a p x p solve.
         r_inv_e = kf._apply_r_inv(e)
@@ -492,6 +496,12 @@ class KalmanFilter:
         test.
     spectral_reference_count : int
         Segments times channels averaged in ``spectral_reference`` (its sampling spread).
+    field_variance_scale : float
+        Factor ``> 0`` on the field variances the filter reports (``Estimate.field_variances``;
+        the state covariance, the gain and the NIS are unchanged): the model error at nodes
+        the sensors do not see, which the innovations cannot show.
+        :func:`~powerline_control.recipe.design_estimator` measures it on held-out data at the
+        unmeasured nodes. Default 1.
 
     Attributes
     ----------
@@ -576,6 +586,7 @@ class KalmanFilter:
         warn_inconsistent: bool = False,
         spectral_reference: object = None,
         spectral_reference_count: int = 1,
+        field_variance_scale: float = 1.0,
     ) -> None:
         sys = check_discrete_system("sys", sys)
         if not isinstance(warn_inconsistent, bool):
@@ -586,6 +597,7 @@ class KalmanFilter:
                         else check_int("consistency_window", consistency_window, low=1))
         self._dof_fraction = check_real("nis_dof_fraction", nis_dof_fraction, low=0.0, high=1.0)
         self._spectral_ref = None
+        self._fv_scale = check_real("field_variance_scale", field_variance_scale, low=0.0)
         self._spectral_count = check_int("spectral_reference_count", spectral_reference_count,
                                          low=1)
         if spectral_reference is not None:
@@ -814,6 +826,11 @@ class KalmanFilter:
         return self._spectral_ref
 
     @property
+    def field_variance_scale(self) -> float:
+        """Factor on the reported field variances (as given)."""
+        return self._fv_scale
+
+    @property
     def spectral_reference_count(self) -> int:
         """Segments times channels averaged in :attr:`spectral_reference` (as given)."""
         return self._spectral_count
@@ -966,7 +983,7 @@ class KalmanFilter:
         def field_variance_of(cov: np.ndarray) -> np.ndarray:
             nonlocal last_p, last_field_var
             if cov is not last_p:
-                last_p, last_field_var = cov, mapped_variances(cov, field_map)
+                last_p, last_field_var = cov, self._fv_scale * mapped_variances(cov, field_map)
             return last_field_var
 
         run = _Recursion(self)
@@ -1002,7 +1019,8 @@ class KalmanFilter:
             field = field_map @ states
             if variance_constant:
                 field_variances = np.broadcast_to(
-                    mapped_variances(run.P, field_map)[:, None], (field.shape[0], n_t)
+                    self._fv_scale * mapped_variances(run.P, field_map)[:, None],
+                    (field.shape[0], n_t)
                 )
         gain = run.last_full_gain if run.last_full_gain is not None else np.full((n, p), np.nan)
         estimate = Estimate(

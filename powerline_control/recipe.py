@@ -185,6 +185,16 @@ class EstimatorDesign:
         modes with the share of each that the sensors see, the filter's steady sigma at every
         node; ``coverage.check(measurements)`` warns when a record's power lies outside the
         band (``None`` for designs built by hand).
+    held_out_sigma_ratio : float
+        On the held-out part of the record (the model fitted on the rest, filtered from the
+        final sensors, after ``covariance_scale``): the reported over the actual RMS error at
+        the unmeasured moving nodes, the sensor noise removed from the actual one. Near 1: the
+        reported sigma is honest on data like the training record; NaN when not measured (the
+        modal model, short records), measured before ``field_variance_scale``.
+    field_variance_scale : float
+        Factor on the field variances the filter reports, ``held_out_sigma_ratio ** -2``
+        (clipped to 0.01-100; 1 when not measured): the model error at nodes no sensor sees,
+        which the innovations (and ``covariance_scale``) cannot show.
 
     Examples
     --------
@@ -212,6 +222,8 @@ class EstimatorDesign:
     covariance_scale: float = 1.0
     nis_dof_fraction: float = 1.0
     coverage: Coverage | None = None
+    held_out_sigma_ratio: float = math.nan
+    field_variance_scale: float = 1.0
 
     @property
     def alpha_curve(self) -> AlphaSweep:
@@ -263,7 +275,8 @@ class EstimatorDesign:
             if noise_std != self.noise_std:
                 kf = _steady_filter(self.model, self.sensors, noise_std, self.q_floor,
                                     self.covariance_scale, self.nis_dof_fraction,
-                                    self.filter.warn_inconsistent)
+                                    self.filter.warn_inconsistent,
+                                    field_scale=self.field_variance_scale)
         return read_only(kf.filter(y).field)
 
     def summary(self) -> str:
@@ -334,6 +347,10 @@ class EstimatorDesign:
         return "\n".join(lines)
 
 
+# Bounds of the field-variance scale learned on held-out data (a factor 10 on the sigma).
+_FIELD_SCALE_MIN, _FIELD_SCALE_MAX = 1e-2, 1e2
+
+
 def _stabilise(model: DMDModel) -> DMDModel:
     """Pull eigenvalues outside the unit circle to radius ``_STABLE_RADIUS``, nothing else.
 
@@ -391,7 +408,8 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
 def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
                    q_floor: float, scale: float = 1.0, dof_fraction: float = 1.0,
                    warn: bool = False,
-                   reference: tuple[np.ndarray, int] | None = None) -> KalmanFilter:
+                   reference: tuple[np.ndarray, int] | None = None,
+                   field_scale: float = 1.0) -> KalmanFilter:
     """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2,
     both times ``scale`` (the covariance matching of :func:`_calibration`).
 
@@ -413,13 +431,19 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
         warn_inconsistent=warn,
         spectral_reference=None if reference is None else reference[0],
         spectral_reference_count=1 if reference is None else reference[1],
+        field_variance_scale=field_scale,
     )
 
 
 def _calibration(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: float,
                  alpha: float, delays: int, rank: int, sensors: np.ndarray, noise: float,
-                 q_floor: float) -> tuple[float, float, tuple[np.ndarray, int] | None]:
-    """(covariance scale, NIS dof fraction, spectral reference) measured on held-out data.
+                 q_floor: float, candidates: np.ndarray | None = None, data_noise: float = 0.0
+                 ) -> tuple[float, float, tuple[np.ndarray, int] | None, float]:
+    """(covariance scale, NIS dof fraction, spectral reference, held-out sigma ratio).
+
+    The last is the reported over the actual RMS error at the unmeasured moving nodes of the
+    held-out part (the sensor noise variance removed from the actual one), after the scale;
+    NaN when not measured.
 
     Covariance matching (Mehra 1972, with one common factor): the model fitted on the training
     part filters the held-out part from the final sensors, and Q and R are scaled by the mean
@@ -443,14 +467,14 @@ def _calibration(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: f
         nis = held_est.nis
     except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
             ct.ControlDimension):
-        return 1.0, 1.0, None
+        return 1.0, 1.0, None, math.nan
     n_windows = nis.size // window
     if n_windows < 4 or not np.all(np.isfinite(nis)):
-        return 1.0, 1.0, None
+        return 1.0, 1.0, None, math.nan
     means = nis[window: n_windows * window].reshape(-1, window).mean(axis=1) / sensors.size
     scale = float(np.mean(means))
     if not scale > 0:
-        return 1.0, 1.0, None
+        return 1.0, 1.0, None, math.nan
     ratios = means / scale
     spread = float(np.var(ratios, ddof=1)) * (ratios.size - 1) / float(
         sstats.chi2.ppf(0.05, ratios.size - 1))
@@ -460,7 +484,16 @@ def _calibration(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: f
     factor = whitening_factor(scale * np.asarray(kf.innovation_covariance))
     psd, count = whitened_psd(held_est.innovations, factor, discard=window)
     reference = (psd, count) if count and np.all(np.isfinite(psd)) else None
-    return scale, float(fraction), reference
+    ratio = math.nan
+    if candidates is not None:
+        unmeasured = np.setdiff1d(candidates, sensors)
+        if unmeasured.size and held_est.field is not None:
+            error2 = float(np.mean((held_est.field[unmeasured, window:]
+                                    - held[unmeasured, window:]) ** 2)) - data_noise**2
+            reported2 = scale * float(np.mean(held_est.field_variances[unmeasured, window:]))
+            if error2 > 0:
+                ratio = math.sqrt(reported2 / error2)
+    return scale, float(fraction), reference, ratio
 
 
 def _check_noise_std(noise_std: object, rms: float) -> float:
@@ -1057,10 +1090,15 @@ def design_estimator(
     chosen, selection = _choose_sensors(model, given, candidates, n_sensors, criterion, noise,
                                         positions, forbidden, seed)
 
-    scale, fraction, reference = _calibration(coords[:, :n_fit], X[:, n_fit:], spatial, dt,
-                                              alpha, delays, rank, chosen, noise, q_floor)
+    scale, fraction, reference, sigma_ratio = _calibration(
+        coords[:, :n_fit], X[:, n_fit:], spatial, dt, alpha, delays, rank, chosen, noise,
+        q_floor, candidates, data_noise)
+    # Model error at the unmeasured nodes, which the innovations cannot show: the reported
+    # field variance matched to the held-out error there (within a factor 10 either way).
+    field_scale = (1.0 if not math.isfinite(sigma_ratio)
+                   else float(np.clip(sigma_ratio**-2, _FIELD_SCALE_MIN, _FIELD_SCALE_MAX)))
     kf = _steady_filter(model, chosen, noise, q_floor, scale, fraction, warn_inconsistent,
-                        reference)
+                        reference, field_scale)
     return EstimatorDesign(
         model=model,
         sensors=read_only(chosen),
@@ -1077,6 +1115,8 @@ def design_estimator(
         covariance_scale=scale,
         nis_dof_fraction=fraction,
         coverage=build_coverage(X[chosen], dt, data_noise, model, kf, chosen),
+        held_out_sigma_ratio=sigma_ratio,
+        field_variance_scale=field_scale,
     )
 
 

@@ -69,6 +69,7 @@ class Run:
     reported_over_actual: float  # reported sigma / actual RMS error at unmeasured nodes
     sensor_snr: float  # RMS of the true signal at the sensors / sensor noise
     outside_share: float  # design.coverage.outside_share of the record
+    design_sigma_ratio: float = float("nan")  # EstimatorDesign.held_out_sigma_ratio
     spectral_ratios: tuple = ()   # Consistency.spectral_ratio (per bin)
     reference: tuple = ()         # the filter's spectral_reference (per bin)
 
@@ -142,6 +143,7 @@ def runs_of(seed: int, n_runs: int = 2) -> list[Run]:
             out.append(Run(case, seed, label, warned, ok_nis, c.spectral_consistent, ratio,
                            rms_err / float(np.sqrt(np.mean(truth**2))), reported / rms_err, snr,
                            design.coverage.outside_share(test.displacement[design.sensors]),
+                           design.held_out_sigma_ratio,
                            tuple(np.nan_to_num(c.spectral_ratio).tolist())
                            if c.spectral_ratio is not None else (),
                            tuple(design.filter.spectral_reference.tolist())
