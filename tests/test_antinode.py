@@ -248,7 +248,9 @@ def test_kalman_estimate_of_the_paper_span_near_resonance():
     assert len(found) == len(truth) == 3
     for a, b in zip(truth, found, strict=True):
         assert abs(a.position - b.position) < 0.02 * a.loop_length
-        assert b.position_std > 0 and np.isfinite(b.position_std)
+        # The reported std is the noise's share, small against the loop: measured 0.007-0.04 %
+        # of it (it does not cover the model's bias: the errors above are 0.01-0.1 %).
+        assert 0 < b.position_std < 1e-3 * a.loop_length
     assert found[0].frequency == pytest.approx(24.0, abs=0.1)  # 1 s window: 1 Hz bins, refined
 
 

@@ -117,7 +117,11 @@ def test_noise_regularises_plain_dmd(paper_span_harmonic):
         model = plc.fit_dmd(noisy, dt, alpha=0.0)
         assert model.stability_report().is_stable
     print(f"\npaper span, 1 % noise: plain DMD rho = {model.spectral_radius:.6f}")
-    assert model.spectral_radius <= 1.0
+    # The record holds a steady 10 Hz tone (|lambda| = 1) and transients at 1 % damping
+    # (|lambda| >= exp(-0.01 * 2 pi 6.53 Hz * 1 ms) = 0.99959): the truth is rho = 1, which noise
+    # biases just inside. Strictly inside the unit circle, and within 1 % of it (measured
+    # 0.99621): an unstable model, or one that damps the tone by percents per step, fails.
+    assert 0.99 < model.spectral_radius < 1.0
 
 
 def test_pinned_zero_rows_give_no_warning_or_nan(paper_span_harmonic):
