@@ -330,9 +330,8 @@ class EstimatorDesign:
                 f"Sensors chosen by the {sel.criterion} criterion ({sel.certificate} "
                 f"certificate, gap {100 * sel.gap:.2g} %)."
             )
-        field_std = np.sqrt(np.maximum(
-            np.einsum("ij,jk,ik->i", m.field_map, self.filter.steady_covariance, m.field_map),
-            0.0))
+        field_std = np.sqrt(np.maximum(self.field_variance_scale * np.einsum(
+            "ij,jk,ik->i", m.field_map, self.filter.steady_covariance, m.field_map), 0.0))
         lines.append(
             f"Predicted steady-state RMS field error {float(np.sqrt(np.mean(field_std**2))):.3g}"
             " m (from the model's own Riccati solution; check it on held-out data)."
@@ -343,6 +342,20 @@ class EstimatorDesign:
                 f"nominal (covariance matching); every record is checked by a windowed NIS "
                 f"test on {self.nis_dof_fraction:.3g} of the chi-square degrees of freedom "
                 "(Estimate.consistency)."
+            )
+        if math.isfinite(self.held_out_sigma_ratio):
+            lines.append(
+                f"On the held-out part the reported sigma at unmeasured nodes was "
+                f"{self.held_out_sigma_ratio:.3g} x the actual error: field variances scaled by "
+                f"{self.field_variance_scale:.3g}."
+            )
+        if self.filter.spectral_reference is not None:
+            lines.append("Every record's innovation spectrum is compared with the held-out one "
+                         "(Consistency.spectral_ratio).")
+        if self.coverage is not None and math.isfinite(self.coverage.band[0]):
+            lines.append(
+                f"Training band at the sensors {self.coverage.band[0]:.4g}-"
+                f"{self.coverage.band[1]:.4g} Hz (coverage.check(record) warns on power outside)."
             )
         return "\n".join(lines)
 
