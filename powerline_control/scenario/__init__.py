@@ -1,5 +1,6 @@
 """Scenarios: the TOML schema and its validation (config.py), and the one pipeline that runs a
-scenario stage by stage into a frozen ScenarioResult (pipeline.py; its words in sections.py)."""
+scenario stage by stage (stages.py, pipeline.py) into a frozen ScenarioResult (result.py; its words,
+JSON and report in summary.py)."""
 
 from .config import (
     Scenario,

@@ -1,0 +1,395 @@
+"""The scenario pipeline's results: one frozen dataclass per stage, and ScenarioResult.
+
+Each stage result holds that stage's own objects (the package's result types); ScenarioResult
+holds them all, says in words (:meth:`ScenarioResult.sections`) and numbers
+(:meth:`ScenarioResult.to_json`) what they show, and writes the report.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .config import Scenario
+
+__all__ = ["ClosedLoop", "Identification", "Layout", "MeasuredEstimate", "Plan", "Records",
+           "ScenarioResult", "Severity", "StageFailure", "Tuning"]
+
+
+@dataclass(frozen=True)
+class Records:
+    """The data stage: the test record, the training record, and how they were made.
+
+    Attributes
+    ----------
+    test : Snapshots
+        The scenario's record; samples ``n_train:`` are held out to test the estimator.
+    train : Snapshots
+        The record the estimator is identified on (the identification run, or ``test`` itself).
+    n_train : int
+        Samples used for training.
+    shaker : RandomForce or None
+        The identification run's shaker (None: the scenario's own record trains).
+    shaker_position : float or None
+        Where it acts, m.
+    measured : Record or None
+        A measured record given to :func:`run_scenario` (its filter runs on it).
+    simulation_s : float
+        Wall-clock time of the simulation, s.
+    """
+
+    test: Any
+    train: Any
+    n_train: int
+    shaker: Any = None
+    shaker_position: float | None = None
+    measured: Any = None
+    simulation_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class Identification:
+    """The estimator recipe's result and the plain-DMD fit it is compared with.
+
+    Attributes
+    ----------
+    design : EstimatorDesign
+        ``design_estimator``'s result: model, sensors, filter.
+    plain : DMDModel
+        Plain DMD (alpha = 0, one delay: the paper's eq. 11) on the same training data.
+    plain_ill_conditioned : bool
+        Whether that fit warned that it inverts round-off.
+    sensors_given : bool
+        True when the sensors came from the scenario (or the verb), not the optimisation.
+    sensors_how : str
+        Where the sensors came from, in words.
+    forbidden : tuple of (float, float)
+        The support intervals no sensor may occupy, m.
+    record_model : DMDModel or None
+        With a measured record: DMD on the record's own channels (its longest stretch without
+        a missing sample, the design's delays and relative alpha).
+    """
+
+    design: Any
+    plain: Any
+    plain_ill_conditioned: bool
+    sensors_given: bool
+    sensors_how: str
+    forbidden: tuple
+    record_model: Any = None
+
+
+@dataclass(frozen=True)
+class Layout:
+    """One sensor layout estimated on held-out data.
+
+    Attributes
+    ----------
+    name : str
+        "chosen", or the baseline's label.
+    nodes : tuple of int
+        Sensor node indices.
+    positions : tuple of float
+        Sensor positions, m.
+    note : str
+        What the layout is, in words.
+    estimate : Estimate
+        The Kalman estimate on the held-out record.
+    accuracy : Accuracy
+        Against the true field.
+    error_along_span : ndarray
+        RMS error at each node over the span's RMS displacement (a fraction).
+    """
+
+    name: str
+    nodes: tuple
+    positions: tuple
+    note: str
+    estimate: Any = field(repr=False)
+    accuracy: Any = field(repr=False)
+    error_along_span: Any = field(repr=False)
+
+    @property
+    def error_unmeasured_percent(self) -> float:
+        """RMS error at the nodes without a sensor, % of the RMS displacement."""
+        return 100.0 * float(self.accuracy.relative_rms_error_unmeasured)
+
+
+@dataclass(frozen=True)
+class MeasuredEstimate:
+    """The designed filter run on a measured record (no truth: its consistency tells).
+
+    Attributes
+    ----------
+    record : Record
+        The measured record.
+    nodes : tuple of int
+        The node nearest each of its channels (the filter's sensors), ascending.
+    estimate : Estimate
+        The Kalman estimate of the whole span from it (NaN samples skipped by the filter).
+    """
+
+    record: Any = field(repr=False)
+    nodes: tuple
+    estimate: Any = field(repr=False)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Antinodes of the estimated field, the closed loop's target, and the robot's move.
+
+    Attributes
+    ----------
+    antinodes, true_antinodes : list of Antinode
+        Of the estimated and of the true held-out field.
+    choice : Choice
+        The closed loop's targeting rule on the estimated field.
+    target, truth : Antinode
+        The estimated and true antinodes nearest the chosen position.
+    trajectory : Trajectory
+        The minimum-time move from the robot's start.
+    envelope : ndarray
+        Largest |y| at each node over the held-out record, m.
+    """
+
+    antinodes: list
+    true_antinodes: list
+    choice: Any
+    target: Any
+    truth: Any
+    trajectory: Any
+    envelope: Any = field(repr=False)
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """The robot with its absorber tuned to the load.
+
+    Attributes
+    ----------
+    robot : MDR
+        Tuned, placed at its start.
+    mode : int
+        The line's mode nearest the load frequency (1-based).
+    mode_frequency : float
+        Its natural frequency, Hz.
+    load_frequency : float
+        The load's frequency, Hz.
+    antinode : float
+        The antinode of that mode nearest the start, where the absorber is tuned for, m.
+    how : str
+        "Den Hartog" or the scenario's damping ratio.
+    """
+
+    robot: Any
+    mode: int
+    mode_frequency: float
+    load_frequency: float
+    antinode: float
+    how: str
+
+
+@dataclass(frozen=True)
+class ClosedLoop:
+    """The closed loop stage: the tuned robot, its sensors and ``run_closed_loop``'s result.
+
+    Attributes
+    ----------
+    tuning : Tuning
+        The robot.
+    sensors : tuple of int
+        The sensors the loop reads (node indices).
+    result : ClosedLoopResult
+        The run.
+    calibration : float
+        Calibration time, s.
+    """
+
+    tuning: Tuning
+    sensors: tuple
+    result: Any = field(repr=False)
+    calibration: float = 0.0
+
+
+@dataclass(frozen=True)
+class Severity:
+    """The energy-balance severity without dampers and with the robot at each antinode.
+
+    Attributes
+    ----------
+    bare, robot : SeverityResult
+        Without dampers; with the robot's absorber parked at the antinode of each wind speed.
+    outer_strand_diameter : float
+        The outer-strand diameter used, m.
+    strand_source : str
+        Where it came from.
+    """
+
+    bare: Any
+    robot: Any
+    outer_strand_diameter: float
+    strand_source: str
+
+
+@dataclass(frozen=True)
+class StageFailure:
+    """The stage that failed and why (the stages before it finished).
+
+    Attributes
+    ----------
+    stage : str
+        The stage's name (see :data:`STAGES`).
+    kind : str
+        The exception's class name.
+    message : str
+        Its message, on one line.
+    error : BaseException
+        The exception itself.
+    """
+
+    stage: str
+    kind: str
+    message: str
+    error: BaseException = field(repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class ScenarioResult:
+    """Everything one scenario produced, stage by stage (None for a stage that did not run).
+
+    Attributes
+    ----------
+    scenario : Scenario
+        What ran.
+    stages : tuple of str
+        The stages asked for.
+    span, model, force
+        The Span, the LineModel and the load.
+    records : Records or None
+        The data.
+    identification : Identification or None
+        The estimator design.
+    sensor_count : SensorCountStudy or None
+        The predicted error against the number of sensors (each count optimised).
+    layouts : dict of str to Layout, or None
+        The chosen layout ("chosen") and the baselines, estimated on held-out data.
+    measured : MeasuredEstimate or None
+        The filter on a measured record given to :func:`run_scenario`.
+    plan : Plan or None
+        Antinodes, target and move.
+    closed_loop : ClosedLoop or None
+        The closed loop.
+    severity : Severity or None
+        The severity study.
+    failure : StageFailure or None
+        The stage that failed (the later ones did not run).
+    elapsed : dict of str to float
+        Wall-clock seconds of each stage that ran.
+
+    Examples
+    --------
+    >>> from powerline_control.scenario import load_scenario
+    >>> from powerline_control.scenario.pipeline import run_scenario
+    >>> small = load_scenario(text="[model]\\nn_elements = 16\\n[simulation]\\nduration = 2.0\\n"
+    ...                            "[estimation]\\nn_sensors = 2\\n[robot]\\nclosed_loop = 0")
+    >>> result = run_scenario(small, stages=("model", "records"))
+    >>> result.model.n_nodes, result.records.test.displacement.shape
+    (17, (17, 2001))
+    >>> result.to_json()["n_nodes"]
+    17
+    """
+
+    scenario: Scenario
+    stages: tuple
+    span: Any = None
+    model: Any = None
+    force: Any = None
+    records: Records | None = None
+    identification: Identification | None = None
+    sensor_count: Any = None
+    layouts: dict | None = None
+    measured: MeasuredEstimate | None = None
+    plan: Plan | None = None
+    closed_loop: ClosedLoop | None = None
+    severity: Severity | None = None
+    failure: StageFailure | None = None
+    elapsed: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """True when every stage asked for finished."""
+        return self.failure is None
+
+    @property
+    def sensors(self) -> tuple:
+        """The chosen sensors' node indices (empty before identification)."""
+        if self.identification is None:
+            return ()
+        return tuple(int(i) for i in self.identification.design.sensors)
+
+    def to_json(self) -> dict:
+        """The headline numbers as plain JSON types, one unit per quantity, units in the keys.
+
+        A key ending in ``_m`` is metres, ``_s`` seconds, ``_hz`` Hz, ``_m_s`` m/s,
+        ``_percent`` per cent, ``_microstrain`` 1e-6; the ``units`` entry lists them.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        See :class:`ScenarioResult`.
+        """
+        from .summary import result_json
+
+        return result_json(self)
+
+    def sections(self) -> list:
+        """The report's sections (title, intro, rows, figures to draw), in words and units.
+
+        Returns
+        -------
+        list of dict
+
+        Examples
+        --------
+        >>> from powerline_control.scenario import load_scenario
+        >>> from powerline_control.scenario.pipeline import run_scenario
+        >>> run_scenario(load_scenario(text="[model]\\nn_elements = 12"),
+        ...              stages=("model",)).sections()[0]["title"]
+        'Span and model'
+        """
+        from .summary import result_sections
+
+        return result_sections(self)
+
+    def report(self, path: str | Path, *, version: str | None = None) -> Path:
+        """Write the self-contained HTML report of this result.
+
+        Parameters
+        ----------
+        path : str or Path
+            The HTML file (its folder must exist).
+        version : str or None
+            Package version shown (default: this package's).
+
+        Returns
+        -------
+        Path
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> from powerline_control.scenario import load_scenario
+        >>> from powerline_control.scenario.pipeline import run_scenario
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> result = run_scenario(load_scenario(text="[model]\\nn_elements = 12"),
+        ...                       stages=("model",))
+        >>> result.report(folder / "r.html").name
+        'r.html'
+        """
+        from .summary import write_result_report
+
+        return write_result_report(self, Path(path), version=version)

@@ -1,0 +1,680 @@
+"""The scenario pipeline's stages: each calls the package's own stage and returns its result.
+
+The scenario's decisions that no other stage owns live here, named: the share of the record
+that trains (:data:`TRAIN_FRACTION`), where the identification run's shaker acts
+(:data:`SHAKER_POSITION`), the closed loop's calibration (:func:`closed_loop_timing`), the fair
+baselines (:func:`evenly_spaced_nodes`), the robot's tuning (:func:`tune_robot`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+
+from ..errors import InputError
+from .config import LAB_OUTER_STRAND_DIAMETER, Scenario, load_scenario  # noqa: F401 (doctests)
+from .result import (
+    ClosedLoop,
+    Identification,
+    Layout,
+    MeasuredEstimate,
+    Plan,
+    Records,
+    Severity,
+    Tuning,
+)
+
+__all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
+           "ANTINODE_WINDOW", "SENSOR_COUNT_MAX_NODES", "LAB_CONDUCTOR", "closed_loop_timing",
+           "driven_mode", "evenly_spaced_nodes", "given_sensors", "layout_filter",
+           "longest_complete_run", "severity_inputs", "severity_span", "support_intervals",
+           "tune_robot"]
+
+#: Share of the simulated record that trains the estimator; the rest tests it (held out).
+TRAIN_FRACTION = 0.6
+#: Where the identification run's broadband shaker acts, as a fraction of the span: off the
+#: symmetry points 1/2, 1/3, 1/4, 1/5 of the low modes, so it drives every one of them.
+SHAKER_POSITION = 0.31
+#: The closed loop's control period, s, and the longest calibration (robot parked, estimator
+#: identified), s: a third of the run at most.
+CONTROL_PERIOD = 0.05
+MAX_CALIBRATION = 2.0
+#: Antinodes are located on the last this-many samples of the held-out estimate.
+ANTINODE_WINDOW = 500
+
+
+def _model(scenario: Scenario) -> dict:
+    span = scenario.span.build()
+    model = scenario.model.build(span)
+    return {"span": span, "model": model, "force": scenario.forcing.build()}
+
+
+def _records(scenario: Scenario, model, force, record=None) -> Records:
+    from ..excitation import RandomForce
+    from ..simulate import simulate
+
+    sim, ident = scenario.simulation, scenario.identification
+    start = time.perf_counter()
+    test = simulate(model, force, duration=sim.duration, dt=sim.dt,
+                    noise_fraction=sim.noise_fraction, seed=sim.seed)
+    n_train = int(TRAIN_FRACTION * test.t.size)
+    train, shaker, where = test, None, None
+    if ident.shaker > 0:
+        # A harmonic load alone excites the other modes only through its start-up transient:
+        # the shaker makes the identification run persistently exciting; its own seed keeps
+        # its noise and force independent of the test record's.
+        where = SHAKER_POSITION * model.span.length
+        shaker = RandomForce(ident.shaker, where, ident.shaker_bandwidth, seed=sim.seed + 1)
+        train = simulate(model, [force, shaker], duration=n_train * sim.dt, dt=sim.dt,
+                         noise_fraction=sim.noise_fraction, seed=sim.seed + 1)
+    return Records(test=test, train=train, n_train=n_train, shaker=shaker, shaker_position=where,
+                   measured=record, simulation_s=time.perf_counter() - start)
+
+
+def support_intervals(x) -> tuple:
+    """The intervals at the supports no sensor may occupy (half an element at each end), m.
+
+    Parameters
+    ----------
+    x : array_like
+        Node positions, m.
+
+    Returns
+    -------
+    tuple of (float, float)
+
+    Examples
+    --------
+    >>> support_intervals([0.0, 1.0, 2.0])
+    ((0.0, 0.5), (1.5, 2.0))
+    """
+    import numpy as np
+
+    x = np.asarray(x, dtype=float)
+    half = 0.5 * float(min(x[1] - x[0], x[-1] - x[-2]))
+    return ((0.0, half), (float(x[-1] - half), float(x[-1])))
+
+
+def given_sensors(scenario: Scenario, x) -> tuple[list | None, str]:
+    """The scenario's own sensors as node indices (None when they are to be chosen).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    x : array_like
+        Node positions, m.
+
+    Returns
+    -------
+    (list of int or None, str)
+        The nodes and where they came from.
+
+    Examples
+    --------
+    >>> s = load_scenario(text="[model]\\nn_elements = 4\\n[estimation]\\n"
+    ...                        "sensor_positions = [1.0]")
+    >>> given_sensors(s, [0.0, 0.915, 1.83, 2.745, 3.66])
+    ([1], 'from the scenario (positions, nearest nodes)')
+    """
+    import numpy as np
+
+    est = scenario.estimation
+    x = np.asarray(x, dtype=float)
+    if est.sensors is not None:
+        return sorted(int(i) for i in est.sensors), "from the scenario (node indices)"
+    if est.sensor_positions is not None:
+        return (sorted({int(np.argmin(np.abs(x - p))) for p in est.sensor_positions}),
+                "from the scenario (positions, nearest nodes)")
+    return None, ""
+
+
+def evenly_spaced_nodes(x, k: int, shape=None) -> list:
+    """k sensors evenly spaced between the supports, optionally moved off a mode's nodes.
+
+    With ``shape`` (a mode shape at the nodes) the whole evenly spaced layout is shifted, by
+    less than half its spacing, to the offset whose smallest |shape| at the sensors is largest:
+    the layout stays evenly spaced but no sensor sits on a vibration node of that mode.
+
+    Parameters
+    ----------
+    x : array_like
+        Node positions, m.
+    k : int
+        Number of sensors.
+    shape : array_like or None
+        A mode shape at the nodes.
+
+    Returns
+    -------
+    list of int
+        Node indices, ascending.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.linspace(0.0, 3.0, 31)
+    >>> evenly_spaced_nodes(x, 2)
+    [10, 20]
+    >>> evenly_spaced_nodes(x, 2, np.sin(3 * np.pi * x / 3.0))   # mode 3's nodes: 1 m, 2 m
+    [15, 25]
+    """
+    import numpy as np
+
+    x = np.asarray(x, dtype=float)
+    length = x[-1]
+    base = length * np.arange(1, k + 1) / (k + 1)
+    if shape is None:
+        offsets = [0.0]
+    else:
+        spacing = length / (k + 1)
+        offsets = np.linspace(-0.5 * spacing, 0.5 * spacing, 41)
+        offsets = offsets[np.argsort(np.abs(offsets), kind="stable")]
+        shape = np.abs(np.asarray(shape, dtype=float))
+    best, best_score = None, -1.0
+    for offset in offsets:
+        nodes = np.clip(np.searchsorted(x, base + offset), 1, x.size - 2)
+        nodes = [int(i) if abs(x[i] - p) <= abs(x[i - 1] - p) else int(i - 1)
+                 for i, p in zip(nodes, base + offset, strict=True)]
+        nodes = sorted(set(min(max(i, 1), x.size - 2) for i in nodes))
+        if len(nodes) < k:
+            continue
+        score = 1.0 if shape is None else float(shape[nodes].min() / max(shape.max(), 1e-300))
+        if score > best_score + 1e-9:
+            best, best_score = nodes, score
+    return best if best is not None else list(range(1, k + 1))
+
+
+def longest_complete_run(values) -> slice:
+    """The longest stretch of columns without a NaN, as a slice.
+
+    Parameters
+    ----------
+    values : array_like, shape (n_channels, n_t)
+        A record; NaN = missing.
+
+    Returns
+    -------
+    slice
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> longest_complete_run([[1.0, np.nan, 1.0, 2.0, 3.0, np.nan]])
+    slice(2, 5, None)
+    """
+    import numpy as np
+
+    ok = ~np.isnan(np.asarray(values, dtype=float)).any(axis=0)
+    best, start, run = slice(0, 0), None, 0
+    for k, good in enumerate([*ok, False]):
+        if good and start is None:
+            start = k
+        elif not good and start is not None:
+            if k - start > run:
+                best, run = slice(start, k), k - start
+            start = None
+    return best
+
+
+def _record_model(record, design):
+    from ..identify import fit_dmd
+
+    run = longest_complete_run(record.values)
+    data = record.values[:, run]
+    delays = int(design.model.delays)
+    if data.shape[1] < 10 * (delays * data.shape[0] + 1):
+        raise InputError(f"{record.source}: its longest stretch without a missing sample has "
+                         f"{data.shape[1]} samples, too few to identify a model with "
+                         f"{delays} delays; give a record with fewer gaps.")
+    return fit_dmd(data, record.dt, alpha=float(design.model.alpha_relative), delays=delays,
+                   alpha_mode="relative")
+
+
+def _identification(scenario: Scenario, records: Records, model, *,
+                    choose_sensors: bool) -> Identification:
+    import numpy as np
+
+    from ..identify import fit_dmd
+    from ..recipe import design_estimator
+
+    cfg = scenario.identification
+    snap = records.train
+    train = snap.displacement[:, :records.n_train]
+    x = np.asarray(snap.x)
+    k = scenario.estimation.n_sensors
+    forbidden = support_intervals(x)
+    given, how = given_sensors(scenario, x)
+    if given is None and not choose_sensors:
+        given = evenly_spaced_nodes(x, k)
+        how = "evenly spaced (this verb does not optimise them)"
+    options = {key: value for key, value in (("delays", cfg.delays), ("rank", cfg.rank))
+               if value is not None}
+    if cfg.alpha != "auto":
+        options["alphas"] = [float(cfg.alpha)]
+    design = design_estimator(
+        train, n_sensors=k, dt=snap.dt, noise_std=snap.noise_std or None, sensors=given,
+        positions=x, forbidden=forbidden, seed=scenario.simulation.seed, **options)
+    if given is None:
+        how = "optimised (steady-state Kalman criterion)"
+    with warnings.catch_warnings(record=True) as caught:
+        # On noise-free data plain DMD inverts round-off and says so; here that is the point.
+        warnings.simplefilter("always")
+        plain = fit_dmd(train, snap.dt, alpha=0.0, delays=1)
+    record_model = None
+    if records.measured is not None:
+        record_model = _record_model(records.measured, design)
+    return Identification(design=design, plain=plain, plain_ill_conditioned=bool(caught),
+                          sensors_given=given is not None, sensors_how=how, forbidden=forbidden,
+                          record_model=record_model)
+
+
+def layout_filter(design, nodes):
+    """A steady-state filter of ``design``'s model on other sensors, built as the recipe does.
+
+    The noise model and the covariance scale are the design's; only the measured rows differ,
+    so baselines are judged with the same model as the chosen layout.
+
+    Parameters
+    ----------
+    design : EstimatorDesign
+        The recipe's design.
+    nodes : sequence of int
+        The sensors.
+
+    Returns
+    -------
+    KalmanFilter
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> snap = plc.simulate(plc.LineModel(plc.Span.paper_lab(), n_elements=12),
+    ...                     plc.RandomForce(0.1, 0.8, 100.0, seed=1), duration=1.0,
+    ...                     noise_fraction=0.01, seed=1)
+    >>> design = plc.design_estimator(snap, n_sensors=2, seed=1)
+    >>> layout_filter(design, [3, 9]).n_outputs
+    2
+    """
+    import numpy as np
+
+    from ..estimate import KalmanFilter
+
+    nodes = [int(i) for i in nodes]
+    if list(map(int, design.sensors)) == nodes:
+        return design.filter
+    model = design.model
+    q = np.array(model.residual_covariance)
+    q[np.diag_indices_from(q)] += design.q_floor
+    scale = design.covariance_scale
+    return KalmanFilter(model.to_statespace(measured=nodes), Q=scale * q,
+                        R=scale * float(design.noise_std) ** 2, steady_state=True,
+                        field_map=model.field_map, nis_dof_fraction=design.nis_dof_fraction)
+
+
+#: Largest node count for which the sensor-count study (one optimisation per count) runs.
+SENSOR_COUNT_MAX_NODES = 201
+
+
+def _sensor_count(ident: Identification, model):
+    """The predicted steady-state error against the sensor count (None above the size)."""
+    import numpy as np
+
+    from ..sensors import sensor_count_study
+
+    design = ident.design
+    n_nodes = design.model.n_nodes
+    if ident.sensors_given or n_nodes > SENSOR_COUNT_MAX_NODES:
+        return None
+    dmd = design.model
+    q = np.array(dmd.residual_covariance)
+    q[np.diag_indices_from(q)] += design.q_floor
+    scale = design.covariance_scale
+    k = int(design.sensors.size)
+    return sensor_count_study(dmd.to_statespace(measured=list(range(n_nodes))),
+                              list(range(1, k + 3)), Q=scale * q,
+                              R=scale * float(design.noise_std) ** 2,
+                              positions=np.asarray(model.node_positions),
+                              forbidden=ident.forbidden, n_steps=500)
+
+
+def driven_mode(model, load_frequency: float) -> int:
+    """The line's mode (1-based) whose natural frequency is nearest the load's.
+
+    Parameters
+    ----------
+    model : LineModel
+        The line.
+    load_frequency : float
+        Hz.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> driven_mode(plc.LineModel(plc.Span.paper_lab(), n_elements=20), 24.0)
+    3
+    """
+    import numpy as np
+
+    n = min(400, model.n_dofs)
+    frequencies = np.asarray(model.natural_frequencies(n))
+    return int(np.argmin(np.abs(frequencies - load_frequency))) + 1
+
+
+def _layouts(scenario: Scenario, records: Records, ident: Identification, model) -> dict:
+    import numpy as np
+
+    from ..estimate import estimation_accuracy
+
+    snap, n_train = records.test, records.n_train
+    x = np.asarray(snap.x)
+    design = ident.design
+    chosen = [int(i) for i in design.sensors]
+    k = len(chosen)
+    mode = driven_mode(model, scenario.forcing.load_frequency(model.span))
+    shape = model.mode_shapes(mode)[:, mode - 1]
+    candidates = {"chosen": (chosen, ident.sensors_how)}
+    plain_even = evenly_spaced_nodes(x, k)
+    fair_even = evenly_spaced_nodes(x, k, shape)
+    phi = np.abs(shape) / np.abs(shape).max()
+    on_node = float(phi[plain_even].min())
+    if fair_even != plain_even:
+        candidates[f"evenly spaced ({k})"] = (
+            plain_even, f"{k} sensors at equal spacing L/{k + 1}; the smallest relative "
+            f"amplitude of the driven mode {mode} at them is {on_node:.2g} (0: on a node).")
+        candidates[f"evenly spaced, off mode {mode}'s nodes ({k})"] = (
+            fair_even, f"The same spacing shifted so that no sensor sits on a node of the driven "
+            f"mode {mode} (smallest relative amplitude {float(phi[fair_even].min()):.2g}).")
+    else:
+        candidates[f"evenly spaced ({k})"] = (
+            plain_even, f"{k} sensors at equal spacing L/{k + 1}, none on a node of the driven "
+            f"mode {mode} (smallest relative amplitude {on_node:.2g}).")
+    # The paper measured its first 10 states on 20 elements and its first 13 on 100 (Figs. 7-8);
+    # node 0 sits on the support, so the first measured node is node 1.
+    n_first = 10 if x.size == 21 else 13
+    first = list(range(1, min(n_first, x.size - 2) + 1))
+    covered = x[first[-1]]
+    candidates[f"the paper's layout: first {len(first)} nodes"] = (
+        first, f"The paper's own layout (its first {n_first} states): {len(first)} sensors, "
+        f"not {k}, covering only x <= {covered:.3g} m ({100 * covered / x[-1]:.2g} % of the "
+        "span).")
+    held = slice(n_train, None)
+    truth = snap.true_displacement[:, held]
+    span_rms = float(np.sqrt(np.mean(truth**2)))
+    discard = min(200, (snap.t.size - n_train) // 4)
+    out = {}
+    for name, (nodes, note) in candidates.items():
+        if name != "chosen" and nodes == chosen:
+            continue
+        estimate = layout_filter(design, nodes).filter(snap.displacement[nodes, held])
+        accuracy = estimation_accuracy(estimate.field, truth, measured=nodes, discard=discard)
+        along = np.sqrt(np.mean((estimate.field - truth) ** 2, axis=1)) / span_rms
+        out[name] = Layout(name=name, nodes=tuple(nodes),
+                           positions=tuple(float(x[i]) for i in nodes), note=note,
+                           estimate=estimate, accuracy=accuracy, error_along_span=along)
+    return out
+
+
+def tune_robot(scenario: Scenario, model) -> Tuning:
+    """The scenario's robot with its absorber tuned to the mode the load drives.
+
+    Tuned (Den Hartog, or the scenario's damping ratio at Den Hartog's frequency) for the
+    antinode of that mode nearest the robot's start (the modal mass seen at a node is
+    infinite), found by :func:`~powerline_control.antinode.locate_antinodes` on the mode shape;
+    then placed at its start.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``robot`` and ``forcing`` sections.
+    model : LineModel
+        The line.
+
+    Returns
+    -------
+    Tuning
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> s = load_scenario(text="[model]\\nn_elements = 30")
+    >>> tuning = tune_robot(s, plc.LineModel(s.span.build(), n_elements=30))
+    >>> tuning.mode, tuning.robot.position
+    (3, 1.2)
+    """
+    import numpy as np
+
+    from ..antinode import locate_antinodes, nearest_antinode
+    from ..tuning import tune_damper
+
+    cfg = scenario.robot
+    load_frequency = float(scenario.forcing.load_frequency(model.span))
+    mode = driven_mode(model, load_frequency)
+    frequency = float(model.natural_frequencies(mode)[mode - 1])
+    x = np.asarray(model.node_positions)
+    antinodes = locate_antinodes(model.mode_shapes(mode)[:, mode - 1], x)
+    antinode = float(nearest_antinode(antinodes, cfg.start).position) if antinodes else cfg.start
+    mdr = tune_damper(model, mode, antinode, cfg.suspended_mass, body_mass=cfg.body_mass)
+    how = "Den Hartog"
+    if cfg.damping_ratio > 0:
+        omega = np.sqrt(mdr.stiffness / mdr.suspended_mass)
+        mdr = dataclasses.replace(mdr, damping=2 * cfg.damping_ratio * mdr.suspended_mass * omega)
+        how = f"Den Hartog frequency, damping ratio {cfg.damping_ratio:g} from the scenario"
+    mdr = dataclasses.replace(mdr, position=cfg.start)
+    return Tuning(robot=mdr, mode=mode, mode_frequency=frequency, load_frequency=load_frequency,
+                  antinode=antinode, how=how)
+
+
+def closed_loop_timing(scenario: Scenario) -> tuple[float, float]:
+    """(dt, calibration) of the closed loop, s.
+
+    The calibration (robot parked, the estimator identified) is a third of the run, at most
+    :data:`MAX_CALIBRATION`, in whole :data:`CONTROL_PERIOD` control periods.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``simulation.dt`` and ``robot.closed_loop``.
+
+    Returns
+    -------
+    (float, float)
+
+    Examples
+    --------
+    >>> closed_loop_timing(load_scenario(text="[robot]\\nclosed_loop = 12.0"))
+    (0.001, 2.0)
+    """
+    dt = scenario.simulation.dt
+    period = max(dt, round(CONTROL_PERIOD / dt) * dt)
+    calibration = max(1, round(min(MAX_CALIBRATION, scenario.robot.closed_loop / 3) / period))
+    return dt, round(calibration * period / dt) * dt
+
+
+def _plan(scenario: Scenario, records: Records, layouts: dict, model, tuning: Tuning) -> Plan:
+    import numpy as np
+
+    from ..antinode import locate_antinodes, nearest_antinode
+    from ..closed_loop.policy import TRAVEL_FRACTION, choose_parked_position
+    from ..plan import RobotLimits, plan_motion
+
+    snap, n_train = records.test, records.n_train
+    estimate = layouts["chosen"].estimate
+    window = slice(-min(ANTINODE_WINDOW, estimate.field.shape[1]), None)
+    held_truth = snap.true_displacement[:, n_train:]
+    estimated = locate_antinodes(estimate.field[:, window], snap.x, dt=snap.dt)
+    true = locate_antinodes(held_truth[:, window], snap.x, dt=snap.dt)
+    robot = scenario.robot
+    limits = RobotLimits(v_max=robot.v_max, a_max=robot.a_max)
+    travel = float("inf")
+    if robot.closed_loop > 0:
+        travel = TRAVEL_FRACTION * (robot.closed_loop - closed_loop_timing(scenario)[1])
+    # The closed loop's own targeting rule on the whole held-out estimate (its resolution,
+    # 1 / length, must tell the load's line from a natural frequency's ringing next to it).
+    choice = choose_parked_position(model, estimate.field, snap.dt, tuning.robot, robot.start,
+                                    limits, travel_time=travel)
+    target = nearest_antinode(estimated, choice.position)
+    truth = nearest_antinode(true, choice.position)
+    trajectory = plan_motion(robot.start, choice.position, limits, span_length=model.span.length)
+    return Plan(antinodes=estimated, true_antinodes=true, choice=choice, target=target,
+                truth=truth, trajectory=trajectory, envelope=np.abs(held_truth).max(axis=1))
+
+
+def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, sensors) -> ClosedLoop:
+    from ..closed_loop import run_closed_loop
+    from ..plan import RobotLimits
+
+    cfg = scenario.robot
+    if not sensors:
+        import numpy as np
+
+        x = np.asarray(model.node_positions)
+        given, _ = given_sensors(scenario, x)
+        sensors = given if given is not None else evenly_spaced_nodes(
+            x, scenario.estimation.n_sensors)
+    dt, calibration = closed_loop_timing(scenario)
+    result = run_closed_loop(
+        model, force, tuning.robot, RobotLimits(cfg.v_max, cfg.a_max), sensors=list(sensors),
+        duration=cfg.closed_loop, calibration=calibration, dt=dt,
+        noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed)
+    return ClosedLoop(tuning=tuning, sensors=tuple(int(i) for i in sensors), result=result,
+                      calibration=calibration)
+
+
+def severity_inputs(scenario: Scenario, span) -> tuple[dict, str]:
+    """The keyword arguments of ``aeolian_severity`` the scenario sets, and the strand source.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``severity`` section.
+    span : Span
+        The span.
+
+    Returns
+    -------
+    (dict, str)
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> kwargs, source = severity_inputs(load_scenario(), plc.Span.paper_lab())
+    >>> kwargs["outer_strand_diameter"], source.startswith("the lab conductor")
+    (0.0035, True)
+    """
+    sev = scenario.severity
+    kwargs = {"outer_strand_modulus": sev.outer_strand_modulus, "x_b": sev.clamp_distance}
+    if sev.outer_strand_diameter is not None:
+        kwargs["outer_strand_diameter"] = sev.outer_strand_diameter
+        source = "severity.outer_strand_diameter"
+    elif scenario.span.preset == "paper_lab":
+        kwargs["outer_strand_diameter"] = LAB_OUTER_STRAND_DIAMETER
+        source = "the lab conductor's preset (AAC 2/0, 7 x 3.50 mm strands)"
+    else:
+        source = f"the {scenario.span.conductor} preset's stranding"
+    return kwargs, source
+
+
+def severity_span(scenario: Scenario, span):
+    """The span the severity study uses: the scenario's EI and rated strength, when set.
+
+    The lab span's conductor (Table 1) has no rated strength; the severity study takes the
+    catalogue value of AAC 2/0 Oxlip, the conductor Table 1 matches (:data:`LAB_CONDUCTOR`).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``severity`` and ``span`` sections.
+    span : Span
+        The span.
+
+    Returns
+    -------
+    Span
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> span = severity_span(load_scenario(), plc.Span.paper_lab())
+    >>> span.conductor.rated_strength == plc.conductors[LAB_CONDUCTOR].rated_strength
+    True
+    """
+    from ..line import conductors
+
+    sev = scenario.severity
+    changes = {}
+    if sev.ei is not None:
+        changes["ei"] = sev.ei
+    if sev.rated_strength is not None:
+        changes["rated_strength"] = sev.rated_strength
+    elif span.conductor.rated_strength is None and scenario.span.preset == "paper_lab":
+        changes["rated_strength"] = conductors[LAB_CONDUCTOR].rated_strength
+    if not changes:
+        return span
+    return dataclasses.replace(span, conductor=dataclasses.replace(span.conductor, **changes))
+
+
+#: The catalogue conductor the paper's lab span (Table 1) matches.
+LAB_CONDUCTOR = "oxlip"
+
+
+def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
+    import numpy as np
+
+    from ..severity import AtAntinode, aeolian_severity
+
+    span = severity_span(scenario, span)
+    sev = scenario.severity
+    kwargs, source = severity_inputs(scenario, span)
+    speeds = np.asarray(sev.wind_speeds, dtype=float)
+    bare = aeolian_severity(span, wind_speeds=speeds, **kwargs)
+    robot = tuning.robot
+    with_robot = aeolian_severity(span, wind_speeds=speeds, dampers=[AtAntinode(robot)],
+                                  **kwargs)
+    strand = kwargs.get("outer_strand_diameter")
+    if strand is None:
+        from .config import _outer_strand_table
+
+        strand = (_outer_strand_table() or {}).get(span.conductor.name, float("nan"))
+    return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
+                    strand_source=source)
+
+
+def _with_record_sensors(scenario: Scenario, record) -> Scenario:
+    """The scenario measuring where the record's channels are (its sample interval checked)."""
+    import math
+
+    from ..io import Record
+
+    if not isinstance(record, Record):
+        raise InputError(f"The 'record' parameter must be a Record (load_record). Got "
+                         f"{type(record).__name__}.")
+    record.check_span(scenario.span_length())
+    if not math.isclose(record.dt, scenario.simulation.dt, rel_tol=1e-6):
+        raise InputError(f"{record.source}: sampled at dt = {record.dt:g} s, but the scenario's "
+                         f"model runs at simulation.dt = {scenario.simulation.dt:g} s: set "
+                         f"simulation.dt = {record.dt:g} or resample the record.")
+    est = dataclasses.replace(scenario.estimation, sensors=None,
+                              sensor_positions=tuple(float(x) for x in record.positions))
+    return dataclasses.replace(scenario, estimation=est)
+
+
+def _measured(record, ident: Identification, x) -> MeasuredEstimate:
+    import numpy as np
+
+    x = np.asarray(x)
+    nearest = [int(np.argmin(np.abs(x - p))) for p in record.positions]
+    order = sorted(range(len(nearest)), key=lambda i: nearest[i])
+    nodes, rows = [], []
+    for i in order:
+        if nearest[i] not in nodes:
+            nodes.append(nearest[i])
+            rows.append(i)
+    y = np.asarray(record.values)[rows]
+    estimate = layout_filter(ident.design, nodes).filter(y)
+    return MeasuredEstimate(record=record, nodes=tuple(nodes), estimate=estimate)
