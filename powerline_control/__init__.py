@@ -89,6 +89,8 @@ _LAZY_EXPORTS = {
         # issue 23: wind records, damage over a record, rainflow counting
         "FatigueOverRecord", "RainflowCount", "RecordDamage", "WindRecord", "fatigue_over_record",
         "rainflow_count", "rainflow_damage",
+        # issue 23: the physical self-damping model (Foti & Martinelli)
+        "STRANDINGS", "FotiMartinelli", "StrandLayer", "StrandedBending", "stranded_bending",
     ),
     "closed_loop": (
         "Choice", "ClosedLoopResult", "ParkedSteadyState", "choose_parked_position",
@@ -279,6 +281,11 @@ __all__ = [
     "fatigue_over_record",
     "rainflow_count",
     "rainflow_damage",
+    "FotiMartinelli",
+    "STRANDINGS",
+    "StrandLayer",
+    "StrandedBending",
+    "stranded_bending",
 ]
 
 __version__ = "0.1.0"

@@ -1,6 +1,7 @@
 """Aeolian severity: wind power and self-damping (wind), the standing wave and dampers (dampers),
 the energy balance and clamp strain (balance), wind climates and the robot's value (climate),
-checks (checks), wind records (record), damage over a record and rainflow counting (fatigue).
+checks (checks), wind records (record), damage over a record and rainflow counting (fatigue),
+the physical self-damping model of a stranded conductor (self_damping).
 
 ``powerline_control.severity`` keeps every name the single module ``severity.py`` had.
 """
@@ -28,8 +29,10 @@ from .fatigue import *  # noqa: F403
 from .fatigue import __all__ as _fatigue_all
 from .record import *  # noqa: F403
 from .record import __all__ as _record_all
+from .self_damping import *  # noqa: F403
+from .self_damping import __all__ as _self_damping_all
 from .wind import *  # noqa: F403
 from .wind import __all__ as _wind_all
 
 __all__ = [*_wind_all, *_dampers_all, *_balance_all, *_climate_all, *_checks_all, *_record_all,
-           *_fatigue_all]
+           *_fatigue_all, *_self_damping_all]

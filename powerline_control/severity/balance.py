@@ -52,7 +52,8 @@ from .dampers import (
     loop_length,
     standing_wave_shape,
 )
-from .wind import _curve, _resolve_law, turbulence_factor
+from .self_damping import FotiMartinelli
+from .wind import SelfDampingLaw, _curve, _resolve_law, turbulence_factor
 
 __all__ = [
     "SeverityResult",
@@ -292,7 +293,7 @@ def aeolian_severity(
     strouhal: float = DEFAULT_STROUHAL,
     wind_curve: str = "cigre",
     turbulence_intensity: float = 0.0,
-    self_damping: str = "noiseux1991",
+    self_damping: str | SelfDampingLaw | FotiMartinelli = "noiseux1991",
     self_damping_k: float | None = None,
     self_damping_exponents: Sequence[float] | None = None,
     bc: str = "clamped",
@@ -326,9 +327,10 @@ def aeolian_severity(
         A name of :data:`WIND_POWER_CURVES` (default "cigre").
     turbulence_intensity : float
         Iv for :func:`turbulence_factor` (default 0).
-    self_damping : str
+    self_damping : str, SelfDampingLaw or FotiMartinelli
         A name of :data:`SELF_DAMPING_LAWS` (default "noiseux1991"; Lilien k from dohl,
-        unverified).
+        unverified), a law, or the physical model :class:`FotiMartinelli` (e.g.
+        ``FotiMartinelli.from_conductor(span.conductor)``).
     self_damping_k : float or None
         User coefficient k.
     self_damping_exponents : (l, m, n) or None
@@ -453,9 +455,19 @@ def aeolian_severity(
         label=label if label is not None else (" + ".join(labels) if labels else "no damper"),
         damper_labels=labels,
         parameters=dict(strouhal=st, wind_curve=curve.name, turbulence_factor=b,
-                        self_damping=law.name, self_damping_exponents=(law.l, law.m, law.n),
-                        self_damping_k=law.coefficient(span), bc=bc, x_b=x_b,
+                        self_damping=law.name, **_law_parameters(law, span), bc=bc, x_b=x_b,
                         outer_strand_diameter=strand, outer_strand_modulus=modulus,
                         layers=layers, endurance_strain_pp=endurance,
                         reference_cycles=reference_cycles, sbl_endurance_stress=sigma_endurance),
     )
+
+
+def _law_parameters(law: SelfDampingLaw | FotiMartinelli, span: Span) -> dict:
+    """The self-damping entries of ``SeverityResult.parameters``: a power law's exponents and
+    k, or the physical model's EI_max and limit curvature at the span's tension."""
+    if isinstance(law, FotiMartinelli):
+        return dict(self_damping_exponents=None, self_damping_k=None,
+                    self_damping_model=dict(ei_max=law.ei_max, regime=law.regime,
+                                            limit_curvature=law.limit_curvature(span.tension)))
+    return dict(self_damping_exponents=(law.l, law.m, law.n),
+                self_damping_k=law.coefficient(span))

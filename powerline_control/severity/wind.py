@@ -1,5 +1,6 @@
 """Wind power input (the CIGRE curve and digitised curves, turbulence) and conductor
-self-damping laws (the power-law exponent sets of domain.md 2.2)."""
+self-damping laws (the power-law exponent sets of domain.md 2.2; the physical model is in
+self_damping)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from .._validation import (
 from ..errors import InputError
 from ..line import Span
 from ._common import _check_frequency, _check_span, _check_text, _finite_power
+from .self_damping import FotiMartinelli
 
 __all__ = [
     "WIND_POWER_CURVES",
@@ -367,7 +369,14 @@ SELF_DAMPING_LAWS: dict[str, SelfDampingLaw] = {
 
 
 def _resolve_law(self_damping: object, k: float | None,
-                 exponents: Sequence[float] | None) -> SelfDampingLaw:
+                 exponents: Sequence[float] | None) -> SelfDampingLaw | FotiMartinelli:
+    if isinstance(self_damping, FotiMartinelli):
+        if k is not None or exponents is not None:
+            raise InputError(
+                "The 'self_damping_k' and 'self_damping_exponents' parameters apply to power "
+                "laws only; a FotiMartinelli model has its own EI_max and limit curvature. Got "
+                f"self_damping_k={k!r}, self_damping_exponents={exponents!r}.")
+        return self_damping
     if isinstance(self_damping, SelfDampingLaw):
         base = self_damping
     else:
@@ -389,7 +398,8 @@ def _resolve_law(self_damping: object, k: float | None,
 
 
 def self_damping_power(amplitude: np.ndarray | float, frequency: float, span: Span, *,
-                       self_damping: str = "noiseux1991", self_damping_k: float | None = None,
+                       self_damping: str | SelfDampingLaw | FotiMartinelli = "noiseux1991",
+                       self_damping_k: float | None = None,
                        self_damping_exponents: Sequence[float] | None = None) -> np.ndarray:
     """Conductor self-damping power per metre, P_c = k Y^l f^m / T^n (T in kN), W/m.
 
@@ -405,8 +415,10 @@ def self_damping_power(amplitude: np.ndarray | float, frequency: float, span: Sp
         Hz (> 0).
     span : Span
         Tension, conductor.
-    self_damping : str
-        A name of :data:`SELF_DAMPING_LAWS`.
+    self_damping : str, SelfDampingLaw or FotiMartinelli
+        A name of :data:`SELF_DAMPING_LAWS`, a law, or the physical model
+        :class:`FotiMartinelli` (then ``self_damping_k`` and ``self_damping_exponents`` must be
+        None).
     self_damping_k : float or None
         A user coefficient k (W/m for Y in m, f in Hz, T in kN) instead of the Lilien one.
     self_damping_exponents : (l, m, n) or None
