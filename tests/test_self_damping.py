@@ -310,6 +310,18 @@ def test_usable_wherever_a_law_is(model, drake):
     assert plc.FotiMartinelli is FotiMartinelli
 
 
+def test_robot_value_passes_the_model_on(model, drake):
+    robot = plc.MDR.tuned(0.0, 6.0, 1.5, frequency=18.0, damping_ratio=0.3)
+    value = plc.robot_value(drake, robot, plc.RobotLimits(v_max=0.25, a_max=0.4), [2.0, 4.0],
+                            self_damping=model)
+    none = value.severities[0]
+    direct = aeolian_severity(drake, wind_speeds=[2.0, 4.0], self_damping=model)
+    np.testing.assert_allclose(none.amplitude, direct.amplitude, rtol=1e-12)
+    # ... and the model is not the default law: Noiseux gives other amplitudes.
+    assert not np.allclose(none.amplitude,
+                           aeolian_severity(drake, wind_speeds=[2.0, 4.0]).amplitude, rtol=0.1)
+
+
 # --------------------------------------------------------------------------- bad input
 @pytest.mark.parametrize(("call", "match"), [
     (lambda: stranded_bending(plc.conductors["drake"], 30e3, friction=-0.2), r"'friction'.*-0.2"),
