@@ -20,10 +20,9 @@ from .scenario.config import (  # noqa: F401  (re-exported)
     load_scenario,
     override_scenario_text,
     read_scenario_text,
-    scenario_reference,
-    scenario_to_toml,
     shipped_scenarios,
 )
+from .scenario.template import scenario_reference, scenario_to_toml  # noqa: F401
 
 __all__ = [
     "Scenario",

@@ -9,10 +9,9 @@ from .config import (
     load_scenario,
     override_scenario_text,
     read_scenario_text,
-    scenario_reference,
-    scenario_to_toml,
     shipped_scenarios,
 )
+from .template import scenario_reference, scenario_to_toml
 
 __all__ = [
     "Scenario",
