@@ -283,6 +283,29 @@ def test_step_equals_filter():
     np.testing.assert_array_equal(kf.covariance, np.eye(n))
 
 
+def test_step_block_equals_filter_and_continues_the_real_time_state():
+    sys = lightly_damped_system(5, 3, seed=61, n_inputs=1)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(3)
+    u = np.random.default_rng(62).normal(size=(1, 700))
+    _, y = simulate_truth(sys, q, r, 700, seed=63, u=u)
+    y[0, 10] = np.nan
+    kf = KalmanFilter(sys, q, r, consistency_window=100)
+    est = kf.filter(y, u)
+    # Blocks of uneven length, each continuing where the last stopped: the batch filter's
+    # states (its own path after convergence) to round-off, and the same consistency windows.
+    cuts = [0, 1, 64, 65, 300, 700]
+    blocks = [kf.step_block(y[:, a:b], u[:, a:b]) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+    assert rel(np.hstack(blocks), est.states) < 1e-10
+    np.testing.assert_allclose(kf.consistency.window_nis, est.consistency.window_nis,
+                               rtol=1e-9)
+    np.testing.assert_array_equal(kf.state, blocks[-1][:, -1])
+    with pytest.raises(InputError, match="'measurements'"):
+        kf.step_block(y.T)
+    with pytest.raises(InputError, match="'inputs'"):
+        kf.step_block(y[:, :5], u[:, :4])
+
+
 def test_field_map_and_field_variances():
     sys = lightly_damped_system(4, 2, seed=71)
     n = sys.nstates

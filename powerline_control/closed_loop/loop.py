@@ -435,8 +435,7 @@ def _sense(records: _Records, line: _Line, at_robot: np.ndarray, noise_std: floa
 def _kalman_steps(records: _Records, calibration: _Calibration, y_block: np.ndarray, j: int,
                   block_end: int) -> None:
     """The Kalman filter's steps on the block's measurements, and its one-step innovations."""
-    for i in range(j, block_end):
-        records.filter_states[i + 1] = calibration.kf.step(y_block[i - j])
+    records.filter_states[j + 1 : block_end + 1] = calibration.kf.step_block(y_block.T).T
     predicted = records.filter_states[j:block_end] @ calibration.predict_sensors.T
     records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
 
