@@ -30,6 +30,9 @@ import os
 import numpy as np
 import pytest
 import sweep_cases as sweep  # beside this file (pytest puts tests/ on sys.path, as strategies)
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 import powerline_control as plc
 
@@ -310,3 +313,21 @@ def test_sensor_positions_closer_than_a_mesh_cell_are_refused_not_merged():
     # Old code: both become node 1, one sensor where the user asked for two.
     with pytest.raises(plc.InputError, match="sensor_positions"):
         given_sensors(scenario, [0.0, 0.915, 1.83, 2.745, 3.66])
+
+
+# ====================================== the reduction-based finiteness check against the mask
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@given(values=hnp.arrays(np.float64, hnp.array_shapes(min_dims=1, max_dims=3, max_side=6),
+                         elements=st.floats(allow_nan=True, allow_infinity=True, width=64)),
+       allow_nan=st.booleans())
+def test_check_array_finiteness_equals_the_elementwise_truth(values, allow_nan):
+    from powerline_control._validation import check_array
+
+    # Truth: the elementwise mask (what the check allocated before issue 21).
+    bad = np.isinf(values) if allow_nan else ~np.isfinite(values)
+    if bad.any():
+        with pytest.raises(plc.InputError, match="'v' parameter contains"):
+            check_array("v", values, allow_nan=allow_nan)
+    else:
+        out = check_array("v", values, allow_nan=allow_nan)
+        assert out.tobytes() == values.tobytes()   # returned unchanged, bit for bit
