@@ -58,9 +58,24 @@ def module_of(name: str) -> str:
             if key.startswith("powerline_control.") and getattr(mod, name, None) is obj
         ]
         module = min(holders, key=_order_key) if holders else "powerline_control"
-    # a subpackage's names are its own section (closed_loop.loop -> closed_loop)
-    return module.removeprefix("powerline_control.").lstrip("_").split(".")[0] or \
-        "powerline_control"
+    # a subpackage's names are its own section (closed_loop.loop -> closed_loop), and so are a
+    # private helper module's (_recipe_count serves recipe, as tests/test_architecture.py ranks it)
+    short = module.removeprefix("powerline_control.").split(".")[0]
+    return home_of(short) or short.lstrip("_") or "powerline_control"
+
+
+def home_of(module: str) -> str | None:
+    """The listed module a private helper module serves (``_recipe_count`` -> ``recipe``), or
+    the module itself when it is listed; None otherwise."""
+    base = module.lstrip("_")
+    if base in MODULE_ORDER:
+        return base
+    if module.startswith("_"):
+        homes = [m for m in MODULE_ORDER
+                 if base.startswith(m + "_") or base.startswith(m.rstrip("s") + "_")]
+        if homes:
+            return max(homes, key=len)
+    return None
 
 
 def _order_key(module: str) -> tuple[int, str]:
