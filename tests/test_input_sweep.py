@@ -102,12 +102,6 @@ _XFAIL_TABLE = """
     Scenario::severity::text,number,none | pipeline: answered (silent)
     Scenario::simulation::text,number,none | pipeline: answered (silent)
     Scenario::span::text,number,none | pipeline: answered (silent)
-    choose_parked_position::dt::tiny | closed_loop: raw OverflowError (plant.py:303)
-    choose_parked_position::robot::text,number,none | closed_loop: raw AttributeError (plant.py:67)
-    choose_parked_position::start::nan,inf,-inf,negative,huge | closed_loop: error names position
-    choose_parked_position::start::bool,none,complex | closed_loop: error names position
-    choose_parked_position::travel_time::nan,-inf,text,bool,none | closed_loop: answered (silent)
-    choose_parked_position::travel_time::complex | closed_loop: answered (silent)
     estimate_clamp_strain::design::text | severity: raw AttributeError (_severity_clamp.py:146)
     estimate_clamp_strain::design::number | severity: raw AttributeError (_severity_clamp.py:146)
     estimate_clamp_strain::design::none | severity: raw AttributeError (_severity_clamp.py:146)

@@ -16,12 +16,13 @@ wherever the robot is; then it predicts the span's RMS with itself parked at eve
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .._spectral import dominant_frequency, fit_phasors
-from .._validation import check_array, read_only
+from .._validation import check_array, check_real, read_only
 from ..errors import InputError
 from ..fem import MDR, LineModel
 from ..plan import RobotLimits, free_interval
@@ -224,6 +225,16 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
     """
     if not isinstance(model, LineModel):
         raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
+    if not isinstance(robot, MDR):
+        raise InputError(f"The 'robot' parameter must be an MDR. Got {type(robot).__name__}.")
+    if not isinstance(limits, RobotLimits):
+        raise InputError(
+            f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__}.")
+    start = check_real("start", start, low=0.0, high=model.span.length, low_inclusive=True)
+    if not (isinstance(travel_time, numbers.Real) and not isinstance(travel_time, bool)
+            and travel_time == np.inf):
+        travel_time = check_real("travel_time", travel_time, low=0.0, low_inclusive=True)
+    dt = check_real("dt", dt, low=0.0)
     field = check_array("field", field, shape=(model.n_nodes, None))
     if field.shape[1] < 8:
         raise InputError(
@@ -233,6 +244,13 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
     frequency = dominant_frequency(field, dt)
     if not frequency > 0.0:
         raise InputError("The 'field' parameter shows no vibration (no spectral peak above 0 Hz).")
+    top = float(model.span.pinned_frequencies(model.n_dofs)[-1])
+    if frequency > top:
+        raise InputError(
+            f"The 'dt' parameter ({dt:g} s) puts the field's dominant frequency at "
+            f"{frequency:.4g} Hz, above the highest the model resolves (about {top:.4g} Hz): "
+            "give the record's sample interval in seconds."
+        )
     t = dt * np.arange(field.shape[1])
     shape = fit_phasors(field, t, frequency)
     plant = ModalPlant(model, robot, default_modes(model.span, model, [frequency], dt), dt)
