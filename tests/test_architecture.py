@@ -21,7 +21,10 @@ ORDER = ["line", "fem", "tuning", "excitation", "simulate", "identify", "riccati
          "closed_loop", "studies"]
 # _spectral (tones, phasors, spectral lines, peaks) serves stages from simulate to the closed loop.
 LEAVES = {"errors", "_validation", "_spectral"}
-ANYTHING_GOES = {"plotting", "report", "io", "config", "cli", "__init__", "__main__"}
+# The output side and the scenario pipeline (design.md: scenario/ runs every stage, then the
+# report) sit below every stage.
+ANYTHING_GOES = {"plotting", "report", "io", "config", "scenario", "cli", "__init__",
+                 "__main__"}
 
 
 def _internal_imports(path: pathlib.Path) -> set[str]:
