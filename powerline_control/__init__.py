@@ -86,10 +86,10 @@ _LAZY_EXPORTS = {
         "damper_impedance", "damper_power", "harmonic_mean_position", "loop_length",
         "robot_value", "self_damping_power", "standing_wave_shape", "time_domain_check",
         "turbulence_factor", "wind_power",
-        # issue 23: wind records, damage over a record, rainflow counting
+        # wind records, damage over a record, rainflow counting
         "FatigueOverRecord", "RainflowCount", "RecordDamage", "WindRecord", "fatigue_over_record",
         "rainflow_count", "rainflow_damage",
-        # issue 23: the physical self-damping model (Foti & Martinelli)
+        # the physical self-damping model (Foti & Martinelli)
         "STRANDINGS", "FotiMartinelli", "StrandLayer", "StrandedBending", "stranded_bending",
     ),
     "closed_loop": (

@@ -1,4 +1,4 @@
-"""The spectral consistency test of a filter's innovations (issue 19, part 2).
+"""The spectral consistency test of a filter's innovations.
 
 A filter whose model fits a record leaves innovations whose spectrum, whitened by the filter's
 own innovation covariance ``S``, is the spectrum it had on records like its training one. A load

@@ -14,7 +14,8 @@ open:
   the (delayed) data, so the cost follows ``r`` rather than the number of nodes;
 * known inputs (DMD with control): ``z_{k+1} = A z_k + B u_k``;
 * :class:`OnlineDMD`: recursive least squares with exponential forgetting;
-* :func:`select_alpha`: the whole alpha curve with the two choices of issue 3.
+* :func:`select_alpha`: the whole alpha curve with its two choices (the smallest stable
+  alpha, the best held-out one).
 
 Every model keeps :attr:`DMDModel.field_map`, the map from its state to the *current* nodal
 displacements, and exports itself as a discrete :class:`control.StateSpace`.

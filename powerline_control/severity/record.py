@@ -24,7 +24,7 @@ __all__ = ["WindRecord"]
 #: Required CSV columns (the header names, case-insensitive) and the optional one.
 REQUIRED_COLUMNS = ("time", "wind_speed", "direction", "temperature")
 OPTIONAL_COLUMNS = ("turbulence_intensity",)
-#: Allowed ranges: wind speeds 0..50 m/s, air temperatures -50..80 degC (issue 23), wind
+#: Allowed ranges: wind speeds 0..50 m/s, air temperatures -50..80 degC, wind
 #: directions 0..360 degrees, turbulence intensities 0..1.
 LIMITS = {"wind_speed": (0.0, 50.0), "temperature": (-50.0, 80.0), "direction": (0.0, 360.0),
           "turbulence_intensity": (0.0, 1.0)}
