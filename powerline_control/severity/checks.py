@@ -304,13 +304,7 @@ def catenary_check(span: Span, terrain: int = 1, limit: float | None = None) -> 
     >>> round(check.catenary_parameter), check.within_limit
     (1755, False)
     """
-    if not isinstance(span, Span):
-        raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
-    rts = span.conductor.rated_strength
-    if rts is not None and span.tension >= rts:
-        raise InputError(
-            f"The 'span.tension' ({span.tension:g} N) must be below the conductor's rated "
-            f"strength ({rts:g} N): the conductor would have failed, and no H/w limit applies.")
+    span = _check_span(span)
     h_w = span.tension / (span.conductor.mass_per_length * GRAVITY)
     if limit is not None:
         value = check_real("limit", limit, low=0.0)
