@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import check_int, check_real, read_only
+from ._validation import check_int, check_real, check_rng, read_only
 from .errors import ExcitationWarning, InputError
 from .recipe import design_estimator
 
@@ -63,7 +63,8 @@ class EstimatorCountStudy:
 
 
 def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: float = 0.1,
-                          held_out_fraction: float = 0.3, seed: int = 0,
+                          held_out_fraction: float = 0.3,
+                          seed: int | np.random.Generator | None = 0,
                           **design_options: object) -> EstimatorCountStudy:
     """How many sensors for a target error, measured on the held-out end of a record.
 
@@ -77,8 +78,10 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
         Relative RMS error at unmeasured nodes to reach (0.1: 10 %).
     held_out_fraction : float, default 0.3
         Share of the record (its end) that judges each design; the rest trains it.
-    seed : int
-        Seed of :func:`~powerline_control.recipe.design_estimator`.
+    seed : int, numpy.random.Generator or None, default 0
+        Seed of :func:`~powerline_control.recipe.design_estimator` (its sensor selection's
+        random baseline), as everywhere in the package: an int or a Generator, ``None`` for
+        fresh entropy (the layouts and errors do not depend on it).
     **design_options
         Passed to :func:`~powerline_control.recipe.design_estimator` (``delays``, ``rank``,
         ``forbidden``, ...).
@@ -106,6 +109,11 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
     >>> study.k, study.held_out_error.shape
     ((2, 4), (2,))
     """
+    # None is fresh entropy (check_rng's rule), drawn once and shared by every count's design;
+    # an int is passed on as given, so each count's design sees the same seed.
+    rng = check_rng(seed)
+    if seed is None:
+        seed = rng
     try:
         x_all = np.asarray(snapshots.displacement, dtype=float)
         dt = float(snapshots.dt)

@@ -100,7 +100,8 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
         The estimator (:func:`~powerline_control.recipe.design_estimator`), trained on the
         span's nodes at ``positions``.
     measurements : array_like, shape (n_sensors, n_t)
-        A record of the design's sensors, m.
+        A record of the design's sensors, m; finite (NaN is refused: a missing sample would be
+        the filter's prediction averaged into ``Y_b``; cut the record around gaps).
     span : Span
         The span (tension and conductor for Poffenberger-Swart); its supports must be clamped.
     positions : array_like, shape (n_nodes,)
@@ -121,7 +122,9 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
     Raises
     ------
     InputError
-        Bad arguments, named: positions of the wrong shape or not ascending, ``x_b`` outside
+        Bad arguments, named: a ``design`` that is not an EstimatorDesign, a ``span`` that is
+        not a Span, NaN or infinite measurements, positions of the wrong shape or not ascending,
+        ``x_b`` outside
         the first half of the span, ``discard`` leaving no samples.
 
     Examples
@@ -141,6 +144,18 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
     >>> bool(clamp.bending_amplitude > 0 and clamp.strain_sigma > 0)
     True
     """
+    from .recipe import EstimatorDesign  # recipe imports the estimator stack: import on use
+
+    if not isinstance(design, EstimatorDesign):
+        raise InputError(
+            "The 'design' parameter must be an EstimatorDesign (from design_estimator). Got "
+            f"{design!r:.60} of type {type(design).__name__} instead."
+        )
+    if not isinstance(span, Span):
+        raise InputError(
+            "The 'span' parameter must be a Span (e.g. Span.at_rts_fraction(300.0, 'drake', "
+            f"0.2)). Got {span!r:.60} of type {type(span).__name__} instead."
+        )
     side = check_choice("side", side, ("left", "right"))
     x = check_array("positions", positions, ndim=1)
     if x.size != design.n_nodes or np.any(np.diff(x) <= 0):
@@ -150,7 +165,9 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
             f"{'' if x.size < 2 or np.all(np.diff(x) > 0) else ', not ascending'}."
         )
     x_b = check_real("x_b", x_b, low=0.0, high=float(x[-1] - x[0]) / 2)
-    y = check_array("measurements", measurements, ndim=2, allow_nan=True)
+    # Every sample is a measurement: a NaN (a dropout) would be filled by the filter's
+    # prediction and averaged into Y_b as if measured.
+    y = check_array("measurements", measurements, ndim=2)
     discard = check_int("discard", discard, low=0, high=y.shape[1] - 1)
     est = design.filter.filter(y)
     field, variances = np.asarray(est.field), np.asarray(est.field_variances)

@@ -1624,7 +1624,8 @@ def filter_consistency(
     discard : int
         Leading samples left out (the transient from the prior).
     field_map : array_like, optional
-        The filter's field map, to map the final covariance to the field for the NEES.
+        The filter's field map ``(n_nodes, n)``, one column per state, to map the final
+        covariance to the field for the NEES.
     window : int
         Samples per window of the windowed test (default 200); windows tile the record from
         ``discard`` on.
@@ -1664,6 +1665,8 @@ def filter_consistency(
         )
     n_t = estimate.states.shape[1]
     discard = check_int("discard", discard, low=0, high=n_t - 1)
+    # The map is checked when given, whether or not the truth below uses it.
+    field_map = check_field_map(field_map, estimate.states.shape[0])
     window = check_int("window", window, low=1)
     dof_fraction = check_real("dof_fraction", dof_fraction, low=0.0, high=1.0)
     nis = estimate.nis[discard:]
@@ -1693,8 +1696,7 @@ def filter_consistency(
         if field_map is None:
             covariance = None
         else:
-            matrix = check_array("field_map", field_map, ndim=2)
-            covariance = matrix @ estimate.covariance @ matrix.T
+            covariance = field_map @ estimate.covariance @ field_map.T
     elif true.shape == estimate.states.shape:
         values, variances, covariance = estimate.states, estimate.variances, estimate.covariance
     else:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import numbers
 import time
 import types
 import warnings
@@ -287,6 +288,47 @@ def _check_noise(R: object, m: int) -> tuple[np.ndarray, np.ndarray | None]:
     variances = np.diag(full).copy()
     correlated = np.any(full - np.diag(variances))
     return variances, (full if correlated else None)
+
+
+def _check_costs(cost: object, m: int) -> np.ndarray | None:
+    """``None`` or one finite, non-negative cost per candidate (a negative cost would buy budget
+    for the other sensors: the budget would mean nothing)."""
+    if cost is None:
+        return None
+    costs = check_array("cost", cost, shape=(m,))
+    if np.any(costs < 0):
+        raise InputError(
+            f"The 'cost' parameter must hold non-negative costs (one per candidate); a negative "
+            f"cost makes the budget meaningless. Got {int(np.count_nonzero(costs < 0))} negative "
+            f"value(s), the smallest {float(costs.min()):.6g}."
+        )
+    return costs
+
+
+# Q/R (process over measurement noise) that the Riccati iteration, which works in units of the
+# measurement noise and squares them, still carries in double precision with a wide margin (it
+# overflows near 1e150 on small models).
+_MAX_NOISE_RATIO = 1e120
+
+
+def _check_noise_ratio(q: np.ndarray, r: np.ndarray | float) -> None:
+    """Refuse an ``R`` so small against ``Q`` that the Kalman criterion would overflow."""
+    smallest = float(np.min(r))
+    ratio = float(np.max(np.abs(q))) / smallest
+    if ratio > _MAX_NOISE_RATIO:
+        raise InputError(
+            f"The 'R' parameter is too small for the Riccati equation: its smallest variance "
+            f"{smallest:.3g} against the largest entry {float(np.max(np.abs(q))):.3g} of Q is a "
+            f"ratio of {ratio:.3g}, over the {_MAX_NOISE_RATIO:.0e} that double precision "
+            "carries through the iteration. Give the sensors' real noise variance (R must be "
+            f"at least max|Q| / {_MAX_NOISE_RATIO:.0e})."
+        )
+
+
+def _check_error_weight(error_weight: object, c: np.ndarray, n: int) -> None:
+    """``error_weight`` is checked for every criterion (``sensor_count_study`` uses it for its
+    simulated error whatever the criterion), not only where ``"kalman"`` reads it."""
+    _error_weight(error_weight, c, n)
 
 
 def _check_positions(positions: object, m: int) -> np.ndarray | None:
@@ -744,7 +786,9 @@ def select_sensors(
         Measurement-noise covariance of the candidates, the package's one rule for ``R``: one
         variance for all, one per candidate ``(m,)`` (m^2), or a full ``(m, m)`` symmetric
         matrix (correlated noise: ``"kalman"`` only, which uses each layout's exact information
-        ``C_S^T R_SS^-1 C_S``). Positive definite: a zero variance is an ``InputError``.
+        ``C_S^T R_SS^-1 C_S``). Positive definite: a zero variance is an ``InputError``, and so
+        (for ``"kalman"``) is a variance below ``max|Q| / 1e120``, which the Riccati iteration
+        cannot carry in double precision.
     positions : array_like, optional
         Position (m) of each candidate; needed for ``forbidden`` and ``min_spacing`` and used by
         the evenly-spaced baseline.
@@ -755,13 +799,16 @@ def select_sensors(
     required : sequence of int, optional
         Candidates that must be in the layout.
     cost : array_like, optional
-        Cost of each candidate; with ``budget``, the layout's total cost is at most ``budget``.
+        Cost of each candidate, finite and non-negative; with ``budget``, the layout's total
+        cost is at most ``budget``.
     budget : float, optional
-        Maximum total cost.
+        Maximum total cost, finite and ``>= 0``. A budget above the total cost of all candidates
+        constrains nothing and is capped at that total.
     error_weight : {"states", "outputs"} or array_like
         ``H`` in the Kalman criterion ``tr(H P H^T)``: the states (default, the issue's
         criterion), every candidate output (the displacement field, for FE models whose states
-        are modal), or a given ``(q, n)`` matrix.
+        are modal), or a given ``(q, n)`` matrix. Checked whatever the criterion (only
+        ``"kalman"`` reads it here; :func:`sensor_count_study` also weights its simulated error).
     basis : array_like, optional
         ``(m, r)`` basis for ``"reconstruction"`` and QR pivoting (default: the ``k`` leading POD
         modes of the stationary output covariance under ``Q``).
@@ -779,7 +826,8 @@ def select_sensors(
         installed conic solvers are tried, then the searches run without a relaxation; the
         result's ``certificate`` and ``solver_attempts`` say what happened.
     n_random : int
-        Random layouts in the baseline (mean and best).
+        Random layouts in the baseline (mean and best); refused when their memory or work
+        exceeds the package's budget (docs/conventions.md).
     brute_force_limit : int
         Enumerate every feasible layout when ``C(m, k)`` is at most this (0 disables, unless the
         relaxation fails on every solver: then up to 100,000 layouts are enumerated anyway); the
@@ -843,13 +891,23 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
     zones = _check_zones(forbidden)
     min_spacing = check_real("min_spacing", min_spacing, low=0.0, low_inclusive=True)
     req = _check_indices("required", required, m)
-    costs = None if cost is None else check_array("cost", cost, shape=(m,))
+    costs = _check_costs(cost, m)
     if budget is not None:
         budget = check_real("budget", budget, low=0.0, low_inclusive=True)
         if costs is None:
             raise InputError("The 'budget' parameter needs 'cost' (one cost per candidate).")
+        # A budget at or above the total cost of every candidate constrains nothing: it is
+        # capped at that total (1e300 would otherwise reach the LP solver as a bound it cannot
+        # scale; the layouts allowed are the same).
+        budget = min(budget, float(costs.sum()))
+    _check_error_weight(error_weight, c, n)
     relaxation_rank = check_int("relaxation_rank", relaxation_rank, low=1)
     n_random = check_int("n_random", n_random, low=0)
+    # The random baseline draws n_random layouts of k and judges each exactly (an (n, n)
+    # covariance per layout at least): refuse a count that cannot fit before drawing any.
+    check_budget("The random baseline", nbytes=8.0 * n_random * (k + n * n),
+                 flops=float(n_random) * n**3, parameter="n_random", value=n_random,
+                 fix="use fewer random layouts (n_random=20 is the default)")
     brute_force_limit = check_int("brute_force_limit", brute_force_limit, low=0)
     horizon = _default_horizon(a) if horizon is None else check_int("horizon", horizon, low=1)
     _check_work(criterion, n, m, horizon, Q is not None or basis is not None)
@@ -874,7 +932,10 @@ def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacin
         correlated = (c, r_full / r0)
     q = None
     if Q is not None:
-        q = check_psd("Q", Q, n) / r0
+        q_physical = check_psd("Q", Q, n)
+        if criterion == "kalman":
+            _check_noise_ratio(q_physical, r if r_full is None else smallest)
+        q = q_physical / r0
     feas, poly = _build_constraints(m, k, x, zones, min_spacing, req, costs, budget)
 
     psi = _basis(basis, a, c, q, r, r0, k, horizon, needed=criterion == "reconstruction")
@@ -1042,6 +1103,11 @@ def _error_weight(error_weight: object, c: np.ndarray, n: int) -> np.ndarray:
         choice = check_choice("error_weight", error_weight, ("states", "outputs"))
         h = np.eye(n) if choice == "states" else c
     else:
+        if error_weight is None or isinstance(error_weight, numbers.Number):
+            raise InputError(
+                f"The 'error_weight' parameter must be 'states', 'outputs' or a (q, {n}) "
+                f"matrix. Got {error_weight!r} instead."
+            )
         h = check_array("error_weight", error_weight, ndim=2)
         if h.shape[1] != n:
             raise InputError(
@@ -1200,7 +1266,8 @@ def sensor_count_study(
     target_error : float, optional
         RMS estimation error (per weighted state) to reach; sets ``smallest_k``.
     n_steps : int
-        Length of the simulation that checks each predicted RMS error.
+        Length of the simulation that checks each predicted RMS error; refused when the
+        simulations exceed the package's work budget (docs/conventions.md).
     seed : int, numpy.random.Generator or None
         Seed of the simulation.
     **options
@@ -1250,7 +1317,16 @@ def sensor_count_study(
     q = check_psd("Q", Q, a.shape[0])
     variances, r_full = _check_noise(R, c.shape[0])
     r = variances if r_full is None else r_full
+    _check_error_weight(options.get("error_weight", "states"), c, a.shape[0])
     h = _error_rows(options.get("error_weight", "states"), c, a.shape[0])
+    n = a.shape[0]
+    # Each simulated step is a handful of small matrix products plus about ten NumPy calls,
+    # whose overhead (~1 us each) is the time of ~1e3 floating-point operations: counted as
+    # 1e4 per step, so that the work budget (1e12, minutes) bounds the loop's wall time too.
+    per_step = 6.0 * n * n + 4.0 * max(ks) * n + 2.0 * h.shape[0] * n + 1e4
+    check_budget("The simulations that check the predicted errors",
+                 flops=float(n_steps) * len(ks) * per_step, parameter="n_steps", value=n_steps,
+                 fix="simulate fewer steps (n_steps=2000 is the default)")
     options = {"n_random": 0, "brute_force_limit": 0, **options}
     objective, rms, simulated, layouts = [], [], [], []
     for k in ks:

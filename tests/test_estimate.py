@@ -973,3 +973,12 @@ def test_bad_input_table(name, call, error, parameter):
         call()
     assert type(info.value) is error, (name, type(info.value), info.value)
     assert parameter in str(info.value), (name, str(info.value))
+
+
+@pytest.mark.parametrize("field_map", [float("nan"), "1.0", True, object(), np.ones((3, 7))])
+def test_filter_consistency_checks_field_map_whatever_the_truth(field_map):
+    # Issue 21: any field_map was accepted when the truth did not use it.
+    sys = ct.ss([[0.9]], [[0.0]], [[1.0]], 0, dt=1.0)
+    est = plc.KalmanFilter(sys, Q=1.0, R=0.25).filter(np.ones((1, 50)))
+    with pytest.raises(plc.InputError, match="'field_map'"):
+        plc.filter_consistency(est, field_map=field_map)

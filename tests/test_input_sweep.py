@@ -102,15 +102,6 @@ _XFAIL_TABLE = """
     Scenario::severity::text,number,none | pipeline: answered (silent)
     Scenario::simulation::text,number,none | pipeline: answered (silent)
     Scenario::span::text,number,none | pipeline: answered (silent)
-    estimate_clamp_strain::design::text | severity: raw AttributeError (_severity_clamp.py:146)
-    estimate_clamp_strain::design::number | severity: raw AttributeError (_severity_clamp.py:146)
-    estimate_clamp_strain::design::none | severity: raw AttributeError (_severity_clamp.py:146)
-    estimate_clamp_strain::measurements::nan_entry | severity: answered (silent)
-    estimate_clamp_strain::span::text | severity: raw AttributeError (_severity_clamp.py:158)
-    estimate_clamp_strain::span::number | severity: raw AttributeError (_severity_clamp.py:158)
-    estimate_clamp_strain::span::none | severity: raw AttributeError (_severity_clamp.py:158)
-    estimator_count_study::seed::none | estimator: answered (silent)
-    filter_consistency::field_map::nan,inf,text,bool,object | estimator: answered (silent)
     load_record::sample_rate::nan,inf,negative,zero,text,bool | records: error names no parameter
     load_record::sample_rate::object | records: error names no parameter
     load_record::units::nan,inf,text,bool,object | records: answered (silent)
@@ -118,12 +109,6 @@ _XFAIL_TABLE = """
     run_scenario::progress::nan,inf,negative,text,bool | pipeline: raw TypeError (pipeline.py:1117)
     run_scenario::progress::object | pipeline: raw TypeError (pipeline.py:1117)
     save_record::path::folder,fifo,missing_dir,empty_text,number | records: answered (silent)
-    select_sensors::error_weight::empty_text,unknown_text,number,none | sensors: answered (silent)
-    select_sensors::n_random::huge_int | sensors: memory MemoryError
-    select_sensors.cost::budget::huge | sensors: harness PanicException
-    select_sensors.cost::cost::negated | sensors: answered (silent)
-    sensor_count_study::R::tiny | sensors: runtime SensorSelectionError
-    sensor_count_study::n_steps::huge_int | sensors: hang
 """
 
 
@@ -289,9 +274,6 @@ def test_catenary_check_never_sees_a_tension_at_or_above_rts():
     assert check.catenary_parameter == pytest.approx(28020.0 / (1.628 * 9.80665), rel=1e-3)
 
 
-@pytest.mark.xfail(strict=True, raises=pytest.fail.Exception,   # "DID NOT RAISE" only
-                   reason="sensors.py (estimator engineer): negative sensor costs accepted, "
-                          "which makes the budget meaningless")
 def test_negative_sensor_cost_is_refused():
     with pytest.raises(plc.InputError, match="'cost'"):
         plc.select_sensors(KIT.sys_all, 2, "gramian", Q=KIT.q, horizon=10,

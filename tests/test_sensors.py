@@ -595,6 +595,16 @@ BAD_INPUT = [
      "'forbidden'"),
     ("cost shape", lambda: _select(cost=np.ones(3), budget=1.0), _I, "'cost'"),
     ("budget<0", lambda: _select(cost=np.ones(21), budget=-1.0), _I, "'budget'"),
+    # Issue 21: a negative cost makes the budget meaningless; budgets are checked before use.
+    ("cost negative", lambda: _select(cost=np.r_[-1.0, np.ones(20)], budget=3.0), _I, "'cost'"),
+    ("budget inf", lambda: _select(cost=np.ones(21), budget=float("inf")), _I, "'budget'"),
+    ("n_random over the memory budget", lambda: _select(n_random=10**15), _I, "'n_random'"),
+    ("R far below Q for the Riccati", lambda: _select(R=1e-300), _I, "'R'"),
+    ("error_weight None, gramian", lambda: _select(criterion="gramian", error_weight=None), _I,
+     "'error_weight'"),
+    ("error_weight number", lambda: _select(error_weight=1.0), _I, "'error_weight'"),
+    ("count study n_steps over the work budget", lambda: plc.sensor_count_study(
+        _problem()[0], [1], Q=_problem()[1], n_steps=10**15), _I, "'n_steps'"),
     ("horizon 0", lambda: _select(horizon=0), _I, "'horizon'"),
     ("horizon float", lambda: _select(horizon=10.0), _I, "'horizon'"),
     ("horizon 1e18 unstable overflows", lambda: plc.select_sensors(
@@ -630,6 +640,16 @@ BAD_INPUT = [
     ("count study target", lambda: plc.sensor_count_study(
         _problem()[0], [1], Q=_problem()[1], target_error=float("nan")), _I, "'target_error'"),
 ]
+
+
+def test_a_budget_above_every_candidates_total_is_capped_not_sent_to_the_solver():
+    # Old code: budget=1e300 reached Clarabel as a bound and ended in a Rust panic. Above the
+    # total cost of all 21 candidates a budget constrains nothing: capped at that total.
+    cost = 1.0 + (np.arange(21) % 3)
+    huge = _select(cost=cost, budget=1e300)
+    total = _select(cost=cost, budget=float(cost.sum()))
+    assert huge.nodes == total.nodes
+    assert huge.objective == pytest.approx(total.objective, rel=1e-9)
 
 
 @pytest.mark.parametrize(("name", "call", "error", "parameter"), BAD_INPUT,
