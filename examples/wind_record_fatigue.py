@@ -11,10 +11,11 @@ means, made by examples/make_wind_record.py with seed 2026) and, for a 300 m Dra
    antinode whenever the loop pattern changes (6 kg body, 1.5 kg absorber at 15 Hz, zeta 0.3;
    v_max 0.3 m/s, a_max 0.5 m/s^2);
 2. how the robot's life changes with its speed limit;
-3. figures: damage by wind speed, and the robot's positions over the first week.
+3. the figure (plotting.plot_fatigue_record): damage by wind speed, and the robot's positions
+   over the first week.
 
 Run: python examples/wind_record_fatigue.py OUTPUT_FOLDER   (about 30 s; writes
-wind_record_damage_by_speed.png and wind_record_robot_week.png there)
+wind_record_fatigue.png there)
 """
 
 from __future__ import annotations
@@ -22,18 +23,11 @@ from __future__ import annotations
 import pathlib
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402 (after the backend is chosen)
-import numpy as np  # noqa: E402
-
-import powerline_control as plc  # noqa: E402
+import powerline_control as plc
+from powerline_control.plotting import plot_fatigue_record
 
 RECORD = pathlib.Path(__file__).resolve().parent / "data" / "wind_record_28d.csv"
 SPEED_LIMITS = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
-LABELS = {"no_damper": "no damper", "fixed_damper": "fixed damper (best position)",
-          "robot": "robot"}
 
 
 def main(output: pathlib.Path) -> dict:
@@ -67,40 +61,11 @@ def main(output: pathlib.Path) -> dict:
         print(f"  {v_max:10.3f}  {other.move_time[other.vibrating].mean():29.1f}  "
               f"{other['robot'].damage_per_year:11.3g}  {other['robot'].life_years:12.3g}")
 
-    # Damage by normal wind speed (0.5 m/s bins), per configuration.
-    edges = np.arange(1.0, 7.51, 0.5)
-    centres = 0.5 * (edges[1:] + edges[:-1])
-    fig, ax = plt.subplots(figsize=(7, 4))
-    width = 0.14
-    for k, name in enumerate(life.configurations):
-        per_bin = np.array([life[name].damage[(life.normal_speed >= a) & (life.normal_speed < b)]
-                            .sum() for a, b in zip(edges[:-1], edges[1:], strict=True)])
-        ax.bar(centres + (k - 1) * width, per_bin / life.years, width, label=LABELS[name])
-    ax.set_yscale("log")
-    ax.set_xlabel("wind speed normal to the line (m/s)")
-    ax.set_ylabel("Miner damage per year from the bin")
-    ax.set_title("Drake 300 m, 20 % RTS at 15 degC: damage by wind speed over the record")
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(output / "wind_record_damage_by_speed.png", dpi=110)
-    plt.close(fig)
-
-    # The robot's positions over the first week.
-    week = record.time < 7 * 86400.0
-    days = record.time[week] / 86400.0
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    top.plot(days, life.normal_speed[week], lw=0.8)
-    top.axhspan(1.0, 7.0, color="0.9", zorder=0)
-    top.set_ylabel("normal wind (m/s)")
-    bottom.step(days, life.robot_position[week], where="post", lw=0.8, label="robot")
-    bottom.axhline(life.fixed_position, color="k", ls="--", lw=0.8, label="fixed damper")
-    bottom.set_ylabel("position from the clamp (m)")
-    bottom.set_xlabel("day of the record")
-    bottom.legend(loc="upper right")
-    top.set_title("The robot's parking position over a week (nearest antinode of each pattern)")
-    fig.tight_layout()
-    fig.savefig(output / "wind_record_robot_week.png", dpi=110)
-    plt.close(fig)
+    # Damage by normal wind speed (0.5 m/s bins) per configuration, and the robot's positions
+    # over the first week: the package's figure (the report of `powerline-control severity
+    # --wind-record` draws the same one).
+    fig = plot_fatigue_record(life)
+    fig.savefig(output / "wind_record_fatigue.png", dpi=110)
     return {"life": {name: life[name].life_years for name in life}, "speed_limit": sweep}
 
 

@@ -300,6 +300,13 @@ def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
         from .io import load_record
 
         record = load_record(args.record)
+    wind_record = getattr(args, "wind_record", None)
+    if wind_record is None and "fatigue" in VERB_STAGES[args.command]:
+        wind_record = scenario.severity.wind_record
+    if wind_record is not None:  # read (and refused) before anything runs or is written
+        from .scenario.pipeline import read_wind_record
+
+        wind_record = read_wind_record(wind_record)[0]
     browser = None
     if getattr(args, "pdf", False):
         if not getattr(args, "out", None):
@@ -311,10 +318,10 @@ def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
     output = _Output(args.out, force=args.force) if getattr(args, "out", None) else None
     stages = VERB_STAGES[args.command]
     start = time.perf_counter()
-    n_stages = len(stage_plan(scenario, stages)) + (output is not None)
+    n_stages = len(stage_plan(scenario, stages, wind_record=wind_record)) + (output is not None)
     with _numerics(), _Progress(console, n_stages) as progress:
-        result = run_scenario(scenario, stages=stages, record=record, progress=progress.stage,
-                              keep_partial=True)
+        result = run_scenario(scenario, stages=stages, record=record, wind_record=wind_record,
+                              progress=progress.stage, keep_partial=True)
         _print_sections(console, result)
         written = []
         if output is not None:
@@ -587,8 +594,12 @@ def _build_parser() -> argparse.ArgumentParser:
                          "for estimate, the filter runs on it (NaN = missing)")
     verb("plan", "estimate, then locate the antinodes (m) and plan the robot's move (s)")
     verb("closed-loop", "the robot driven to the antinode in closed loop, against parked")
-    verb("severity", "aeolian severity: antinode amplitude (mm) and clamp strain against wind "
-         "speed (m/s)")
+    severity = verb("severity", "aeolian severity: antinode amplitude (mm) and clamp strain "
+                    "against wind speed (m/s); with --wind-record, fatigue life over a record")
+    severity.add_argument("--wind-record", type=Path, default=None, metavar="FILE",
+                          help="a wind record (.csv with time, wind_speed, direction, temperature "
+                          "and optionally turbulence_intensity columns): also the damage per "
+                          "year and life with no damper, a fixed damper and the robot over it")
     study = verb("study", "run variants of a scenario over a grid of keys; a table of results")
     study.add_argument("--vary", action="append", metavar="SECTION.KEY=V1,V2",
                        help="a scenario key and its values (repeat for a grid)")

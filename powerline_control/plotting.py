@@ -21,6 +21,7 @@ __all__ = [
     "plot_layouts",
     "plot_sensor_count",
     "plot_plan_path",
+    "plot_fatigue_record",
 ]
 
 
@@ -478,6 +479,92 @@ def plot_robot_value(value) -> Figure:
     right.set(yscale="log", ylabel="Miner damage per year")
     for axis in (left, right):
         axis.tick_params(axis="x", labelrotation=15, labelsize=8)
+    fig.tight_layout()
+    return fig
+
+
+#: How plot_fatigue_record names the configurations of a FatigueOverRecord.
+FATIGUE_LABELS = {"no_damper": "no damper", "fixed_damper": "fixed damper", "robot": "robot"}
+
+
+def plot_fatigue_record(life, *, bin_width: float = 0.5, days: float = 7.0) -> Figure:
+    """Damage per year by wind-speed bin for each configuration, and the robot over a week.
+
+    Top panel: Miner damage per year contributed by each bin of the wind speed normal to the
+    line (``bin_width`` m/s over the record's aeolian band), one bar per configuration (no
+    damper, fixed damper, robot); a configuration's bars add up to its ``damage_per_year``.
+    Middle: that wind speed over the record's first ``days`` (the band shaded). Bottom: where
+    the robot is parked at the end of each record over the same days, with the fixed damper's
+    position.
+
+    Parameters
+    ----------
+    life : FatigueOverRecord
+        From :func:`~powerline_control.severity.fatigue_over_record`.
+    bin_width : float
+        Width of the wind-speed bins, m/s (default 0.5).
+    days : float
+        How much of the record's start the lower panels show, days (default 7: a week).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from powerline_control import Span, WindRecord, fatigue_over_record
+    >>> span = Span.at_rts_fraction(300.0, "drake", 0.2)
+    >>> rec = WindRecord(np.arange(4) * 600.0, np.array([2.0, 3.0, 2.5, 0.5]),
+    ...                  np.full(4, 90.0), np.full(4, 15.0))
+    >>> fig = plot_fatigue_record(fatigue_over_record(span, rec))
+    >>> [ax.get_ylabel() for ax in fig.axes]  # doctest: +NORMALIZE_WHITESPACE
+    ['damage per year from the bin', 'normal wind (m/s)', 'position from the left support (m)']
+    """
+    low, high = life.parameters["band"]
+    if not (isinstance(bin_width, int | float) and bin_width > 0):
+        raise ValueError(f"The 'bin_width' parameter must be a positive speed in m/s. Got "
+                         f"{bin_width!r}.")
+    if not (isinstance(days, int | float) and days > 0):
+        raise ValueError(f"The 'days' parameter must be a positive number of days. Got "
+                         f"{days!r}.")
+    edges = np.arange(low, high + 0.5 * bin_width, bin_width)
+    if edges[-1] < high:
+        edges = np.append(edges, high)
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    speed = np.asarray(life.normal_speed)
+    names = list(life.configurations)
+    fig = Figure(figsize=(8, 8))
+    top, middle, bottom = fig.subplots(3, 1, gridspec_kw={"height_ratios": (1.3, 1, 1)})
+    width = 0.8 * bin_width / max(len(names), 1)
+    # Every vibrating record in a bin: its speed was grouped into the band for the balance
+    # (a record just outside by less than the grouping step vibrates), so the bars of a
+    # configuration add up to its damage per year.
+    vibrating = np.asarray(life.vibrating, dtype=bool)
+    index = np.digitize(np.clip(speed[vibrating], edges[0], edges[-1]), edges[1:-1])
+    for k, name in enumerate(names):
+        damage = np.asarray(life[name].damage)[vibrating]
+        per_bin = np.bincount(index, weights=damage, minlength=centres.size)
+        top.bar(centres + (k - 0.5 * (len(names) - 1)) * width,
+                np.maximum(per_bin / life.years, 1e-30), width,
+                label=FATIGUE_LABELS.get(name, name))
+    top.set(yscale="log", xlabel="wind speed normal to the line (m/s)",
+            ylabel="damage per year from the bin")
+    top.set_ylim(bottom=max(1e-12, top.get_ylim()[0]))
+    top.legend(loc="upper right", fontsize=8)
+    step = float(life.parameters["step"])
+    t = np.arange(speed.size) * step / 86400.0
+    shown = t < days
+    middle.sharex(bottom)
+    middle.plot(t[shown], speed[shown], lw=0.8)
+    middle.axhspan(low, high, color="0.9", zorder=0)
+    middle.set(ylabel="normal wind (m/s)")
+    middle.tick_params(labelbottom=False)
+    bottom.step(t[shown], np.asarray(life.robot_position)[shown], where="post", lw=0.8,
+                label="robot")
+    bottom.axhline(life.fixed_position, color="k", ls="--", lw=0.8, label="fixed damper")
+    bottom.set(xlabel="time from the record's start (days)",
+               ylabel="position from the left support (m)")
+    bottom.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     return fig
 

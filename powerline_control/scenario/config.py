@@ -300,6 +300,13 @@ class SeverityConfig:
         None, "N m^2", "Bending stiffness EI_min of the stranded conductor for the severity "
         "study (loop lengths and clamp stress); unset: the conductor's own EI.", kind="real",
         low=0.0, high=1e6, when=("enabled", (True,)))
+    wind_record: str | None = _key(
+        None, "", "A wind record, a CSV file with columns time, wind_speed, direction, "
+        "temperature (and optionally turbulence_intensity): adds the fatigue stage to run and "
+        "severity (damage per year and life with no damper, a fixed damper and the robot over "
+        "the record). A relative path is read from the scenario file's folder; the severity "
+        "verb's --wind-record option replaces it.", kind="str",
+        allowed="the path of a CSV file")
 
 
 @dataclass(frozen=True)
@@ -860,10 +867,13 @@ must be on the span. Allowed: 0 < x < 3.66 m (the span length).
             f"The 'source' parameter must be a str (a name for messages) or None. Got "
             f"{type(source).__name__}."
         )
+    folder = None
     if text is None:
         if path is None:
             return default_scenario()
         text, name = _resolve(path)
+        if Path(path).is_file():
+            folder = Path(path).resolve().parent
     else:
         name = "<text>"
     check = _Checker(source or name)
@@ -882,7 +892,15 @@ must be on the span. Allowed: 0 < x < 3.66 m (the span length).
         section: _read_section(check, type(factory()), section, data[section])
         for section, factory in _SECTIONS.items() if section in data})
     _check_scenario(check, scenario, data)
+    wind = scenario.severity.wind_record
+    if wind is not None and not wind.strip():
+        check.note("severity.wind_record = \"\" is not allowed: give the path of a CSV file, "
+                   "or remove the key.")
     check.raise_if_any()
+    if wind is not None and folder is not None and not Path(wind).is_absolute():
+        # relative to the scenario file, not to where the command runs
+        scenario = dataclasses.replace(scenario, severity=dataclasses.replace(
+            scenario.severity, wind_record=str(folder / wind)))
     return scenario
 
 

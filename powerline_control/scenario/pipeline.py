@@ -11,6 +11,8 @@ Stages (each calls the package's own stage; none re-derives another's result)::
     plan            antinodes of the estimated field, the closed loop's target, the move
     closed_loop     run_closed_loop: the robot driven by its sensors, against it parked
     severity        aeolian_severity without and with the robot
+    fatigue         fatigue_over_record over a wind record (only when one is given): no damper,
+                    a fixed damper and the scenario's robot on the severity study's span
 
 The scenario's decisions that no other stage owns live here, named: the share of the record
 that trains (:data:`TRAIN_FRACTION`), where the identification run's shaker acts
@@ -39,6 +41,7 @@ from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     SHAKER_POSITION,
     TRAIN_FRACTION,
     _closed_loop,
+    _fatigue,
     _identification,
     _layouts,
     _measured,
@@ -54,6 +57,7 @@ from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     given_sensors,
     layout_filter,
     longest_complete_run,
+    read_wind_record,
     severity_inputs,
     severity_span,
     support_intervals,
@@ -70,7 +74,7 @@ __all__ = [
 
 #: Every stage, in order.
 STAGES = ("model", "records", "identification", "sensors", "estimation", "plan",
-          "closed_loop", "severity")
+          "closed_loop", "severity", "fatigue")
 #: The stages each verb of the command runs.
 VERB_STAGES = {
     "simulate": ("model", "records"),
@@ -79,7 +83,7 @@ VERB_STAGES = {
     "estimate": ("model", "records", "identification", "sensors", "estimation"),
     "plan": ("model", "records", "identification", "sensors", "estimation", "plan"),
     "closed-loop": ("model", "closed_loop"),
-    "severity": ("model", "severity"),
+    "severity": ("model", "severity", "fatigue"),
     "run": STAGES,
 }
 
@@ -99,8 +103,9 @@ def _check_stages(stages) -> tuple:
     return tuple(s for s in STAGES if s in stages)
 
 
-def stage_plan(scenario: Scenario, stages=None) -> tuple:
-    """The stages that will run for ``scenario`` (closed loop and severity only when on).
+def stage_plan(scenario: Scenario, stages=None, *, wind_record=None) -> tuple:
+    """The stages that will run for ``scenario`` (closed loop and severity only when on, the
+    fatigue stage only with a wind record).
 
     Parameters
     ----------
@@ -108,6 +113,9 @@ def stage_plan(scenario: Scenario, stages=None) -> tuple:
         The scenario.
     stages : sequence of str or None
         Asked for (default: all).
+    wind_record : WindRecord, str, Path or None
+        The wind record the fatigue stage runs on (None: the scenario's
+        ``severity.wind_record``; without either, no fatigue stage).
 
     Returns
     -------
@@ -119,10 +127,14 @@ def stage_plan(scenario: Scenario, stages=None) -> tuple:
     ('model', 'records', 'identification', 'sensors', 'estimation', 'plan')
     """
     stages = _check_stages(stages)
-    alone = stages in (VERB_STAGES["severity"],)
+    if wind_record is None:
+        wind_record = scenario.severity.wind_record
+    alone = stages in (("model", "severity"), VERB_STAGES["severity"])
     out = []
     for stage in stages:
         if stage == "closed_loop" and scenario.robot.closed_loop <= 0:
+            continue
+        if stage == "fatigue" and wind_record is None:
             continue
         if stage == "severity" and not (scenario.severity.enabled or alone):
             continue
@@ -154,13 +166,13 @@ def given_sensors_declared(scenario: Scenario) -> bool:
 
 
 def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, record=None,
-                 progress=None, keep_partial: bool = False) -> ScenarioResult:
+                 wind_record=None, progress=None, keep_partial: bool = False) -> ScenarioResult:
     """Run a scenario's stages and return everything they produced as one frozen result.
 
     Stages: model -> records (simulated, plus the identification run) -> identification and
     sensor choice (``design_estimator``) -> Kalman estimation on held-out data, against fair
     baselines -> antinodes, target and minimum-time move -> closed loop -> severity (each
-    when the scenario asks for it).
+    when the scenario asks for it) -> fatigue over a wind record (when one is given).
 
     Parameters
     ----------
@@ -172,6 +184,12 @@ def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, 
     record : Record or None
         A measured record (:func:`~powerline_control.io.load_record`): the estimation stage
         also runs the designed filter on it, at the sensors nearest its positions.
+    wind_record : WindRecord, str, Path or None
+        A wind record, or its CSV file (:meth:`~powerline_control.WindRecord.from_csv`): the
+        fatigue stage runs ``fatigue_over_record`` over it on the severity study's span
+        (:func:`severity_span`) with the scenario's tuned robot and its ``RobotLimits``
+        (default: the scenario's ``severity.wind_record``, when the fatigue stage is asked
+        for). The file is read before any stage runs.
     progress : callable or None
         Called with a sentence as each stage starts (e.g. a progress line).
     keep_partial : bool
@@ -185,7 +203,8 @@ def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, 
     Raises
     ------
     InputError
-        Bad scenario or stages.
+        Bad scenario or stages, or a bad wind record (the message names the file, the column
+        and the row).
     PowerlineControlError
         The failing stage's own error (unless ``keep_partial``).
 
@@ -203,8 +222,12 @@ def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, 
     if record is not None:
         scenario = _with_record_sensors(scenario, record)
     asked = _check_stages(stages)
-    plan = stage_plan(scenario, asked)
-    state: dict[str, Any] = {"scenario": scenario, "stages": asked, "elapsed": {}}
+    if wind_record is None and "fatigue" in asked:
+        wind_record = scenario.severity.wind_record
+    wind = None if wind_record is None else read_wind_record(wind_record)
+    plan = stage_plan(scenario, asked, wind_record=wind)
+    state: dict[str, Any] = {"scenario": scenario, "stages": asked, "elapsed": {},
+                             "_wind": wind}
     say = progress or (lambda text: None)
     for stage in plan:
         say(_STAGE_WORDS[stage](scenario))
@@ -266,6 +289,11 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
     elif stage == "severity":
         _need(state, "model", stage)
         state["severity"] = _severity(scenario, state["span"], _tuning(state, scenario))
+    elif stage == "fatigue":
+        _need(state, "model", stage)
+        wind, source = state["_wind"]
+        state["fatigue"] = _fatigue(scenario, state["span"], _tuning(state, scenario), wind,
+                                    source)
 
 
 def _tuning(state: dict, scenario: Scenario) -> Tuning:
@@ -293,4 +321,6 @@ _STAGE_WORDS = {
     "closed_loop": lambda s: (f"closed loop: {s.robot.closed_loop:g} s of the robot seeking "
                               "the best parked position, and the same run parked"),
     "severity": lambda s: "aeolian severity by the energy balance method",
+    "fatigue": lambda s: ("fatigue over the wind record: no damper, a fixed damper and the "
+                          "robot moving as the wind changes"),
 }

@@ -13,8 +13,8 @@ from typing import Any
 
 from .config import Scenario
 
-__all__ = ["ClosedLoop", "Identification", "Layout", "MeasuredEstimate", "Plan", "Records",
-           "ScenarioResult", "Severity", "StageFailure", "Tuning"]
+__all__ = ["ClosedLoop", "Fatigue", "Identification", "Layout", "MeasuredEstimate", "Plan",
+           "Records", "ScenarioResult", "Severity", "StageFailure", "Tuning"]
 
 
 @dataclass(frozen=True)
@@ -233,6 +233,26 @@ class Severity:
 
 
 @dataclass(frozen=True)
+class Fatigue:
+    """Fatigue over a wind record: no damper, a fixed damper and the scenario's robot.
+
+    Attributes
+    ----------
+    life : FatigueOverRecord
+        :func:`~powerline_control.severity.fatigue_over_record` on the severity study's span
+        with the scenario's tuned robot and its ``RobotLimits``.
+    record : WindRecord
+        The wind record.
+    source : str
+        Where the record came from (its file, or "a WindRecord given to run_scenario").
+    """
+
+    life: Any = field(repr=False)
+    record: Any = field(repr=False)
+    source: str = ""
+
+
+@dataclass(frozen=True)
 class StageFailure:
     """The stage that failed and why (the stages before it finished).
 
@@ -282,6 +302,8 @@ class ScenarioResult:
         The closed loop.
     severity : Severity or None
         The severity study.
+    fatigue : Fatigue or None
+        Fatigue over a wind record (when one is given: ``run_scenario(wind_record=...)``).
     failure : StageFailure or None
         The stage that failed (the later ones did not run).
     elapsed : dict of str to float
@@ -313,6 +335,7 @@ class ScenarioResult:
     plan: Plan | None = None
     closed_loop: ClosedLoop | None = None
     severity: Severity | None = None
+    fatigue: Fatigue | None = None
     failure: StageFailure | None = None
     elapsed: dict = field(default_factory=dict)
 

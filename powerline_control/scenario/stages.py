@@ -16,6 +16,7 @@ from ..errors import InputError
 from .config import LAB_OUTER_STRAND_DIAMETER, Scenario, load_scenario  # noqa: F401 (doctests)
 from .result import (
     ClosedLoop,
+    Fatigue,
     Identification,
     Layout,
     MeasuredEstimate,
@@ -28,8 +29,8 @@ from .result import (
 __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
            "ANTINODE_WINDOW", "SENSOR_COUNT_MAX_NODES", "LAB_CONDUCTOR", "closed_loop_timing",
            "driven_mode", "evenly_spaced_nodes", "given_sensors", "layout_filter",
-           "longest_complete_run", "severity_inputs", "severity_span", "support_intervals",
-           "tune_robot"]
+           "longest_complete_run", "read_wind_record", "severity_inputs", "severity_span",
+           "support_intervals", "tune_robot"]
 
 #: Share of the simulated record that trains the estimator; the rest tests it (held out).
 TRAIN_FRACTION = 0.6
@@ -643,6 +644,64 @@ def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
         strand = (_outer_strand_table() or {}).get(span.conductor.name, float("nan"))
     return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
                     strand_source=source)
+
+
+def read_wind_record(wind_record) -> tuple:
+    """A wind record and where it came from: a :class:`~powerline_control.WindRecord` as is,
+    or a CSV file read with :meth:`WindRecord.from_csv` (its errors name the file).
+
+    Parameters
+    ----------
+    wind_record : WindRecord, str or Path
+        The record or its CSV file.
+
+    Returns
+    -------
+    (WindRecord, str)
+
+    Raises
+    ------
+    InputError
+        A file that cannot be read, or a bad column or row (named with the file).
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> record, source = read_wind_record(plc.WindRecord.constant(3.0, n_records=2))
+    >>> record.n_records, source   # a record's own source, or "a WindRecord given to ..."
+    (2, 'constant 3 m/s')
+    """
+    import os
+
+    from ..severity import WindRecord
+
+    if isinstance(wind_record, WindRecord):
+        return wind_record, wind_record.source or "a WindRecord given to run_scenario"
+    if not isinstance(wind_record, str | os.PathLike):
+        raise InputError(f"The 'wind_record' parameter must be a WindRecord or the path of its "
+                         f"CSV file. Got {type(wind_record).__name__}.")
+    path = os.fspath(wind_record)
+    try:
+        return WindRecord.from_csv(path), path
+    except InputError as exc:
+        message = " ".join(str(exc).split())
+        if path in message:
+            raise
+        raise InputError(f"The wind record {path!r}: {message}") from None
+
+
+def _fatigue(scenario: Scenario, span, tuning: Tuning, record, source: str) -> Fatigue:
+    """``fatigue_over_record`` on the severity study's span, with the scenario's tuned robot,
+    its limits and the severity study's clamp and strand inputs."""
+    from ..plan import RobotLimits
+    from ..severity import fatigue_over_record
+
+    span = severity_span(scenario, span)
+    kwargs, _ = severity_inputs(scenario, span)
+    cfg = scenario.robot
+    life = fatigue_over_record(span, record, tuning.robot, RobotLimits(cfg.v_max, cfg.a_max),
+                               **kwargs)
+    return Fatigue(life=life, record=record, source=source)
 
 
 def _with_record_sensors(scenario: Scenario, record) -> Scenario:

@@ -22,6 +22,7 @@ UNITS = {
     "_m_s": "metres per second", "_m_s2": "metres per second squared",
     "_percent": "per cent (of the RMS displacement over the span, for errors)",
     "_microstrain": "1e-6 (peak-to-peak strain)", "_n": "newtons", "_kg": "kilograms",
+    "_per_year": "per year (Miner damage accumulated in a year)", "_years": "years",
     "(no suffix)": "dimensionless (counts, ratios, indices, spectral radius, alpha)",
 }
 
@@ -513,6 +514,41 @@ def _severity_section(r) -> dict:
                                 "conductor")]}
 
 
+#: The fatigue figure shows the robot's positions over this many days of the record's start.
+FATIGUE_DAYS = 7.0
+
+
+def _fatigue_section(r) -> dict:
+    f = r.fatigue
+    life, record = f.life, f.record
+    robot = r.scenario.robot
+    lines = life.summary().splitlines()
+    rows = [("wind record", lines[0].rstrip(":") + f"; {record.n_records} records of "
+             f"{record.step:g} s from {f.source}"),
+            ("robot", f"the scenario's tuned robot ({robot.body_mass:g} kg body, "
+             f"{robot.suspended_mass:g} kg absorber), v_max {robot.v_max:g} m/s, a_max "
+             f"{robot.a_max:g} m/s^2; fixed damper at {life.fixed_position:.4g} m")]
+    for row in life.table():
+        rows.append((row["configuration"].replace("_", " "),
+                     f"damage/year {row['damage_per_year']:.3g}, life {row['life_years']:.3g} "
+                     f"years, over endurance {100 * row['fraction_over_endurance']:.1f} % of the "
+                     "time", "Miner damage on the safe border line, summed over the record."))
+    rows.append(("assumptions", "; ".join(life.assumptions)))
+    draw = functools.partial(_plotting().plot_fatigue_record, life, days=FATIGUE_DAYS)
+    shown = min(FATIGUE_DAYS, life.years * 365.25)
+    return {"title": "Fatigue over the wind record",
+            "rows": rows,
+            "intro": "For each record the tension from the change of state at its "
+            "air temperature, the wind normal to the line, the energy balance and Miner damage; "
+            "the robot moves to the nearest antinode when the loop pattern changes.",
+            "figures": [_figure("fatigue_record", draw,
+                                "Miner damage per year by wind-speed bin for no damper, a fixed "
+                                "damper and the robot over the wind record, and the robot's "
+                                f"parking position over the record's first {shown:.3g} days.",
+                                "how much lower the robot's bars are than the fixed damper's, "
+                                "and how often the robot moves")]}
+
+
 def _rated(r) -> float:
     from .pipeline import severity_span
 
@@ -552,7 +588,7 @@ def result_sections(result) -> list:
                 ("identification", _sensors_section), ("layouts", _estimation_section),
                 ("measured", _measured_section),
                 ("plan", _plan_section), ("closed_loop", _closed_loop_section),
-                ("severity", _severity_section)]
+                ("severity", _severity_section), ("fatigue", _fatigue_section)]
     sections = []
     for attribute, build in builders:
         if getattr(result, attribute, None) is not None:
@@ -663,6 +699,15 @@ def result_json(result) -> dict:
              "robot_amplitude_m": _f(robot.amplitude[i]),
              "robot_strain_pp_microstrain": 1e6 * _f(robot.strain_pp[i])}
             for i in range(bare.wind_speed.size)]
+    if r.fatigue is not None:
+        life = r.fatigue.life
+        out["fatigue"] = {name: {"damage_per_year": _f(life[name].damage_per_year),
+                                 "life_years": _f(life[name].life_years)}
+                          for name in life.configurations}
+        out["fatigue_record"] = {"source": r.fatigue.source,
+                                 "n_records": int(r.fatigue.record.n_records),
+                                 "step_s": _f(r.fatigue.record.step),
+                                 "fixed_damper_position_m": _f(life.fixed_position)}
     out["units"] = dict(UNITS)
     return out
 
