@@ -226,7 +226,9 @@ def test_simulate(tiny):
 
 def test_identify(tiny):
     numbers = _json(run_cli("identify", tiny, "--json", "-q"))
-    assert 0 < numbers["spectral_radius"] < 1.01
+    # Stable and lightly damped: strictly inside the unit circle, and close to it (the lab line's
+    # slowest mode loses a fraction of a per mille per 1 ms sample; measured 0.99975).
+    assert 0.999 < numbers["spectral_radius"] < 1.0
     assert "sensors" not in numbers
 
 
@@ -261,10 +263,19 @@ def test_plan_with_sensors_from_the_scenario(tmp_path):
     assert 0 < numbers["antinode_m"] < 3.66 and numbers["move_duration_s"] > 0
 
 
-def test_closed_loop(tiny):
-    numbers = _json(run_cli("closed-loop", tiny, "--json", "-q"))
-    assert numbers["vibration_reduction"] > 0
-    assert 0 < numbers["final_robot_position_m"] < 3.66
+def test_closed_loop(tmp_path):
+    # 4 s of closed loop (the tiny scenario's 1.5 s leaves the robot 6 cm of travel and a
+    # decision from a still-ringing half second: it ended 1.6x worse than where it started).
+    path = tmp_path / "tiny4.toml"
+    path.write_text(TINY.replace("closed_loop = 1.5", "closed_loop = 4.0"))
+    numbers = _json(run_cli("closed-loop", path, "--json", "-q"))
+    # The robot is tuned to mode 3 (24.5 Hz, the load's 24 Hz) for the antinode nearest its start,
+    # L/6 = 0.61 m of the pinned string; the best parked position is 0.59 m (the load's forced
+    # shape), and parked there the line vibrates 3.97x less than with the robot left at its
+    # start (measured; the closed loop: 3.95x at 0.609 m).
+    assert abs(numbers["final_robot_position_m"] - 3.66 / 6) < 0.05
+    assert numbers["vibration_reduction"] > 3.5
+    assert numbers["rms_closed_loop_m"] < numbers["rms_baseline_m"] / 3.5
 
 
 def test_severity_verb(tmp_path):
