@@ -1,4 +1,4 @@
-"""How many sensors a span needs, measured on held-out data (issue 19, part 4).
+"""How many sensors a span needs, measured on held-out data.
 
 :func:`~powerline_control.sensors.sensor_count_study` answers from a model: the Kalman
 criterion's predicted error, which is only as honest as the model. On a real span under a

@@ -1,6 +1,6 @@
 """The field of view of an estimator design: its band, its modes and its per-node sigma.
 
-Issue 19, part 3. :func:`~powerline_control.recipe.design_estimator` measures, on its training
+:func:`~powerline_control.recipe.design_estimator` measures, on its training
 record, the spectrum at the chosen sensors (Welch, Hann segments of ``COVERAGE_SEGMENT``
 samples, half overlap); the bins holding power above ``COVERED_FACTOR`` times the sensors' noise
 are the band the training covered. :meth:`Coverage.check` measures a new record the same way and

@@ -1,4 +1,4 @@
-"""Clamp bending amplitude and strain from an estimated field (issue 19, part 5).
+"""Clamp bending amplitude and strain from an estimated field.
 
 The fatigue engineer's quantity (design.md 4.7): the bending amplitude ``Y_b``, the peak-to-peak
 displacement 89 mm from the last point of contact at the clamp relative to the clamp, and the

@@ -381,7 +381,7 @@ def plot_closed_loop(result) -> Figure:
 
 
 # ============================================================================ severity figures
-# Section owned by the severity engineer (issue 14): energy-balance severity and robot value.
+# Energy-balance severity and the robot's value.
 
 __all__ += ["plot_severity", "plot_robot_value"]
 
