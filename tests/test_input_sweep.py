@@ -191,9 +191,11 @@ def _params():
 def outcomes(request):
     """Run every selected case (and the baselines) once, over two guarded workers."""
     here = request.module.__name__
+    # (a doctest item of the package has no module attribute: only this module's own cases)
     selected = {item.callspec.params["case"] for item in request.session.items
-                if item.module.__name__ == here and hasattr(item, "callspec")
-                and "case" in item.callspec.params}
+                if hasattr(item, "callspec") and "case" in item.callspec.params
+                and getattr(item, "module", None) is not None
+                and item.module.__name__ == here}
     names = {case.split("::")[0] for case in selected}
     cases = sorted(selected | {f"{name}::-::baseline" for name in names})
     # 120 s: a hang guard only (the slowest valid case takes about 2 s on a loaded machine).

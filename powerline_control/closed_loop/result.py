@@ -151,7 +151,7 @@ class ClosedLoopResult:
     >>> [c.name for c in result.comparisons]
     ['no_robot', 'near_clamp', 'start', 'best', 'closed_loop']
     >>> result.decisions[0]
-    (1.0, 'target 0.6884 m (predicted 96 % lower)')
+    (1.0, 'target 0.6877 m (predicted 96 % lower)')
     """
 
     t: np.ndarray
