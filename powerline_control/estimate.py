@@ -895,12 +895,15 @@ class KalmanFilter:
             If the innovation covariance becomes singular.
         """
         y = check_array("y_k", y_k, shape=(self._p,), allow_nan=True)
-        u = self._check_input_sample(u_k)
+        return self._advance(y, self._check_input_sample(u_k)).copy()
+
+    def _advance(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """One checked sample through the real-time recursion and its consistency window."""
         run = self._running
         _, nis, used = run.advance(y, u)
         if self._window is not None:
             run.monitor(nis, used)
-        return run.x.copy()
+        return run.x
 
     def step_block(self, measurements: object, inputs: object = None) -> np.ndarray:
         """Process a block of samples in real time: :meth:`step` on each column, in order.
@@ -949,13 +952,9 @@ class KalmanFilter:
             u_all = np.zeros((self._m, n_t))
         else:
             u_all = check_array("inputs", inputs, shape=(self.n_inputs, n_t))
-        run = self._running
         states = np.empty((self._n, n_t))
         for k in range(n_t):
-            _, nis, used = run.advance(y_all[:, k], u_all[:, k])
-            if self._window is not None:
-                run.monitor(nis, used)
-            states[:, k] = run.x
+            states[:, k] = self._advance(y_all[:, k], u_all[:, k])
         return states
 
     def _check_input_sample(self, u_k: object) -> np.ndarray:

@@ -16,7 +16,6 @@ wherever the robot is; then it predicts the span's RMS with itself parked at eve
 
 from __future__ import annotations
 
-import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -231,8 +230,7 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
         raise InputError(
             f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__}.")
     start = check_real("start", start, low=0.0, high=model.span.length, low_inclusive=True)
-    if not (isinstance(travel_time, numbers.Real) and not isinstance(travel_time, bool)
-            and travel_time == np.inf):
+    if not (isinstance(travel_time, float) and travel_time == np.inf):   # inf: all in reach
         travel_time = check_real("travel_time", travel_time, low=0.0, low_inclusive=True)
     dt = check_real("dt", dt, low=0.0)
     field = check_array("field", field, shape=(model.n_nodes, None))
