@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 import powerline_control as plc
-from powerline_control.plotting import (
+from powerline_control.output.plotting import (
     plot_closed_loop,
     plot_closed_loop_envelope,
     plot_closed_loop_path,

@@ -19,7 +19,7 @@ import sys
 import numpy as np
 
 import powerline_control as plc
-from powerline_control.plotting import plot_robot_value, plot_severity
+from powerline_control.output.plotting import plot_robot_value, plot_severity
 
 
 def main(output: pathlib.Path) -> dict:

@@ -24,7 +24,7 @@ import pathlib
 import sys
 
 import powerline_control as plc
-from powerline_control.plotting import plot_fatigue_record
+from powerline_control.output.plotting import plot_fatigue_record
 
 RECORD = pathlib.Path(__file__).resolve().parent / "data" / "wind_record_28d.csv"
 SPEED_LIMITS = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0)

@@ -49,8 +49,11 @@ _LAZY_EXPORTS = {
         "AlphaCurve", "DampingReport", "DMDModel", "OnlineDMD", "StabilityReport", "fit_dmd",
         "select_alpha",
     ),
-    "io": (
-        "load_model", "save_model", "Record", "load_record", "save_record",
+    "output.io": (
+        "load_model", "save_model",
+    ),
+    "output.records": (
+        "Record", "load_record", "save_record",
     ),
     "recipe": (
         "Coverage", "EstimatorDesign", "design_estimator",

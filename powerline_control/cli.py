@@ -202,7 +202,7 @@ def _write_outputs(out: _Output, result, *, full: bool = True, records: bool = F
     if full:
         out.file("scenario.toml").write_text(scenario_to_toml(result.scenario))
         if result.identification is not None:
-            from .io import save_model
+            from .output.io import save_model
 
             save_model(out.file("dmd_model.npz"), result.identification.design.model)
         if records and result.records is not None:
@@ -215,7 +215,7 @@ def _write_outputs(out: _Output, result, *, full: bool = True, records: bool = F
 
 def _write_records(out: _Output, result) -> None:
     """The simulated records at every node, as record.npz + record.csv (and the training run)."""
-    from .io import Record, save_record
+    from .output.records import Record, save_record
 
     recs = result.records
     pairs = [("record", recs.test)]
@@ -297,7 +297,7 @@ def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
         check_severity_inputs(scenario, str(args.scenario or "<default>"))
     record = None
     if getattr(args, "record", None) is not None:
-        from .io import load_record
+        from .output.records import load_record
 
         record = load_record(args.record)
     wind_record = getattr(args, "wind_record", None)

@@ -1,5 +1,10 @@
-"""Scenario files: kept importable here; the schema and its loading live in
-:mod:`powerline_control.scenario.config` (the scenario subpackage: config and pipeline)."""
+"""Deprecated path: ``powerline_control.config`` moved to ``powerline_control.scenario``.
+
+The schema and its loading live in :mod:`powerline_control.scenario.config`, the commented
+template in :mod:`powerline_control.scenario.template`.
+"""
+
+import warnings as _warnings
 
 from .scenario.config import (  # noqa: F401  (re-exported)
     LAB_OUTER_STRAND_DIAMETER,
@@ -17,6 +22,8 @@ from .scenario.config import (  # noqa: F401  (re-exported)
     SpanConfig,
     check_severity_inputs,
     default_scenario,
+)
+from .scenario.files import (  # noqa: F401  (re-exported)
     load_scenario,
     override_scenario_text,
     read_scenario_text,
@@ -35,3 +42,6 @@ __all__ = [
     "read_scenario_text",
     "override_scenario_text",
 ]
+
+_warnings.warn("powerline_control.config is deprecated; import from powerline_control.scenario",
+               DeprecationWarning, stacklevel=2)

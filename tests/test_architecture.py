@@ -14,17 +14,18 @@ import powerline_control as plc
 PACKAGE = pathlib.Path(plc.__file__).parent
 
 # design.md section 2: a module may import only modules above it. Leaf utilities are free.
-# Planned homes: tuning (tune_damper), riccati (_riccati: the one DARE solver), recipe
-# (design_estimator), severity (the energy balance; it uses plan.RobotLimits).
-ORDER = ["line", "fem", "tuning", "excitation", "simulate", "identify", "riccati",
-         "observability", "estimate", "sensors", "recipe", "antinode", "plan", "severity",
-         "closed_loop", "studies"]
-# _spectral (tones, phasors, spectral lines, peaks) serves stages from simulate to the closed loop.
-LEAVES = {"errors", "_validation", "_spectral"}
+ORDER = ["line", "fem", "excitation", "simulate", "identify", "riccati", "estimate", "sensors",
+         "recipe", "antinode", "plan", "severity", "closed_loop", "studies"]
+# Shared helpers every stage may use: validation, errors, tones and phasors, constants, threads.
+LEAVES = {"errors", "_validation", "_spectral", "_constants", "_threads"}
 # The output side and the scenario pipeline (design.md: scenario/ runs every stage, then the
 # report) sit below every stage.
-ANYTHING_GOES = {"plotting", "report", "io", "config", "scenario", "cli", "__init__",
-                 "__main__"}
+ANYTHING_GOES = {"output", "scenario", "cli", "__init__", "__main__"}
+# Old module paths that moved into a subpackage: each warns and re-exports for one release.
+DEPRECATED_PATHS = {"tuning": "fem", "observability": "estimate", "io": "output.io",
+                    "plotting": "output.plotting", "report": "output.report",
+                    "config": "scenario"}
+MAX_LINES = 800
 
 
 def _internal_imports(path: pathlib.Path) -> set[str]:
@@ -60,7 +61,7 @@ def _module_of(path: pathlib.Path) -> str:
                          ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_imports_flow_one_way(path):
     module = _module_of(path)
-    if module in LEAVES | ANYTHING_GOES:
+    if module in LEAVES | ANYTHING_GOES | set(DEPRECATED_PATHS):
         return
     own = _rank(module)
     assert own is not None, f"{module}.py is not placed in design.md's module order"
@@ -68,6 +69,66 @@ def test_imports_flow_one_way(path):
         other = _rank(imported)
         assert other is not None and other < own or (other == own and imported != module), (
             f"{module}.py imports {imported}, which sits below it in the data flow")
+
+
+def _imported_modules(path: pathlib.Path) -> list[tuple[list[str], list[str]]]:
+    """Each ``from ... import`` of ``path`` inside the package: (target path parts, names)."""
+    where = list(path.relative_to(PACKAGE).parts[:-1])
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.level:
+            base = where[:len(where) - (node.level - 1)]
+            target = base + [part for part in (node.module or "").split(".") if part]
+            found.append((target, [alias.name for alias in node.names]))
+    return found
+
+
+@pytest.mark.parametrize("path", sorted(PACKAGE.rglob("*.py")),
+                         ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_no_private_cross_imports(path):
+    """A concept reaches another only through its public names (the leaves are shared)."""
+    module = _module_of(path)
+    for target, names in _imported_modules(path):
+        if not target:  # ``from . import x`` at the top level: x is the concept
+            if names == ["__version__"]:
+                continue
+            target, names = [names[0]], []
+        if target[0] == module or target[0] in LEAVES | {"_riccati"}:  # the one DARE solver
+            continue
+        private = [part for part in target if part.startswith("_")] + [
+            name for name in names if name.startswith("_") and name != "__version__"]
+        assert not private, f"{path.relative_to(PACKAGE)} imports private {private} of {target}"
+
+
+@pytest.mark.parametrize("path", sorted(PACKAGE.rglob("*.py")),
+                         ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_no_file_over_800_lines(path):
+    assert len(path.read_text().splitlines()) <= MAX_LINES
+
+
+@pytest.mark.parametrize("init", sorted(PACKAGE.glob("*/__init__.py")),
+                         ids=lambda p: p.parent.name)
+def test_each_subpackage_says_what_it_owns_in_two_lines(init):
+    doc = ast.get_docstring(ast.parse(init.read_text()))
+    assert doc, f"{init.parent.name}/__init__.py has no docstring"
+    assert len(doc.strip().split("\n\n")[0].splitlines()) <= 2, doc
+
+
+@pytest.mark.parametrize(("old", "new"), sorted(DEPRECATED_PATHS.items()))
+def test_old_module_paths_warn_and_keep_their_names(old, new):
+    import sys
+    import warnings
+
+    sys.modules.pop(f"powerline_control.{old}", None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        module = importlib.import_module(f"powerline_control.{old}")
+    messages = [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)]
+    assert f"powerline_control.{old} is deprecated; import from powerline_control.{new}" \
+        in messages
+    home = importlib.import_module(f"powerline_control.{new}")
+    for name in getattr(home, "__all__", []):
+        assert getattr(module, name) is getattr(home, name)
 
 
 def _public_objects():

@@ -17,7 +17,7 @@ import pytest
 
 import powerline_control as plc
 from powerline_control import cli
-from powerline_control.config import load_scenario, shipped_scenarios
+from powerline_control.scenario import load_scenario, shipped_scenarios
 
 _ENTRY = Path(sys.executable).with_name("powerline-control")
 COMMAND = [str(_ENTRY)] if _ENTRY.exists() else [sys.executable, "-m", "powerline_control"]

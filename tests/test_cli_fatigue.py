@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import powerline_control as plc
-from powerline_control.plotting import describe_figure, figure_caption
+from powerline_control.output.captions import describe_figure, figure_caption
 from powerline_control.scenario import load_scenario
 from powerline_control.scenario.pipeline import VERB_STAGES, run_scenario, stage_plan
 from powerline_control.scenario.stages import tune_robot

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from powerline_control import InputError
-from powerline_control.config import (
+from powerline_control.scenario import (
     Scenario,
     default_scenario,
     load_scenario,

@@ -14,7 +14,7 @@ import pytest
 from matplotlib.figure import Figure
 
 import powerline_control as plc
-from powerline_control.report import figure_data_uri, write_report
+from powerline_control.output.report import figure_data_uri, write_report
 
 _ENTRY = Path(sys.executable).with_name("powerline-control")
 COMMAND = [str(_ENTRY)] if _ENTRY.exists() else [sys.executable, "-m", "powerline_control"]

@@ -13,8 +13,8 @@ from matplotlib.figure import Figure
 
 import powerline_control as plc
 from powerline_control.errors import InputError
-from powerline_control.io import Record, load_record, save_record
-from powerline_control.plotting import describe_figure, figure_caption
+from powerline_control.output.records import Record, load_record, save_record
+from powerline_control.output.captions import describe_figure, figure_caption
 from powerline_control.scenario import load_scenario, pipeline, scenario_to_toml
 from powerline_control.scenario.pipeline import evenly_spaced_nodes, run_scenario
 

@@ -434,7 +434,7 @@ def test_time_domain_check_with_the_robot_in_the_fe_model():
 
 # ----------------------------------------------------------------- plots
 def test_plot_severity_draws_amplitude_and_strain():
-    from powerline_control.plotting import plot_robot_value, plot_severity
+    from powerline_control.output.plotting import plot_robot_value, plot_severity
 
     span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
     robot = plc.MDR.tuned(0.0, 5.0, 1.5, frequency=15.0, damping_ratio=0.3)

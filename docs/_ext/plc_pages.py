@@ -31,9 +31,9 @@ EXAMPLES = ROOT / "examples"
 # Data-flow order of the modules (tests/test_architecture.py's ORDER, errors first); a module not
 # listed here still gets a section, after these, so that a new module is never silently dropped.
 MODULE_ORDER = [
-    "errors", "line", "fem", "tuning", "excitation", "simulate", "identify", "io", "riccati",
-    "observability", "estimate", "sensors", "recipe", "antinode", "plan", "severity",
-    "closed_loop", "studies", "plotting", "report", "config", "cli",
+    "errors", "line", "fem", "excitation", "simulate", "identify", "riccati", "estimate",
+    "sensors", "recipe", "antinode", "plan", "severity", "closed_loop", "studies", "output",
+    "scenario", "cli",
 ]
 
 

@@ -1,16 +1,8 @@
-"""Scenarios: the TOML schema and its validation (config.py), and the one pipeline that runs a
-scenario stage by stage (stages.py, pipeline.py) into a frozen ScenarioResult (result.py; its words,
-JSON and report in summary.py)."""
+"""Scenarios: the TOML schema and its files (config, files, template), and the one pipeline that
+runs a scenario stage by stage (stages, pipeline) into a frozen ScenarioResult (result, summary)."""
 
-from .config import (
-    Scenario,
-    check_severity_inputs,
-    default_scenario,
-    load_scenario,
-    override_scenario_text,
-    read_scenario_text,
-    shipped_scenarios,
-)
+from .config import Scenario, check_severity_inputs, default_scenario
+from .files import load_scenario, override_scenario_text, read_scenario_text, shipped_scenarios
 from .template import scenario_reference, scenario_to_toml
 
 __all__ = [

@@ -30,7 +30,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
-from .config import Scenario, load_scenario
+from .config import Scenario
+from .files import load_scenario
 from .result import ScenarioResult, StageFailure, Tuning
 from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     ANTINODE_WINDOW,
@@ -182,8 +183,8 @@ def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, 
     stages : sequence of str or None
         The stages to run (default: all, see :data:`STAGES`); the ones they need must be in it.
     record : Record or None
-        A measured record (:func:`~powerline_control.io.load_record`): the estimation stage
-        also runs the designed filter on it, at the sensors nearest its positions.
+        A measured record (:func:`~powerline_control.output.records.load_record`): the
+        estimation stage also runs the designed filter on it, at the sensors nearest its positions.
     wind_record : WindRecord, str, Path or None
         A wind record, or its CSV file (:meth:`~powerline_control.WindRecord.from_csv`): the
         fatigue stage runs ``fatigue_over_record`` over it on the severity study's span

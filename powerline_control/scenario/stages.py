@@ -13,7 +13,8 @@ import time
 import warnings
 
 from ..errors import InputError
-from .config import LAB_OUTER_STRAND_DIAMETER, Scenario, load_scenario  # noqa: F401 (doctests)
+from .config import LAB_OUTER_STRAND_DIAMETER, Scenario  # noqa: F401 (doctests)
+from .files import load_scenario  # noqa: F401 (doctests)
 from .result import (
     ClosedLoop,
     Fatigue,
@@ -708,7 +709,7 @@ def _with_record_sensors(scenario: Scenario, record) -> Scenario:
     """The scenario measuring where the record's channels are (its sample interval checked)."""
     import math
 
-    from ..io import Record
+    from ..output.records import Record
 
     if not isinstance(record, Record):
         raise InputError(f"The 'record' parameter must be a Record (load_record). Got "

@@ -4,7 +4,8 @@ One unit per quantity everywhere: displacements and noise in mm in text (m in JS
 keys), estimation errors in per cent (``_percent`` keys), positions in m with the node index
 beside them, frequencies in Hz, times in s, strain in microstrain. Figures are handed over as
 functions that draw them; their captions are generated from the drawn figure
-(:func:`~powerline_control.plotting.figure_caption`), so a caption cannot contradict its figure.
+(:func:`~powerline_control.output.captions.figure_caption`), so a caption cannot contradict its
+figure.
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ def _figure(name: str, draw, purpose: str, look_for: str) -> dict:
 
 
 def _plotting():
-    from .. import plotting
+    from ..output import plotting
 
     return plotting
 
@@ -732,15 +733,15 @@ def draw_sections(sections: list) -> list:
     >>> draw_sections([{"title": "T", "rows": []}])[0]["figures"]
     []
     """
-    plotting = _plotting()
+    from ..output.captions import figure_caption
+
     out = []
     for section in sections:
         figures = []
         for spec in section.get("figures", ()):
             fig = spec["draw"]()
             figures.append({"name": spec["name"], "figure": fig,
-                            "caption": plotting.figure_caption(fig, spec["purpose"],
-                                                               spec["look_for"])})
+                            "caption": figure_caption(fig, spec["purpose"], spec["look_for"])})
         out.append({**section, "figures": figures})
     return out
 
@@ -766,7 +767,7 @@ def write_result_report(result, path: Path, *, version: str | None = None) -> Pa
     See :meth:`ScenarioResult.report`.
     """
     from .. import __version__
-    from ..report import write_report
+    from ..output.report import write_report
 
     sections = draw_sections(result_sections(result))
     scenario = result.scenario

@@ -1,8 +1,7 @@
-"""Aeolian severity: wind power and self-damping (wind), the standing wave and dampers (dampers),
-the energy balance and clamp strain (balance), wind climates and the robot's value (climate),
-checks (checks), wind records (record), damage over a record and rainflow counting (fatigue),
-the physical self-damping model of a stranded conductor (self_damping).
+"""Aeolian severity of a span: wind power, self-damping, the standing wave and its dampers, the
+energy balance and clamp strain, wind climates and records, fatigue, the robot's value, checks.
 
+Modules: wind, self_damping, dampers, balance, climate, checks, record, fatigue.
 ``powerline_control.severity`` keeps every name the single module ``severity.py`` had.
 """
 
