@@ -33,6 +33,7 @@ extensions = [
     "sphinx.ext.viewcode",
     "numpydoc",
     "plc_pages",
+    "plc_layout",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}

@@ -178,3 +178,38 @@ def test_the_gallery_names_whole_output_files_only(tmp_path):
     script.write_text('"""Writes."""\nname = "x"\nopen(f"fig_{name}.png", "w")\n'
                       'open("table.csv", "w")\n')
     assert pages._figure_names(script) == {"table.csv"}
+
+
+def _load_layout_module():
+    spec = importlib.util.spec_from_file_location("plc_layout", DOCS / "_ext" / "plc_layout.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_layout_page_reads_imports_and_heights_from_a_known_tree(tmp_path):
+    # a toy package whose diagram is known by hand: a <- b <- sub (a leaf, then two rows up)
+    layout = _load_layout_module()
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "a.py").write_text('"""Leaf."""\n')
+    (pkg / "b.py").write_text('"""Middle."""\nfrom .a import x\n')
+    (pkg / "sub" / "__init__.py").write_text(
+        '"""Top part.\nSecond line."""\nfrom .inner import y\n')
+    (pkg / "sub" / "inner.py").write_text('"""Inner."""\nfrom ..b import z\nfrom .. import a\n')
+    edges = layout.import_edges(pkg)
+    assert edges == {"a": set(), "b": {"a"}, "sub": {"a", "b"}}
+    assert layout.layers(edges) == {"a": 0, "b": 1, "sub": 2}
+    page = layout.layout_page(edges, pkg)
+    assert "| `sub/` | 2 | 6 | Top part. Second line. |" in page
+    with pytest.raises(ValueError, match="import cycle"):
+        layout.layers({"a": {"b"}, "b": {"a"}})
+
+
+def test_layout_page_covers_every_part_of_the_package():
+    layout = _load_layout_module()
+    edges = layout.import_edges()
+    parts = {p.stem if p.is_file() else p.name for p in (ROOT / "powerline_control").iterdir()
+             if (p.suffix == ".py" or (p / "__init__.py").exists())}
+    old = {p.stem for p in (ROOT / "powerline_control").glob("*.py") if layout.is_old_path(p)}
+    assert set(edges) == parts - old - {"__init__", "__main__"}
