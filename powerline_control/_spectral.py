@@ -20,8 +20,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
+from ._threads import on_one_blas_thread
 from ._validation import check_array, check_bool, check_int, check_real, read_only
 from .errors import InputError
 
@@ -509,7 +509,7 @@ def _split_line(res: np.ndarray, frequency: float, dt: float, bin_width: float,
 
 # One BLAS thread: thousands of small (4 x n) @ (n x k) products (k ~ 24), far slower with
 # contending threads than with one.
-@threadpool_limits.wrap(limits=1, user_api="blas")
+@on_one_blas_thread
 def extract_lines(signals: object, dt: object, max_lines: object
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Spectral lines common to the signals, strongest first, until the rest is noise-like.

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._constants import AIR_DENSITY, STROUHAL
 from ._validation import check_array, check_budget, check_int, check_real
 from .errors import InputError
 from .fem import LineModel
@@ -21,8 +22,7 @@ __all__ = ["HarmonicForce", "AeolianForce", "RandomForce", "DEFAULT_STROUHAL",
            "strouhal_frequency"]
 
 #: Strouhal number of a stranded conductor (PLP's f = 3.26 V/d in mph and inches is St = 0.185).
-DEFAULT_STROUHAL = 0.185
-AIR_DENSITY = 1.225
+DEFAULT_STROUHAL = STROUHAL
 
 
 def strouhal_frequency(wind_speed: float, diameter: float,

@@ -12,6 +12,7 @@ from importlib import resources
 
 import numpy as np
 
+from ._constants import GRAVITY
 from ._validation import check_array, check_budget, check_int, check_real
 from .errors import InputError, PresetNotFoundError
 
@@ -341,9 +342,6 @@ class Span:
         return omega / (2 * np.pi)
 
 
-# Standard gravity (m/s^2), for the weight per metre m g of the change of state. The same value as
-# severity.GRAVITY; line.py sits above severity in the data flow, so it cannot import it.
-_STANDARD_GRAVITY = 9.80665
 #: Absolute zero, degC: a temperature at or below it is refused.
 _ABSOLUTE_ZERO = -273.15
 #: Melting point of aluminium, degC: no conductor temperature above it has a change of state
@@ -426,7 +424,7 @@ def tension_at_temperature(span: Span, temperature: float | np.ndarray,
                          f"finite temperatures above {_ABSOLUTE_ZERO} degC and at most "
                          f"{_ALUMINIUM_MELTING} degC (aluminium melts). Got {temperature!r}.")
     t = t.astype(float)
-    weight = cond.mass_per_length * _STANDARD_GRAVITY
+    weight = cond.mass_per_length * GRAVITY
     # loads up to 1e5 N/m (a hundred times a heavily iced conductor's): a bound that keeps the
     # cubic's coefficients finite
     w = weight if load is None else check_real("load", load, low=0.0, high=1e5)

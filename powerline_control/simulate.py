@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 import scipy.signal
-from threadpoolctl import threadpool_limits
 
 from ._spectral import load_phasor
+from ._threads import on_one_blas_thread
 from ._validation import (
     check_array,
     check_budget,
@@ -479,7 +479,7 @@ def _complex_modes_of(model: LineModel, basis) -> _ComplexModes:
     return per_model[basis.n_modes]
 
 
-@threadpool_limits.wrap(limits=1, user_api="blas")   # small-matrix work (see fem._solve_modes)
+@on_one_blas_thread   # small-matrix work
 def _complex_modes(basis) -> _ComplexModes:
     r = basis.n_modes
     omega = basis.omega

@@ -8,9 +8,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from .._spectral import dominant_frequency, fit_phasors
+from .._threads import on_one_blas_thread
 from .._validation import (
     check_indices,
     check_int,
@@ -442,7 +442,7 @@ def _kalman_steps(records: _Records, calibration: _Calibration, y_block: np.ndar
 
 # Thousands of small products per simulated second: one BLAS thread is several times faster than
 # two contending ones. The limit applies inside this call only.
-@threadpool_limits.wrap(limits=1, user_api="blas")
+@on_one_blas_thread
 def run_closed_loop(
     model: LineModel | Span,
     force: object,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._constants import AIR_DENSITY, GRAVITY  # noqa: F401  (re-exported by severity)
 from .._validation import check_array, check_real
 from ..errors import InputError
 from ..line import Span
@@ -18,8 +19,6 @@ def _check_text(name: str, value: object) -> str:
     return value
 
 
-GRAVITY = 9.80665
-AIR_DENSITY = 1.225  # kg/m^3, for the lift coefficient of the time-domain check's load
 SECONDS_PER_YEAR = 365.25 * 86400.0
 #: Young's modulus of the aluminium outer strands, Pa (domain.md 2.6, E_Al).
 ALUMINIUM_MODULUS = 68.9e9

@@ -1,0 +1,45 @@
+"""One home for pinning BLAS to one thread around small-matrix work.
+
+Thousands of small products and solves (matrices up to ~100 wide) run far slower with contending
+BLAS threads than with one: a 101 x 101 Cholesky solve took 36 ms with two OpenBLAS threads and
+well under 1 ms with one on a loaded 2-core machine. The limit is scoped (a ``with`` block or a
+decorated function), so a caller's own BLAS settings are restored afterwards.
+"""
+
+import functools
+
+from threadpoolctl import threadpool_limits
+
+
+def one_blas_thread():
+    """A context manager that runs its body on one BLAS thread.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> with one_blas_thread():
+    ...     float(np.sum(np.eye(3) @ np.ones(3)))
+    3.0
+    """
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def on_one_blas_thread(function):
+    """Decorator: each call of ``function`` runs on one BLAS thread (a fresh limit per call, so
+    nested and concurrent calls each restore what they found).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> @on_one_blas_thread
+    ... def trace(n):
+    ...     return float(np.trace(np.eye(n) @ np.eye(n)))
+    >>> trace(4)
+    4.0
+    """
+    @functools.wraps(function)
+    def wrapper(*args, **kwargs):
+        with one_blas_thread():
+            return function(*args, **kwargs)
+
+    return wrapper
