@@ -37,7 +37,7 @@ from scipy.linalg.blas import dsyr as _syr
 from scipy.linalg.lapack import dpotrf as _potrf
 from scipy.linalg.lapack import dpotrs as _potrs
 
-from ._validation import (
+from .._validation import (
     check_array,
     check_bool,
     check_budget,
@@ -48,7 +48,7 @@ from ._validation import (
     check_snapshot_matrix,
     read_only,
 )
-from .errors import IdentificationError, IllConditionedWarning, InputError, UnstableModelWarning
+from ..errors import IdentificationError, IllConditionedWarning, InputError, UnstableModelWarning
 
 __all__ = [
     "DMDModel",
