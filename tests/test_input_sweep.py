@@ -57,6 +57,7 @@ ALLOWED: dict[tuple[str, str, str], str] = {
     ("WindRecord", "start", "empty_text"): "'' is the default: no time stamp given",
     ("KalmanFilter.filter", "measurements", "nan_entry"): "NaN marks a missing sample (documented)",
     ("KalmanFilter.step", "y_k", "nan_entry"): "NaN marks a missing sample (documented)",
+    ("Record", "values", "nan_entry"): "NaN marks a missing sample (documented)",
     ("parameter_grid", "a", "*"): "grid axis values are any values; run_study checks them",
     ("load_model", "path", "missing_dir"): "FileNotFoundError, documented, as open() does",
     ("OnlineDMD", "X", "transposed"): "IdentificationError: 3 pairs cannot identify 20 states "
@@ -88,27 +89,6 @@ _OWNERS = {"severity": "severity (fatigue engineer)", "sensors": "sensors.py (es
            "closed_loop": "closed_loop (lead)", "pipeline": "scenario (pipeline engineer)",
            "records": "io.py records (pipeline engineer)"}
 _XFAIL_TABLE = """
-    Record::positions::empty,extra_axis,bool_array,text_array | records: error names no parameter
-    Record::source::number,none | records: answered (silent)
-    Record::t::text_array | records: answered (silent)
-    Record::truth::nan,inf,text,bool,object | records: answered (silent)
-    Record::values::nan_entry,bool_array,text_array | records: answered (silent)
-    Scenario::estimation::text,number,none | pipeline: answered (silent)
-    Scenario::forcing::text,number,none | pipeline: answered (silent)
-    Scenario::identification::text,number,none | pipeline: answered (silent)
-    Scenario::model::text,number,none | pipeline: answered (silent)
-    Scenario::robot::text,number,none | pipeline: answered (silent)
-    Scenario::scenario::text,number,none | pipeline: answered (silent)
-    Scenario::severity::text,number,none | pipeline: answered (silent)
-    Scenario::simulation::text,number,none | pipeline: answered (silent)
-    Scenario::span::text,number,none | pipeline: answered (silent)
-    load_record::sample_rate::nan,inf,negative,zero,text,bool | records: error names no parameter
-    load_record::sample_rate::object | records: error names no parameter
-    load_record::units::nan,inf,text,bool,object | records: answered (silent)
-    run_scenario::keep_partial::text_flag,int_flag,none | pipeline: answered (silent)
-    run_scenario::progress::nan,inf,negative,text,bool | pipeline: raw TypeError (pipeline.py:1117)
-    run_scenario::progress::object | pipeline: raw TypeError (pipeline.py:1117)
-    save_record::path::folder,fifo,missing_dir,empty_text,number | records: answered (silent)
 """
 
 

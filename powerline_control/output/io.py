@@ -121,13 +121,15 @@ def save_model(path: str | os.PathLike[str], model: DMDModel) -> None:
     np.savez(path, **arrays, **{_METADATA_KEY: np.array(json.dumps(header))})
 
 
-def _check_writable_target(name: str) -> None:
+def _check_writable_target(name: str, target: str | None = None) -> None:
     """Refuse, before writing, a target that is not a (new or existing) regular file.
 
+    ``name`` is the path given, ``target`` the file written (default: what ``np.savez`` writes).
     ``np.savez`` onto a folder would write ``folder.npz`` beside it, and onto a FIFO would block
     until a reader comes; a missing folder would surface as a bare ``FileNotFoundError``.
     """
-    target = name if name.endswith(".npz") else name + ".npz"   # what np.savez writes
+    if target is None:
+        target = name if name.endswith(".npz") else name + ".npz"
     for candidate in dict.fromkeys((name, target)):
         if os.path.exists(candidate) and not os.path.isfile(candidate):
             kind = "a folder" if os.path.isdir(candidate) else "not a regular file (a FIFO?)"

@@ -15,9 +15,9 @@ import zipfile
 
 import numpy as np
 
-from .._validation import read_only
+from .._validation import check_array, check_real, read_only
 from ..errors import InputError
-from .io import _METADATA_KEY
+from .io import _METADATA_KEY, _check_writable_target
 
 __all__ = ["Record", "save_record", "load_record"]
 
@@ -65,14 +65,26 @@ class Record:
     """
 
     def __init__(self, t, positions, values, source: str = "<record>", truth=None):
-        t = np.asarray(t, dtype=float)
-        positions = np.asarray(positions, dtype=float).reshape(-1)
-        values = np.asarray(values, dtype=float)
-        if values.ndim == 1:
-            values = values[None, :]
+        if not isinstance(source, str):
+            raise InputError(f"The 'source' parameter must be a string (where the record came "
+                             f"from). Got {source!r:.60} of type {type(source).__name__}.")
         where = f"{source}: "
-        if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)):
-            raise InputError(f"{where}the time column must hold at least 2 finite times, s.")
+        try:
+            t = check_array("t", t, ndim=1)
+            positions = check_array("positions", positions, ndim=1)
+            values = check_array("values", values, ndim=(1, 2), allow_nan=True)
+            if values.ndim == 1:
+                values = values[None, :]
+            if truth is not None:
+                truth = check_array("truth", truth, shape=values.shape)
+        except InputError as error:
+            raise InputError(f"{where}{error}") from None
+        if t.size < 2:
+            raise InputError(f"{where}the 't' parameter (the time column) must hold at least 2 "
+                             f"times, s; got {t.size}.")
+        if positions.size == 0:
+            raise InputError(f"{where}the 'positions' parameter is empty: a record has at least "
+                             "one channel.")
         steps = np.diff(t)
         dt = float(np.median(steps))
         if dt <= 0 or np.max(np.abs(steps - dt)) > _RATE_RTOL * dt + 1e-12:
@@ -80,15 +92,11 @@ class Record:
                              f"{steps.min():.6g} to {steps.max():.6g} s); resample the record "
                              "or mark missing samples with NaN (empty CSV cells).")
         if values.shape != (positions.size, t.size):
-            raise InputError(f"{where}values must be (n_channels, n_t) = ({positions.size}, "
-                             f"{t.size}); got {values.shape}.")
-        if not np.all(np.isfinite(positions)):
-            raise InputError(f"{where}channel positions must be finite numbers, m.")
-        if np.isinf(values).any():
-            raise InputError(f"{where}values must be finite or NaN (missing); found inf.")
+            raise InputError(f"{where}the 'values' parameter must be (n_channels, n_t) = "
+                             f"({positions.size}, {t.size}); got {values.shape}.")
         self.t, self.positions, self.values = read_only(t), read_only(positions), \
             read_only(values)
-        self.truth = None if truth is None else read_only(np.asarray(truth, dtype=float))
+        self.truth = None if truth is None else read_only(truth)
         self.dt = dt
         self.source = source
         self.n_missing = int(np.isnan(values).sum())
@@ -156,12 +164,17 @@ def save_record(path: str | os.PathLike[str], record: Record) -> list:
     """
     from pathlib import Path
 
+    if not isinstance(path, str | os.PathLike) or not os.fspath(path):
+        raise InputError(f"The 'path' parameter must be a file name (str or os.PathLike), "
+                         f"without or with .npz / .csv. Got {path!r:.60}.")
     if not isinstance(record, Record):
         raise InputError(f"The 'record' parameter must be a Record. Got "
                          f"{type(record).__name__}.")
     base = Path(path)
     base = base.with_suffix("") if base.suffix in (".npz", ".csv") else base
     npz, csv = base.with_name(base.name + ".npz"), base.with_name(base.name + ".csv")
+    for written in (npz, csv):   # nothing is written unless both targets are writable files
+        _check_writable_target(os.fsdecode(path), os.fsdecode(written))
     header = {"format": _RECORD_FORMAT, "version": _RECORD_VERSION, "units": "m",
               "source": record.source}
     arrays = {"t": np.asarray(record.t), "positions": np.asarray(record.positions),
@@ -223,6 +236,11 @@ def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = Non
     name = os.fsdecode(path) if isinstance(path, str | os.PathLike) else None
     if not name:
         raise InputError(f"The 'path' parameter must be a file path. Got {path!r:.60}.")
+    if sample_rate is not None:
+        sample_rate = check_real("sample_rate", sample_rate, low=0.0)
+    if units is not None and units not in _UNIT_SCALE:
+        raise InputError(f"The 'units' parameter must be None or one of "
+                         f"{', '.join(map(repr, _UNIT_SCALE))}. Got {units!r:.60}.")
     try:
         info = os.stat(name)
     except OSError as exc:

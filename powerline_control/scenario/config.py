@@ -323,6 +323,17 @@ class Scenario:
     robot: RobotConfig = field(default_factory=RobotConfig)
     severity: SeverityConfig = field(default_factory=SeverityConfig)
 
+    def __post_init__(self):
+        # a section given as text, a number or None would pass until a stage reads it
+        for section in dataclasses.fields(self):
+            value, kind = getattr(self, section.name), section.default_factory
+            if not isinstance(value, kind):
+                raise InputError(
+                    f"The {section.name!r} parameter must be a {kind.__name__} (the "
+                    f"[{section.name}] section of a scenario file). Got {_repr(value)} of type "
+                    f"{type(value).__name__}; build one with {kind.__name__}(...) or read a "
+                    "file with load_scenario.")
+
     @property
     def name(self) -> str:
         """The scenario's name."""

@@ -218,6 +218,13 @@ def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, 
     >>> len(result.sensors), result.layouts["chosen"].error_unmeasured_percent < 10
     (2, True)
     """
+    if progress is not None and not callable(progress):
+        raise InputError(f"The 'progress' parameter must be None or a callable taking one "
+                         f"sentence (e.g. print). Got {progress!r:.60} of type "
+                         f"{type(progress).__name__}.")
+    if not isinstance(keep_partial, bool):
+        raise InputError(f"The 'keep_partial' parameter must be True or False. Got "
+                         f"{keep_partial!r:.60} of type {type(keep_partial).__name__}.")
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     if record is not None:
