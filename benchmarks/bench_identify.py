@@ -101,7 +101,7 @@ def flop_bound(n: int, n_pairs: int) -> float:
     """numpy eq. 14 (A only) flops over ours (A and Q); see the module docstring."""
     data = 3.0 * n**2 * n_pairs
     numpy_solve = data + (2.0 / 3.0 + 2.0) * n**3
-    block = min(n, 256)  # identify._SCATTER_BLOCK rows per block of the lower-triangle product
+    block = min(n, 256)  # identify._ridge._SCATTER_BLOCK: rows per block of the triangle product
     ours = data + (1.0 / 3.0 + 2.0 + 1.0 + block / n) * n**3
     return numpy_solve / ours
 
