@@ -7,7 +7,6 @@ template in :mod:`powerline_control.scenario.template`.
 import warnings as _warnings
 
 from .scenario.config import (  # noqa: F401  (re-exported)
-    LAB_OUTER_STRAND_DIAMETER,
     MAX_ELEMENTS,
     MAX_SAMPLES,
     EstimationConfig,

@@ -46,6 +46,9 @@ class Conductor:
         Creep-free (final) elastic modulus of the whole conductor, Pa (> 0), where known.
     thermal_expansion : float or None
         Linear thermal expansion coefficient of the whole conductor, 1/K (> 0), where known.
+    outer_strand_diameter : float or None
+        Diameter of the wires of the outer layer, m (> 0, below ``diameter``), where known: the
+        bending strain at the clamp is read on them (severity, clamp strain).
 
     Examples
     --------
@@ -64,6 +67,7 @@ class Conductor:
     area: float | None = None
     elastic_modulus: float | None = None
     thermal_expansion: float | None = None
+    outer_strand_diameter: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
@@ -82,6 +86,10 @@ class Conductor:
             value = getattr(self, field_name)
             if value is not None:
                 object.__setattr__(self, field_name, check_real(field_name, value, low=0.0))
+        if self.outer_strand_diameter is not None:
+            object.__setattr__(self, "outer_strand_diameter", check_real(
+                "outer_strand_diameter", self.outer_strand_diameter, low=0.0,
+                high=self.diameter, high_inclusive=False))
 
     def tension_at(self, fraction_of_rts: float) -> float:
         """Everyday tension as a fraction of the rated strength, N.
@@ -198,8 +206,11 @@ class Span:
                 "The 'mass_reading' parameter must be 'total' or 'per_metre'. "
                 f"Got {mass_reading!r} instead."
             )
+        # Table 1's 10.5 mm conductor is AAC 2/0 "Oxlip", 7 strands of 3.50 mm
+        # (data/conductors.toml): its outer strands are 3.50 mm.
         conductor = Conductor(mass_per_length=mass, diameter=0.0105, ei=40.8,
-                              rated_strength=None, name="paper lab (Table 1)")
+                              rated_strength=None, name="paper lab (Table 1)",
+                              outer_strand_diameter=3.50e-3)
         return cls(length=3.66, tension=395.0, conductor=conductor)
 
     @classmethod
@@ -466,6 +477,7 @@ class _ConductorCatalogue(Mapping[str, Conductor]):
                 ei=entry["ei"], rated_strength=entry.get("rated_strength"), name=name,
                 area=entry.get("area"), elastic_modulus=entry.get("elastic_modulus"),
                 thermal_expansion=entry.get("thermal_expansion"),
+                outer_strand_diameter=entry.get("outer_strand_diameter"),
             )
             for name, entry in self._raw.items()
         }

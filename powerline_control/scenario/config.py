@@ -254,11 +254,6 @@ class RobotConfig:
                               low=0.0, low_inclusive=True, high=600.0)
 
 
-#: Outer-strand diameter of the paper's lab conductor, m: Table 1's 10.5 mm conductor is AAC 2/0
-#: "Oxlip", 7 strands of 3.50 mm (data/conductors.toml), so its outer strands are 3.50 mm.
-LAB_OUTER_STRAND_DIAMETER = 3.50e-3
-
-
 @dataclass(frozen=True)
 class SeverityConfig:
     """Aeolian severity by the energy balance method (a report section when enabled)."""
@@ -626,8 +621,10 @@ def _check_severity(check: _Checker, scenario: Scenario, given: dict) -> None:
     if not sev.enabled:
         return
     if sev.outer_strand_diameter is None and scenario.span.preset == "conductor":
-        table = _outer_strand_table()
-        if table is not None and scenario.span.conductor not in table:
+        from ..line import conductors
+
+        if scenario.span.conductor in conductors and \
+                conductors[scenario.span.conductor].outer_strand_diameter is None:
             check.note(f"severity.enabled = true needs the outer-strand diameter of conductor "
                        f"{scenario.span.conductor!r}, which its preset does not carry: add "
                        "severity.outer_strand_diameter (m).")
@@ -649,16 +646,6 @@ def _check_severity(check: _Checker, scenario: Scenario, given: dict) -> None:
                          f"below the conductor's diameter {1e3 * diameter:g} mm")
 
 
-def _outer_strand_table() -> dict | None:
-    """The severity module's outer-strand diameters of the presets (None: not importable)."""
-    import importlib
-
-    for name in ("..severity", "..severity.balance"):
-        try:
-            return dict(importlib.import_module(name, __package__).OUTER_STRAND_DIAMETER)
-        except (ImportError, AttributeError):
-            continue
-    return None
 
 
 def check_severity_inputs(scenario: Scenario, source: str = "<scenario>") -> None:

@@ -13,7 +13,7 @@ import time
 import warnings
 
 from ..errors import InputError
-from .config import LAB_OUTER_STRAND_DIAMETER, Scenario  # noqa: F401 (doctests)
+from .config import Scenario
 from .files import load_scenario  # noqa: F401 (doctests)
 from .result import (
     ClosedLoop,
@@ -566,19 +566,16 @@ def severity_inputs(scenario: Scenario, span) -> tuple[dict, str]:
     --------
     >>> import powerline_control as plc
     >>> kwargs, source = severity_inputs(load_scenario(), plc.Span.paper_lab())
-    >>> kwargs["outer_strand_diameter"], source.startswith("the lab conductor")
-    (0.0035, True)
+    >>> kwargs["outer_strand_diameter"], source
+    (0.0035, "the conductor's stranding (paper lab (Table 1))")
     """
     sev = scenario.severity
     kwargs = {"outer_strand_modulus": sev.outer_strand_modulus, "x_b": sev.clamp_distance}
     if sev.outer_strand_diameter is not None:
         kwargs["outer_strand_diameter"] = sev.outer_strand_diameter
         source = "severity.outer_strand_diameter"
-    elif scenario.span.preset == "paper_lab":
-        kwargs["outer_strand_diameter"] = LAB_OUTER_STRAND_DIAMETER
-        source = "the lab conductor's preset (AAC 2/0, 7 x 3.50 mm strands)"
     else:
-        source = f"the {scenario.span.conductor} preset's stranding"
+        source = f"the conductor's stranding ({span.conductor.name})"
     return kwargs, source
 
 
@@ -638,11 +635,7 @@ def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
     robot = tuning.robot
     with_robot = aeolian_severity(span, wind_speeds=speeds, dampers=[AtAntinode(robot)],
                                   **kwargs)
-    strand = kwargs.get("outer_strand_diameter")
-    if strand is None:
-        from .config import _outer_strand_table
-
-        strand = (_outer_strand_table() or {}).get(span.conductor.name, float("nan"))
+    strand = kwargs.get("outer_strand_diameter", span.conductor.outer_strand_diameter)
     return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
                     strand_source=source)
 

@@ -8,7 +8,7 @@ import numpy as np
 from .._constants import AIR_DENSITY, GRAVITY  # noqa: F401  (re-exported by severity)
 from .._validation import check_array, check_real
 from ..errors import InputError
-from ..line import Span
+from ..line import Span, conductors
 
 
 def _check_text(name: str, value: object) -> str:
@@ -26,11 +26,10 @@ ALUMINIUM_MODULUS = 68.9e9
 POFFENBERGER_SWART_DISTANCE = 0.089
 #: Usual laboratory endurance strain, peak-to-peak (Diana et al., IEEE TPWRD 18(4), 2003).
 ENDURANCE_STRAIN_PP = 150e-6
-#: Outer-strand diameters of the presets, m (stranding in domain.md 2.6 and data/conductors.toml).
-OUTER_STRAND_DIAMETER = {
-    "drake": 4.44e-3, "condor": 3.08e-3, "cardinal": 3.38e-3, "aster570": 3.45e-3,
-    "oxlip": 3.50e-3,
-}
+#: Outer-strand diameters of the presets, m: a view of ``Conductor.outer_strand_diameter``
+#: (stranding in domain.md 2.6 and data/conductors.toml, where the numbers live).
+OUTER_STRAND_DIAMETER = {name: cond.outer_strand_diameter for name, cond in conductors.items()
+                         if cond.outer_strand_diameter is not None}
 
 
 # Upper bounds far above any aeolian case (~1-7 m/s, <= a few hundred Hz) and far below float

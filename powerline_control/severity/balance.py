@@ -338,8 +338,9 @@ def aeolian_severity(
     bc : {"clamped", "pinned"}
         Supports, for the placement factor of dampers (the clamp stress always assumes a clamp).
     outer_strand_diameter : float or None
-        Diameter of an outer strand, m; None takes it from the preset table
-        :data:`OUTER_STRAND_DIAMETER` (an error for a custom conductor).
+        Diameter of an outer strand, m; None takes the conductor's own
+        (``Conductor.outer_strand_diameter``: every preset and the paper's lab conductor carry
+        one; an error for a conductor without).
     outer_strand_modulus : float
         Young's modulus of the outer strands, Pa (default aluminium, 68.9 GPa).
     layers : {"multi", "single"}
@@ -393,11 +394,13 @@ def aeolian_severity(
     b = turbulence_factor(turbulence_intensity)
     cond = span.conductor
     if outer_strand_diameter is None:
-        if cond.name not in OUTER_STRAND_DIAMETER:
+        if cond.outer_strand_diameter is None:
             raise InputError(
                 "The 'outer_strand_diameter' parameter is needed for conductor "
-                f"{cond.name!r}; it is known for the presets {sorted(OUTER_STRAND_DIAMETER)}.")
-        strand = OUTER_STRAND_DIAMETER[cond.name]
+                f"{cond.name!r}, which does not carry one (Conductor(..., "
+                "outer_strand_diameter=...)); the presets do: "
+                f"{sorted(OUTER_STRAND_DIAMETER)}.")
+        strand = cond.outer_strand_diameter
     else:
         strand = check_real("outer_strand_diameter", outer_strand_diameter, low=0.0,
                             high=cond.diameter)
