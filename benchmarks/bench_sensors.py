@@ -34,7 +34,7 @@ from _common import timed as _timed  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
 from powerline_control._riccati import steady_state_batch  # noqa: E402
-from powerline_control._sensor_criteria import _information  # noqa: E402
+from powerline_control.sensors.criteria import _information  # noqa: E402
 
 REPEATS = 3
 

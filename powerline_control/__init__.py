@@ -61,7 +61,7 @@ _LAZY_EXPORTS = {
     "_severity_clamp": (
         "ClampStrainEstimate", "estimate_clamp_strain",
     ),
-    "_recipe_count": (
+    "recipe.count": (
         "EstimatorCountStudy", "estimator_count_study",
     ),
     "estimate": (

@@ -307,7 +307,7 @@ def test_harmonic_only_design_generalises_to_broadband_when_the_record_saw_its_m
 def test_smooth_basis_is_the_discrete_sine_basis_on_a_uniform_pinned_mesh():
     """Closed form: the Dirichlet second difference on a uniform grid has eigenvectors
     sin(j pi x / L) sampled at the nodes (the DST-I), eigenvalues ascending in j."""
-    from powerline_control.recipe import _smooth_basis
+    from powerline_control.recipe.modal import _smooth_basis
 
     x = np.linspace(0.0, 2.7, 31)
     moving = np.ones(x.size, dtype=bool)
@@ -324,7 +324,7 @@ def test_smooth_basis_is_the_discrete_sine_basis_on_a_uniform_pinned_mesh():
 def test_spectral_lines_are_found_at_their_frequencies_and_nothing_else():
     """Three sinusoids (one 100x stronger, two 0.5 Hz apart, the weakest at half the noise std)
     in six coordinates with white noise: the extraction finds exactly them."""
-    from powerline_control.recipe import _extract_lines
+    from powerline_control.recipe.modal import _extract_lines
 
     rng = np.random.default_rng(21)
     dt, n = 1e-3, 8000
@@ -379,7 +379,7 @@ def test_marchenko_pastur_median_matches_quadrature(beta):
     root finding (beta = 1 has a 1/x pole at x = 0, which a uniform grid in x cannot take)."""
     from scipy import integrate, optimize
 
-    from powerline_control.recipe import _marchenko_pastur_median
+    from powerline_control.recipe.record import _marchenko_pastur_median
 
     lo, hi = (1 - beta**0.5) ** 2, (1 + beta**0.5) ** 2
 
@@ -402,7 +402,7 @@ def test_marchenko_pastur_median_matches_quadrature(beta):
 def test_noise_floor_of_a_square_white_noise_matrix():
     """A square record (n_nodes == n_samples, beta = 1) used to give NaN and a RuntimeWarning.
     Truth: the std of the white noise itself."""
-    from powerline_control.recipe import _noise_floor
+    from powerline_control.recipe.record import _noise_floor
 
     rng = np.random.default_rng(2718)
     X = 0.3 * rng.standard_normal((150, 150))
@@ -414,7 +414,7 @@ def test_noise_floor_of_a_square_white_noise_matrix():
 
 
 def test_smooth_basis_of_a_single_moving_node_is_that_node():
-    from powerline_control.recipe import _smooth_basis
+    from powerline_control.recipe.modal import _smooth_basis
 
     one = _smooth_basis(np.array([0.4]), np.array([True]), 3)     # a one-node record
     assert one.shape == (1, 1) and one[0, 0] == 1.0

@@ -19,9 +19,9 @@ import scipy.linalg as sla
 import powerline_control as plc
 from powerline_control import _riccati
 from powerline_control._riccati import steady_state_batch
-from powerline_control._sensor_criteria import KalmanCriterion, _information
 from powerline_control.errors import InputError, SensorSelectionError
 from powerline_control.observability import steady_state_covariance
+from powerline_control.sensors.criteria import KalmanCriterion, _information
 
 SPAN = plc.Span.paper_lab()
 
@@ -398,7 +398,7 @@ def test_sensor_count_study_survives_a_failing_doubling(monkeypatch):
 
 
 def test_simulated_rms_refuses_a_layout_that_cannot_estimate_the_state():
-    from powerline_control.sensors import _simulated_rms
+    from powerline_control.sensors.count import _simulated_rms
 
     a = np.diag([1.0, 0.5])  # a random walk that candidate 1 does not see
     with pytest.raises(SensorSelectionError, match=r"layout \[1\].*not detectable"):

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import check_int, check_real, check_rng, read_only
-from .errors import ExcitationWarning, InputError
-from .recipe import design_estimator
+from .._validation import check_int, check_real, check_rng, read_only
+from ..errors import ExcitationWarning, InputError
+from .design import design_estimator
 
 __all__ = ["EstimatorCountStudy", "estimator_count_study"]
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import check_array, read_only
-from .errors import EstimatorInconsistentWarning, InputError
+from .._validation import check_array, read_only
+from ..errors import EstimatorInconsistentWarning, InputError
 
 __all__ = ["Coverage", "build_coverage"]
 

@@ -26,7 +26,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.optimize as sopt
 
-from ._riccati import steady_state_batch
+from .._riccati import steady_state_batch
 
 __all__ = [
     "KalmanCriterion",

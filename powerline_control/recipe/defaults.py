@@ -1,0 +1,52 @@
+"""The recipe's defaults and thresholds, each with the reason for its value.
+
+The public defaults of :func:`~powerline_control.recipe.design_estimator` (delays, ranks,
+process noise) and the private thresholds its steps share: what counts as narrowband, as
+round-off, as a motionless node, and the bounds of the noise and of the learned scales.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Default number of stacked snapshots (the model state spans delays * dt of history).
+DEFAULT_DELAYS = 8
+#: Default POD rank of the delay-embedded model.
+DEFAULT_RANK = 30
+#: Largest number of spatial POD coordinates kept before delay embedding.
+DEFAULT_SPATIAL_RANK = 24
+#: Modal model: process noise per step and line coordinate, in sensor-noise variances.
+DEFAULT_PROCESS_NOISE = 1.0
+#: A record is narrowband when fewer than this fraction of its frequency bins rise above the
+#: noise (spectral lines occupy a few bins each; broadband excitation tens of %).
+_NARROWBAND_OCCUPANCY = 0.05
+#: ... and when removing its lines leaves at most this multiple of the noise variance.
+_NARROWBAND_RESIDUAL = 1.5
+#: Most spectral lines extracted (each costs a few DTFTs of the record).
+_MAX_LINES = 60
+#: Modal model: smooth directions outside the lines' shapes, appended as white states with this
+#: many sensor-noise variances (what a narrowband record never showed, fitted to each sample).
+_UNSEEN_COUNT = 8
+_UNSEEN_NOISE = 100.0
+#: Relative alphas of the held-out sweep (0 first: exact on clean data, no damping bias).
+_DEFAULT_ALPHAS = np.array([0.0, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2])
+#: Factor between the alphas appended when the best one sits at the top of the sweep, and the
+#: largest relative alpha the widening reaches.
+_ALPHA_WIDEN = 100.0
+_ALPHA_CAP = 1.0
+#: Process-noise floor of the filter, as a fraction of the data's mean square (see _steady_filter).
+_Q_FLOOR_FRACTION = 1e-10
+# A sensor noise a million times the record's RMS carries no information, and its square (R)
+# would overflow long before the bound (noise_std=1e300 raised a raw OverflowError).
+_NOISE_TO_RMS_MAX = 1e6
+_NOISE_STD_MAX = 1e100  # without a record's RMS to compare with: R = noise_std**2 stays finite
+#: Radius that eigenvalues outside the unit circle are pulled to (see _stabilise).
+_STABLE_RADIUS = 1.0 - 1e-6
+#: Spatial POD coordinates below this fraction of the largest singular value are round-off.
+_ROUND_OFF_FRACTION = 1e-7
+#: Nodes whose training RMS is below this fraction of the largest never move (supports).
+_MOTIONLESS_FRACTION = 1e-6
+
+
+# Bounds of the field-variance scale learned on held-out data (a factor 10 on the sigma).
+_FIELD_SCALE_MIN, _FIELD_SCALE_MAX = 1e-2, 1e2

@@ -1,0 +1,270 @@
+"""The time-delay DMD family of the recipe: spatial POD, delay DMD and alpha on held-out data.
+
+Fits a time-delay DMD model on the record's spatial POD coordinates, choosing its Tikhonov alpha
+by the error of the resulting estimator at the nodes it does not measure on held-out data, lifts
+it back to the nodes, pulls unstable eigenvalues inside the unit circle, and calibrates the
+filter's covariance and field variance on the held-out part.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+
+import control as ct
+import numpy as np
+import scipy.linalg as sla
+import scipy.stats as sstats
+
+from .._estimate_spectrum import whitened_psd, whitening_factor
+from .._validation import (
+    check_array,
+    read_only,
+)
+from ..errors import (
+    EstimationError,
+    IdentificationError,
+    IllConditionedWarning,
+    InputError,
+)
+from ..estimate import DEFAULT_CONSISTENCY_WINDOW
+from ..identify import DMDModel, fit_dmd
+from .coverage import build_coverage
+from .defaults import (
+    _ALPHA_CAP,
+    _ALPHA_WIDEN,
+    _DEFAULT_ALPHAS,
+    _FIELD_SCALE_MAX,
+    _FIELD_SCALE_MIN,
+    _STABLE_RADIUS,
+)
+from .record import _Record
+from .results import AlphaSweep, EstimatorDesign
+from .sensing import _choose_sensors, _steady_filter
+
+
+def _stabilise(model: DMDModel) -> DMDModel:
+    """Pull eigenvalues outside the unit circle to radius ``_STABLE_RADIUS``, nothing else.
+
+    A finite noisy record cannot tell an undamped mode (or a slow drift) from one that grows by
+    1e-4 per sample; least squares lands on either side.  The filter does not care, but an
+    unstable model is refused by python-control's Riccati solvers and grows in free runs, so the
+    few eigenvalues outside are moved radially onto the circle of radius 1 - 1e-6 (frequency
+    and mode shape kept; the held-out sweep scores the model after this step).
+    """
+    if model.is_stable:
+        return model
+    values, vectors = sla.eig(model.A)
+    magnitude = np.abs(values)
+    scale = np.where(magnitude > _STABLE_RADIUS, _STABLE_RADIUS / magnitude, 1.0)
+    A = vectors @ np.diag(values * scale) @ sla.inv(vectors)
+    if np.abs(A.imag).max() > 1e-8 * max(np.abs(A.real).max(), 1e-300):
+        raise IdentificationError(  # pragma: no cover - conjugate pairs scale alike
+            "internal: stabilising the identified model broke its conjugate symmetry")
+    return dataclasses.replace(model, A=read_only(A.real.copy()), regressor_gram=None)
+
+
+def _sweep_model(train: np.ndarray, spatial: np.ndarray, dt: float, alpha: float, delays: int,
+                 rank: int) -> DMDModel:
+    """The model of one alpha of the sweep: delay DMD of the training coordinates, lifted to
+    the nodes and stabilised."""
+    with warnings.catch_warnings():
+        # Expected along the sweep: plain DMD (alpha = 0) may be ill-conditioned.
+        warnings.simplefilter("ignore", IllConditionedWarning)
+        reduced = fit_dmd(train, dt, alpha=alpha, alpha_mode="relative", delays=delays,
+                          rank=min(rank, train.shape[0] * delays))
+    return _stabilise(_lift(reduced, spatial))
+
+
+def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: float,
+                    alpha: float, delays: int, rank: int, layout: np.ndarray,
+                    candidates: np.ndarray, noise: float, data_noise: float,
+                    q_floor: float) -> float:
+    """Relative RMS error of the estimator at unmeasured nodes on held-out data (inf: unusable).
+
+    The held-out truth is itself noisy; its white noise adds ``data_noise**2`` to the mean
+    square error at every unmeasured node (the filter never sees those nodes), so it is
+    subtracted.  ``noise`` is the filter's R (floored for noise-free data).
+    """
+    try:
+        model = _sweep_model(train, spatial, dt, alpha, delays, rank)
+        field = _steady_filter(model, layout, noise, q_floor).filter(held[layout]).field
+    except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
+            ct.ControlDimension):
+        return math.inf
+    unmeasured = np.setdiff1d(candidates, layout)
+    if unmeasured.size == 0:  # every moving node measured: score the filtered measured nodes
+        unmeasured = layout
+    skip = min(held.shape[1] // 4, 10 * delays + 100)  # the filter's start-up transient
+    truth = held[unmeasured, skip:]
+    mse = float(np.mean((field[unmeasured, skip:] - truth) ** 2)) - data_noise**2
+    power = float(np.mean(truth**2)) - data_noise**2
+    if not math.isfinite(mse) or power <= 0:
+        return math.inf
+    return math.sqrt(max(mse, 0.0) / power)
+
+
+def _calibration(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: float,
+                 alpha: float, delays: int, rank: int, sensors: np.ndarray, noise: float,
+                 q_floor: float, candidates: np.ndarray | None = None, data_noise: float = 0.0
+                 ) -> tuple[float, float, tuple[np.ndarray, int] | None, float]:
+    """(covariance scale, NIS dof fraction, spectral reference, held-out sigma ratio).
+
+    The last is the reported over the actual RMS error at the unmeasured moving nodes of the
+    held-out part (the sensor noise variance removed from the actual one), after the scale;
+    NaN when not measured.
+
+    Covariance matching (Mehra 1972, with one common factor): the model fitted on the training
+    part filters the held-out part from the final sensors, and Q and R are scaled by the mean
+    NIS over its nominal value there, so that a record like the training one is consistent on
+    average. An identified model's innovations are not white, so the NIS averaged over a window
+    varies more than chi-square with ``window * p`` degrees of freedom says; the share of those
+    degrees of freedom that matches the spread of the held-out windows (Satterthwaite's
+    moment match, from the upper 95 % confidence bound of that spread, since the held-out part
+    gives only a few windows) is what the consistency test then uses. (1, 1) when the held-out
+    part holds fewer than three windows after the first (no spread to measure).
+    """
+    window = DEFAULT_CONSISTENCY_WINDOW
+    try:
+        model = _sweep_model(train, spatial, dt, alpha, delays, rank)
+        kf = _steady_filter(model, sensors, noise, q_floor)
+        held_est = kf.filter(held[sensors])
+        nis = held_est.nis
+    except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
+            ct.ControlDimension):
+        return 1.0, 1.0, None, math.nan
+    n_windows = nis.size // window
+    if n_windows < 4 or not np.all(np.isfinite(nis)):
+        return 1.0, 1.0, None, math.nan
+    means = nis[window: n_windows * window].reshape(-1, window).mean(axis=1) / sensors.size
+    scale = float(np.mean(means))
+    if not scale > 0:
+        return 1.0, 1.0, None, math.nan
+    ratios = means / scale
+    spread = float(np.var(ratios, ddof=1)) * (ratios.size - 1) / float(
+        sstats.chi2.ppf(0.05, ratios.size - 1))
+    nominal = 2.0 / (window * sensors.size)  # variance of a window's mean NIS / p, chi-square
+    fraction = 1.0 if spread <= nominal else nominal / spread
+    # The spectral test's reference: the held-out innovations whitened by the scaled S.
+    factor = whitening_factor(scale * np.asarray(kf.innovation_covariance))
+    psd, count = whitened_psd(held_est.innovations, factor, discard=window)
+    reference = (psd, count) if count and np.all(np.isfinite(psd)) else None
+    ratio = math.nan
+    if candidates is not None:
+        unmeasured = np.setdiff1d(candidates, sensors)
+        if unmeasured.size and held_est.field is not None:
+            error2 = float(np.mean((held_est.field[unmeasured, window:]
+                                    - held[unmeasured, window:]) ** 2)) - data_noise**2
+            reported2 = scale * float(np.mean(held_est.field_variances[unmeasured, window:]))
+            if error2 > 0:
+                ratio = math.sqrt(reported2 / error2)
+    return scale, float(fraction), reference, ratio
+
+
+def _delay_rank(coords: np.ndarray, delays: int) -> int:
+    """Directions of the delay-embedded coordinates above 1e-6 of the largest singular value."""
+    k, n = coords.shape
+    rows = np.vstack([coords[:, delays - 1 - i: n - i - 1] for i in range(delays)])
+    eig = sla.eigvalsh(rows @ rows.T)
+    return int(np.count_nonzero(eig > 1e-12 * eig[-1])) if eig[-1] > 0 else 0
+
+
+def _lift(model: DMDModel, spatial: np.ndarray) -> DMDModel:
+    """The model fitted on spatial coordinates, re-expressed on the nodes (exactly)."""
+    n, k = spatial.shape
+    d, r = model.delays, model.n_states
+    if model.basis is None:
+        raise IdentificationError("internal: the recipe always fits with a rank")
+    basis = np.einsum("nk,dkr->dnr", spatial, model.basis.reshape(d, k, r)).reshape(d * n, r)
+    # The field map is the current snapshot's block of the basis; taking those very rows (not
+    # spatial @ field_map, equal only to round-off) keeps save_model / load_model bit-exact.
+    return dataclasses.replace(
+        model,
+        n_nodes=n,
+        field_map=read_only(basis[:n].copy()),
+        basis=read_only(basis),
+    )
+
+
+def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
+    """The time-delay DMD design: alpha from held-out data, sensors, calibrated filter."""
+    X, dt, delays, n_samples = rec.X, rec.dt, rec.delays, rec.n_samples
+    coords, spatial, noise, q_floor = rec.coords, rec.spatial, rec.noise, rec.q_floor
+    train_fraction = rec.train_fraction
+    # 4. Alpha from held-out data: the error of the estimator itself at unmeasured nodes.
+    grid = _DEFAULT_ALPHAS if alphas is None else check_array("alphas", alphas, ndim=1)
+    if grid.size == 0 or np.any(grid < 0):
+        raise InputError(f"The 'alphas' parameter must be a non-empty list of values >= 0. "
+                         f"Got {alphas!r}.")
+    n_fit = int(round(train_fraction * n_samples))
+    # The rank cannot exceed what the (training part of the) delay embedding holds above
+    # round-off: a clean harmonic record has two directions per sinusoid.
+    rank = max(1, min(rec.rank, _delay_rank(coords[:, :n_fit], delays)))
+    if n_fit < 4 * delays or n_samples - n_fit < 4 * delays:
+        raise InputError(
+            f"The record of {n_samples} samples is too short for delays={delays} with "
+            f"train_fraction={train_fraction}: both parts need at least {4 * delays} samples."
+        )
+    errors = np.array([
+        _held_out_error(coords[:, :n_fit], X[:, n_fit:], spatial, dt, float(a), delays, rank,
+                        rec.provisional, rec.candidates, noise, rec.data_noise, q_floor)
+        for a in grid
+    ])
+    # A best alpha at the top of the sweep says the held-out error may still be falling there:
+    # widen by factors of 100 until the minimum is inside the sweep, up to relative alpha 1
+    # (beyond which Tikhonov damping outweighs every direction of the data).
+    grid = np.array(grid, dtype=float)
+    while (np.isfinite(errors).any() and grid[-1] > 0 and grid[-1] < _ALPHA_CAP
+           and int(np.nanargmin(np.where(np.isfinite(errors), errors, np.nan))) == grid.size - 1):
+        wider = min(grid[-1] * _ALPHA_WIDEN, _ALPHA_CAP)
+        grid = np.append(grid, wider)
+        errors = np.append(errors, _held_out_error(
+            coords[:, :n_fit], X[:, n_fit:], spatial, dt, wider, delays, rank, rec.provisional,
+            rec.candidates, noise, rec.data_noise, q_floor))
+    if not np.isfinite(errors).any():
+        raise IdentificationError(
+            "No alpha of the sweep gives a usable estimator on the held-out data (every model "
+            "was unstable or its filter failed). Try larger alphas, fewer delays or a lower rank."
+        )
+    alpha = float(grid[int(np.nanargmin(np.where(np.isfinite(errors), errors, np.nan)))])
+    sweep = AlphaSweep(alphas=read_only(np.array(grid, dtype=float)),
+                       held_out_error=read_only(errors), layout=read_only(rec.provisional),
+                       n_fit=n_fit)
+    reduced = fit_dmd(coords, dt, alpha=alpha, alpha_mode="relative", delays=delays, rank=rank)
+    lifted = _lift(reduced, spatial)
+    model = _stabilise(lifted)
+
+    # 5. Sensors on the final model.
+    chosen, selection = _choose_sensors(model, rec.given, rec.candidates, rec.n_sensors,
+                                        rec.criterion, noise, rec.positions, rec.forbidden,
+                                        rec.seed)
+
+    scale, fraction, reference, sigma_ratio = _calibration(
+        coords[:, :n_fit], X[:, n_fit:], spatial, dt, alpha, delays, rank, chosen, noise,
+        q_floor, rec.candidates, rec.data_noise)
+    # Model error at the unmeasured nodes, which the innovations cannot show: the reported
+    # field variance matched to the held-out error there (within a factor 10 either way).
+    field_scale = (1.0 if not math.isfinite(sigma_ratio)
+                   else float(np.clip(sigma_ratio**-2, _FIELD_SCALE_MIN, _FIELD_SCALE_MAX)))
+    kf = _steady_filter(model, chosen, noise, q_floor, scale, fraction, rec.warn_inconsistent,
+                        reference, field_scale)
+    return EstimatorDesign(
+        model=model,
+        sensors=read_only(chosen),
+        filter=kf,
+        noise_std=float(noise),
+        noise_source=rec.source,
+        alpha_sweep=sweep,
+        spatial_rank=rec.k,
+        sensor_selection=selection,
+        n_train=n_samples,
+        n_stabilised=lifted.n_unstable,
+        q_floor=q_floor,
+        excitation=rec.excitation,
+        covariance_scale=scale,
+        nis_dof_fraction=fraction,
+        coverage=build_coverage(X[chosen], dt, rec.data_noise, model, kf, chosen),
+        held_out_sigma_ratio=sigma_ratio,
+        field_variance_scale=field_scale,
+    )

@@ -1,0 +1,150 @@
+"""The training record as the recipe reads it: the snapshot matrix, its noise and its POD.
+
+The snapshot matrix and sample time from Snapshots or an array, the check of a given sensor
+noise, the noise floor of the singular values (Gavish-Donoho, with the Marchenko-Pastur median)
+and the leading spatial POD modes through the node-by-node Gram matrix.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .._validation import (
+    check_real,
+    check_snapshot_matrix,
+)
+from ..errors import (
+    InputError,
+)
+from .defaults import _NOISE_STD_MAX, _NOISE_TO_RMS_MAX
+
+
+def _check_noise_std(noise_std: object, rms: float) -> float:
+    """A positive sensor noise std, at most ``_NOISE_TO_RMS_MAX`` times the data's RMS."""
+    noise_std = check_real("noise_std", noise_std, low=0.0)
+    if rms > 0 and noise_std > _NOISE_TO_RMS_MAX * rms:
+        raise InputError(
+            f"The 'noise_std' parameter must be <= {_NOISE_TO_RMS_MAX * rms:.3g} m "
+            f"({_NOISE_TO_RMS_MAX:g} times the training record's RMS {rms:.3g} m: a larger noise "
+            f"carries no information). Got {noise_std!r}."
+        )
+    if not rms > 0 and noise_std > _NOISE_STD_MAX:
+        raise InputError(
+            f"The 'noise_std' parameter must be <= {_NOISE_STD_MAX:g} m (its square is the "
+            f"filter's R). Got {noise_std!r}."
+        )
+    return noise_std
+
+
+def _snapshot_matrix(snapshots: object, dt: object) -> tuple[np.ndarray, float, float, object]:
+    """(X, dt, noise_std or nan, positions or None) from Snapshots or an array."""
+    if hasattr(snapshots, "displacement") and hasattr(snapshots, "dt"):
+        X = check_snapshot_matrix("snapshots.displacement", snapshots.displacement)
+        given_dt = float(snapshots.dt)
+        if dt is not None and check_real("dt", dt, low=0.0) != given_dt:
+            raise InputError(
+                f"The 'dt' parameter ({dt!r}) contradicts the snapshots' own dt ({given_dt!r}); "
+                "leave it out for Snapshots."
+            )
+        noise = float(getattr(snapshots, "noise_std", math.nan))
+        positions = getattr(snapshots, "x", None)
+        return X, given_dt, (noise if noise > 0 else math.nan), positions
+    if dt is None:
+        raise InputError(
+            "The 'dt' parameter is required when 'snapshots' is an array (n_nodes, n_samples)."
+        )
+    X = check_snapshot_matrix("snapshots", snapshots)
+    return X, check_real("dt", dt, low=0.0), math.nan, None
+
+
+def _noise_floor(s: np.ndarray, shape: tuple[int, int]) -> tuple[float, float]:
+    """(noise std, singular-value threshold) from the bulk of the singular values.
+
+    White noise of std ``sigma`` on an ``n x N`` matrix has singular values spread around
+    ``sigma sqrt(N)`` (Marchenko-Pastur); the median of the spectrum estimates that bulk when the
+    signal occupies fewer than half of the directions, and Gavish & Donoho's (2014) optimal hard
+    threshold ``omega(beta) * median`` separates signal from noise.
+    """
+    n, N = min(shape), max(shape)
+    beta = n / N
+    mp_median = _marchenko_pastur_median(beta)
+    median = float(np.median(s))
+    sigma = median / math.sqrt(N * mp_median)
+    omega = 0.56 * beta**3 - 0.95 * beta**2 + 1.82 * beta + 1.43
+    return sigma, omega * median
+
+
+def _marchenko_pastur_median(beta: float) -> float:
+    """Median of the Marchenko-Pastur law with ratio ``beta`` (unit variance), by bisection."""
+    lo, hi = (1 - math.sqrt(beta)) ** 2, (1 + math.sqrt(beta)) ** 2
+    if beta <= 1e-9:
+        return 1.0
+    # x = centre - half cos(theta) takes the square-root edges (and, at beta = 1, the 1 / x pole
+    # at x = 0) out of the integrand: half^2 sin^2(theta) / (2 pi beta x) is smooth in theta.
+    # Midpoint rule, so that x = 0 itself is never evaluated.
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    edges = np.linspace(0.0, math.pi, 4001)
+    mid = (edges[1:] + edges[:-1]) / 2
+    weight = half**2 * np.sin(mid) ** 2 / (2 * math.pi * beta * (centre - half * np.cos(mid)))
+    cdf = np.cumsum(weight)
+    cdf /= cdf[-1]
+    return float(np.interp(0.5, cdf, centre - half * np.cos(edges[1:])))
+
+
+def _spatial_basis(X: np.ndarray, max_rank: int) -> tuple[np.ndarray, np.ndarray]:
+    """Leading left singular vectors and all singular values of X (via the n x n Gram matrix)."""
+    n, N = X.shape
+    if n <= N:
+        gram = X @ X.T
+        w, V = sla.eigh(gram)
+        order = np.argsort(w)[::-1]
+        s = np.sqrt(np.maximum(w[order], 0.0))
+        return V[:, order[:max_rank]], s
+    U, s, _ = sla.svd(X, full_matrices=False)
+    return U[:, :max_rank], s
+
+
+@dataclass(frozen=True, eq=False)
+class _Record:
+    """The checked arguments and the record's shared reading, handed to either model family."""
+
+    X: np.ndarray
+    dt: float
+    n_sensors: int
+    delays: int
+    rank: int
+    criterion: str
+    train_fraction: float
+    method: str
+    process_noise: float
+    warn_inconsistent: bool
+    positions: np.ndarray | None
+    forbidden: object
+    seed: object
+    #: spatial POD modes kept (``k`` columns) and the record's coordinates on them
+    spatial: np.ndarray
+    k: int
+    coords: np.ndarray
+    #: where the sensor noise came from, the filter's noise and what the data actually carry
+    source: str
+    noise: float
+    data_noise: float
+    q_floor: float
+    #: the moving nodes, the given sensors (or None) and the layout of the alpha sweep
+    candidates: np.ndarray
+    given: np.ndarray | None
+    provisional: np.ndarray
+    #: node positions (or indices), the moving mask, and the basis the lines are sought in
+    node_x: np.ndarray
+    moving: np.ndarray
+    line_basis: np.ndarray
+    line_coords: np.ndarray
+    excitation: object
+
+    @property
+    def n_samples(self) -> int:
+        return self.X.shape[1]

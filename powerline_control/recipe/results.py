@@ -1,0 +1,362 @@
+"""What :func:`~powerline_control.recipe.design_estimator` returns and reports.
+
+:class:`EstimatorDesign` (the model, the sensors, the filter and every intermediate result),
+:class:`AlphaSweep` (how alpha was chosen on held-out data) and :class:`ExcitationReport` (what
+the record excites above its noise, and whether it is narrowband). Records only: nothing here
+fits a model.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validation import (
+    check_array,
+    read_only,
+)
+from ..errors import (
+    InputError,
+)
+from ..estimate import KalmanFilter
+from ..identify import DMDModel
+from .coverage import Coverage
+from .defaults import _NARROWBAND_OCCUPANCY, _Q_FLOOR_FRACTION
+from .record import _check_noise_std
+from .sensing import _steady_filter
+
+
+@dataclass(frozen=True, eq=False)
+class AlphaSweep:
+    """How :func:`design_estimator` chose alpha: the estimator's own held-out error per alpha.
+
+    Attributes
+    ----------
+    alphas : ndarray
+        Relative Tikhonov alphas tried (the given or default grid, then any widening above it).
+    held_out_error : ndarray
+        Relative RMS error at the unmeasured moving nodes on the held-out part of the record,
+        noise-corrected, with the provisional ``layout`` (``inf``: unstable model or failed filter).
+    layout : ndarray of int
+        Provisional sensors used for the sweep (evenly spread over the moving nodes, or the
+        given sensors).
+    n_fit : int
+        Samples that trained each model of the sweep; the rest were held out.
+    alpha_mode : str
+        Always "relative" (alphas are fractions of the largest squared singular value).
+
+    Examples
+    --------
+    See :class:`EstimatorDesign`.
+    """
+
+    alphas: np.ndarray
+    held_out_error: np.ndarray
+    layout: np.ndarray
+    n_fit: int
+    alpha_mode: str = "relative"
+
+
+@dataclass(frozen=True, eq=False)
+class EstimatorDesign:
+    """An identified model, a sensor layout and the Kalman filter on those sensors.
+
+    Build it with :func:`design_estimator`.
+
+    Attributes
+    ----------
+    model : DMDModel
+        The identified reduced model (state: POD coordinates of the delay window).
+    sensors : ndarray of int
+        Measured node indices (rows of the training snapshots), ascending; read-only.
+    filter : KalmanFilter
+        Steady-state filter on the measured rows only (``C = model.field_map[sensors]``).
+    noise_std : float
+        Sensor noise standard deviation used for ``R``, m.
+    noise_source : str
+        Where ``noise_std`` came from: "given", "snapshots" or "estimated".
+    alpha_sweep : AlphaSweep
+        The held-out sweep that chose ``model.alpha``.
+    spatial_rank : int
+        Spatial POD coordinates kept before delay embedding.
+    sensor_selection : SensorSelection or None
+        The sensor optimisation result (``None`` when ``sensors`` were given).
+    n_train : int
+        Samples used for the final fit.
+    n_stabilised : int
+        Eigenvalues of the least-squares fit that lay outside the unit circle and were pulled
+        radially to 1 - 1e-6 (0 for a stable fit).
+    q_floor : float
+        Variance (m^2) added to every diagonal entry of the filter's ``Q`` (1e-10 of the data's
+        mean square): it keeps the Riccati equation solvable on noise-free data.
+    excitation : ExcitationReport or None
+        What the record excites above its noise (narrowband or broadband, its spectral lines)
+        and which model was built ("modal" or "dmd").
+    covariance_scale : float
+        Common factor of the filter's ``Q`` and ``R`` found by covariance matching on the
+        held-out part of the record (the model fitted on the rest, filtered from the final
+        sensors: mean NIS over its nominal value); it scales the reported covariance and leaves
+        the estimate unchanged. 1 for the modal model and for records too short to measure it.
+    nis_dof_fraction : float
+        Share of each consistency window's chi-square degrees of freedom that the held-out
+        windows' spread supports (the filter's ``nis_dof_fraction``; 1 when not measured).
+    coverage : Coverage or None
+        The field of view: the band the training record covered at the sensors, the model's
+        modes with the share of each that the sensors see, the filter's steady sigma at every
+        node; ``coverage.check(measurements)`` warns when a record's power lies outside the
+        band (``None`` for designs built by hand).
+    held_out_sigma_ratio : float
+        On the held-out part of the record (the model fitted on the rest, filtered from the
+        final sensors, after ``covariance_scale``): the reported over the actual RMS error at
+        the unmeasured moving nodes, the sensor noise removed from the actual one. Near 1: the
+        reported sigma is honest on data like the training record; NaN when not measured (the
+        modal model, short records), measured before ``field_variance_scale``.
+    field_variance_scale : float
+        Factor on the field variances the filter reports, ``held_out_sigma_ratio ** -2``
+        (clipped to 0.01-100; 1 when not measured): the model error at nodes no sensor sees,
+        which the innovations (and ``covariance_scale``) cannot show.
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> model = plc.LineModel(plc.Span.paper_lab(), n_elements=20)
+    >>> snap = plc.simulate(model, plc.RandomForce(1.0, 0.5, 80.0, seed=1), 2.0, 1e-3,
+    ...                     noise_fraction=0.01, seed=0)
+    >>> design = plc.design_estimator(snap, n_sensors=3, delays=4, rank=12, seed=0)
+    >>> design.sensors.shape, design.estimate_field(snap.displacement[design.sensors]).shape
+    ((3,), (21, 2001))
+    """
+
+    model: DMDModel
+    sensors: np.ndarray
+    filter: KalmanFilter
+    noise_std: float
+    noise_source: str
+    alpha_sweep: AlphaSweep
+    spatial_rank: int
+    sensor_selection: object
+    n_train: int
+    n_stabilised: int = 0
+    q_floor: float = 0.0
+    excitation: ExcitationReport | None = None
+    covariance_scale: float = 1.0
+    nis_dof_fraction: float = 1.0
+    coverage: Coverage | None = None
+    held_out_sigma_ratio: float = math.nan
+    field_variance_scale: float = 1.0
+
+    @property
+    def alpha_curve(self) -> AlphaSweep:
+        """The same as :attr:`alpha_sweep` (the name of the first version of the recipe)."""
+        return self.alpha_sweep
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes of the field the filter reconstructs."""
+        return self.model.n_nodes
+
+    def estimate_field(self, measurements: object, *, noise_std: float | None = None
+                       ) -> np.ndarray:
+        """Filter a record of the sensors and return the whole field.
+
+        Parameters
+        ----------
+        measurements : array_like, shape (n_sensors, n_t)
+            Displacements measured at :attr:`sensors` (in that order), m; NaN = missing.
+        noise_std : float, optional
+            Sensor noise standard deviation of this record, m, when it differs from the
+            design's :attr:`noise_std` (e.g. other sensors); a filter with that ``R`` is used.
+
+        Returns
+        -------
+        ndarray, shape (n_nodes, n_t)
+            Estimated displacement of every node, m (read-only).
+
+        Raises
+        ------
+        InputError
+            Wrong shape or infinite values.
+
+        Examples
+        --------
+        See :class:`EstimatorDesign`.
+        """
+        y = check_array("measurements", measurements, ndim=(1, 2), allow_nan=True)
+        y = y[None, :] if y.ndim == 1 else y
+        if y.shape[0] != self.sensors.size:
+            raise InputError(
+                f"The 'measurements' parameter must have one row per sensor ({self.sensors.size}:"
+                f" nodes {self.sensors.tolist()}), time along columns. Got shape {y.shape}."
+            )
+        kf = self.filter
+        if noise_std is not None:
+            rms = math.sqrt(self.q_floor / _Q_FLOOR_FRACTION) if self.q_floor > 0 else math.nan
+            noise_std = _check_noise_std(noise_std, rms)
+            if noise_std != self.noise_std:
+                kf = _steady_filter(self.model, self.sensors, noise_std, self.q_floor,
+                                    self.covariance_scale, self.nis_dof_fraction,
+                                    self.filter.warn_inconsistent,
+                                    field_scale=self.field_variance_scale)
+        return read_only(kf.filter(y).field)
+
+    def summary(self) -> str:
+        """A few lines in words: model, alpha, sensors and the filter's predicted accuracy.
+
+        Returns
+        -------
+        str
+            Plain text, one item per line.
+
+        Examples
+        --------
+        See :class:`EstimatorDesign`.
+        """
+        m = self.model
+        report = m.stability_report(warn=False)
+        head = (f"Estimator for {m.n_nodes} nodes from {self.sensors.size} sensors "
+                f"(nodes {self.sensors.tolist()}).")
+        if self.excitation is not None and self.excitation.method == "modal":
+            lines = [
+                head,
+                f"Model: one undamped oscillator per spectral line of the record "
+                f"({self.excitation.n_lines} lines, {2 * self.excitation.n_lines} states) and "
+                f"{m.n_states - 2 * self.excitation.n_lines} white states for smooth directions "
+                f"the record never excited; shapes in {self.spatial_rank} spatial directions "
+                f"(POD completed with smooth fields), trained on {self.n_train} samples at "
+                f"dt = {m.dt:g} s; no alpha.",
+                self.excitation.message,
+                f"Sensor noise std {self.noise_std:.3g} m ({self.noise_source}).",
+            ]
+        else:
+            lines = [
+                head,
+                f"Model: time-delay DMD, {m.delays} delays ({m.delays * m.dt * 1e3:.3g} ms of "
+                f"history), {m.n_states} POD coordinates of {self.spatial_rank} spatial ones, "
+                f"trained on {self.n_train} samples at dt = {m.dt:g} s.",
+                f"Tikhonov alpha {m.alpha_relative:.3g} relative ({m.alpha:.3g} absolute), "
+                f"chosen by the estimator's error at unmeasured nodes on held-out data "
+                f"({100 * float(np.nanmin(self.alpha_sweep.held_out_error)):.3g} %); "
+                + report.message,
+                f"Sensor noise std {self.noise_std:.3g} m ({self.noise_source}).",
+            ]
+            if self.excitation is not None:
+                lines.insert(3, self.excitation.message)
+        if self.n_stabilised:
+            lines.insert(3, f"{self.n_stabilised} eigenvalue(s) of the least-squares fit lay just "
+                            "outside the unit circle and were pulled to radius 1 - 1e-6.")
+        if self.sensor_selection is not None:
+            sel = self.sensor_selection
+            lines.append(
+                f"Sensors chosen by the {sel.criterion} criterion ({sel.certificate} "
+                f"certificate, gap {100 * sel.gap:.2g} %)."
+            )
+        field_std = np.sqrt(np.maximum(self.field_variance_scale * np.einsum(
+            "ij,jk,ik->i", m.field_map, self.filter.steady_covariance, m.field_map), 0.0))
+        lines.append(
+            f"Predicted steady-state RMS field error {float(np.sqrt(np.mean(field_std**2))):.3g}"
+            " m (from the model's own Riccati solution; check it on held-out data)."
+        )
+        if self.covariance_scale != 1.0 or self.nis_dof_fraction != 1.0:
+            lines.append(
+                f"Q and R scaled by {self.covariance_scale:.3g} so that the held-out NIS is "
+                f"nominal (covariance matching); every record is checked by a windowed NIS "
+                f"test on {self.nis_dof_fraction:.3g} of the chi-square degrees of freedom "
+                "(Estimate.consistency)."
+            )
+        if math.isfinite(self.held_out_sigma_ratio):
+            lines.append(
+                f"On the held-out part the reported sigma at unmeasured nodes was "
+                f"{self.held_out_sigma_ratio:.3g} x the actual error: field variances scaled by "
+                f"{self.field_variance_scale:.3g}."
+            )
+        if self.filter.spectral_reference is not None:
+            lines.append("Every record's innovation spectrum is compared with the held-out one "
+                         "(Consistency.spectral_ratio).")
+        if self.coverage is not None and math.isfinite(self.coverage.band[0]):
+            lines.append(
+                f"Training band at the sensors {self.coverage.band[0]:.4g}-"
+                f"{self.coverage.band[1]:.4g} Hz (coverage.check(record) warns on power outside)."
+            )
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True, eq=False)
+class ExcitationReport:
+    """What the training record excites above its noise, as :func:`design_estimator` saw it.
+
+    A record is *narrowband* when, in the spatial coordinates, a few spectral lines hold all its
+    power above the sensor noise (a harmonic load with the free start-up transients of an
+    undamped span); it is then not persistently exciting: only the modes among those lines can
+    be identified, and loads that excite other modes are beyond any model of it.
+
+    Attributes
+    ----------
+    narrowband : bool
+        True when spectral lines explain the record down to the noise (see ``occupancy``).
+    occupancy : float
+        Fraction of the frequency bins (0 to Nyquist) whose summed power over the spatial
+        coordinates exceeds the level white noise reaches in 0.1 % of bins: a few % for lines,
+        tens of % for broadband excitation.
+    frequencies : ndarray
+        Frequencies (Hz, ascending) of the spectral lines found above the noise (narrowband
+        records only; empty otherwise): the forcing and the modes the record excites.
+    residual_ratio : float
+        Mean square left after removing those lines, over the noise variance (about 1 when the
+        lines explain everything; NaN for broadband records).
+    method : str
+        The model built: "modal" (one oscillator per line) or "dmd" (time-delay DMD).
+
+    Examples
+    --------
+    A harmonic load alone: the record holds the load's line and the span's start-up modes.
+
+    >>> import warnings, powerline_control as plc
+    >>> model = plc.LineModel(plc.Span.paper_lab(), n_elements=20)
+    >>> snap = plc.simulate(model, plc.HarmonicForce(1.0, 18.3, 1.6), 4.0, 1e-3,
+    ...                     noise_fraction=0.01, seed=3)
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore", plc.ExcitationWarning)  # it is narrowband
+    ...     design = plc.design_estimator(snap, n_sensors=3, seed=0)
+    >>> report = design.excitation
+    >>> report.narrowband, report.method, bool(abs(report.frequencies - 18.3).min() < 0.01)
+    (True, 'modal', True)
+    """
+
+    narrowband: bool
+    occupancy: float
+    frequencies: np.ndarray
+    residual_ratio: float
+    method: str
+
+    @property
+    def n_lines(self) -> int:
+        """Number of spectral lines found (forcing and excited modes)."""
+        return int(self.frequencies.size)
+
+    @property
+    def message(self) -> str:
+        """One sentence: what the record excites and what a model of it can know."""
+        if not self.narrowband and self.method == "modal":  # asked for: method="modal"
+            return (f"Record not narrowband ({self.n_lines} spectral lines leave "
+                    f"{self.residual_ratio:.3g} x the noise variance; "
+                    f"{100 * self.occupancy:.2g} % of the frequency bins above the noise): one "
+                    "oscillator per line as asked (method='modal'); what the lines leave out is "
+                    "not modelled.")
+        if not self.narrowband and self.occupancy >= _NARROWBAND_OCCUPANCY:
+            return (f"Broadband record ({100 * self.occupancy:.2g} % of the frequency bins above "
+                    "the noise): time-delay DMD model.")
+        if not self.narrowband:  # few bins, but its spectral lines do not explain it
+            return (f"Not a line spectrum: {100 * self.occupancy:.2g} % of the frequency bins "
+                    "above the noise, but its spectral lines leave much more than the noise: "
+                    "time-delay DMD model.")
+        f = self.frequencies
+        listed = ", ".join(f"{v:.4g}" for v in f[:12]) + (", ..." if f.size > 12 else "")
+        return (f"Narrowband record: {f.size} spectral lines above the noise ({listed} Hz; "
+                f"{100 * self.occupancy:.2g} % of the frequency bins), which leave "
+                f"{self.residual_ratio:.3g} x the noise variance: one oscillator per line. It is "
+                "not persistently exciting: a load that excites modes other than these (e.g. "
+                f"broadband, or above {f.max():.4g} Hz) is beyond what this record can teach; "
+                "train on a record with broadband excitation (e.g. a RandomForce alongside the "
+                "harmonic load) for such loads.")

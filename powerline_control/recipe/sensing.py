@@ -1,0 +1,63 @@
+"""The two steps both model families end with: the sensors and the steady-state filter.
+
+The given sensors or the layout :func:`~powerline_control.sensors.select_sensors` optimises over
+the moving nodes, and the steady-state Kalman filter on the measured rows, with the process-noise
+floor and the scales learned on held-out data.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..estimate import KalmanFilter
+from ..identify import DMDModel
+from ..sensors import select_sensors
+
+
+def _choose_sensors(model: DMDModel, given, candidates: np.ndarray, n_sensors: int,
+                    criterion: str, noise: float, positions, forbidden, seed):
+    """The given sensors, or the optimised layout over the moving nodes (and its result)."""
+    if given is not None:
+        return given, None
+    cand_positions = None if positions is None else positions[candidates]
+    selection = select_sensors(
+        model.to_statespace(measured=candidates.tolist()),
+        k=n_sensors,
+        criterion=criterion,
+        Q=model.residual_covariance,
+        R=noise**2,
+        positions=cand_positions,
+        forbidden=forbidden,
+        seed=0 if seed is None else seed,
+    )
+    return np.sort(candidates[list(selection.nodes)]), selection
+
+
+def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
+                   q_floor: float, scale: float = 1.0, dof_fraction: float = 1.0,
+                   warn: bool = False,
+                   reference: tuple[np.ndarray, int] | None = None,
+                   field_scale: float = 1.0) -> KalmanFilter:
+    """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2,
+    both times ``scale`` (the covariance matching of :func:`_calibration`).
+
+    The floor (1e-10 of the data's mean square per coordinate, far below any noisy record's
+    residual) keeps the Riccati equation solvable on noise-free data, whose residual covariance
+    is round-off: undamped modes without process noise have no stabilising solution. A common
+    scale of Q and R scales the Riccati solution alike and leaves the gain, hence the estimate,
+    unchanged: only the reported covariance (and the NIS) changes.
+    """
+    q = np.array(model.residual_covariance)
+    q[np.diag_indices_from(q)] += q_floor
+    return KalmanFilter(
+        model.to_statespace(measured=sensors.tolist()),
+        Q=scale * q,
+        R=scale * noise_std**2,
+        steady_state=True,
+        field_map=model.field_map,
+        nis_dof_fraction=dof_fraction,
+        warn_inconsistent=warn,
+        spectral_reference=None if reference is None else reference[0],
+        spectral_reference_count=1 if reference is None else reference[1],
+        field_variance_scale=field_scale,
+    )
