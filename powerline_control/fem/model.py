@@ -25,7 +25,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
-from ._validation import (
+from .._validation import (
     check_array,
     check_budget,
     check_budget_value,
@@ -34,8 +34,8 @@ from ._validation import (
     check_real,
     read_only,
 )
-from .errors import InputError, ModelError, TruncationWarning
-from .line import Span
+from ..errors import InputError, ModelError, TruncationWarning
+from ..line import Span
 
 __all__ = ["LineModel", "MDR", "ModalDamping", "RayleighDamping", "ModalBasis", "physics_mesh",
            "frequency_error_estimate", "accuracy_elements_per_loop", "aeolian_band_top"]
