@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from ._validation import (
+from .._validation import (
     check_array,
     check_budget,
     check_choice,
@@ -42,7 +42,7 @@ from ._validation import (
     check_real,
     read_only,
 )
-from .errors import InputError, PlanningError
+from ..errors import InputError, PlanningError
 
 __all__ = ["RobotLimits", "Trajectory", "free_interval", "plan_motion", "MotionPlanner", "MPCStep"]
 
