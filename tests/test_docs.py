@@ -155,6 +155,18 @@ def test_which_examples_the_build_runs(monkeypatch, variable, expected):
     assert chosen == expected
 
 
+def test_the_site_runs_every_example_so_each_gallery_page_shows_its_figures(monkeypatch):
+    monkeypatch.delenv("PLC_DOCS_EXECUTE", raising=False)
+    namespace = {"__file__": str(DOCS / "conf.py")}
+    conf = (DOCS / "conf.py").read_text()
+    line = next(line for line in conf.splitlines() if line.startswith("plc_gallery_execute"))
+    exec(line, namespace)
+    chosen = pages.executed_examples(namespace["plc_gallery_execute"])
+    assert chosen == {p.stem for p in pages.example_scripts()}
+    monkeypatch.setenv("PLC_DOCS_EXECUTE", "none")
+    assert pages.executed_examples("all") == set()
+
+
 @pytest.mark.parametrize(("line", "expected"), [
     ("gives |sin(pi x / l)| at both ends", r"gives \|sin(pi x / l)\| at both ends"),
     ("a literal ``|lambda| < 1`` stays", "a literal ``|lambda| < 1`` stays"),

@@ -263,9 +263,12 @@ def _write_if_changed(path: Path, text: str) -> None:
         path.write_text(text)
 
 
-def executed_examples(configured: list[str]) -> set[str]:
-    """The example stems to run: ``PLC_DOCS_EXECUTE`` (all, none) or the configured list."""
+def executed_examples(configured: list[str] | str) -> set[str]:
+    """The example stems to run: ``PLC_DOCS_EXECUTE`` (all, none) or the configured list (or
+    ``"all"``)."""
     choice = os.environ.get("PLC_DOCS_EXECUTE", "").strip().lower()
+    if not choice and configured == "all":
+        choice = "all"
     if choice == "all":
         return {p.stem for p in example_scripts()}
     if choice == "none":
@@ -328,7 +331,9 @@ def _on_config_inited(app, config) -> None:
     from sphinx.util import logging
 
     logger = logging.getLogger("plc_pages")
-    write_pages(Path(app.srcdir), executed_examples(list(config.plc_gallery_execute)),
+    configured = config.plc_gallery_execute
+    write_pages(Path(app.srcdir), executed_examples(
+        configured if configured == "all" else list(configured)),
                 warn=logger.warning)
 
 
@@ -344,7 +349,7 @@ def _on_source_read(app, docname: str, source: list[str]) -> None:
 
 
 def setup(app):
-    app.add_config_value("plc_gallery_execute", ["simulate_paper_span"], "env")
+    app.add_config_value("plc_gallery_execute", ["simulate_paper_span"], "env", types=(list, str))
     # Before Sphinx lists the source files (autosummary then finds api/index.rst).
     app.connect("config-inited", _on_config_inited)
     app.connect("source-read", _on_source_read)
