@@ -42,7 +42,7 @@ _LAZY_EXPORTS = {
     "simulate": (
         "Snapshots", "simulate",
     ),
-    "tuning": (
+    "fem.damper": (
         "den_hartog_optimum", "tune_damper",
     ),
     "identify": (

@@ -1,159 +1,28 @@
-"""Tuning the robot's absorber to one mode of the line: Den Hartog's optimum.
+"""Deprecated path: the absorber's tuning lives in :mod:`powerline_control.fem` (fem/damper.py).
 
-Near one of its modes the line at the attachment point ``x`` behaves as a single-degree-of-freedom
-system with modal mass and stiffness *seen at x*. With mass-normalised mode shapes
-(``phi_n^T M phi_n = 1``) and ``phi_n(x)`` the mode's displacement at ``x``:
-
-    M_eff(x) = M_n / phi_n(x)^2 = 1 / phi_n(x)^2,     K_eff(x) = omega_n^2 / phi_n(x)^2.
-
-A body mass ``m_b`` rigidly attached at x adds to ``M_eff`` (and lowers the mode to
-``omega_b = sqrt(K_eff / (M_eff + m_b))``). A suspended mass ``m_a`` on a spring and a damper is
-then tuned by Den Hartog's optimum for an undamped main system under a harmonic force
-(J. P. Den Hartog, *Mechanical Vibrations*, 4th ed., McGraw-Hill 1956, section 3.3; also
-Brock 1946):
-
-    mu = m_a / (M_eff + m_b)
-    f_opt = omega_a / omega_b = 1 / (1 + mu)                     (equal fixed points)
-    zeta_opt = c / (2 m_a omega_b) = sqrt(3 mu / (8 (1 + mu)^3))   (flat at the fixed points)
-
-so ``k = m_a (f_opt omega_b)^2`` and ``c = 2 zeta_opt m_a omega_b``. Note that zeta is measured
-against the critical damping ``2 m_a omega_b`` of the absorber mass at the *main* system's
-frequency, as in Den Hartog; against the absorber's own frequency it reads
-``sqrt(3 mu / (8 (1 + mu)))``. The receptance of the tuned pair then peaks at
-``sqrt(1 + 2 / mu)`` times the static deflection.
+Kept for one release so old imports keep working; importing it warns.
 """
 
-from __future__ import annotations
+import warnings
 
-import numbers
+from .fem import (
+    MDR,
+    LineModel,
+    ModalBasis,
+    ModalDamping,
+    RayleighDamping,
+    accuracy_elements_per_loop,
+    aeolian_band_top,
+    den_hartog_optimum,
+    frequency_error_estimate,
+    physics_mesh,
+    tune_damper,
+)
+from .fem.damper import NODE_TOLERANCE
 
-import numpy as np
+__all__ = ["den_hartog_optimum", "tune_damper", "NODE_TOLERANCE", "LineModel", "MDR",
+           "ModalDamping", "RayleighDamping", "ModalBasis", "physics_mesh",
+           "frequency_error_estimate", "accuracy_elements_per_loop", "aeolian_band_top"]
 
-from ._validation import check_int, check_real
-from .errors import InputError
-from .fem import MDR, LineModel
-
-__all__ = ["den_hartog_optimum", "tune_damper"]
-
-# A position where the mode's displacement is below this fraction of its largest nodal value is
-# a node: the effective mass there is (numerically) infinite and the absorber does nothing.
-NODE_TOLERANCE = 1e-3
-
-
-def den_hartog_optimum(mass_ratio: float) -> tuple[float, float]:
-    """Den Hartog's optimal frequency ratio and damping ratio for a mass ratio ``mu``.
-
-    Parameters
-    ----------
-    mass_ratio : float
-        mu = absorber mass / main (effective) mass, > 0.
-
-    Returns
-    -------
-    (float, float)
-        ``f_opt = 1 / (1 + mu)`` and ``zeta_opt = sqrt(3 mu / (8 (1 + mu)^3))`` (zeta against
-        ``2 m_a omega_main``), Den Hartog, *Mechanical Vibrations* (1956), section 3.3.
-
-    Examples
-    --------
-    >>> f, z = den_hartog_optimum(0.1)
-    >>> round(f, 4), round(z, 4)
-    (0.9091, 0.1679)
-    """
-    mu = check_real("mass_ratio", mass_ratio, low=0.0)
-    # sqrt(3 mu / (8 (1 + mu)^3)) written so that (1 + mu)^3 cannot overflow (mu = 1e300).
-    return 1.0 / (1.0 + mu), float(np.sqrt(3.0 / 8.0 * (mu / (1.0 + mu))) / (1.0 + mu))
-
-
-def tune_damper(
-    model: LineModel, mode: int, position: float | None, mass: float, *, body_mass: float = 0.0
-) -> MDR:
-    """The robot with its suspended mass tuned to ``mode`` by Den Hartog's optimum at ``position``.
-
-    The modal mass seen at the attachment point is ``M_n / phi_n(x)^2`` (mass-normalised shapes of
-    the bare line ``model``); the body mass is added to it (it rides the line rigidly), the mode's
-    frequency is lowered accordingly, and the spring and damper follow Den Hartog (1956)::
-
-        mu = mass / (M_n / phi_n(x)^2 + body_mass)
-        omega_b = omega_n / sqrt(1 + body_mass phi_n(x)^2 / M_n)
-        k = mass (omega_b / (1 + mu))^2,   c = 2 mass omega_b sqrt(3 mu / (8 (1 + mu)^3))
-
-    Parameters
-    ----------
-    model : LineModel
-        The bare line (without a robot: the robot's own masses are accounted for here).
-    mode : int
-        Mode number, 1 = fundamental.
-    position : float or None
-        Attachment point, m from the left support (where the robot will damp: an antinode of the
-        mode is best). None: the mode's largest antinode (the node of the mesh where the mode
-        moves most), which is also the returned robot's position; a robot that starts elsewhere
-        is ``dataclasses.replace(robot, position=start)``.
-    mass : float
-        Suspended (absorber) mass, kg (> 0).
-    body_mass : float
-        Mass of the robot's body riding the line, kg (>= 0).
-
-    Returns
-    -------
-    MDR
-        ``MDR(position, body_mass, mass, stiffness, damping)``.
-
-    Raises
-    ------
-    InputError
-        If ``mode`` is not a mode of the model, ``position`` lies outside the span or at a node of
-        the mode (infinite effective mass: no absorber can be tuned there), or a mass is invalid.
-
-    Examples
-    --------
-    >>> import powerline_control as plc
-    >>> model = plc.LineModel(plc.Span.paper_lab(), n_elements=20)
-    >>> robot = tune_damper(model, mode=2, position=0.915, mass=0.04, body_mass=0.03)
-    >>> round(robot.stiffness, 1), round(robot.damping, 3)
-    (244.7, 1.197)
-    >>> tune_damper(model, mode=2, position=None, mass=0.04).position   # its antinode, L/4
-    0.915
-    """
-    if not isinstance(model, LineModel):
-        raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
-    if isinstance(mode, bool) or not isinstance(mode, numbers.Integral):
-        raise InputError(f"The 'mode' parameter must be an integer >= 1. Got {mode!r}.")
-    if model.mdr is not None:
-        raise InputError(
-            "The 'model' parameter must be the bare line (mdr=None): the robot's masses are "
-            f"accounted for by tune_damper. Got a model with a robot at {model.mdr.position:g} m."
-        )
-    mode = check_int("mode", mode, low=1, high=model.n_dofs)
-    mass = check_real("mass", mass, low=0.0)
-    body_mass = check_real("body_mass", body_mass, low=0.0, low_inclusive=True)
-    basis = model.modes(mode)
-    shape = basis.shapes[:, mode - 1]
-    nodal = model.displacement_map() @ shape
-    peak = float(np.max(np.abs(nodal)))
-    if position is None:
-        # Equal antinodes (a symmetric span) tie to round-off: take the leftmost of them.
-        largest = np.flatnonzero(np.abs(nodal) >= (1 - 1e-6) * peak)[0]
-        position = float(model.node_positions[largest])
-    position = check_real(
-        "position", position, low=0.0, low_inclusive=True, high=model.span.length
-    )
-    phi = float(model.shape_vector(position) @ shape)
-    if abs(phi) < NODE_TOLERANCE * peak:
-        raise InputError(
-            f"The 'position' parameter ({position:g} m) is at a node of mode {mode} "
-            f"(|phi(x)| = {abs(phi):.3g}, {abs(phi) / peak:.2g} of its peak): the modal mass "
-            "seen there is infinite and no absorber can be tuned to it. Choose a position away "
-            "from the mode's nodes (an antinode is best)."
-        )
-    effective_mass = 1.0 / phi**2 + body_mass  # M_n = 1 (mass-normalised shapes)
-    omega_b = float(basis.omega[mode - 1]) / np.sqrt(1.0 + body_mass * phi**2)
-    mu = mass / effective_mass
-    f_opt, zeta_opt = den_hartog_optimum(mu)
-    return MDR(
-        position,
-        body_mass=body_mass,
-        suspended_mass=mass,
-        stiffness=mass * (f_opt * omega_b) ** 2,
-        damping=2 * zeta_opt * mass * omega_b,
-    )
+warnings.warn("powerline_control.tuning is deprecated; import from powerline_control.fem",
+              DeprecationWarning, stacklevel=2)

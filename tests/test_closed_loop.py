@@ -15,7 +15,7 @@ import powerline_control as plc
 from powerline_control.closed_loop import run_closed_loop
 from powerline_control.closed_loop.plant import ModalPlant as _ModalPlant
 from powerline_control.closed_loop.policy import reach_within as _reach
-from powerline_control.tuning import tune_damper
+from powerline_control.fem import tune_damper
 
 LAB = plc.Span.paper_lab()
 N_EL = 60

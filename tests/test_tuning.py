@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import powerline_control as plc
-from powerline_control.tuning import den_hartog_optimum, tune_damper
+from powerline_control.fem import den_hartog_optimum, tune_damper
 
 LAB = plc.Span.paper_lab()
 
