@@ -1,14 +1,10 @@
-"""Motion planning of the mobile damping robot: its limits, the free space between obstacles,
-closed-form time-optimal moves, the CasADi nonlinear programs and the receding-horizon planner."""
+"""Motion of the mobile damping robot along the span: its limits, the free space between obstacles,
+closed-form time-optimal moves, one CasADi plan (plan_motion) and the receding-horizon planner."""
 
-from .nlp import (  # noqa: F401
-    MotionPlanner,
-    MPCStep,
-    RobotLimits,
-    Trajectory,
-    _time_optimal_pieces,
-    free_interval,
-    plan_motion,
-)
+from .closed_form import Trajectory, _time_optimal_pieces  # noqa: F401  (benchmarks use it)
+from .free_space import free_interval
+from .limits import RobotLimits
+from .mpc import MotionPlanner, MPCStep
+from .nlp import plan_motion
 
 __all__ = ["RobotLimits", "Trajectory", "free_interval", "plan_motion", "MotionPlanner", "MPCStep"]
