@@ -124,17 +124,36 @@ def free_interval(
         raise InputError(
             f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__} instead."
         )
+    span_length = _check_span_length(span_length, limits)
+    position = check_real("position", position, low=0.0, high=span_length, low_inclusive=True)
+    checked = _check_obstacles(obstacles, span_length)
+    _check_start_free(position, limits.length, span_length, checked)
+    low, high, _, _ = _free_interval(position, limits.length, span_length, checked)
+    return low, high
+
+
+def _check_span_length(span_length: object, limits: RobotLimits) -> float:
+    """A span length, m, that the robot's body fits in."""
     span_length = check_real("span_length", span_length, low=0.0)
     if limits.length > span_length:
         raise InputError(
             f"The robot length {limits.length:g} m (limits.length) must not exceed the "
             f"span_length {span_length:g} m."
         )
-    position = check_real("position", position, low=0.0, high=span_length, low_inclusive=True)
-    checked = _check_obstacles(obstacles, span_length)
-    _check_start_free(position, limits.length, span_length, checked)
-    low, high, _, _ = _free_interval(position, limits.length, span_length, checked)
-    return low, high
+    return span_length
+
+
+def _obstacle_containing(
+    centre: float, half: float, obstacles: list[tuple[float, float]], tol: float
+) -> tuple[float, float] | None:
+    """The obstacle the robot's body (half-length ``half``) enters at ``centre``, or None.
+
+    The one margin rule: the body may touch an obstacle, within ``tol``, but not enter it.
+    """
+    for left, right in obstacles:
+        if left - half + tol < centre < right + half - tol:
+            return left, right
+    return None
 
 
 def _check_position(name: str, value: object, span_length: float | None) -> float:
@@ -157,13 +176,14 @@ def _check_start_free(
             f"[0, {span_length:g}] m, i.e. lie in [{half:g}, {span_length - half:g}]. "
             f"Got {start!r} instead."
         )
-    for left, right in obstacles:
-        if left - half + tol < start < right + half - tol:
-            raise InputError(
-                f"The 'start' parameter puts the robot (length {length:g} m) inside the obstacle "
-                f"({left:g}, {right:g}) m: its centre must be <= {left - half:g} or "
-                f">= {right + half:g}. Got {start!r} instead."
-            )
+    hit = _obstacle_containing(start, half, obstacles, tol)
+    if hit is not None:
+        left, right = hit
+        raise InputError(
+            f"The 'start' parameter puts the robot (length {length:g} m) inside the obstacle "
+            f"({left:g}, {right:g}) m: its centre must be <= {left - half:g} or "
+            f">= {right + half:g}. Got {start!r} instead."
+        )
 
 
 def _check_target_reachable(
@@ -174,13 +194,14 @@ def _check_target_reachable(
     interval: tuple[float, float, str, str],
 ) -> None:
     half = length / 2
-    for left, right in obstacles:
-        if left - half + _GEOMETRY_TOL < target < right + half - _GEOMETRY_TOL:
-            raise PlanningError(
-                f"The target {target:g} m puts the robot (length {length:g} m) inside the "
-                f"obstacle ({left:g}, {right:g}) m; the nearest positions it can take are "
-                f"{left - half:g} m and {right + half:g} m."
-            )
+    hit = _obstacle_containing(target, half, obstacles, _GEOMETRY_TOL)
+    if hit is not None:
+        left, right = hit
+        raise PlanningError(
+            f"The target {target:g} m puts the robot (length {length:g} m) inside the "
+            f"obstacle ({left:g}, {right:g}) m; the nearest positions it can take are "
+            f"{left - half:g} m and {right + half:g} m."
+        )
     low, high, low_reason, high_reason = interval
     if target < low - _GEOMETRY_TOL:
         raise PlanningError(
@@ -215,7 +236,8 @@ def _push_out_of_obstacles(
 ) -> float:
     """Move a target inside an (inflated) obstacle to the obstacle's side facing the robot."""
     half = length / 2
-    for left, right in obstacles:
-        if left - half < target < right + half:
-            return left - half if position <= left - half + _GEOMETRY_TOL else right + half
-    return target
+    hit = _obstacle_containing(target, half, obstacles, 0.0)
+    if hit is None:
+        return target
+    left, right = hit
+    return left - half if position <= left - half + _GEOMETRY_TOL else right + half

@@ -23,6 +23,7 @@ from .free_space import (
     _GEOMETRY_TOL,
     _check_obstacles,
     _check_position,
+    _check_span_length,
     _check_start_free,
     _free_interval,
     _push_out_of_obstacles,
@@ -268,12 +269,7 @@ class MotionPlanner:
                 f"so that every plan can stop. Got horizon={self.horizon}, dt={self.dt:g} s."
             )
         if span_length is not None:
-            span_length = check_real("span_length", span_length, low=0.0)
-            if limits.length > span_length:
-                raise InputError(
-                    f"The robot length {limits.length:g} m (limits.length) must not exceed the "
-                    f"span_length {span_length:g} m."
-                )
+            span_length = _check_span_length(span_length, limits)
         self.span_length = span_length
         self.obstacles = tuple(_check_obstacles(obstacles, span_length))
         self.time_budget = (

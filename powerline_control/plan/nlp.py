@@ -35,6 +35,7 @@ from .free_space import (
     _check_braking,
     _check_obstacles,
     _check_position,
+    _check_span_length,
     _check_start_free,
     _check_target_reachable,
     _free_interval,
@@ -345,12 +346,7 @@ def plan_motion(
     n = check_int("n_intervals", n_intervals, low=2)
     max_iter = check_int("max_iter", max_iter, low=1)
     if span_length is not None:
-        span_length = check_real("span_length", span_length, low=0.0)
-        if limits.length > span_length:
-            raise InputError(
-                f"The robot length {limits.length:g} m (limits.length) must not exceed the "
-                f"span_length {span_length:g} m."
-            )
+        span_length = _check_span_length(span_length, limits)
     start = _check_position("start", start, span_length)
     target = _check_position("target", target, span_length)
     start_velocity = check_real("start_velocity", start_velocity)
