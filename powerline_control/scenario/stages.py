@@ -452,7 +452,7 @@ def tune_robot(scenario: Scenario, model) -> Tuning:
     import numpy as np
 
     from ..antinode import locate_antinodes, nearest_antinode
-    from ..tuning import tune_damper
+    from ..fem import tune_damper
 
     cfg = scenario.robot
     load_frequency = float(scenario.forcing.load_frequency(model.span))
