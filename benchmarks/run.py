@@ -45,7 +45,7 @@ from bench_plan import naive_opti_min_time  # noqa: E402
 from scipy.optimize import linear_sum_assignment  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
-from powerline_control.observability import steady_state_covariance  # noqa: E402
+from powerline_control.estimate import steady_state_covariance  # noqa: E402
 
 try:
     import pydmd

@@ -68,7 +68,7 @@ _LAZY_EXPORTS = {
         "Accuracy", "Consistency", "Estimate", "KalmanFilter", "estimation_accuracy",
         "filter_consistency",
     ),
-    "observability": (
+    "estimate.observability": (
         "ObservabilityReport", "SensorSetComparison", "analyze_observability",
         "compare_sensor_sets", "observability_gramian", "observability_rank",
         "steady_state_covariance",

@@ -7,7 +7,7 @@ Drawing and splitting
 ---------------------
 ``design_case(seed)`` is a pure function of the seed (``numpy.random.default_rng(1000 + seed)``).
 The **split is the seed's parity**: even seeds tune the spectral test's constants
-(``powerline_control._estimate_spectrum``), odd seeds are held out. The case cycles with
+(``powerline_control.estimate._spectrum``), odd seeds are held out. The case cycles with
 ``seed // 2`` over :data:`CASES` (the lab span and real spans from ``plc.conductors``, pinned and
 clamped), so both splits cover every case.
 

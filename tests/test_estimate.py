@@ -636,7 +636,11 @@ def test_better_recipe_with_20_percent_dropouts(paper_records, better_models):
 @pytest.mark.parametrize("length", [1, 15, 16, 17, 1000])
 def test_blocked_scan_equals_the_plain_recursion(length):
     """The vectorised diagonal recursion of the batch path against a loop over samples."""
-    from powerline_control.estimate import _SCAN_BLOCK, _diagonal_recursion, _recursion_tables
+    from powerline_control.estimate._recursion import (
+        _SCAN_BLOCK,
+        _diagonal_recursion,
+        _recursion_tables,
+    )
 
     rng = np.random.default_rng(length)
     lam = np.concatenate([[0.0, 0.5, -0.9], 0.99 * np.exp(1j * rng.uniform(0, 3, 4))])

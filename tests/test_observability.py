@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 import powerline_control as plc
 from powerline_control import _riccati
 from powerline_control.errors import EstimationError, InputError
-from powerline_control.observability import (
+from powerline_control.estimate import (
     analyze_observability,
     compare_sensor_sets,
     observability_gramian,

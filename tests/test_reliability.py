@@ -33,7 +33,7 @@ from strategies import dmd_models, line_models, scenarios, sensor_constraints
 import powerline_control as plc
 from powerline_control import config
 from powerline_control.errors import FileFormatError, InputError
-from powerline_control.observability import steady_state_covariance
+from powerline_control.estimate import steady_state_covariance
 
 # Derandomized: the same examples every run (tests are seeded, CI must not flake); the strategies
 # were also run once with 200-300 examples each; the bugs they found are fixed.

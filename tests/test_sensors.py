@@ -20,7 +20,7 @@ import powerline_control as plc
 from powerline_control import _riccati
 from powerline_control._riccati import steady_state_batch
 from powerline_control.errors import InputError, SensorSelectionError
-from powerline_control.observability import steady_state_covariance
+from powerline_control.estimate import steady_state_covariance
 from powerline_control.sensors.criteria import KalmanCriterion, _information
 
 SPAN = plc.Span.paper_lab()

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import control as ct
 import numpy as np
 
-from ._riccati import field_variances, gramian_sum, posterior_from_predicted, solve_filter_dare
-from ._validation import (
+from .._riccati import field_variances, gramian_sum, posterior_from_predicted, solve_filter_dare
+from .._validation import (
     check_budget,
     check_choice,
     check_covariance,
@@ -40,7 +40,7 @@ from ._validation import (
     check_int,
     read_only,
 )
-from .errors import EstimationError, InputError
+from ..errors import EstimationError, InputError
 
 __all__ = [
     "observability_rank",

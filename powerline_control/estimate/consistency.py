@@ -1,0 +1,395 @@
+"""Is the filter honest about its errors: :class:`Consistency`, :func:`filter_consistency`.
+
+The whole-record NEES and NIS against their chi-square bands, and the windowed NIS test that
+:meth:`~powerline_control.estimate.KalmanFilter.filter` runs on every record (design.md 4.7):
+the window sums, each window's two-sided chi-square test and the run-level count of rejections.
+The spectral test of the whitened innovations lives in ``_spectrum.py``; its fields are part of
+:class:`Consistency`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.stats as sstats
+
+from .._validation import (
+    check_array,
+    check_field_map,
+    check_int,
+    check_real,
+    read_only,
+)
+from ..errors import (
+    InputError,
+)
+from .result import Estimate, _freeze_arrays
+
+__all__ = ["Consistency", "filter_consistency", "DEFAULT_CONSISTENCY_WINDOW"]
+
+# Covariance eigenvalues below this fraction of the largest count as zero in the NEES: a
+# rank-truncated model claims near-certainty in directions it does not model, and the true error
+# there would dominate the statistic.
+_NEES_RANK_RTOL = 1e-9
+#: Samples per window of the consistency test (design.md 4.7): 0.2 s at 1 kHz, long enough for a
+#: tight chi-square band (p = 5 sensors: 1000 degrees of freedom, +-12 % at 1 %), short enough to
+#: localise a change of load within a record.
+DEFAULT_CONSISTENCY_WINDOW = 200
+#: Two-sided level of each window's chi-square test, and of the run-level count of rejections.
+_WINDOW_LEVEL = 0.01
+
+
+
+@dataclass(frozen=True)
+class Consistency:
+    """NEES / NIS statistics: is the filter's covariance honest about its errors?
+
+    Two views of the same question (design.md 4.7). The whole-record means (``mean_nis``,
+    ``mean_nees``) with their 95 % bands; and the *windowed* test that
+    :meth:`KalmanFilter.filter` runs on every record: the NIS averaged over consecutive windows
+    of ``window`` samples, each compared with its two-sided 1 % chi-square bounds. The run is
+    ``consistent`` unless more windows reject than chance allows at 1 % (a binomial bound on
+    the count, so that a long record of an honest filter does not warn merely because it has
+    many windows).
+
+    Attributes
+    ----------
+    mean_nis : float
+        Mean normalised innovation squared over the samples used.
+    nis_dof : float
+        Mean number of sensors per update (the expected value of ``mean_nis``).
+    nis_bounds : tuple of float
+        Two-sided 95 % chi-square band of ``mean_nis`` for a consistent filter (valid since the
+        innovations of an optimal filter are white).
+    nis_consistent : bool
+        ``mean_nis`` inside ``nis_bounds``.
+    mean_nees : float or None
+        Mean normalised estimation error squared ``e^T P^-1 e`` (needs the truth and a
+        converged gain), ``None`` otherwise.
+    nees_dof : int or None
+        Its expected value: the rank of the covariance used.
+    nees_bounds : tuple of float or None
+        95 % chi-square band of ``mean_nees`` treating samples as independent; estimation errors
+        are correlated in time, so read it as a guide rather than a test.
+    nees_consistent : bool or None
+        ``mean_nees`` inside ``nees_bounds``.
+    normalised_error : numpy.ndarray or None
+        Per-signal mean of ``error^2 / variance`` ``(n_signals,)`` (1 for an honest variance).
+    window : int
+        Samples per window of the windowed test.
+    window_start : numpy.ndarray
+        First sample of each full window, ``(n_windows,)`` (a trailing partial window is left
+        out).
+    window_nis : numpy.ndarray
+        The statistic: mean NIS of each window, ``(n_windows,)`` (NaN for a window without a
+        measurement).
+    window_dof : numpy.ndarray
+        Degrees of freedom of each window's chi-square law: ``dof_fraction`` times the number
+        of scalar innovations in it (``window * p`` without dropouts). The window's sum of NIS
+        times ``dof_fraction`` is chi-square with this many degrees of freedom.
+    window_bounds : numpy.ndarray
+        Two-sided 1 % bounds of each window's mean NIS, ``(n_windows, 2)``.
+    rejected : numpy.ndarray
+        Indices of the tested windows whose mean NIS lies outside its bounds (int).
+    n_tested : int
+        Windows tested: every full window after the first (which holds the filter's transient
+        from its prior) that has a measurement.
+    consistent : bool
+        False when the number of windows rejected *above* their bounds (innovations larger than
+        the filter's covariance says: an overconfident estimate) exceeds the 99 % quantile of a
+        binomial law with ``n_tested`` trials of probability 1 % (the run-level test at 1 %), or
+        when the spectral test rejects; True when no window could be tested. Windows below
+        their bounds make the run ``pessimistic`` instead.
+    pessimistic : bool
+        As many windows rejected *below* their bounds: the innovations are smaller than the
+        filter's covariance says (a reported sigma larger than the error, the safe side; typical
+        of a record still ringing up from rest, whose model error grows with the field). Not a
+        reason to warn: a load the model does not know raises the innovations at some
+        frequency, which the spectral test sees even when the total NIS falls.
+    dof_fraction : float
+        Share of the nominal degrees of freedom treated as independent (1 for the white
+        innovations of an exact model; below 1 when a design measured on held-out data that its
+        innovations carry fewer independent samples, see
+        :func:`~powerline_control.recipe.design_estimator`).
+    window_nees : numpy.ndarray or None
+        Mean NEES of each window (with the truth, from the converged gain on), else ``None``.
+    nees_rejected : numpy.ndarray or None
+        Indices into ``window_nees`` of windows outside their 1 % chi-square bounds (estimation
+        errors are correlated in time: a guide, as ``nees_bounds``).
+    spectral_frequencies : numpy.ndarray or None
+        Frequencies (Hz; cycles per sample without ``dt``) of the spectral test's bins, when the
+        filter carries a ``spectral_reference`` (every filter
+        :func:`~powerline_control.recipe.design_estimator` builds from a broadband record).
+    spectral_ratio : numpy.ndarray or None
+        The record's whitened innovation power in each bin over the reference's (1: like the
+        held-out part of the training record; far above 1: power the model does not predict,
+        a load that drives modes the training never saw).
+    spectral_threshold : float or None
+        The ratio above which a bin is rejected: the larger of a fixed factor (two matched
+        records of an identified model differ by more than sampling) and the F quantile at 1 %
+        with a Bonferroni correction over the bins.
+    spectral_rejected : numpy.ndarray or None
+        Indices of the rejected bins.
+    spectral_consistent : bool or None
+        No bin rejected (``None``: no spectral test). ``consistent`` is False when either the
+        windowed NIS test or the spectral test rejects.
+
+    Examples
+    --------
+    See :func:`filter_consistency`, which builds it:
+
+    >>> import control as ct
+    >>> from powerline_control.estimate import KalmanFilter
+    >>> sys = ct.ss([[0.5]], [[0.0]], [[1.0]], 0, dt=1.0)
+    >>> est = KalmanFilter(sys, Q=1.0, R=1.0).filter(np.array([[1.0, -1.0, 0.5]]))
+    >>> filter_consistency(est).nis_dof
+    1.0
+    """
+
+    mean_nis: float
+    nis_dof: float
+    nis_bounds: tuple[float, float]
+    nis_consistent: bool
+    mean_nees: float | None = None
+    nees_dof: int | None = None
+    nees_bounds: tuple[float, float] | None = None
+    nees_consistent: bool | None = None
+    normalised_error: np.ndarray | None = None
+    window: int = 0
+    window_start: np.ndarray = dataclasses.field(
+        default_factory=lambda: read_only(np.zeros(0, int)))
+    window_nis: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0)))
+    window_dof: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0)))
+    window_bounds: np.ndarray = dataclasses.field(
+        default_factory=lambda: read_only(np.zeros((0, 2))))
+    rejected: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, int)))
+    n_tested: int = 0
+    consistent: bool = True
+    pessimistic: bool = False
+    dof_fraction: float = 1.0
+    window_nees: np.ndarray | None = None
+    nees_rejected: np.ndarray | None = None
+    spectral_frequencies: np.ndarray | None = None
+    spectral_ratio: np.ndarray | None = None
+    spectral_threshold: float | None = None
+    spectral_rejected: np.ndarray | None = None
+    spectral_consistent: bool | None = None
+
+    def __post_init__(self) -> None:
+        _freeze_arrays(self)
+
+    @property
+    def message(self) -> str:
+        """One sentence: what the windowed test found, for a warning or a report."""
+        if not self.n_tested:
+            return (f"No window of {self.window} samples could be tested (the record is shorter "
+                    "than two windows): the filter's consistency is unknown.")
+        tested = self.window_nis[1:][np.isfinite(self.window_nis[1:])]
+        expected = self.window_dof[1:] / self.dof_fraction / self.window
+        ratio = float(np.nanmedian(self.window_nis[1:] / np.where(expected > 0, expected, np.nan)))
+        verdict = ("consistent" if self.consistent else
+                   "INCONSISTENT: the model does not fit this record")
+        if self.consistent and self.pessimistic:
+            verdict += " (pessimistic: the innovations are smaller than the covariance says)"
+        spectral = ""
+        if self.spectral_consistent is not None:
+            worst = int(np.nanargmax(np.where(np.arange(self.spectral_ratio.size) > 0,
+                                              self.spectral_ratio, np.nan)))
+            spectral = (" Innovation spectrum against the training's: "
+                        f"{self.spectral_rejected.size} of {self.spectral_ratio.size - 1} bins "
+                        f"above {self.spectral_threshold:.3g} times the reference (largest "
+                        f"{self.spectral_ratio[worst]:.3g} at "
+                        f"{self.spectral_frequencies[worst]:.4g} Hz).")
+        return (f"Windowed NIS test ({self.window} samples per window, 1 % two-sided chi-square "
+                f"bounds): {self.rejected.size} of {self.n_tested} windows rejected, mean NIS "
+                f"{float(np.mean(tested)):.3g} per sample against {float(np.mean(expected)):.3g}"
+                f" expected (median ratio {ratio:.3g}).{spectral} Verdict: {verdict}.")
+
+
+def _window_test(sums: np.ndarray, counts: np.ndarray, used: np.ndarray, window: int,
+                 dof_fraction: float) -> dict:
+    """Windowed NIS fields of :class:`Consistency` from per-window sums of NIS.
+
+    ``sums``: NIS summed over the valid samples of each window; ``counts``: valid samples;
+    ``used``: scalar innovations (sensors summed over the window). The sum times
+    ``dof_fraction`` is chi-square with ``dof_fraction * used`` degrees of freedom.
+    """
+    sums, counts, used = (np.asarray(v, dtype=float) for v in (sums, counts, used))
+    n_windows = sums.size
+    dof = dof_fraction * used
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(counts > 0, sums / np.where(counts > 0, counts, 1.0), np.nan)
+        scale = dof_fraction * np.where(counts > 0, counts, np.nan)
+        low, high = sstats.chi2.ppf([[_WINDOW_LEVEL / 2], [1 - _WINDOW_LEVEL / 2]],
+                                    np.where(dof > 0, dof, np.nan)) / scale
+    bounds = np.column_stack([low, high]) if n_windows else np.zeros((0, 2))
+    tested = np.zeros(n_windows, dtype=bool)
+    tested[1:] = counts[1:] > 0  # the first window holds the transient from the prior
+    above = tested & (mean > bounds[:, 1])
+    below = tested & (mean < bounds[:, 0])
+    n_tested = int(tested.sum())
+    allowed = int(sstats.binom.ppf(1 - _WINDOW_LEVEL, n_tested, _WINDOW_LEVEL)) if n_tested else 0
+    rejected = np.flatnonzero(above | below)
+    return {
+        "pessimistic": bool(int(below.sum()) > allowed),
+        "window": int(window),
+        "window_nis": read_only(mean),
+        "window_dof": read_only(dof),
+        "window_bounds": read_only(bounds),
+        "rejected": read_only(rejected),
+        "n_tested": n_tested,
+        "consistent": bool(int(above.sum()) <= allowed),
+        "dof_fraction": float(dof_fraction),
+    }
+
+
+def _window_sums(values: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(sums over valid samples, valid counts, starts) of each full window of ``values``."""
+    n_windows = values.size // window
+    block = values[: n_windows * window].reshape(n_windows, window)
+    valid = ~np.isnan(block)
+    sums = np.where(valid, block, 0.0).sum(axis=1)
+    return sums, valid.sum(axis=1), np.arange(n_windows) * window
+
+
+def _chi2_band(total_dof: float, n_samples: int) -> tuple[float, float]:
+    low, high = sstats.chi2.ppf([0.025, 0.975], total_dof)
+    return float(low / n_samples), float(high / n_samples)
+
+
+def filter_consistency(
+    estimate: Estimate,
+    truth: object = None,
+    *,
+    discard: int = 0,
+    field_map: object = None,
+    window: int = DEFAULT_CONSISTENCY_WINDOW,
+    dof_fraction: float = 1.0,
+) -> Consistency:
+    """NIS (always) and NEES (with the truth) of a filter run, whole-record and windowed.
+
+    Parameters
+    ----------
+    estimate : Estimate
+        A filter run.
+    truth : array_like, optional
+        True states ``(n, n_t)``, or the true field ``(n_nodes, n_t)`` when ``estimate.field``
+        exists (then ``field_map`` is needed for the full NEES).
+    discard : int
+        Leading samples left out (the transient from the prior).
+    field_map : array_like, optional
+        The filter's field map ``(n_nodes, n)``, one column per state, to map the final
+        covariance to the field for the NEES.
+    window : int
+        Samples per window of the windowed test (default 200); windows tile the record from
+        ``discard`` on.
+    dof_fraction : float
+        Share ``0 < f <= 1`` of the nominal chi-square degrees of freedom of each window treated
+        as independent (1: white innovations, the textbook test).
+
+    Returns
+    -------
+    Consistency
+        The statistics. NEES uses the final (converged) posterior covariance for every sample
+        after ``max(discard, estimate.converged_at)``, with a pseudo-inverse on its range (pinned
+        nodes have zero variance) and the rank as degrees of freedom.
+
+    Raises
+    ------
+    InputError
+        If shapes disagree, ``discard`` leaves no samples, ``window`` is not a positive integer
+        or ``dof_fraction`` is outside ``(0, 1]``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from powerline_control.estimate import KalmanFilter
+    >>> rng = np.random.default_rng(0)
+    >>> sys = ct.ss([[0.9]], [[0.0]], [[1.0]], 0, dt=1.0)
+    >>> x = np.zeros(2000)
+    >>> for k in range(1, 2000):
+    ...     x[k] = 0.9 * x[k - 1] + rng.normal()
+    >>> est = KalmanFilter(sys, Q=1.0, R=0.25).filter(x[None] + 0.5 * rng.normal(size=(1, 2000)))
+    >>> c = filter_consistency(est, x[None], discard=10)
+    >>> c.nis_consistent, c.nees_consistent, c.consistent, c.n_tested
+    (True, True, True, 8)
+    """
+    if not isinstance(estimate, Estimate):
+        raise InputError(
+            f"The 'estimate' parameter must be an Estimate. Got {type(estimate).__name__}."
+        )
+    n_t = estimate.states.shape[1]
+    discard = check_int("discard", discard, low=0, high=n_t - 1)
+    # The map is checked when given, whether or not the truth below uses it.
+    field_map = check_field_map(field_map, estimate.states.shape[0])
+    window = check_int("window", window, low=1)
+    dof_fraction = check_real("dof_fraction", dof_fraction, low=0.0, high=1.0)
+    nis = estimate.nis[discard:]
+    used = estimate.n_used[discard:]
+    valid = ~np.isnan(nis)
+    if not valid.any():
+        raise InputError("No sample after 'discard' has a measurement; NIS is undefined.")
+    mean_nis = float(np.mean(nis[valid]))
+    total = float(np.sum(used[valid]))
+    nis_bounds = _chi2_band(total, int(valid.sum()))
+    sums, counts, starts = _window_sums(nis, window)
+    used_sums = used[: starts.size * window].reshape(-1, window).sum(axis=1) if starts.size \
+        else np.zeros(0)
+    result = {
+        "mean_nis": mean_nis,
+        "nis_dof": float(total / valid.sum()),
+        "nis_bounds": nis_bounds,
+        "nis_consistent": bool(nis_bounds[0] <= mean_nis <= nis_bounds[1]),
+        "window_start": read_only(starts + discard),
+        **_window_test(sums, counts, used_sums, window, dof_fraction),
+    }
+    if truth is None:
+        return Consistency(**result)
+    true = check_array("truth", truth, ndim=2)
+    if estimate.field is not None and true.shape == estimate.field.shape:
+        values, variances = estimate.field, estimate.field_variances
+        if field_map is None:
+            covariance = None
+        else:
+            covariance = field_map @ estimate.covariance @ field_map.T
+    elif true.shape == estimate.states.shape:
+        values, variances, covariance = estimate.states, estimate.variances, estimate.covariance
+    else:
+        raise InputError(
+            f"The 'truth' parameter has the wrong shape: expected {estimate.states.shape} "
+            f"(states) or the field's shape, but found {true.shape}."
+        )
+    error = values[:, discard:] - true[:, discard:]
+    var = np.asarray(variances)[:, discard:]
+    positive = var > 0
+    normalised = np.where(positive, error**2 / np.where(positive, var, 1.0), 0.0).mean(axis=1)
+    result["normalised_error"] = read_only(normalised)
+    if covariance is not None and estimate.converged_at is not None:
+        start = max(discard, estimate.converged_at)
+        if start < n_t:
+            eigenvalues, vectors = np.linalg.eigh((covariance + covariance.T) / 2)
+            keep = eigenvalues > eigenvalues.max() * _NEES_RANK_RTOL
+            whitened = (vectors[:, keep].T @ (values[:, start:] - true[:, start:])) / np.sqrt(
+                eigenvalues[keep]
+            )[:, None]
+            nees = np.sum(whitened**2, axis=0)
+            dof = int(keep.sum())
+            bounds = _chi2_band(dof * nees.size, nees.size)
+            mean_nees = float(np.mean(nees))
+            nees_sums, nees_counts, _ = _window_sums(nees, window)
+            nees_windows = _window_test(nees_sums, nees_counts, dof * nees_counts, window, 1.0)
+            # Every NEES window is tested (the converged gain already left the transient out).
+            nees_mean = nees_windows["window_nis"]
+            nees_bounds_w = nees_windows["window_bounds"]
+            result.update(
+                mean_nees=mean_nees,
+                nees_dof=dof,
+                nees_bounds=bounds,
+                nees_consistent=bool(bounds[0] <= mean_nees <= bounds[1]),
+                window_nees=nees_mean,
+                nees_rejected=read_only(np.flatnonzero(
+                    (nees_mean < nees_bounds_w[:, 0]) | (nees_mean > nees_bounds_w[:, 1]))),
+            )
+    return Consistency(**result)
