@@ -20,6 +20,7 @@ from .consistency import filter_consistency as filter_consistency
 from .filter import KalmanFilter as KalmanFilter
 from .observability import ObservabilityReport as ObservabilityReport
 from .observability import SensorSetComparison as SensorSetComparison
+from .observability import __all__ as _observability_all
 from .observability import analyze_observability as analyze_observability
 from .observability import compare_sensor_sets as compare_sensor_sets
 from .observability import observability_gramian as observability_gramian
@@ -36,11 +37,5 @@ __all__ = [
     "estimation_accuracy",
     "Consistency",
     "filter_consistency",
-    "observability_rank",
-    "observability_gramian",
-    "steady_state_covariance",
-    "ObservabilityReport",
-    "analyze_observability",
-    "SensorSetComparison",
-    "compare_sensor_sets",
+    *_observability_all,
 ]
