@@ -17,7 +17,6 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.stats as sstats
 
-from .._estimate_spectrum import whitened_psd, whitening_factor
 from .._validation import (
     check_array,
     read_only,
@@ -28,7 +27,7 @@ from ..errors import (
     IllConditionedWarning,
     InputError,
 )
-from ..estimate import DEFAULT_CONSISTENCY_WINDOW
+from ..estimate import DEFAULT_CONSISTENCY_WINDOW, whitened_psd, whitening_factor
 from ..identify import DMDModel, fit_dmd
 from .coverage import build_coverage
 from .defaults import (
