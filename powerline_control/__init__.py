@@ -58,7 +58,7 @@ _LAZY_EXPORTS = {
     "recipe": (
         "Coverage", "EstimatorDesign", "design_estimator",
     ),
-    "_severity_clamp": (
+    "severity.clamp_estimate": (
         "ClampStrainEstimate", "estimate_clamp_strain",
     ),
     "recipe.count": (

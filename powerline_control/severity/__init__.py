@@ -1,7 +1,8 @@
 """Aeolian severity of a span: wind power, self-damping, the standing wave and its dampers, the
 energy balance and clamp strain, wind climates and records, fatigue, the robot's value, checks.
 
-Modules: wind, self_damping, dampers, balance, climate, checks, record, fatigue.
+Modules: wind, self_damping, dampers, balance, climate, checks, record, fatigue, and
+clamp_estimate (clamp strain from an estimator's field, with its sigma).
 ``powerline_control.severity`` keeps every name the single module ``severity.py`` had.
 """
 

@@ -18,10 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validation import check_array, check_choice, check_int, check_real, read_only
-from .errors import InputError
-from .line import Span
-from .severity import POFFENBERGER_SWART_DISTANCE, aeolian_severity
+from .._validation import check_array, check_choice, check_int, check_real, read_only
+from ..errors import InputError
+from ..line import Span
+from ._common import POFFENBERGER_SWART_DISTANCE
+from .balance import aeolian_severity
 
 __all__ = ["ClampStrainEstimate", "estimate_clamp_strain"]
 
@@ -144,7 +145,7 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
     >>> bool(clamp.bending_amplitude > 0 and clamp.strain_sigma > 0)
     True
     """
-    from .recipe import EstimatorDesign  # recipe imports the estimator stack: import on use
+    from ..recipe import EstimatorDesign  # recipe imports the estimator stack: import on use
 
     if not isinstance(design, EstimatorDesign):
         raise InputError(
