@@ -23,8 +23,8 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from threadpoolctl import threadpool_limits
 
+from .._threads import on_one_blas_thread
 from .._validation import (
     check_array,
     check_budget,
@@ -496,8 +496,8 @@ class LineModel(_Mesh):
         return self._modes_cache[n_modes]
 
     # One BLAS thread: the eigen-solves are small-matrix work (ARPACK's restarts, eigh of a
-    # few thousand), measured 10x slower with two contending threads on a shared 2-core machine.
-    @threadpool_limits.wrap(limits=1, user_api="blas")
+    # few thousand), measured 10x slower with two contending threads.
+    @on_one_blas_thread
     def _solve_modes(self, n_modes: int) -> ModalBasis:
         n = self.n_dofs
         try:

@@ -37,9 +37,9 @@ import control as ct
 import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
-from threadpoolctl import threadpool_limits
 
 from .._riccati import gramian_sum
+from .._threads import one_blas_thread
 from .._validation import (
     check_array,
     check_budget,
@@ -74,15 +74,6 @@ from .results import SensorSelection
 from .search import _search_layouts
 
 __all__ = ["select_sensors"]
-
-
-def _small_matrix_blas():
-    """One BLAS thread: the matrices here are <= ~100 wide, where threads only add contention.
-
-    Measured on a loaded 2-core machine: a 101 x 101 Cholesky solve took 36 ms with two
-    OpenBLAS threads and well under 1 ms with one.
-    """
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 CRITERIA = ("kalman", "gramian", "min-eig", "reconstruction")
@@ -297,7 +288,7 @@ def select_sensors(
     >>> sel.nodes, sel.gap >= 0, sel.bound <= sel.objective
     ((0, 3), True, True)
     """
-    with _small_matrix_blas():
+    with one_blas_thread():   # matrices <= ~100 wide: threads only add contention
         return _select_sensors(**locals())
 
 
