@@ -12,7 +12,7 @@ import numpy as np
 from hypothesis import strategies as st
 
 import powerline_control as plc
-from powerline_control import config
+from powerline_control import scenario as config  # the schema, its sections and files
 
 
 def reals(low: float, high: float) -> st.SearchStrategy[float]:

@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 
 import powerline_control as plc
-from powerline_control import _validation, config
+from powerline_control import _validation
+from powerline_control import scenario as config  # the schema, its sections and files
 from powerline_control.errors import InputError
 
 LAB = plc.Span.paper_lab()

@@ -31,7 +31,7 @@ from hypothesis import strategies as st
 from strategies import dmd_models, line_models, scenarios, sensor_constraints
 
 import powerline_control as plc
-from powerline_control import config
+from powerline_control import scenario as config  # the schema, its sections and files
 from powerline_control.errors import FileFormatError, InputError
 from powerline_control.estimate import steady_state_covariance
 

@@ -1,12 +1,34 @@
 """Scenarios: the TOML schema and its files (config, files, template), and the one pipeline that
 runs a scenario stage by stage (stages, pipeline) into a frozen ScenarioResult (result, summary)."""
 
-from .config import Scenario, check_severity_inputs, default_scenario
+from .config import (
+    EstimationConfig,
+    ForcingConfig,
+    IdentificationConfig,
+    ModelConfig,
+    RobotConfig,
+    Scenario,
+    ScenarioInfo,
+    SeverityConfig,
+    SimulationConfig,
+    SpanConfig,
+    check_severity_inputs,
+    default_scenario,
+)
 from .files import load_scenario, override_scenario_text, read_scenario_text, shipped_scenarios
 from .template import scenario_reference, scenario_to_toml
 
 __all__ = [
+    "EstimationConfig",
+    "ForcingConfig",
+    "IdentificationConfig",
+    "ModelConfig",
+    "RobotConfig",
     "Scenario",
+    "ScenarioInfo",
+    "SeverityConfig",
+    "SimulationConfig",
+    "SpanConfig",
     "check_severity_inputs",
     "default_scenario",
     "load_scenario",
