@@ -566,8 +566,8 @@ def severity_inputs(scenario: Scenario, span) -> tuple[dict, str]:
     --------
     >>> import powerline_control as plc
     >>> kwargs, source = severity_inputs(load_scenario(), plc.Span.paper_lab())
-    >>> kwargs["outer_strand_diameter"], source
-    (0.0035, "the conductor's stranding (paper lab (Table 1))")
+    >>> "outer_strand_diameter" in kwargs, source  # the lab conductor carries its own 3.5 mm
+    (False, "the conductor's stranding (paper lab (Table 1))")
     """
     sev = scenario.severity
     kwargs = {"outer_strand_modulus": sev.outer_strand_modulus, "x_b": sev.clamp_distance}
