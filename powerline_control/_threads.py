@@ -1,8 +1,7 @@
 """One home for pinning BLAS to one thread around small-matrix work.
 
 Thousands of small products and solves (matrices up to ~100 wide) run far slower with contending
-BLAS threads than with one: a 101 x 101 Cholesky solve took 36 ms with two OpenBLAS threads and
-well under 1 ms with one on a loaded 2-core machine. The limit is scoped (a ``with`` block or a
+BLAS threads than with one. The limit is scoped (a ``with`` block or a
 decorated function), so a caller's own BLAS settings are restored afterwards.
 """
 
@@ -26,8 +25,8 @@ def on_one_blas_thread(function):
     """Decorator: each call of ``function`` runs on one BLAS thread.
 
     threadpoolctl's own decorator, one per decorated function: it looks the BLAS libraries up
-    once, where building a new limit per call costs about a millisecond (30x more), which
-    functions called once per time step cannot afford.
+    once, where building a new limit per call would look them up on every call, too slow for
+    functions called once per time step.
 
     Examples
     --------

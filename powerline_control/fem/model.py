@@ -496,7 +496,7 @@ class LineModel(_Mesh):
         return self._modes_cache[n_modes]
 
     # One BLAS thread: the eigen-solves are small-matrix work (ARPACK's restarts, eigh of a
-    # few thousand), measured 10x slower with two contending threads.
+    # few thousand), far slower with contending threads.
     @on_one_blas_thread
     def _solve_modes(self, n_modes: int) -> ModalBasis:
         n = self.n_dofs
