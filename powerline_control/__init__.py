@@ -43,7 +43,7 @@ _LAZY_EXPORTS = {
         "Snapshots", "simulate",
     ),
     "fem.damper": (
-        "den_hartog_optimum", "tune_damper",
+        "AtAntinode", "ImpedanceDamper", "damper_impedance", "den_hartog_optimum", "tune_damper",
     ),
     "identify": (
         "AlphaCurve", "DampingReport", "DMDModel", "OnlineDMD", "StabilityReport", "fit_dmd",
@@ -83,10 +83,9 @@ _LAZY_EXPORTS = {
         "MotionPlanner", "MPCStep", "RobotLimits", "Trajectory", "free_interval", "plan_motion",
     ),
     "severity": (
-        "SELF_DAMPING_LAWS", "WIND_POWER_CURVES", "AtAntinode", "CatenaryCheck",
-        "ImpedanceDamper", "RobotValue", "SelfDampingLaw", "SeverityResult", "TimeDomainCheck",
-        "WindDistribution", "WindPowerCurve", "aeolian_severity", "catenary_check",
-        "damper_impedance", "damper_power", "harmonic_mean_position", "loop_length",
+        "SELF_DAMPING_LAWS", "WIND_POWER_CURVES", "CatenaryCheck", "RobotValue",
+        "SelfDampingLaw", "SeverityResult", "TimeDomainCheck", "WindDistribution",
+        "WindPowerCurve", "aeolian_severity", "catenary_check", "damper_power", "harmonic_mean_position", "loop_length",
         "robot_value", "self_damping_power", "standing_wave_shape", "time_domain_check",
         "turbulence_factor", "wind_power",
         # wind records, damage over a record, rainflow counting

@@ -42,7 +42,7 @@ from .._validation import check_real, read_only
 from ..errors import InputError, ModelError
 from ..fem import MDR, LineModel, ModalDamping, RayleighDamping
 from ..line import Span
-from ..severity import damper_impedance
+from ..fem import damper_impedance
 
 # The plant keeps every mode below 8x the load frequency up to this many, else a band of modes.
 SMALL_PLANT_MODES = 48
@@ -439,7 +439,7 @@ def robot_dynamic_stiffness(robot: MDR, omega: float) -> complex:
     """D_r: the robot's force on the line per unit line displacement at omega (body + absorber).
 
     D_r = -i omega Z with Z the robot's mechanical impedance
-    (:func:`~powerline_control.severity.damper_impedance`, the same physics in one place);
+    (:func:`~powerline_control.fem.damper_impedance`, the same physics in one place);
     zero at omega = 0 (every term carries omega^2).
     """
     if omega == 0.0:

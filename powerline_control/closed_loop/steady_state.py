@@ -23,7 +23,7 @@ from .._spectral import load_phasor
 from .._validation import check_array, read_only
 from ..errors import InputError, ModelError
 from ..fem import MDR, LineModel, ModalDamping, RayleighDamping
-from ..severity import damper_impedance
+from ..fem import damper_impedance
 from .plant import robot_dynamic_stiffness
 
 # Modes a ModalDamping line keeps with their damping: those below this multiple of the load
@@ -212,7 +212,7 @@ def parked_steady_state(model: LineModel, force: object, robot: MDR | None,
     Exact for the FE model: the bare dynamic stiffness Z = K - omega^2 M + i omega C is
     factorised once (sparse LU) and each position costs one sparse solve, ``H s_p``, and the
     rank-one update of the module doc, with ``D_r = -i omega Z_r`` the robot's dynamic stiffness
-    (:func:`~powerline_control.severity.damper_impedance`: body mass and absorber). For
+    (:func:`~powerline_control.fem.damper_impedance`: body mass and absorber). For
     ``RayleighDamping`` C = a M + b K exactly. For ``ModalDamping`` (a ratio per mode, not a
     matrix) the modes below twice the load frequency carry their damping and the others are
     undamped (mode acceleration): each of those terms changes by under 2 zeta / 3 relative and

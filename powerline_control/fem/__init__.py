@@ -1,10 +1,13 @@
 """The line's finite-element model: LineModel and its damping (model.py), meshes and element
-matrices (mesh.py), and the robot MDR with the tuning of its absorber (damper.py).
+matrices (mesh.py), the robot MDR, its tuning and the dampers' impedance (damper.py).
 """
 
 # The names imported "as" themselves are not in __all__ but are imported from
 # powerline_control.fem by the package, tests and docs.
 from .damper import MDR, den_hartog_optimum, tune_damper
+from .damper import AtAntinode as AtAntinode  # the dampers' impedance: severity re-exports these
+from .damper import ImpedanceDamper as ImpedanceDamper
+from .damper import damper_impedance as damper_impedance
 from .mesh import BENDING_ERROR_CONSTANT as BENDING_ERROR_CONSTANT
 from .mesh import BOUNDARY_LAYER_REFINEMENT as BOUNDARY_LAYER_REFINEMENT
 from .mesh import DEFAULT_WIND_SPEEDS as DEFAULT_WIND_SPEEDS

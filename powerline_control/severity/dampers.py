@@ -1,11 +1,10 @@
-"""The standing wave (loop length, clamped shape) and dampers on it: measured impedance
-tables, the robot at the antinode, the power a damper takes, the harmonic-mean position."""
+"""The standing wave (loop length, clamped shape) and dampers on it: the power a damper takes,
+the harmonic-mean position; the dampers themselves and their impedance come from fem.damper."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -16,12 +15,11 @@ from .._validation import (
 )
 from ..errors import InputError
 from ..excitation import DEFAULT_STROUHAL
-from ..fem import MDR
+from ..fem import MDR, AtAntinode, ImpedanceDamper, damper_impedance
 from ..line import Span
 from ._common import (
     _check_frequency,
     _check_span,
-    _check_text,
     _check_wind_speeds,
     _finite_power,
 )
@@ -124,161 +122,8 @@ def standing_wave_shape(span: Span, frequency: float, position: np.ndarray | flo
 
 
 # --------------------------------------------------------------------------- dampers
-@dataclass(frozen=True)
-class ImpedanceDamper:
-    """A damper given by its measured mechanical impedance Z(f) = F / v (a Stockbridge damper).
-
-    Z is interpolated linearly (real and imaginary parts) between the tabulated frequencies; it
-    is not extrapolated.
-
-    Parameters
-    ----------
-    position : float
-        Distance from the left support, m.
-    frequencies : sequence of float
-        Ascending frequencies of the table, Hz.
-    impedance : sequence of complex
-        Z at those frequencies, N s/m (Re Z >= 0: a passive damper).
-    label : str
-        Name in tables and figures.
-
-    Examples
-    --------
-    >>> damper = ImpedanceDamper(1.2, [5.0, 50.0], [20.0 + 5j, 40.0 - 5j])
-    >>> complex(damper.impedance_at(27.5))
-    (30+0j)
-    """
-
-    position: float
-    frequencies: tuple
-    impedance: tuple
-    label: str = "damper"
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "position", check_real("position", self.position, low=0.0,
-                                                        low_inclusive=True))
-        f = check_array("frequencies", self.frequencies, ndim=1)
-        z = check_array("impedance", self.impedance, ndim=1, dtype=complex)
-        if f.size < 2 or f.size != z.size or np.any(np.diff(f) <= 0) or f[0] <= 0:
-            raise InputError("The 'frequencies' parameter must be >= 2 ascending positive values, "
-                             "one per 'impedance' value. Got "
-                             f"{f.size} frequencies and {z.size} impedances.")
-        if np.any(z.real < 0):
-            raise InputError("The 'impedance' parameter must have Re Z >= 0 (a passive damper "
-                             f"dissipates). Got min Re Z = {z.real.min():g}.")
-        object.__setattr__(self, "frequencies", tuple(float(v) for v in f))
-        object.__setattr__(self, "impedance", tuple(complex(v) for v in z))
-        _check_text("label", self.label)
-
-    def impedance_at(self, frequency: float) -> complex:
-        """Z at ``frequency`` (Hz), N s/m.
-
-        Parameters
-        ----------
-        frequency : float
-            Inside the tabulated range.
-
-        Returns
-        -------
-        complex
-
-        Examples
-        --------
-        >>> ImpedanceDamper(0.5, [1.0, 2.0], [1.0, 3.0]).impedance_at(1.5)
-        (2+0j)
-        """
-        low, high = self.frequencies[0], self.frequencies[-1]
-        frequency = check_real("frequency", frequency, low=0.0)
-        if not low <= frequency <= high:
-            raise InputError(
-                f"The 'frequency' ({frequency:g} Hz) is outside the impedance table of damper "
-                f"{self.label!r} ({low:g}-{high:g} Hz); extend the table or restrict the wind "
-                "speeds.")
-        z = np.asarray(self.impedance)
-        return complex(np.interp(frequency, self.frequencies, z.real)
-                       + 1j * np.interp(frequency, self.frequencies, z.imag))
-
-
-@dataclass(frozen=True)
-class AtAntinode:
-    """A damper (an :class:`~powerline_control.fem.MDR` or :class:`ImpedanceDamper`) that sits
-    at an antinode at every wind speed: the robot that has reached its target.
-
-    Its own ``position`` is ignored; the placement factor phi^2 is ``factor`` (1 at the
-    antinode; 1/2 is its average over a uniform traverse from a node to an antinode).
-
-    Parameters
-    ----------
-    damper : MDR or ImpedanceDamper
-        The device.
-    label : str
-        Name in tables and figures.
-    factor : float
-        Placement factor phi^2 in [0, 1] (default 1: at the antinode).
-
-    Examples
-    --------
-    >>> from powerline_control import MDR
-    >>> AtAntinode(MDR.tuned(0.0, 5.0, 1.0, frequency=20.0, damping_ratio=0.3)).label
-    'robot at antinode'
-    """
-
-    damper: MDR | ImpedanceDamper
-    label: str = "robot at antinode"
-    factor: float = 1.0
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "factor", check_real("factor", self.factor, low=0.0,
-                                                      low_inclusive=True, high=1.0))
-        if not isinstance(self.damper, MDR | ImpedanceDamper):
-            raise InputError("The 'damper' parameter of AtAntinode must be an MDR or an "
-                             f"ImpedanceDamper. Got {type(self.damper).__name__}.")
-        _check_text("label", self.label)
-
-
-def damper_impedance(damper: MDR | ImpedanceDamper, frequency: float) -> complex:
-    """Mechanical impedance Z = F / v (N s/m) the damper presents to the line at ``frequency``.
-
-    For an MDR the body mass m_r gives i omega m_r (reactive, dissipates nothing) and the
-    suspended mass m_d on spring k and dashpot c gives
-    i omega m_d (k + i omega c) / (k + i omega c - omega^2 m_d), whose real part
-    omega^4 m_d^2 c / |k - omega^2 m_d + i omega c|^2 is what dissipates.
-
-    Parameters
-    ----------
-    damper : MDR or ImpedanceDamper
-        The device.
-    frequency : float
-        Hz (> 0).
-
-    Returns
-    -------
-    complex
-
-    Examples
-    --------
-    >>> from powerline_control import MDR
-    >>> robot = MDR.tuned(1.0, 0.0, 1.0, frequency=20.0, damping_ratio=0.25)
-    >>> round(damper_impedance(robot, 20.0).real, 3)     # omega m_d / (2 zeta) at tuning
-    251.327
-    """
-    if isinstance(damper, AtAntinode):
-        damper = damper.damper
-    frequency = check_real("frequency", frequency, low=0.0)
-    if isinstance(damper, ImpedanceDamper):
-        return damper.impedance_at(frequency)
-    if not isinstance(damper, MDR):
-        raise InputError("The 'damper' parameter must be an MDR, an ImpedanceDamper or an "
-                         f"AtAntinode. Got {type(damper).__name__}.")
-    omega = 2 * math.pi * frequency
-    z = 1j * omega * damper.body_mass
-    if damper.has_absorber:
-        spring = damper.stiffness + 1j * omega * damper.damping
-        z += 1j * omega * damper.suspended_mass * spring \
-            / (spring - omega**2 * damper.suspended_mass)
-    return complex(z)
-
-
+# ImpedanceDamper, AtAntinode and damper_impedance live with the MDR in fem/damper.py (the
+# simulation's plant below severity needs the robot's impedance); severity re-exports them.
 def _label_of(damper: object) -> str:
     if isinstance(damper, ImpedanceDamper | AtAntinode):
         return damper.label
