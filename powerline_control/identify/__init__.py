@@ -1,5 +1,5 @@
 """Identification, data -> model: DMDModel and its stability and damping reports, fit_dmd and its
-ridge routes, alpha selection (select_alpha, AlphaCurve) and OnlineDMD.
+ridge routes, alpha selection (select_alpha, AlphaCurve), OnlineDMD and OscillatorModel.
 
 The paper identifies a discrete-time linear model ``x_{k+1} = A x_k`` of the nodal displacements
 by Dynamic Mode Decomposition, ``A = X' X^+`` (its eq. 11), and stabilises it by Tikhonov
@@ -18,22 +18,27 @@ open:
 * :func:`select_alpha`: the whole alpha curve with its two choices (the smallest stable
   alpha, the best held-out one).
 
+* :class:`OscillatorModel`: the model of a narrowband record, one undamped oscillator per
+  spectral line (built, not fitted; a DMDModel subclass, so every consumer takes it).
+
 Every model keeps :attr:`DMDModel.field_map`, the map from its state to the *current* nodal
 displacements, and exports itself as a discrete :class:`control.StateSpace`.
 
 Modules: :mod:`.model` (DMDModel), :mod:`.stability` (StabilityReport, DampingReport),
 :mod:`.fit` (fit_dmd), :mod:`._ridge` (the ridge solve), :mod:`.alpha` (select_alpha,
-AlphaCurve), :mod:`.online` (OnlineDMD).
+AlphaCurve), :mod:`.online` (OnlineDMD), :mod:`.oscillator` (OscillatorModel).
 """
 
 from .alpha import AlphaCurve, select_alpha
 from .fit import fit_dmd
 from .model import DMDModel
 from .online import OnlineDMD
+from .oscillator import OscillatorModel
 from .stability import DampingReport, StabilityReport
 
 __all__ = [
     "DMDModel",
+    "OscillatorModel",
     "StabilityReport",
     "DampingReport",
     "AlphaCurve",

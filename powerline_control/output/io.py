@@ -9,7 +9,7 @@ before it reads any data:
 
 * the path must be a regular file (not ``/dev/zero``, a FIFO or a directory) of at most
   ``max_bytes`` bytes;
-* the archive may hold only the entries a DMDModel has, each of a declared (uncompressed) size
+* the archive may hold only the entries a DMDModel (or OscillatorModel) has, each of a declared (uncompressed) size
   within ``max_bytes`` (so a zip bomb is refused from its directory, not by running out of
   memory), and no more than the file itself when stored uncompressed;
 * each ``.npy`` header (:func:`numpy.lib.format.read_magic` and ``read_array_header_*``) must
@@ -18,10 +18,17 @@ before it reads any data:
   ``field_map`` the leading rows of ``basis``, the flags ``has_B`` / ``has_basis`` consistent
   with the entries present.
 
+* an OscillatorModel file must also hold its line frequencies, line shapes and unseen
+  directions, and its ``A``, ``field_map``, ``basis`` and ``residual_covariance`` must be those
+  that these build (a forged kind or edited frequency is refused, naming the field).
+
 Anything else is a :class:`~powerline_control.errors.FileFormatError` that says what is wrong.
 Nothing is ever unpickled.
 
-Supported: :class:`~powerline_control.identify.DMDModel`. Measured or simulated records
+Supported: :class:`~powerline_control.identify.DMDModel` (format ``powerline_control.DMDModel``,
+as every earlier release wrote it) and its subclass
+:class:`~powerline_control.identify.OscillatorModel` (format
+``powerline_control.OscillatorModel``: the DMDModel entries plus its own). Measured or simulated records
 (:class:`~powerline_control.output.records.Record`) have their own module, ``records``.
 """
 
@@ -39,7 +46,7 @@ from numpy.lib import format as npy_format
 
 from .._validation import MEMORY_BUDGET_BYTES, check_budget_value, read_only
 from ..errors import FileFormatError, InputError
-from ..identify import DMDModel
+from ..identify import DMDModel, OscillatorModel
 
 __all__ = ["save_model", "load_model"]
 
@@ -47,14 +54,21 @@ _METADATA_KEY = "__metadata__"
 _DMD_FORMAT = "powerline_control.DMDModel"
 _DMD_VERSION = 1
 _DMD_SCALARS = ("dt", "alpha", "alpha_relative", "delays", "rank", "n_nodes", "n_pairs")
+_OSC_FORMAT = "powerline_control.OscillatorModel"
+_OSC_VERSION = 1
+_VERSIONS = {_DMD_FORMAT: _DMD_VERSION, _OSC_FORMAT: _OSC_VERSION}
+_OSC_SCALARS = ("n_lines", "process_noise", "unseen_noise", "radius")
+_OSC_ARRAYS = ("line_frequencies", "line_shapes", "unseen")
 _ARRAYS = ("A", "B", "field_map", "basis", "residual_covariance", "initial_state",
-           "regressor_gram")
+           "regressor_gram") + _OSC_ARRAYS
 #: The JSON metadata is a few hundred bytes; anything beyond this is not ours.
 _METADATA_MAX_BYTES = 1 << 20
 #: save_model stores entries uncompressed; float64 data never deflate by more than this.
 _MAX_COMPRESSION_RATIO = 50
 #: Relative tolerance of the PSD / symmetry / orthonormality checks (round-off of a fit).
 _CONTENT_RTOL = 1e-8
+#: Relative tolerance between an OscillatorModel file's arrays and those its lines rebuild.
+_OSC_RTOL = 1e-8
 
 
 def _dmd_to_arrays(model: DMDModel) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -74,6 +88,9 @@ def _dmd_to_arrays(model: DMDModel) -> tuple[dict[str, np.ndarray], dict[str, An
     metadata["has_B"] = model.B is not None
     metadata["has_basis"] = model.basis is not None
     metadata["has_regressor_gram"] = model.regressor_gram is not None
+    if isinstance(model, OscillatorModel):
+        arrays.update({name: getattr(model, name) for name in _OSC_ARRAYS})
+        metadata.update({name: getattr(model, name) for name in _OSC_SCALARS})
     return arrays, metadata
 
 
@@ -85,7 +102,8 @@ def save_model(path: str | os.PathLike[str], model: DMDModel) -> None:
     path : str or path-like
         Target file; numpy appends ``.npz`` if missing.
     model : DMDModel
-        The model to save.
+        The model to save; an :class:`~powerline_control.identify.OscillatorModel` is written
+        with its kind and its own fields, and loads as one.
 
     Raises
     ------
@@ -112,12 +130,14 @@ def save_model(path: str | os.PathLike[str], model: DMDModel) -> None:
         raise InputError("The 'path' parameter must not be empty: give a file name.")
     if not isinstance(model, DMDModel):
         raise InputError(
-            f"The 'model' parameter must be a DMDModel. Got {type(model).__name__} instead."
+            "The 'model' parameter must be a DMDModel (or an OscillatorModel). Got "
+            f"{type(model).__name__} instead."
         )
     if isinstance(path, str | bytes | os.PathLike):
         _check_writable_target(os.fsdecode(path))
     arrays, metadata = _dmd_to_arrays(model)
-    header = {"format": _DMD_FORMAT, "version": _DMD_VERSION, "fields": metadata}
+    kind = _OSC_FORMAT if isinstance(model, OscillatorModel) else _DMD_FORMAT
+    header = {"format": kind, "version": _VERSIONS[kind], "fields": metadata}
     np.savez(path, **arrays, **{_METADATA_KEY: np.array(json.dumps(header))})
 
 
@@ -265,7 +285,7 @@ def _check_regular_file(name: str, max_bytes: float) -> int:
     return int(info.st_size)
 
 
-def _metadata(archive: _Archive) -> dict[str, Any]:
+def _metadata(archive: _Archive) -> tuple[str, dict[str, Any]]:
     name = archive.name
     if _METADATA_KEY not in archive.entries:
         raise FileFormatError(
@@ -283,26 +303,28 @@ def _metadata(archive: _Archive) -> dict[str, Any]:
         file_format, version, fields = header["format"], header["version"], header["fields"]
     except (json.JSONDecodeError, KeyError, TypeError) as exc:
         raise FileFormatError(f"The metadata of {name!r} is corrupted: {exc}") from exc
-    if file_format != _DMD_FORMAT:
+    if not isinstance(file_format, str) or file_format not in _VERSIONS:
         raise FileFormatError(
-            f"{name!r} holds a {file_format!r}; load_model reads {_DMD_FORMAT!r}."
+            f"{name!r}: its metadata field 'format' is {file_format!r}; load_model reads "
+            f"{_DMD_FORMAT!r} and {_OSC_FORMAT!r}."
         )
-    if version != _DMD_VERSION:
+    if version != _VERSIONS[file_format]:
         raise FileFormatError(
             f"{name!r} has format version {version!r}; this powerline_control reads "
-            f"version {_DMD_VERSION}. Upgrade powerline_control or re-save the model."
+            f"version {_VERSIONS[file_format]} of {file_format!r}. Upgrade powerline_control or "
+            "re-save the model."
         )
     if not isinstance(fields, dict):
         raise FileFormatError(f"{name!r}: DMDModel metadata 'fields' must be a table; the file "
                               f"holds {type(fields).__name__}.")
-    return fields
+    return file_format, fields
 
 
 def _scalar(source: str, fields: dict[str, Any], name: str, kind: type, *,
             low: float | None = None, optional: bool = False) -> Any:
     """A metadata scalar of the right type (bool is no number) and range, or FileFormatError."""
     if name not in fields:
-        raise FileFormatError(f"{source!r}: DMDModel metadata lacks the field {name!r}.")
+        raise FileFormatError(f"{source!r}: the model metadata lacks the field {name!r}.")
     value = fields[name]
     if value is None and optional:
         return None
@@ -315,7 +337,7 @@ def _scalar(source: str, fields: dict[str, Any], name: str, kind: type, *,
         ok = isinstance(value, kind) and not isinstance(value, bool)
     if not ok or (low is not None and value < low):
         bound = "" if low is None else f" >= {low:g}"
-        raise FileFormatError(f"{source!r}: DMDModel metadata field {name!r} must be a "
+        raise FileFormatError(f"{source!r}: the model metadata field {name!r} must be a "
                               f"{kind.__name__}{bound}; the file holds {value!r}. The file is "
                               "corrupted.")
     return kind(value)
@@ -359,7 +381,8 @@ def load_model(path: str | os.PathLike[str], *, max_bytes: float | None = None) 
     Returns
     -------
     DMDModel
-        The saved model, bit for bit.
+        The saved model, bit for bit, of the type saved: an
+        :class:`~powerline_control.identify.OscillatorModel` comes back as one.
 
     Raises
     ------
@@ -394,7 +417,7 @@ def load_model(path: str | os.PathLike[str], *, max_bytes: float | None = None) 
                 )
             handle.seek(0)
             with zipfile.ZipFile(handle) as zf:
-                return _read_dmd(_Archive(name, zf, file_size, max_bytes))
+                return _read_model(_Archive(name, zf, file_size, max_bytes))
     except FileFormatError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError,
@@ -404,9 +427,11 @@ def load_model(path: str | os.PathLike[str], *, max_bytes: float | None = None) 
         ) from exc
 
 
-def _read_dmd(archive: _Archive) -> DMDModel:
+def _read_model(archive: _Archive) -> DMDModel:
+    """The model of a checked archive: a DMDModel, or an OscillatorModel when its kind says so."""
     name = archive.name
-    fields = _metadata(archive)
+    kind, fields = _metadata(archive)
+    oscillator = kind == _OSC_FORMAT
     dt = _scalar(name, fields, "dt", float, low=0.0)
     if dt <= 0:
         raise FileFormatError(
@@ -427,17 +452,26 @@ def _read_dmd(archive: _Archive) -> DMDModel:
             "exists exactly when a rank is set). The file is corrupted."
         )
     n = rank if rank is not None else n_nodes * delays
+    extra: dict[str, Any] = {}
+    if oscillator:
+        extra = _oscillator_scalars(name, fields)
+        _check_oscillator_layout(name, {"delays": delays, "alpha": alpha,
+                                        "alpha_relative": alpha_relative, "has_B": has_B,
+                                        "has_basis": has_basis,
+                                        "has_regressor_gram": has_gram}, n, extra["n_lines"])
     # Every entry must match the flags: nothing missing, nothing extra.
     expected = {"A", "field_map", "residual_covariance", "initial_state"}
     expected |= {"B"} if has_B else set()
     expected |= {"basis"} if has_basis else set()
     expected |= {"regressor_gram"} if has_gram else set()
+    expected |= set(_OSC_ARRAYS) if oscillator else set()
     present = set(archive.entries) - {_METADATA_KEY}
     if present - expected:
-        extra = sorted(present - expected)
+        surplus = sorted(present - expected)
         raise FileFormatError(
-            f"{name!r} holds the array(s) {extra}, which its metadata (has_B={has_B}, "
-            f"has_basis={has_basis}) says it does not have. The file is corrupted."
+            f"{name!r} holds the array(s) {surplus}, which its metadata (format {kind!r}, "
+            f"has_B={has_B}, has_basis={has_basis}) says it does not have. The file is "
+            "corrupted."
         )
     if expected - present:
         raise FileFormatError(
@@ -454,9 +488,11 @@ def _read_dmd(archive: _Archive) -> DMDModel:
                 "metadata. The file is corrupted."
             )
         n_inputs = b_shape[1]
+    r = extra.get("n_lines", 0)
     shapes = {"A": (n, n), "field_map": (n_nodes, n), "residual_covariance": (n, n),
               "initial_state": (n,), "B": (n, n_inputs), "basis": (n_nodes * delays, n),
-              "regressor_gram": (n + n_inputs, n + n_inputs)}
+              "regressor_gram": (n + n_inputs, n + n_inputs), "line_frequencies": (r,),
+              "line_shapes": (n_nodes, r), "unseen": (n_nodes, n - 2 * r)}
     needed = sum(8 * int(np.prod(shapes[key], dtype=np.int64)) for key in expected)
     if needed > archive.max_bytes:
         raise FileFormatError(
@@ -465,7 +501,7 @@ def _read_dmd(archive: _Archive) -> DMDModel:
         )
     arrays = {key: archive.read(key, shapes[key], f8) for key in sorted(expected)}
     _check_contents(name, arrays)
-    return DMDModel(
+    common = dict(
         A=read_only(arrays["A"]),
         B=read_only(arrays["B"]) if has_B else None,
         dt=dt,
@@ -481,3 +517,69 @@ def _read_dmd(archive: _Archive) -> DMDModel:
         initial_state=read_only(arrays["initial_state"]),
         regressor_gram=read_only(arrays["regressor_gram"]) if has_gram else None,
     )
+    if not oscillator:
+        return DMDModel(**common)
+    model = OscillatorModel(**common, **{key: read_only(arrays[key]) for key in _OSC_ARRAYS},
+                            **{key: extra[key] for key in _OSC_SCALARS if key != "n_lines"})
+    _check_oscillator(name, model)
+    return model
+
+
+def _oscillator_scalars(name: str, fields: dict[str, Any]) -> dict[str, Any]:
+    """The OscillatorModel's own metadata fields, each checked."""
+    values = {"n_lines": _scalar(name, fields, "n_lines", int, low=0)}
+    for key in ("process_noise", "unseen_noise", "radius"):
+        values[key] = _scalar(name, fields, key, float, low=0.0)
+    if not 0.0 < values["radius"] <= 1.0:
+        raise FileFormatError(f"{name!r}: the model metadata field 'radius' must be in (0, 1]; "
+                              f"the file holds {values['radius']!r}. The file is corrupted.")
+    return values
+
+
+#: What an OscillatorModel file's DMDModel fields must be (it is built, not fitted).
+_OSC_LAYOUT = {"delays": 2, "alpha": 0.0, "alpha_relative": 0.0, "has_B": False,
+               "has_basis": True, "has_regressor_gram": False}
+
+
+def _check_oscillator_layout(name: str, found: dict[str, Any], n: int, n_lines: int) -> None:
+    """Refuse an OscillatorModel file whose DMDModel fields no oscillator model has."""
+    for key, value in _OSC_LAYOUT.items():
+        if found[key] != value or type(found[key]) is not type(value):
+            raise FileFormatError(
+                f"{name!r}: the model metadata field {key!r} is {found[key]!r}; an "
+                f"OscillatorModel has {value!r}. The file is corrupted or not an OscillatorModel."
+            )
+    if 2 * n_lines > n:
+        raise FileFormatError(
+            f"{name!r}: the model metadata field 'n_lines' is {n_lines}, more than half of its "
+            f"{n} states (two per line). The file is corrupted."
+        )
+
+
+#: Which of an OscillatorModel's own fields build each of its DMDModel arrays.
+_BUILT_FROM = {"A": ("line_frequencies", "line_shapes", "radius"),
+               "field_map": ("line_shapes", "unseen"), "basis": ("line_shapes", "unseen"),
+               "residual_covariance": ("process_noise", "unseen_noise"),
+               "initial_state": ()}
+
+
+def _check_oscillator(name: str, model: OscillatorModel) -> None:
+    """Refuse a file whose arrays are not those its lines build (an edited or forged file)."""
+    try:
+        built = OscillatorModel.from_lines(
+            model.line_frequencies, model.line_shapes, model.dt, n_pairs=model.n_pairs,
+            process_noise=model.process_noise, unseen=model.unseen,
+            unseen_noise=model.unseen_noise, radius=model.radius)
+    except InputError as exc:
+        raise FileFormatError(f"{name!r}: its oscillator fields build no model: {exc}") from exc
+    for key, sources in _BUILT_FROM.items():
+        ours, theirs = np.asarray(getattr(model, key)), np.asarray(getattr(built, key))
+        scale = max(float(np.abs(theirs).max()) if theirs.size else 0.0, np.finfo(float).tiny)
+        # The file's arrays are the bits save_model wrote; rebuilding them on another machine
+        # differs by round-off (amplified by the shapes' conditioning), never by 1e-8.
+        if theirs.size and float(np.abs(ours - theirs).max()) > _OSC_RTOL * scale:
+            made = (f"the one its fields {', '.join(repr(s) for s in sources)} build" if sources
+                    else "zero (an oscillator model starts at rest)")
+            raise FileFormatError(
+                f"{name!r}: array {key!r} is not {made}: the file is corrupted or forged."
+            )

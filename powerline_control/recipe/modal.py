@@ -20,7 +20,7 @@ from ..errors import (
     ExcitationWarning,
     IdentificationError,
 )
-from ..identify import DMDModel
+from ..identify import OscillatorModel
 from .coverage import build_coverage
 from .defaults import _MAX_LINES, _NARROWBAND_RESIDUAL, _STABLE_RADIUS, _UNSEEN_COUNT, _UNSEEN_NOISE
 from .record import _Record
@@ -76,40 +76,17 @@ def _completed_basis(pod: np.ndarray, smooth: np.ndarray, size: int) -> np.ndarr
 
 def _modal_model(frequencies: np.ndarray, shapes: np.ndarray, dt: float, n_pairs: int,
                  process_noise: float, unseen: np.ndarray | None = None,
-                 unseen_noise: float = 0.0) -> DMDModel:
-    """One undamped oscillator per line, as a two-delay model of the line's coordinates.
+                 unseen_noise: float = 0.0) -> OscillatorModel:
+    """One undamped oscillator per line (:class:`~powerline_control.identify.OscillatorModel`).
 
-    State ``[b_k; b_{k-1}]`` with ``b = Qᵀ x`` the coordinates of the field on the
-    orthonormalised line shapes ``Q``; each line's amplitude obeys
-    ``a_{k+1} = 2 rho cos(omega dt) a_k - rho^2 a_{k-1}`` (rho = 1 - 1e-6). Process noise
-    ``process_noise`` (m^2 per step) enters every current coordinate alike: the unknown load of
-    a new run, which the filter then tracks from the sensors.
+    Each line's amplitude obeys ``a_{k+1} = 2 rho cos(omega dt) a_k - rho^2 a_{k-1}`` with the
+    recipe's radius (rho = 1 - 1e-6). Process noise ``process_noise`` (m^2 per step) enters every
+    current coordinate alike: the unknown load of a new run, which the filter then tracks from
+    the sensors.
     """
-    n, r = shapes.shape
-    q, upper = sla.qr(shapes, mode="economic")
-    rho = _STABLE_RADIUS
-    c1 = 2 * rho * np.cos(2 * np.pi * frequencies * dt)
-    inv = sla.solve_triangular(upper, np.eye(r))
-    a11 = upper @ (c1[:, None] * inv)
-    a12 = -(rho**2) * np.eye(r)
-    A = np.block([[a11, a12], [np.eye(r), np.zeros((r, r))]])
-    u = 0 if unseen is None else unseen.shape[1]
-    A = np.block([[A, np.zeros((2 * r, u))], [np.zeros((u, 2 * r + u))]])
-    basis = np.zeros((2 * n, 2 * r + u))
-    basis[:n, :r] = q
-    basis[n:, r:2 * r] = q
-    field_map = np.hstack([q, np.zeros((n, r))] + ([unseen] if u else []))
-    if u:
-        basis[:n, 2 * r:] = unseen
-    cov = np.zeros((2 * r + u, 2 * r + u))
-    cov[:r, :r] = process_noise * np.eye(r)
-    cov[2 * r:, 2 * r:] = unseen_noise * np.eye(u)
-    return DMDModel(
-        A=read_only(A), B=None, dt=dt, alpha=0.0, alpha_relative=0.0, delays=2,
-        rank=2 * r + u, n_nodes=n, field_map=read_only(field_map), basis=read_only(basis),
-        residual_covariance=read_only(cov), n_pairs=n_pairs,
-        initial_state=read_only(np.zeros(2 * r + u)),
-    )
+    return OscillatorModel.from_lines(frequencies, shapes, dt, n_pairs=n_pairs,
+                                      process_noise=process_noise, unseen=unseen,
+                                      unseen_noise=unseen_noise, radius=_STABLE_RADIUS)
 
 
 def _unseen_directions(fields: np.ndarray, smooth: np.ndarray) -> np.ndarray:
