@@ -39,8 +39,8 @@ _LAZY_EXPORTS = {
     "line": (
         "Conductor", "Span", "conductors", "tension_at_temperature",
     ),
-    "simulate": (
-        "Snapshots", "simulate",
+    "simulation": (
+        "ParkedSteadyState", "Snapshots", "parked_steady_state", "simulate",
     ),
     "fem.damper": (
         "AtAntinode", "ImpedanceDamper", "damper_impedance", "den_hartog_optimum", "tune_damper",
@@ -85,7 +85,8 @@ _LAZY_EXPORTS = {
     "severity": (
         "SELF_DAMPING_LAWS", "WIND_POWER_CURVES", "CatenaryCheck", "RobotValue",
         "SelfDampingLaw", "SeverityResult", "TimeDomainCheck", "WindDistribution",
-        "WindPowerCurve", "aeolian_severity", "catenary_check", "damper_power", "harmonic_mean_position", "loop_length",
+        "WindPowerCurve", "aeolian_severity", "catenary_check", "damper_power",
+        "harmonic_mean_position", "loop_length",
         "robot_value", "self_damping_power", "standing_wave_shape", "time_domain_check",
         "turbulence_factor", "wind_power",
         # wind records, damage over a record, rainflow counting
@@ -95,8 +96,7 @@ _LAZY_EXPORTS = {
         "STRANDINGS", "FotiMartinelli", "StrandLayer", "StrandedBending", "stranded_bending",
     ),
     "closed_loop": (
-        "Choice", "ClosedLoopResult", "ParkedSteadyState", "choose_parked_position",
-        "parked_steady_state", "run_closed_loop",
+        "Choice", "ClosedLoopResult", "choose_parked_position", "run_closed_loop",
     ),
     "studies": (
         "StudyResult", "parameter_grid", "point_seed", "run_study",

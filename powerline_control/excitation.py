@@ -3,7 +3,7 @@
 Every load is separable, ``F(x, t) = spatial(x) * values(t)``: :meth:`load_vector` gives the
 consistent FE load vector of the spatial part on a :class:`~powerline_control.fem.LineModel`,
 :meth:`values` the time history in newtons (or N/m for distributed loads). ``frequency`` (Hz) is set
-for harmonic loads, which :func:`~powerline_control.simulate.simulate` then integrates exactly.
+for harmonic loads, which :func:`~powerline_control.simulation.simulate` then integrates exactly.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import powerline_control as plc
 PACKAGE = pathlib.Path(plc.__file__).parent
 
 # design.md section 2: a module may import only modules above it. Leaf utilities are free.
-ORDER = ["line", "fem", "excitation", "simulate", "identify", "riccati", "estimate", "sensors",
+ORDER = ["line", "fem", "excitation", "simulation", "identify", "riccati", "estimate", "sensors",
          "recipe", "antinode", "plan", "severity", "closed_loop", "studies"]
 # Shared helpers every stage may use: validation, errors, tones and phasors, constants, threads.
 LEAVES = {"errors", "_validation", "_spectral", "_constants", "_threads"}

@@ -13,9 +13,9 @@ from threadpoolctl import threadpool_limits
 
 import powerline_control as plc
 from powerline_control.closed_loop import run_closed_loop
-from powerline_control.closed_loop.plant import ModalPlant as _ModalPlant
 from powerline_control.closed_loop.policy import reach_within as _reach
 from powerline_control.fem import tune_damper
+from powerline_control.simulation.plant import ModalPlant as _ModalPlant
 
 LAB = plc.Span.paper_lab()
 N_EL = 60
@@ -572,7 +572,7 @@ def test_band_plant_field_of_a_long_span_matches_the_modal_sum():
     # flexibility 1 / omega_k^2 (a static-sag-shaped field ~100x the true vibration). Truth: the
     # closed-form steady state of the pinned taut beam, 3000 modes sin(n pi x / L) of modal mass
     # m L / 2, mass-proportional damping C = a M (the same i a omega in every mode).
-    from powerline_control.closed_loop import plant as cl
+    from powerline_control.simulation import plant as cl
 
     span = plc.Span.at_rts_fraction(100.0, "drake", 0.20)
     a, f0, freq, x_f = 0.4, 1.5, 15.2, 31.7

@@ -12,7 +12,7 @@ import scipy.linalg
 from threadpoolctl import threadpool_limits
 
 import powerline_control as plc
-from powerline_control.closed_loop import plant as cl
+from powerline_control.simulation import plant as cl
 
 
 def _case(span, bare, robot, force, positions, dt):

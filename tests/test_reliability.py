@@ -373,7 +373,7 @@ BAD_INPUT = [
      "wind_speed"),
     ("strouhal_frequency.diameter=0", lambda s: plc.strouhal_frequency(3.0, 0.0), I,
      "diameter"),
-    # simulate.py
+    # simulation/snapshots.py (plc.simulate)
     ("simulate.model=str", lambda s: plc.simulate("model"), I, "model"),
     ("simulate.duration<0", lambda s: plc.simulate(s["model"], duration=-1.0), I, "duration"),
     ("simulate.dt=0", lambda s: plc.simulate(s["model"], dt=0.0), I, "dt"),

@@ -31,7 +31,7 @@ EXAMPLES = ROOT / "examples"
 # Data-flow order of the modules (tests/test_architecture.py's ORDER, errors first); a module not
 # listed here still gets a section, after these, so that a new module is never silently dropped.
 MODULE_ORDER = [
-    "errors", "line", "fem", "excitation", "simulate", "identify", "riccati", "estimate",
+    "errors", "line", "fem", "excitation", "simulation", "identify", "riccati", "estimate",
     "sensors", "recipe", "antinode", "plan", "severity", "closed_loop", "studies", "output",
     "scenario", "cli",
 ]

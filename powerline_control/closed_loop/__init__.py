@@ -3,10 +3,10 @@
 It calls the stages above it (estimator recipe, planner, the line's modes) and copies none.
 """
 
+from ..simulation import ParkedSteadyState, parked_steady_state
 from .loop import run_closed_loop
 from .policy import Choice, choose_parked_position
 from .result import ClosedLoopResult, Comparison
-from .steady_state import ParkedSteadyState, parked_steady_state
 
 __all__ = ["Choice", "ClosedLoopResult", "Comparison", "ParkedSteadyState",
            "choose_parked_position", "parked_steady_state", "run_closed_loop"]

@@ -10,10 +10,10 @@ import numpy as np
 from .._validation import read_only
 from ..errors import ModelError
 from ..fem import MDR
-from .plant import ModalPlant, damper_power, nodal_field, run_parked
+from ..simulation import ParkedSteadyState, parked_steady_state
+from ..simulation.plant import ModalPlant, damper_power, nodal_field, run_parked
 from .policy import reach_within
 from .result import Comparison
-from .steady_state import ParkedSteadyState, parked_steady_state
 
 
 def arrival_index(position: np.ndarray, start: int, tolerance: float) -> int | None:

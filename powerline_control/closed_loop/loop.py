@@ -24,9 +24,7 @@ from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
 from ..recipe import design_estimator
-from .evaluation import all_comparisons, settling_of
-from .motion import Motion
-from .plant import (
+from ..simulation.plant import (
     SMALL_PLANT_MODES,
     ModalPlant,
     damper_power,
@@ -36,6 +34,8 @@ from .plant import (
     nodal_field,
     run_parked,
 )
+from .evaluation import all_comparisons, settling_of
+from .motion import Motion
 from .policy import (
     MIN_GAIN,
     TRAVEL_FRACTION,

@@ -25,7 +25,7 @@ from .._validation import check_array, check_real, read_only
 from ..errors import InputError
 from ..fem import MDR, LineModel
 from ..plan import RobotLimits, free_interval
-from .plant import ModalPlant, default_modes, robot_dynamic_stiffness
+from ..simulation.plant import ModalPlant, default_modes, robot_dynamic_stiffness
 
 # The policy: a window whose two halves give excited shapes differing by more than this (relative)
 # still beats with a decaying mode; wait up to MAX_WAIT s for a steady one. At most MAX_CHOICES

@@ -381,7 +381,7 @@ class _Mesh:
     def check_resolution(self, frequency: float, what: str = "load") -> bool:
         """Warn (TruncationWarning) when the mesh does not resolve ``frequency``; return resolves.
 
-        For the CLI and :func:`~powerline_control.simulate.simulate`: the message names the
+        For the CLI and :func:`~powerline_control.simulation.simulate`: the message names the
         frequency, the loop length, the element length and the element count that would work.
 
         Examples

@@ -379,7 +379,7 @@ class LineModel(_Mesh):
         """(K - omega^2 M)^-1 load over the free DOFs, by a cached sparse LU factorisation.
 
         ``frequency`` 0 gives the static deflection K^-1 load (the mode-acceleration correction
-        of :func:`~powerline_control.simulate.simulate` uses both).
+        of :func:`~powerline_control.simulation.simulate` uses both).
 
         Examples
         --------

@@ -15,7 +15,7 @@ with defaults measured to generalise (``docs/identification.md``, "The estimator
    node outputs (Kalman criterion, supports and other motionless nodes excluded).
 4. **Filter**: a steady-state :class:`~powerline_control.estimate.KalmanFilter` on the measured
    rows only, ``Q`` = the model's residual covariance, ``R`` = the sensor noise variance (given,
-   taken from :class:`~powerline_control.simulate.Snapshots`, or estimated from the data).
+   taken from :class:`~powerline_control.simulation.Snapshots`, or estimated from the data).
 
 A *narrowband* record (a harmonic load alone: the forced response plus the free transients of an
 undamped span, a sum of spectral lines down to the noise) replaces step 2: its lines are found in
@@ -89,7 +89,7 @@ def design_estimator(
     Parameters
     ----------
     snapshots : Snapshots or array_like, shape (n_nodes, n_samples)
-        Training record of every node (e.g. :func:`~powerline_control.simulate.simulate`'s
+        Training record of every node (e.g. :func:`~powerline_control.simulation.simulate`'s
         result, or measured displacements with ``dt``).
     n_sensors : int, default 5
         Number of sensors to choose (ignored when ``sensors`` is given).

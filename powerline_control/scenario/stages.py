@@ -54,7 +54,7 @@ def _model(scenario: Scenario) -> dict:
 
 def _records(scenario: Scenario, model, force, record=None) -> Records:
     from ..excitation import RandomForce
-    from ..simulate import simulate
+    from ..simulation import simulate
 
     sim, ident = scenario.simulation, scenario.identification
     start = time.perf_counter()

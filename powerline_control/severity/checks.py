@@ -19,7 +19,7 @@ from ..errors import InputError
 from ..excitation import DEFAULT_STROUHAL, AeolianForce
 from ..fem import DENSE_EIGEN_LIMIT, MDR, LineModel, ModalDamping
 from ..line import Span
-from ..simulate import simulate
+from ..simulation import simulate
 from ._common import AIR_DENSITY, GRAVITY, MAX_WIND_SPEED, _check_span
 from .balance import _check_dampers, aeolian_severity
 
@@ -92,7 +92,7 @@ class TimeDomainCheck:
 def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str = "clamped",
                       damper: MDR | None = None, settle: float = 8.0,
                       samples_per_period: int = 16, **severity_options) -> TimeDomainCheck:
-    """Check the EBM amplitude against a :func:`~powerline_control.simulate.simulate` run.
+    """Check the EBM amplitude against a :func:`~powerline_control.simulation.simulate` run.
 
     The wind speed is moved to the one whose Strouhal frequency equals the nearest natural
     frequency of the FE model (lock-in: with a ``damper`` the frequency of the coupled, damped

@@ -26,9 +26,9 @@ import numpy as np
 import scipy.linalg
 import scipy.signal
 
-from ._spectral import load_phasor
-from ._threads import on_one_blas_thread
-from ._validation import (
+from .._spectral import load_phasor
+from .._threads import on_one_blas_thread
+from .._validation import (
     check_array,
     check_budget,
     check_budget_value,
@@ -37,9 +37,9 @@ from ._validation import (
     check_rng,
     read_only,
 )
-from .errors import InputError, ModelError, TruncationWarning
-from .excitation import BoundAeolianForce, HarmonicForce, RandomForce
-from .fem import LineModel
+from ..errors import InputError, ModelError, TruncationWarning
+from ..excitation import BoundAeolianForce, HarmonicForce, RandomForce
+from ..fem import LineModel
 
 __all__ = ["Snapshots", "simulate"]
 

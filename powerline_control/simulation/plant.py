@@ -40,9 +40,8 @@ import scipy.sparse
 from .._spectral import load_phasor
 from .._validation import check_real, read_only
 from ..errors import InputError, ModelError
-from ..fem import MDR, LineModel, ModalDamping, RayleighDamping
+from ..fem import MDR, LineModel, ModalDamping, RayleighDamping, damper_impedance
 from ..line import Span
-from ..fem import damper_impedance
 
 # The plant keeps every mode below 8x the load frequency up to this many, else a band of modes.
 SMALL_PLANT_MODES = 48

@@ -22,8 +22,7 @@ import scipy.sparse.linalg as spla
 from .._spectral import load_phasor
 from .._validation import check_array, read_only
 from ..errors import InputError, ModelError
-from ..fem import MDR, LineModel, ModalDamping, RayleighDamping
-from ..fem import damper_impedance
+from ..fem import MDR, LineModel, ModalDamping, RayleighDamping, damper_impedance
 from .plant import robot_dynamic_stiffness
 
 # Modes a ModalDamping line keeps with their damping: those below this multiple of the load
