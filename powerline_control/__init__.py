@@ -132,29 +132,43 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_MODULE_OF))
 
 
-class _Package(_ModuleType):
-    """The package object, guarding public names that share their module's name.
+def _old_simulate_path() -> _ModuleType:
+    """``powerline_control.simulate``, the module path of ``simulate`` before ``simulation/``.
 
-    Importing a submodule makes the import system bind it as an attribute of its package, so the
-    first ``from .simulate import ...`` anywhere would replace the function ``plc.simulate`` by the
-    module ``powerline_control.simulate``. The eager imports this package once had rebound the
-    function afterwards; lazily, this guard keeps the public function instead.
+    It warns and forwards for one release, as the other old paths do, but it is no file: a real
+    submodule ``simulate`` would be bound on the package on import (the import system sets it as
+    an attribute of its parent), over the function ``plc.simulate``. Found in ``sys.modules``,
+    this object is returned by ``import`` and never bound on the package. Its names resolve on
+    first use, each with the DeprecationWarning (``from powerline_control.simulate import x``).
     """
+    name = f"{__name__}.simulate"
+    shim = _ModuleType(name, "Deprecated path: import from powerline_control.simulation.")
+    shim.__all__ = ["Snapshots", "simulate"]
 
-    def __setattr__(self, name: str, value: object) -> None:
-        if isinstance(value, _ModuleType) and name in _MODULE_OF:
-            return  # the module stays reachable as sys.modules["powerline_control.<name>"]
-        super().__setattr__(name, value)
-
-    def __reduce__(self):
-        # Pickle by name, as modules are: cloudpickle (Dask) pickles a script's functions by
-        # value with their globals, and `plc` is one of them.
+    def __getattr__(attribute: str):
         import importlib
+        import warnings
 
-        return importlib.import_module, (self.__name__,)
+        if attribute.startswith("__"):  # import machinery and tools probe dunders: no warning
+            raise AttributeError(f"module {name!r} has no attribute {attribute!r}")
+        home = importlib.import_module(".simulation", __name__)
+        if attribute.startswith("_"):  # the old module's private helpers live in snapshots.py
+            home = importlib.import_module(".simulation.snapshots", __name__)
+        try:
+            value = getattr(home, attribute)
+        except AttributeError:
+            raise AttributeError(f"module {name!r} has no attribute {attribute!r}") from None
+        warnings.warn("powerline_control.simulate is deprecated; import from "
+                      "powerline_control.simulation", DeprecationWarning, stacklevel=2)
+        setattr(shim, attribute, value)  # warn once per name, as an import warns once
+        return value
+
+    shim.__getattr__ = __getattr__
+    shim.__dir__ = lambda: sorted(shim.__all__)
+    return shim
 
 
-_sys.modules[__name__].__class__ = _Package
+_sys.modules.setdefault(f"{__name__}.simulate", _old_simulate_path())
 
 
 __all__ = [
