@@ -21,7 +21,7 @@ from ..errors import (
     InputError,
 )
 from ..estimate import KalmanFilter
-from ..identify import DMDModel
+from ..identify import DMDModel, OscillatorModel
 from .coverage import Coverage
 from .defaults import _NARROWBAND_OCCUPANCY, _Q_FLOOR_FRACTION
 from .record import _check_noise_std
@@ -68,7 +68,9 @@ class EstimatorDesign:
     Attributes
     ----------
     model : DMDModel
-        The identified reduced model (state: POD coordinates of the delay window).
+        The identified reduced model (state: POD coordinates of the delay window), or for a
+        narrowband record an :class:`~powerline_control.identify.OscillatorModel` (one
+        undamped oscillator per spectral line; a DMDModel subclass).
     sensors : ndarray of int
         Measured node indices (rows of the training snapshots), ascending; read-only.
     filter : KalmanFilter
@@ -217,15 +219,15 @@ class EstimatorDesign:
         report = m.stability_report(warn=False)
         head = (f"Estimator for {m.n_nodes} nodes from {self.sensors.size} sensors "
                 f"(nodes {self.sensors.tolist()}).")
-        if self.excitation is not None and self.excitation.method == "modal":
+        if isinstance(m, OscillatorModel):
+            # The model's type says what it is (its alpha and delays are not a DMD fit's).
             lines = [
                 head,
-                f"Model: one undamped oscillator per spectral line of the record "
-                f"({self.excitation.n_lines} lines, {2 * self.excitation.n_lines} states) and "
-                f"{m.n_states - 2 * self.excitation.n_lines} white states for smooth directions "
-                f"the record never excited; shapes in {self.spatial_rank} spatial directions "
-                f"(POD completed with smooth fields), trained on {self.n_train} samples at "
-                f"dt = {m.dt:g} s; no alpha.",
+                f"Model: {m.describe()}, one undamped oscillator per spectral line of the "
+                f"record ({m.n_lines} lines, {2 * m.n_lines} states) and {m.n_unseen} white "
+                f"states for smooth directions the record never excited; shapes in "
+                f"{self.spatial_rank} spatial directions (POD completed with smooth fields), "
+                f"trained on {self.n_train} samples at dt = {m.dt:g} s; no alpha.",
                 self.excitation.message,
                 f"Sensor noise std {self.noise_std:.3g} m ({self.noise_source}).",
             ]

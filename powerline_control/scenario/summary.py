@@ -137,12 +137,13 @@ def _records_section(r) -> dict:
 
 
 def _recipe_text(design) -> str:
+    from ..identify import OscillatorModel
+
     m = design.model
-    excitation = getattr(design, "excitation", None)
-    if excitation is not None and getattr(excitation, "method", "") == "modal":
-        return (f"one undamped oscillator per spectral line of the record "
-                f"({excitation.n_lines} lines) plus white states for unexcited directions; "
-                f"{m.n_states} states in all, trained on {design.n_train} samples")
+    if isinstance(m, OscillatorModel):  # its type, not its alpha or delays, says what it is
+        return (f"{m.describe()}, one undamped oscillator per spectral line of the record, "
+                f"plus {m.n_unseen} white states for unexcited directions; {m.n_states} states "
+                f"in all, trained on {design.n_train} samples")
     return (f"time-delay DMD, {m.delays} delays ({m.delays * m.dt * 1e3:.3g} ms of history), "
             f"{m.n_states} states, Tikhonov alpha {m.alpha_relative:.3g} relative (chosen on "
             f"held-out data), trained on {design.n_train} samples")
@@ -608,6 +609,16 @@ def _f(value) -> float:
     return float(value)
 
 
+def _model_kind(model) -> dict:
+    """The JSON keys that say which model was built: its kind, and an oscillator's lines."""
+    from ..identify import OscillatorModel
+
+    if isinstance(model, OscillatorModel):
+        return {"model_kind": "oscillator",
+                "line_frequencies_hz": [_f(f) for f in model.line_frequencies]}
+    return {"model_kind": "dmd"}
+
+
 def result_json(result) -> dict:
     """The JSON summary of a :class:`ScenarioResult`: units in the keys and a units table.
 
@@ -654,7 +665,8 @@ def result_json(result) -> dict:
                    delays=int(d.model.delays), n_states=int(d.model.n_states),
                    filter_noise_std_m=_f(d.noise_std),
                    sensor_nodes=[int(i) for i in d.sensors],
-                   sensor_positions_m=[_f(x[int(i)]) for i in d.sensors])
+                   sensor_positions_m=[_f(x[int(i)]) for i in d.sensors],
+                   **_model_kind(d.model))
         rm = r.identification.record_model
         if rm is not None:
             out["record_model"] = {"spectral_radius": _f(rm.spectral_radius),
