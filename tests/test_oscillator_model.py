@@ -290,3 +290,18 @@ def test_the_filter_estimates_exactly_as_with_the_dmd_typed_model(narrowband, mo
     np.testing.assert_allclose(ours.variances, theirs.variances, rtol=0, atol=1e-12)
     np.testing.assert_allclose(design.estimate_field(y), before.estimate_field(y), rtol=0,
                                atol=1e-12)
+
+
+def test_scenario_text_and_json_read_the_model_type(narrowband):
+    from powerline_control.scenario.summary import _model_kind, _recipe_text
+
+    train, _ = narrowband
+    design = _design(train)
+    text = _recipe_text(design)
+    assert text.startswith(design.model.describe()) and "alpha" not in text
+    kind = _model_kind(design.model)
+    assert kind["model_kind"] == "oscillator"
+    np.testing.assert_array_equal(kind["line_frequencies_hz"], design.model.line_frequencies)
+    dmd = plc.fit_dmd(np.random.default_rng(0).standard_normal((3, 60)), 0.01, alpha=0.1)
+    assert _model_kind(dmd) == {"model_kind": "dmd"}
+    assert "Tikhonov alpha" in _recipe_text(dataclasses.replace(design, model=dmd))
