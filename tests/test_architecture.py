@@ -24,7 +24,10 @@ ANYTHING_GOES = {"output", "scenario", "cli", "__init__", "__main__"}
 # Old module paths that moved into a subpackage: each warns and re-exports for one release.
 DEPRECATED_PATHS = {"tuning": "fem", "observability": "estimate", "io": "output.io",
                     "plotting": "output.plotting", "report": "output.report",
-                    "config": "scenario"}
+                    "config": "scenario", "simulate": "simulation"}
+# Old paths that are no file but a module object the package puts in sys.modules: a file would
+# be bound on the package over the public function of the same name (plc.simulate).
+FILELESS_PATHS = {"simulate"}
 MAX_LINES = 800
 
 
@@ -119,16 +122,57 @@ def test_old_module_paths_warn_and_keep_their_names(old, new):
     import sys
     import warnings
 
-    sys.modules.pop(f"powerline_control.{old}", None)
+    if old not in FILELESS_PATHS:  # a file warns when it runs; the others when a name is used
+        sys.modules.pop(f"powerline_control.{old}", None)
+    home = importlib.import_module(f"powerline_control.{new}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         module = importlib.import_module(f"powerline_control.{old}")
+        same = {name: getattr(module, name) is getattr(home, name)
+                for name in getattr(home, "__all__", [])}
     messages = [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)]
     assert f"powerline_control.{old} is deprecated; import from powerline_control.{new}" \
         in messages
-    home = importlib.import_module(f"powerline_control.{new}")
-    for name in getattr(home, "__all__", []):
-        assert getattr(module, name) is getattr(home, name)
+    assert all(same.values()), same
+
+
+def test_the_package_is_a_plain_module():
+    """No class swap guards the public names: no module file carries a public name."""
+    import types
+
+    assert type(plc) is types.ModuleType
+    shadowing = sorted(path.name for path in PACKAGE.iterdir()
+                       if path.name.removesuffix(".py") in set(plc.__all__))
+    assert not shadowing, f"modules named after public names of the package: {shadowing}"
+
+
+def test_the_old_simulate_path_warns_once_and_never_replaces_the_function():
+    import subprocess
+    import sys
+
+    script = """
+import warnings
+import powerline_control as plc
+function = plc.simulate
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    from powerline_control.simulate import Snapshots
+    from powerline_control.simulate import Snapshots as again
+    import powerline_control.simulate
+    import powerline_control.simulation
+    import powerline_control.simulation.snapshots
+assert Snapshots is again is plc.Snapshots is powerline_control.simulation.Snapshots
+assert plc.simulate is function and callable(plc.simulate), plc.simulate
+from powerline_control import simulate
+assert simulate is function
+print(len(caught), caught[0].message)
+"""
+    # a fresh interpreter: this one has imported the package's modules in some order already
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=120, check=False)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == ("1 powerline_control.simulate is deprecated; import from "
+                                     "powerline_control.simulation")
 
 
 def _public_objects():
