@@ -6,12 +6,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._constants import GRAVITY  # standard gravity, one value for the package
 from .._validation import check_budget, check_indices, check_int, check_real
 from ..errors import InputError
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
-from ..severity import GRAVITY  # standard gravity, one value for the package
 
 # A robot heavier than this fraction of the span's own mass is no longer a small attachment: the
 # slowly-varying-parameter plant and the single-mode tuning are not credible beyond it.
