@@ -272,7 +272,7 @@ class OscillatorModel(DMDModel):
         Oscillator model, 1 line at 5 Hz: one undamped oscillator per spectral line (eigenvalues
         at radius 1 - 1e-06), 0 white states for directions the lines leave out; 2 states,
         2 nodes, dt = 0.01 s, process noise 1e-08 m^2 per step on each line. Built from the
-        record's lines, not fitted by DMD: no Tikhonov alpha, no delay embedding.
+        record's spectral lines, not fitted.
         """
         text = self.describe()
         return (f"{text[0].upper()}{text[1:]}: one undamped oscillator per spectral line "
@@ -280,7 +280,7 @@ class OscillatorModel(DMDModel):
                 f"states for directions the lines leave out; {self.n_states} states, "
                 f"{self.n_nodes} nodes, dt = {self.dt:g} s, process noise "
                 f"{self.process_noise:.3g} m^2 per step on each line. Built from the record's "
-                "lines, not fitted by DMD: no Tikhonov alpha, no delay embedding.")
+                "spectral lines, not fitted.")
 
     def __repr__(self) -> str:
         return (f"OscillatorModel({self.describe()}; {self.n_states} states, {self.n_nodes} "
@@ -310,13 +310,13 @@ class OscillatorModel(DMDModel):
         >>> print(m.stability_report().message)  # doctest: +NORMALIZE_WHITESPACE
         Stable oscillator model, 1 line at 5 Hz: its 2 line eigenvalues lie on the circle of
         radius 1 - 1e-06 (undamped lines held just inside the unit circle, so that the filter's
-        Riccati equation has a solution) and its 0 white states at 0; no Tikhonov alpha.
+        Riccati equation has a solution) and its 0 white states at 0.
         """
         rho, unstable = self.spectral_radius, self.n_unstable
         message = (f"its {2 * self.n_lines} line eigenvalues lie on the circle of radius "
                    f"1 - {1.0 - self.radius:.3g} (undamped lines held just inside the unit "
                    "circle, so that the filter's Riccati equation has a solution) and its "
-                   f"{self.n_unseen} white states at 0; no Tikhonov alpha.")
+                   f"{self.n_unseen} white states at 0.")
         if unstable == 0:
             message = f"Stable {self.describe()}: {message}"
         else:
