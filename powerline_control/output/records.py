@@ -16,7 +16,7 @@ import zipfile
 import numpy as np
 
 from .._validation import check_array, check_real, read_only
-from ..errors import InputError
+from ..errors import FileFormatError, InputError
 from .io import _METADATA_KEY, _check_writable_target
 
 __all__ = ["Record", "save_record", "load_record"]
@@ -56,6 +56,9 @@ class Record:
         Sample interval, s.
     n_missing : int
         Number of NaN samples.
+    support_positions : tuple of float
+        Channels dropped because they sat on a support (:meth:`without_supports`), m; empty
+        for a record as read.
 
     Examples
     --------
@@ -78,7 +81,7 @@ class Record:
             if truth is not None:
                 truth = check_array("truth", truth, shape=values.shape)
         except InputError as error:
-            raise InputError(f"{where}{error}") from None
+            raise InputError(f"{where}{_infinite(positions, values) or error}") from None
         if t.size < 2:
             raise InputError(f"{where}the 't' parameter (the time column) must hold at least 2 "
                              f"times, s; got {t.size}.")
@@ -100,13 +103,14 @@ class Record:
         self.dt = dt
         self.source = source
         self.n_missing = int(np.isnan(values).sum())
+        self.support_positions: tuple = ()
 
     def __repr__(self) -> str:
         return (f"Record({self.values.shape[0]} channels, {self.t.size} samples at "
                 f"dt = {self.dt:g} s, {self.n_missing} missing, from {self.source})")
 
     def check_span(self, length: float) -> None:
-        """Refuse channels outside the span (0 < x < length).
+        """Refuse channels on a support (x = 0 or length) or outside the span (0 < x < length).
 
         Parameters
         ----------
@@ -121,14 +125,89 @@ class Record:
         powerline_control.errors.InputError: f.csv: channel x_5_m at 5 m lies outside the \
 span (0 < x < 3.66 m).
         """
-        for x in self.positions:
+        on_support = self._on_support(length)
+        for x, support in zip(self.positions, on_support, strict=True):
+            if support:
+                raise InputError(f"{self.source}: channel {_column(x)} at {x:g} m sits on a "
+                                 f"support (x = 0 or {length:g} m), where the line does not "
+                                 "move: it carries no information about the span. Drop it "
+                                 "(Record.without_supports does).")
             if not 0.0 < x < length:
                 raise InputError(f"{self.source}: channel {_column(x)} at {x:g} m lies outside "
                                  f"the span (0 < x < {length:g} m).")
 
+    def _on_support(self, length: float) -> np.ndarray:
+        # "On a support" to round-off of the written position (a CSV column name keeps 10
+        # significant digits, so 1e-9 of the span is far below any sensor's size).
+        tol = 1e-9 * float(length)
+        x = np.asarray(self.positions)
+        return (np.abs(x) <= tol) | (np.abs(x - float(length)) <= tol)
+
+    def without_supports(self, length: float) -> Record:
+        """The record without the channels that sit on a support (x = 0 or x = length).
+
+        Both supports (pinned and clamped) hold the line still, so a channel there measures
+        only its sensor's noise: it carries no information and must not become a sensor. A
+        record of every node (``powerline-control simulate --out``) has two such channels.
+
+        Parameters
+        ----------
+        length : float
+            Span length, m.
+
+        Returns
+        -------
+        Record
+            The other channels (this record itself when none sits on a support); its
+            ``support_positions`` lists the channels dropped, m.
+
+        Raises
+        ------
+        InputError
+            Every channel sits on a support.
+
+        Examples
+        --------
+        >>> rec = Record([0.0, 1.0], [0.0, 1.5, 3.66], [[0.0, 0.0], [1e-3, 2e-3], [0.0, 0.0]])
+        >>> kept = rec.without_supports(3.66)
+        >>> kept.positions.tolist(), kept.support_positions
+        ([1.5], (0.0, 3.66))
+        """
+        on_support = self._on_support(length)
+        if not on_support.any():
+            return self
+        if on_support.all():
+            raise InputError(f"{self.source}: every channel ("
+                             + ", ".join(_column(x) for x in self.positions)
+                             + f") sits on a support (x = 0 or {float(length):g} m), where the "
+                             "line does not move; a record needs a channel inside the span.")
+        keep = ~on_support
+        kept = Record(self.t, self.positions[keep], self.values[keep], self.source,
+                      None if self.truth is None else self.truth[keep])
+        kept.support_positions = tuple(float(x) for x in self.positions[on_support])
+        return kept
+
 
 def _column(x: float) -> str:
     return f"x_{x:.10g}_m"
+
+
+def _infinite(positions, values) -> str | None:
+    """'column x_.._m holds an infinite value at sample k ...' when ``values`` holds inf."""
+    try:
+        x = np.atleast_1d(np.asarray(positions, dtype=float))
+        v = np.asarray(values, dtype=float)
+        v = v[None, :] if v.ndim == 1 else v
+    except (TypeError, ValueError):
+        return None
+    if v.ndim != 2 or not np.isinf(v).any():
+        return None
+    channels, samples = np.nonzero(np.isinf(v))
+    i, k = int(channels[0]), int(samples[0])
+    column = _column(float(x[i])) if x.shape == (v.shape[0],) else f"channel {i}"
+    return (f"column {column} holds {int(np.isinf(v).sum())} infinite value(s), the first at "
+            f"sample {k} ({v[i, k]!r}); a displacement must be finite (mark a missing sample "
+            "with NaN, an empty CSV cell).")
 
 
 def save_record(path: str | os.PathLike[str], record: Record) -> list:
@@ -184,7 +263,9 @@ def save_record(path: str | os.PathLike[str], record: Record) -> list:
     np.savez(npz, **arrays, **{_METADATA_KEY: np.array(json.dumps(header))})
     columns = ["time_s", *(_column(x) for x in record.positions)]
     with open(csv, "w", encoding="utf-8") as handle:
-        handle.write(f"# sample_rate_hz = {1.0 / record.dt!r}\n")
+        # 10 significant digits: 1 / dt carries the round-off of the time column's steps
+        # (999.9999999999991 for dt = 1e-3); the reader checks the rate to 1e-6 anyway.
+        handle.write(f"# sample_rate_hz = {1.0 / record.dt:.10g}\n")
         handle.write(",".join(columns) + "\n")
         for k in range(record.t.size):
             cells = [repr(float(record.t[k]))] + [
@@ -221,8 +302,11 @@ def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = Non
     Raises
     ------
     InputError
-        An unreadable, binary or oversized file, a column that is not numeric (named, with its
-        line), a time column that is not uniform or disagrees with ``sample_rate``.
+        An unreadable, binary or oversized file, a column that is not numeric or holds an
+        infinite value (named, with its line), a time column that is not uniform or disagrees
+        with ``sample_rate``.
+    FileFormatError
+        A ``.npz`` name on a file that is not a zip archive.
 
     Examples
     --------
@@ -263,6 +347,11 @@ def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = Non
 
 
 def _load_record_npz(name: str) -> Record:
+    # Refused before numpy reads it: np.load takes a file that is not a zip archive for a
+    # pickle and answers with advice to set allow_pickle (never done here).
+    if not zipfile.is_zipfile(name):
+        raise FileFormatError(f"{name}: not an .npz file (not a zip archive); a record is the "
+                              ".npz that save_record writes, or CSV text.")
     try:
         with np.load(name, allow_pickle=False) as data:
             header = json.loads(str(data[_METADATA_KEY]))

@@ -228,7 +228,7 @@ def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, 
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
     if record is not None:
-        scenario = _with_record_sensors(scenario, record)
+        scenario, record = _with_record_sensors(scenario, record)
     asked = _check_stages(stages)
     if wind_record is None and "fatigue" in asked:
         wind_record = scenario.severity.wind_record

@@ -698,8 +698,9 @@ def _fatigue(scenario: Scenario, span, tuning: Tuning, record, source: str) -> F
     return Fatigue(life=life, record=record, source=source)
 
 
-def _with_record_sensors(scenario: Scenario, record) -> Scenario:
-    """The scenario measuring where the record's channels are (its sample interval checked)."""
+def _with_record_sensors(scenario: Scenario, record) -> tuple:
+    """The scenario measuring where the record's channels are (its sample interval checked),
+    and the record without its channels on a support (they carry no information)."""
     import math
 
     from ..output.records import Record
@@ -707,6 +708,7 @@ def _with_record_sensors(scenario: Scenario, record) -> Scenario:
     if not isinstance(record, Record):
         raise InputError(f"The 'record' parameter must be a Record (load_record). Got "
                          f"{type(record).__name__}.")
+    record = record.without_supports(scenario.span_length())
     record.check_span(scenario.span_length())
     if not math.isclose(record.dt, scenario.simulation.dt, rel_tol=1e-6):
         raise InputError(f"{record.source}: sampled at dt = {record.dt:g} s, but the scenario's "
@@ -714,7 +716,7 @@ def _with_record_sensors(scenario: Scenario, record) -> Scenario:
                          f"simulation.dt = {record.dt:g} or resample the record.")
     est = dataclasses.replace(scenario.estimation, sensors=None,
                               sensor_positions=tuple(float(x) for x in record.positions))
-    return dataclasses.replace(scenario, estimation=est)
+    return dataclasses.replace(scenario, estimation=est), record
 
 
 def _measured(record, ident: Identification, x) -> MeasuredEstimate:

@@ -316,7 +316,10 @@ def _measured_section(r) -> dict:
         ("record", f"{rec.values.shape[1]} samples at {1 / rec.dt:.6g} Hz from {rec.source}; "
          f"{rec.n_missing} missing samples (the filter predicts through them)"),
         ("channels", positions_text(rec.positions) + "; measured at "
-         + positions_text([x[i] for i in m.nodes], m.nodes)),
+         + positions_text([x[i] for i in m.nodes], m.nodes)
+         + (("; not used: the channels on a support at " + positions_text(
+             rec.support_positions) + " (the line does not move there)")
+            if getattr(rec, "support_positions", ()) else "")),
         ("filter consistency", verdict + " (windowed NIS)",
          "Without the true field, the innovations tell whether the model explains the record: "
          "an inconsistent filter's error bars are not to be trusted."),
@@ -688,6 +691,8 @@ def result_json(result) -> dict:
             "source": m.record.source, "n_samples": int(m.record.values.shape[1]),
             "n_missing": int(m.record.n_missing),
             "channel_positions_m": [_f(v) for v in m.record.positions],
+            "support_channels_not_used_m": [_f(v) for v in getattr(m.record,
+                                                                    "support_positions", ())],
             "sensor_nodes": list(m.nodes),
             "consistent": None if consistency is None else bool(consistency.consistent)}
     if r.plan is not None:

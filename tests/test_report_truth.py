@@ -1,0 +1,144 @@
+"""Issue 20, a report that tells the truth: each defect of a fresh-venv run of the shipped
+scenarios, tested against something independent of the code's earlier output (the file's bytes,
+what a figure draws, a hand computation)."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import powerline_control as plc
+from powerline_control.output.records import Record, load_record, save_record
+
+_ENTRY = Path(sys.executable).with_name("powerline-control")
+COMMAND = [str(_ENTRY)] if _ENTRY.exists() else [sys.executable, "-m", "powerline_control"]
+
+TINY = """\
+[scenario]
+name = "tiny"
+description = "A 12-element lab span for the command's tests."
+[model]
+n_elements = 12
+[simulation]
+duration = 2.5
+[estimation]
+n_sensors = 2
+[robot]
+start = 1.0
+closed_loop = 1.5
+"""
+
+
+def run_cli(*args, cwd=None, timeout=300):
+    env = dict(os.environ, MPLBACKEND="Agg")
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(Path(plc.__file__).parents[1])] + env.get("PYTHONPATH", "").split(os.pathsep))
+    return subprocess.run(COMMAND + [str(a) for a in args], capture_output=True, text=True,
+                          cwd=cwd, env=env, timeout=timeout)
+
+
+@pytest.fixture
+def tiny(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    return path
+
+
+# ------------------------------------------------------------------ 1. records round trip
+
+@pytest.fixture
+def simulated(tiny, tmp_path):
+    out = tmp_path / "sim"
+    result = run_cli("simulate", tiny, "--out", out, "-q")
+    assert result.returncode == 0, result.stderr
+    return out
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_simulate_out_then_estimate_record_round_trips(tiny, simulated, suffix):
+    # The file's own bytes: simulate writes every node, the supports x = 0 and x = L included.
+    header = (simulated / "record.csv").read_text().splitlines()[1].split(",")
+    assert header[1] == "x_0_m" and header[-1] == "x_3.66_m"
+    result = run_cli("estimate", tiny, "--record", simulated / f"record{suffix}", "--json")
+    assert result.returncode == 0, result.stderr
+    numbers = json.loads(result.stdout)
+    measured = numbers["measured_record"]
+    # The two support channels are dropped (the line does not move there), never sensors:
+    # the 11 interior nodes of 12 elements are the sensors.
+    assert measured["support_channels_not_used_m"] == pytest.approx([0.0, 3.66])
+    assert measured["sensor_nodes"] == list(range(1, 12))
+    assert all(0 < x < 3.66 for x in measured["channel_positions_m"])
+
+
+def test_a_channel_on_a_support_and_one_outside_get_different_messages():
+    on = Record([0.0, 1.0], [0.0, 1.0], [[0.0, 0.0], [1.0, 2.0]], "f.csv")
+    with pytest.raises(plc.InputError, match=r"x_0_m at 0 m sits on a support"):
+        on.check_span(3.66)
+    out = Record([0.0, 1.0], [1.0, 4.0], [[0.0, 0.0], [1.0, 2.0]], "f.csv")
+    with pytest.raises(plc.InputError, match=r"x_4_m at 4 m lies outside the span"):
+        out.check_span(3.66)
+    # Dropping the support channels keeps the others with their values (and truth).
+    kept = Record([0.0, 1.0], [0.0, 1.0, 3.66], [[0.0, 0.0], [1.0, 2.0], [0.0, 0.0]], "f.csv",
+                  truth=[[0.0, 0.0], [1.5, 2.5], [0.0, 0.0]]).without_supports(3.66)
+    assert kept.positions.tolist() == [1.0] and kept.values.tolist() == [[1.0, 2.0]]
+    assert kept.truth.tolist() == [[1.5, 2.5]] and kept.support_positions == (0.0, 3.66)
+    with pytest.raises(plc.InputError, match="every channel"):
+        Record([0.0, 1.0], [0.0], [[0.0, 0.0]], "f.csv").without_supports(3.66)
+
+
+def test_a_channel_outside_the_span_still_exits_2(tiny, tmp_path):
+    path = tmp_path / "field.csv"
+    path.write_text("time_s,x_1_m,x_5_m\n" + "".join(
+        f"{k / 1000!r},{1e-3 * np.sin(k / 10):.6g},0\n" for k in range(2500)))
+    result = run_cli("estimate", tiny, "--record", path)
+    assert result.returncode == 2
+    assert "x_5_m at 5 m lies outside the span" in result.stderr
+
+
+# ------------------------------------------------------------------ 5. record files
+
+def test_sample_rate_header_is_written_to_10_digits_and_agrees_with_the_time_column(tmp_path):
+    t = np.arange(50) * 1e-3    # steps of 1e-3 with round-off: 1/dt = 999.9999999999991
+    assert 1.0 / float(np.median(np.diff(t))) != 1000.0
+    rec = Record(t, [1.0], np.sin(t)[None, :], "sim")
+    save_record(tmp_path / "r", rec)
+    first = (tmp_path / "r.csv").read_bytes().split(b"\n")[0]
+    assert first == b"# sample_rate_hz = 1000"
+    back = load_record(tmp_path / "r.csv", sample_rate=1000.0)  # the reader checks the header
+    assert back.dt == pytest.approx(1e-3, rel=1e-12)
+
+
+def test_random_bytes_npz_is_refused_as_not_a_zip_naming_the_file(tmp_path):
+    path = tmp_path / "junk.npz"
+    path.write_bytes(np.random.default_rng(0).bytes(4096))
+    with pytest.raises(plc.FileFormatError, match="junk.npz: not an .npz file") as info:
+        load_record(path)
+    assert "pickle" not in str(info.value)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_an_infinite_sample_names_the_file_and_the_column(tmp_path, suffix):
+    base = tmp_path / "rec"
+    values = np.zeros((2, 5))
+    rec = Record(np.arange(5) * 1e-3, [0.5, 1.25], values, "sim")
+    save_record(base, rec)
+    if suffix == ".csv":
+        lines = (tmp_path / "rec.csv").read_text().splitlines()
+        cells = lines[4].split(",")
+        cells[2] = "inf"
+        lines[4] = ",".join(cells)
+        (tmp_path / "rec.csv").write_text("\n".join(lines) + "\n")
+    else:
+        with np.load(tmp_path / "rec.npz") as data:
+            arrays = {k: np.array(data[k]) for k in data.files}
+        arrays["values"][1, 2] = np.inf
+        np.savez(tmp_path / "rec.npz", **arrays)
+    with pytest.raises(plc.InputError) as info:
+        load_record(base.with_suffix(suffix))
+    message = str(info.value)
+    assert f"rec{suffix}" in message and "x_1.25_m" in message and "infinite" in message
+    assert "'values' parameter" not in message
