@@ -151,7 +151,12 @@ class _Progress:
 # ----------------------------------------------------------------------------- outputs
 
 class _Output:
-    """An output folder checked before the run; it never overwrites files it did not write."""
+    """An output folder checked before the run; it never overwrites files it did not write.
+
+    A folder that does not exist yet is created only when the first file is written: a run
+    refused before it writes anything leaves nothing behind (and a folder the user made is
+    never removed).
+    """
 
     def __init__(self, path: Path | None, *, force: bool = False):
         self.path = path
@@ -171,6 +176,11 @@ class _Output:
                     f"--out {str(path)!r} already holds files this command did not write "
                     f"({shown}). Give an empty or new folder, or add --force to write into it "
                     "anyway (files of the same name are replaced).")
+        missing = []   # the folders this check creates, innermost first
+        for folder in (path, *path.parents):
+            if folder.exists():
+                break
+            missing.append(folder)
         try:
             path.mkdir(parents=True, exist_ok=True)
             probe = path / ".powerline-control-write-test"
@@ -179,6 +189,10 @@ class _Output:
         except OSError as exc:
             raise InputError(f"--out {str(path)!r} is not a writable folder: "
                              f"{exc.strerror or exc}.") from None
+        finally:
+            for folder in missing:   # created for the probe: removed until a file is written
+                with contextlib.suppress(OSError):
+                    folder.rmdir()   # only ever an empty folder this check made
 
     def _manifest(self) -> set[str]:
         try:
@@ -187,7 +201,8 @@ class _Output:
             return set()
 
     def file(self, name: str) -> Path:
-        """The path of an output file, recorded in the manifest."""
+        """The path of an output file, recorded in the manifest (the folder created now)."""
+        self.path.mkdir(parents=True, exist_ok=True)
         self.written.append(name)
         (self.path / MANIFEST).write_text(json.dumps(
             {"written_by": "powerline-control", "files": sorted(set(self.written)
@@ -339,11 +354,20 @@ def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
     return EXIT_OK
 
 
+def _bad_input(error: BaseException) -> bool:
+    """Bad input (exit 2): the package's InputError (its subclasses too) and FileFormatError (a
+    file the user gave). Any other error, a ValueError from SciPy or numpy included, is
+    numerical trouble (exit 1): the input was accepted, the computation failed."""
+    from .errors import FileFormatError
+
+    return isinstance(error, InputError | FileFormatError)
+
+
 def _failed(console: _Console, result, numbers: dict, output, written) -> int:
     """One line on stderr for a failed stage; the finished stages' outputs are on disk."""
     failure = result.failure
     error = failure.error
-    code = EXIT_USAGE if isinstance(error, InputError | ValueError) else EXIT_NUMERICAL
+    code = EXIT_USAGE if _bad_input(error) else EXIT_NUMERICAL
     kind = "error" if code == EXIT_USAGE else "numerical trouble"
     kept = "" if output is None else (f" (stage {failure.stage} failed; the finished stages' "
                                       f"results are in {output.path}/)")
@@ -666,7 +690,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             traceback.print_exc()
         message = " ".join(str(exc).split())
-        code = EXIT_USAGE if isinstance(exc, InputError | ValueError) else EXIT_NUMERICAL
+        code = EXIT_USAGE if _bad_input(exc) else EXIT_NUMERICAL
         kind = "error" if code == EXIT_USAGE else "numerical trouble"
         print(f"powerline-control: {kind}: {message}", file=sys.stderr)
         if args.json:

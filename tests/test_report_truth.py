@@ -142,3 +142,61 @@ def test_an_infinite_sample_names_the_file_and_the_column(tmp_path, suffix):
     message = str(info.value)
     assert f"rec{suffix}" in message and "x_1.25_m" in message and "infinite" in message
     assert "'values' parameter" not in message
+
+
+# ------------------------------------------------------------------ 8. exit codes
+
+def test_a_plain_value_error_inside_a_stage_is_numerical_trouble(tiny, monkeypatch, capsys):
+    from powerline_control import cli
+    from powerline_control.errors import InputError
+    from powerline_control.scenario import pipeline
+
+    # InputError subclasses ValueError (errors.py): a plain ValueError must still not be bad
+    # input; it is what SciPy raises on a singular or non-finite matrix.
+    assert issubclass(InputError, ValueError)
+
+    def scipy_like(*args, **kwargs):
+        raise ValueError("array must not contain infs or NaNs")
+
+    monkeypatch.setattr(pipeline, "_records", scipy_like)
+    assert cli.main(["simulate", str(tiny), "-q"]) == cli.EXIT_NUMERICAL
+    err = capsys.readouterr().err
+    assert err == "powerline-control: numerical trouble: array must not contain infs or NaNs\n"
+
+    def bad_input(*args, **kwargs):
+        raise InputError("The 'x' parameter must be positive. Got -1.")
+
+    monkeypatch.setattr(pipeline, "_records", bad_input)
+    assert cli.main(["simulate", str(tiny), "-q"]) == cli.EXIT_USAGE
+    assert capsys.readouterr().err.startswith("powerline-control: error: The 'x' parameter")
+
+
+# ------------------------------------------------------------------ 9. no empty folder left
+
+@pytest.fixture
+def outside_record(tmp_path):
+    path = tmp_path / "outside.csv"
+    path.write_text("time_s,x_1_m,x_5_m\n" + "".join(f"{k / 1000!r},0,0\n" for k in range(50)))
+    return path
+
+
+def test_a_refused_record_leaves_no_new_folder_behind(tiny, tmp_path, outside_record, capsys):
+    from powerline_control import cli
+
+    out = tmp_path / "new" / "deeper"
+    code = cli.main(["estimate", str(tiny), "--record", str(outside_record), "--out", str(out),
+                     "-q"])
+    assert code == cli.EXIT_USAGE and "outside the span" in capsys.readouterr().err
+    assert not out.exists() and not (tmp_path / "new").exists()
+
+
+def test_a_refused_record_keeps_the_users_own_empty_folder(tiny, tmp_path, outside_record,
+                                                          capsys):
+    from powerline_control import cli
+
+    out = tmp_path / "mine"
+    out.mkdir()
+    code = cli.main(["estimate", str(tiny), "--record", str(outside_record), "--out", str(out),
+                     "-q"])
+    assert code == cli.EXIT_USAGE
+    assert out.is_dir() and list(out.iterdir()) == []
