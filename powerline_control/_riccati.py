@@ -26,6 +26,9 @@ stabilising test catches it.
 
 Public names here (``solve_filter_dare``, ...) may be imported by any module of the package:
 ``_riccati`` is the one private module shared across module boundaries.
+
+Test seam: ``_doubling``: tests make the doubling iteration fail to check that the failure is
+reported, not returned as NaN (tests/test_observability.py).
 """
 
 from __future__ import annotations

@@ -12,7 +12,8 @@ import pytest
 import rainflow
 
 import powerline_control as plc
-from powerline_control.severity import SECONDS_PER_YEAR, _sbl_cycles
+from powerline_control.severity import SECONDS_PER_YEAR
+from powerline_control.severity.balance import _sbl_cycles
 
 DRAKE = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
 ROBOT = plc.MDR.tuned(0.0, body_mass=6.0, suspended_mass=1.5, frequency=15.0, damping_ratio=0.3)

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 import powerline_control as plc
 from powerline_control import severity as sv
+from powerline_control.severity import balance
 from powerline_control.errors import InputError
 
 DRAKE = plc.conductors["drake"]
@@ -313,7 +314,7 @@ def test_fatigue_index_is_miners_sum_on_the_safe_border_line():
     # Robot: at the antinode after the move, undamped before it (en_route="undamped").
     robot_damage = 0.0
     for i, (f, p) in enumerate(zip(none.frequency, value.probability, strict=True)):
-        per_cycle = [1 / float(sv._sbl_cycles(sev.stress_ps[i], "multi"))
+        per_cycle = [1 / float(balance._sbl_cycles(sev.stress_ps[i], "multi"))
                      for sev in (value.severities[2], none)]
         a = value.time_at_antinode[i]
         robot_damage += f * p * 365.25 * 86400 * (a * per_cycle[0] + (1 - a) * per_cycle[1])

@@ -6,6 +6,9 @@ tracking, divergence checks) shared by ``step`` and ``filter``; :class:`_FilterI
 the filter's private helpers: the steady-state DARE solution, the spectral test of a run, and the
 modal batch recursion that evaluates converged NaN-free stretches as a blocked scan over all
 modes at once (:func:`_recursion_tables`, :func:`_diagonal_recursion`).
+
+Test seam: ``_recursion_tables``, ``_diagonal_recursion`` and ``_SCAN_BLOCK``: the blocked scan is
+checked against a plain step-by-step recursion across block boundaries (tests/test_estimate.py).
 """
 
 from __future__ import annotations

@@ -8,6 +8,10 @@ otherwise the SVD of the regressor, :func:`_solve_svd` for alpha > 0 and :func:`
 Cholesky route also gives the one-step residual covariance from Gram matrices, without another
 pass over the data (:func:`_residual_covariance_from_gram`); :func:`_covariance` is the
 residual pass used otherwise.
+
+Test seam: ``_residual_covariance_from_gram`` and ``_SCATTER_BLOCK``: tests check that the Cholesky
+route takes the Gram shortcut and that the result does not depend on the block size
+(tests/test_identify.py).
 """
 
 from __future__ import annotations

@@ -3,6 +3,9 @@
 The snapshot matrix and sample time from Snapshots or an array, the check of a given sensor
 noise, the noise floor of the singular values (Gavish-Donoho, with the Marchenko-Pastur median)
 and the leading spatial POD modes through the node-by-node Gram matrix.
+
+Test seam: ``_marchenko_pastur_median`` and ``_noise_floor``: checked against quadrature of the
+Marchenko-Pastur density and against white noise of known std (tests/test_recipe.py).
 """
 
 from __future__ import annotations

@@ -1,6 +1,9 @@
 """How many sensors: :func:`sensor_count_study` runs the selection for each ``k`` and checks the
 optimised Kalman criterion against the RMS error of a steady-state filter on a simulated
 trajectory.
+
+Test seam: ``_simulated_rms``: its refusal of a layout that cannot estimate the state
+(tests/test_sensors.py).
 """
 
 from __future__ import annotations

@@ -13,6 +13,9 @@ Each criterion offers
 - ``linearisation(z)``: value and gradient of the relaxation at any ``z`` (for the certificate);
 - ``rank_swaps`` / ``rank_additions`` (optional): a cheap surrogate that orders candidate moves so
   that only the promising ones are judged on the (expensive) exact criterion.
+
+Test seam: ``_information``: the sensor information matrices, fed to the batch DARE and compared
+with SciPy's solve_discrete_are (tests/test_sensors.py).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from ._common import (  # noqa: F401 (constants other modules and users import f
     SECONDS_PER_YEAR,
 )
 from .balance import *  # noqa: F403 (each module's public names: its __all__)
-from .balance import SAFE_BORDER_LINES, _sbl_cycles, _sbl_stress  # noqa: F401
+from .balance import SAFE_BORDER_LINES  # noqa: F401
 from .balance import __all__ as _balance_all
 from .checks import *  # noqa: F403
 from .checks import __all__ as _checks_all

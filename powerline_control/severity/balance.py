@@ -13,6 +13,10 @@ curve), ``P_self = k Y^l f^m / T^n`` (an empirical self-damping law, T in kN) an
 stress follow by Poffenberger-Swart (at x_b = 89 mm) and by the f * y_max formula; margins are taken
 against the CIGRE/EPRI safe border line and the 150 microstrain peak-to-peak endurance strain.
 ``docs/severity.md`` derives every formula and lists the sources.
+
+Test seam: ``_sbl_cycles``: the fatigue tests compose the expected damage (Miner's sum) from the
+cycles to failure it gives; the safe border line itself is checked against its closed form
+(tests/test_fatigue.py, tests/test_severity.py).
 """
 
 from __future__ import annotations

@@ -18,6 +18,9 @@ The equations were learnt from rte-france/pallas-dohl (``ebp.damping_power_foti`
 rte-france/pallas-stranded-cable (``physical_tools``); the code here is written anew, and where
 it departs from those peers (the wires' angular positions, the pairing of slip curvatures with
 layers) the difference is said in :func:`stranded_bending`.
+
+Test seam: ``_stranded_bending``: compared layer by layer with the peers' stranded-bending model
+(tests/test_self_damping.py).
 """
 
 from __future__ import annotations
