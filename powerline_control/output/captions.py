@@ -32,6 +32,30 @@ def _colour_mapped(ax) -> bool:
     return False
 
 
+def _categories(axis) -> list | None:
+    """The category names of an axis labelled by fixed tick labels (a bar per row), else None.
+
+    Blank names (a panel that shares another's rows) are kept as empty strings.
+    """
+    formatter = axis.get_major_formatter()
+    locations = list(axis.get_ticklocs())
+    names = [_plain(formatter(v, i)) for i, v in enumerate(locations)]
+    if not names:
+        return None
+    if all(not name for name in names):
+        return names
+
+    def number(name: str) -> bool:
+        try:
+            float(name.replace("\N{MINUS SIGN}", "-").replace("$", "").replace("%", ""))
+        except ValueError:
+            return False
+        return True
+
+    # Any numeric name (a value axis) or a maths label (a log axis's 10^k) is not a category.
+    return None if any(not name or number(name) or "$" in name for name in names) else names
+
+
 def _plain(label: str) -> str:
     return " ".join(str(label).replace("\n", ", ").split())
 
@@ -67,7 +91,9 @@ def describe_figure(fig) -> dict:
     -------
     dict
         ``n_panels``; ``panels``: per panel ``xlabel``, ``ylabel``, ``legend`` (labels),
-        ``y_inverted``, ``x_inverted``, ``colour_map``; ``colorbars``: their labels.
+        ``y_inverted``, ``x_inverted``, ``colour_map``, ``y_categories`` (the names of a
+        vertical axis labelled by fixed tick labels, one per row, or None) and ``y_ticks``;
+        ``colorbars``: their labels.
 
     Examples
     --------
@@ -93,11 +119,14 @@ def describe_figure(fig) -> dict:
             handles = getattr(legend, "legend_handles", None) or legend.legendHandles
             for text, handle in zip(legend.get_texts(), handles, strict=False):
                 style = _style(handle)
-                labels.append(_plain(text.get_text()) + (f" {style}" if style else ""))
+                if _plain(text.get_text()):
+                    labels.append(_plain(text.get_text()) + (f" {style}" if style else ""))
         panels.append({"xlabel": _plain(xlabel), "ylabel": _plain(ax.get_ylabel()),
                        "legend": labels, "y_inverted": bool(ax.yaxis_inverted()),
                        "x_inverted": bool(ax.xaxis_inverted()),
-                       "colour_map": _colour_mapped(ax)})
+                       "colour_map": _colour_mapped(ax),
+                       "y_categories": _categories(ax.yaxis),
+                       "y_ticks": [float(v) for v in ax.get_yticks()]})
     bars = [_plain(ax.get_ylabel() or ax.get_xlabel()) for ax in fig.axes
             if ax.get_label() == "<colorbar>" or hasattr(ax, "_colorbar")]
     for legend in fig.legends:
@@ -116,6 +145,26 @@ def _where(i: int, n: int, panels: list) -> str:
         return ("left", "right", "third", "fourth")[min(i, 3)]
     return ("top", "bottom")[i] if n == 2 else ("top", "middle", "bottom")[i] if n == 3 \
         else f"panel {i + 1}"
+
+
+def _axes_text(i: int, panels: list, wheres: list) -> str:
+    """'y against x' for panel i; a panel without a y label is described by its rows (its
+    category tick labels, or the rows of the panel whose categories it shares)."""
+    panel = panels[i]
+    ylabel, xlabel = panel["ylabel"], panel["xlabel"]
+    if ylabel:
+        return f"{ylabel} against {xlabel}" if xlabel else ylabel
+    what = xlabel or "the data"
+    names = panel["y_categories"]
+    if names and any(names):
+        return f"{what} for each of " + ", ".join(name for name in names if name)
+    if names is not None:   # blank row names: the rows of a panel with the same ticks
+        for j, other in enumerate(panels):
+            if j != i and other["y_categories"] and any(other["y_categories"]) \
+                    and other["y_ticks"] == panel["y_ticks"]:
+                return f"{what} for the same rows as the {wheres[j] or 'other'} panel"
+        return f"{what}, one row per category"
+    return f"the data against {xlabel}" if xlabel else "the data"
 
 
 def figure_caption(fig, purpose: str, look_for: str = "") -> str:
@@ -145,6 +194,17 @@ def figure_caption(fig, purpose: str, look_for: str = "") -> str:
     >>> _ = top.set(xlabel="t (s)", ylabel="y (mm)"); _ = bottom.set(ylabel="x (m)")
     >>> figure_caption(fig, "Motion.", "the curves meeting")[:39]
     'Motion. Two panels: top, y (mm) against'
+
+    A panel without a y label is described by its rows (bars named by tick labels):
+
+    >>> fig = Figure()
+    >>> left, right = fig.subplots(1, 2)
+    >>> _ = left.barh([0, 1], [1.0, 2.0]); _ = left.set_yticks([0, 1], ["a", "b"])
+    >>> _ = right.set_yticks([0, 1], ["", ""]); _ = left.set_xlabel("error (%)")
+    >>> _ = right.set_xlabel("x (m)")
+    >>> figure_caption(fig, "Layouts.")
+    'Layouts. Two panels: left, error (%) for each of a, b; right, x (m) for the same rows as \
+the left panel.'
     """
     facts = describe_figure(fig)
     n = facts["n_panels"]
@@ -152,8 +212,7 @@ def figure_caption(fig, purpose: str, look_for: str = "") -> str:
     parts = []
     for i, panel in enumerate(facts["panels"]):
         where = _where(i, n, x0)
-        text = (f"{panel['ylabel']} against {panel['xlabel']}" if panel["xlabel"] else
-                panel["ylabel"] or "the data")
+        text = _axes_text(i, facts["panels"], [_where(j, n, x0) for j in range(n)])
         if panel["legend"]:
             text += " (" + ", ".join(panel["legend"]) + ")"
         # An unlabelled inverted axis lists categories top to bottom: nothing to say about it.
