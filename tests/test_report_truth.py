@@ -261,3 +261,69 @@ def test_no_report_caption_has_an_empty_description(drawn):
                       for i in range(len(drawn["layouts"]["figure"].axes[0].get_yticks())))
     assert f"left, error at unmeasured nodes (%) for each of {names}" in layouts
     assert "right, sensor position x (m) for the same rows as the left panel" in layouts
+
+
+# ------------------------------------------------------------------ 4. figures
+
+def test_sensor_marks_take_a_colour_no_curve_of_the_error_figure_uses():
+    from matplotlib.colors import to_rgba
+
+    from powerline_control.output.plotting import plot_error_along_span
+
+    x = np.linspace(0.0, 3.0, 31)
+    errors = {f"layout {i}": (i + 1) * 0.01 * np.ones(31) for i in range(6)}  # C0..C5: C2 green
+    fig = plot_error_along_span(x, errors, [1.0, 2.0])
+    lines = fig.axes[0].get_lines()
+    curves = [to_rgba(ln.get_color()) for ln in lines if ln.get_label() in errors]
+    marks = [to_rgba(ln.get_color()) for ln in lines if ln.get_label() not in errors]
+    assert len(curves) == 6 and len(marks) == 2
+    assert to_rgba("tab:green") in curves                  # the clash the report had
+    assert not set(marks) & set(curves)
+
+
+def _fake_closed_loop(t, field):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(t=t, x=np.arange(field.shape[0], dtype=float), displacement=field,
+                           baseline_displacement=field, robot_position=np.ones(t.size),
+                           target=np.ones(t.size), retarget_times=(0.5,),
+                           calibration_time=0.2)
+
+
+def test_closed_loop_path_legend_explains_the_calibration_line_and_shows_the_target():
+    from matplotlib.colors import to_rgb
+
+    from powerline_control.output.plotting import plot_closed_loop, plot_closed_loop_path
+
+    t = np.linspace(0.0, 1.0, 201)
+    fake = _fake_closed_loop(t, np.ones((4, 201)))
+    fig = plot_closed_loop_path(fake)
+    legend = fig.axes[0].get_legend()
+    texts = [text.get_text() for text in legend.get_texts()]
+    assert "end of calibration" in texts and "target" in texts
+    face = np.array(to_rgb(legend.get_frame().get_facecolor()))
+    handles = dict(zip(texts, legend.legend_handles, strict=True))
+    for label in texts:   # every entry's line differs from the legend's face (white: "w:" hid)
+        colour = np.array(to_rgb(handles[label].get_color()))
+        assert np.abs(colour - face).max() > 0.3, (label, colour, face)
+    top = plot_closed_loop(fake).axes[0]
+    assert "end of calibration" in [tx.get_text() for tx in top.get_legend().get_texts()]
+
+
+def test_windowed_rms_of_a_constant_sine_is_a_over_root_2_to_the_ends():
+    from powerline_control.output.plotting import plot_closed_loop
+
+    # 40 Hz at 1 ms: a full 0.1 s window (100 samples) holds 4 whole periods, so its mean of
+    # sin^2 is 1/2 to round-off. A window cut short at an end still holds >= 2 periods: its mean
+    # of sin^2 is within 1/(4 pi 2) = 0.04 of 1/2, so the RMS within 4 % of A / sqrt(2). The old
+    # division by the full window gave sqrt(51/100) of it at the ends: 29 % low.
+    dt, amplitude = 1e-3, 2e-3
+    t = np.arange(0.0, 1.0, dt)
+    field = amplitude * np.tile(np.sin(2 * np.pi * 40.0 * t), (3, 1))
+    bottom = plot_closed_loop(_fake_closed_loop(t, field)).axes[1]
+    expected = 1e3 * amplitude / np.sqrt(2)
+    for line in bottom.get_lines():
+        rms = np.asarray(line.get_ydata())
+        assert rms[60:-60] == pytest.approx(expected, rel=1e-9), line.get_label()
+        assert rms == pytest.approx(expected, rel=0.045), line.get_label()
+        assert rms[0] > 0.95 * expected and rms[-1] > 0.95 * expected

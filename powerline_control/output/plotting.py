@@ -175,7 +175,8 @@ def plot_error_along_span(
     for label, values in errors.items():
         ax.plot(x, 100 * np.asarray(values), label=label)
     for i, position in enumerate(sensors):
-        ax.axvline(position, color="g", ls="--", lw=1, label="chosen sensors" if i == 0 else None)
+        # black: the layouts' curves take the colour cycle (C2 is green), which has no black
+        ax.axvline(position, color="k", ls="--", lw=1, label="chosen sensors" if i == 0 else None)
     ax.set(xlabel="x (m)", ylabel="RMS error (% of RMS displacement)")
     ax.set_yscale("log")
     # off the curves
@@ -362,15 +363,18 @@ def plot_closed_loop(result) -> Figure:
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.plot(result.t, result.robot_position, label="robot")
     top.plot(result.t, result.target, "k:", label="antinode target")
-    top.axvline(result.calibration_time, color="grey", lw=0.8)
+    top.axvline(result.calibration_time, color="grey", lw=0.8, label="end of calibration")
     top.set_ylabel("x (m)")
     # off the curves
     top.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     window = max(int(0.1 / max(result.t[1] - result.t[0], 1e-12)), 1)
 
     def moving_rms(field):
+        # Each window's mean over the samples it holds: at the ends a centred window holds
+        # fewer, and dividing by the full window length would pull the RMS down there.
         power = np.mean(np.asarray(field) ** 2, axis=0)
-        return np.sqrt(np.convolve(power, np.ones(window) / window, mode="same"))
+        counts = np.convolve(np.ones_like(power), np.ones(window), mode="same")
+        return np.sqrt(np.convolve(power, np.ones(window), mode="same") / counts)
 
     bottom.plot(result.t, 1e3 * moving_rms(result.baseline_displacement), label="robot parked")
     bottom.plot(result.t, 1e3 * moving_rms(result.displacement), label="closed loop")
@@ -661,10 +665,11 @@ def plot_closed_loop_path(result, ax=None) -> Figure:
                           rasterized=True)  # one image in the SVG: no seams between cells
     fig.colorbar(image, ax=ax, label="envelope (mm)")
     ax.plot(result.robot_position, t, "c-", lw=1.5, label="robot")
-    ax.plot(result.target, t, "w:", lw=1, label="target")
+    # green: visible on the colour map (magma has none) and in the legend's white box
+    ax.plot(result.target, t, ":", color="tab:green", lw=1.5, label="target")
     for when in result.retarget_times:
         ax.axhline(when, color="w", lw=0.5, ls="--")
-    ax.axhline(result.calibration_time, color="grey", lw=0.8)
+    ax.axhline(result.calibration_time, color="grey", lw=1.0, label="end of calibration")
     ax.set(xlabel="x (m)", ylabel="t (s)")
     ax.invert_yaxis()
     # under the axes: the colour bar holds the right-hand side
