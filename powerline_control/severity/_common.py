@@ -1,5 +1,5 @@
 """What the severity modules share: constants with their sources and the argument checks of
-spans, frequencies, powers and labels."""
+spans, frequencies, powers, labels and the robot (its damper and limits)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ import numpy as np
 from .._constants import AIR_DENSITY, GRAVITY  # noqa: F401  (re-exported by severity)
 from .._validation import check_array, check_real
 from ..errors import InputError
+from ..fem import MDR, ImpedanceDamper
 from ..line import Span, conductors
+from ..plan import RobotLimits
 
 
 def _check_text(name: str, value: object) -> str:
@@ -42,6 +44,15 @@ def _check_frequency(frequency: object) -> float:
     return check_real("frequency", frequency, low=0.0, high=MAX_FREQUENCY)
 
 
+def _check_amplitudes(amplitude: object) -> np.ndarray:
+    """Antinode amplitudes Y, zero-to-peak, m, >= 0 (Y^2.44 of a negative one is NaN)."""
+    y = check_array("amplitude", amplitude)
+    if np.any(y < 0):
+        raise InputError("The 'amplitude' parameter must be >= 0 m (a zero-to-peak antinode "
+                         f"amplitude). Got {float(np.min(y)):g}.")
+    return y
+
+
 def _finite_power(power: np.ndarray, what: str) -> np.ndarray:
     if not np.all(np.isfinite(power)):
         raise InputError(f"The 'amplitude' parameter is too large: the {what} overflows. Give "
@@ -72,3 +83,16 @@ def _check_wind_speeds(wind_speeds: object) -> np.ndarray:
                          f"{MAX_WIND_SPEED:g} m/s (aeolian vibration occurs at about 1-7 m/s). "
                          f"Got {bad}.")
     return speeds
+
+
+def _check_robot_damper(damper: object) -> None:
+    """The robot's damper: an MDR or an ImpedanceDamper (a placement wrapper is not a robot)."""
+    if not isinstance(damper, MDR | ImpedanceDamper):
+        raise InputError("The 'damper' parameter must be an MDR or an ImpedanceDamper. Got "
+                         f"{type(damper).__name__}.")
+
+
+def _check_limits(limits: object) -> None:
+    if not isinstance(limits, RobotLimits):
+        raise InputError(f"The 'limits' parameter must be a RobotLimits. Got "
+                         f"{type(limits).__name__}.")

@@ -20,7 +20,13 @@ from ..excitation import DEFAULT_STROUHAL
 from ..fem import MDR
 from ..line import Span
 from ..plan import RobotLimits
-from ._common import SECONDS_PER_YEAR, _check_span, _check_wind_speeds
+from ._common import (
+    SECONDS_PER_YEAR,
+    _check_limits,
+    _check_robot_damper,
+    _check_span,
+    _check_wind_speeds,
+)
 from .balance import (
     SeverityResult,
     _check_severity_budget,
@@ -365,12 +371,8 @@ def robot_value(
     if isinstance(wind_speeds, np.ndarray):  # before the checks and the sort copy it
         _check_severity_budget(wind_speeds.size)
     speeds = np.sort(_check_wind_speeds(wind_speeds))
-    if not isinstance(damper, MDR | ImpedanceDamper):
-        raise InputError("The 'damper' parameter must be an MDR or an ImpedanceDamper. Got "
-                         f"{type(damper).__name__}.")
-    if not isinstance(limits, RobotLimits):
-        raise InputError(f"The 'limits' parameter must be a RobotLimits. Got "
-                         f"{type(limits).__name__}.")
+    _check_robot_damper(damper)
+    _check_limits(limits)
     if distribution is None:
         distribution = WindDistribution.weibull()
     if not isinstance(distribution, WindDistribution):

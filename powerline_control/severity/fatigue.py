@@ -22,7 +22,7 @@ from ..excitation import DEFAULT_STROUHAL
 from ..fem import MDR
 from ..line import Span, tension_at_temperature
 from ..plan import RobotLimits
-from ._common import SECONDS_PER_YEAR, _check_span
+from ._common import SECONDS_PER_YEAR, _check_limits, _check_robot_damper, _check_span
 from .balance import SAFE_BORDER_LINES, SeverityResult, _sbl_cycles, aeolian_severity
 from .dampers import AtAntinode, ImpedanceDamper, harmonic_mean_position
 from .record import WindRecord
@@ -164,9 +164,7 @@ class FatigueOverRecord(Mapping):
         >>> bool(slow["robot"].damage_per_year > life["robot"].damage_per_year)
         True
         """
-        if not isinstance(limits, RobotLimits):
-            raise InputError(f"The 'limits' parameter must be a RobotLimits. Got "
-                             f"{type(limits).__name__}.")
+        _check_limits(limits)
         positions, move_time, robot = _robot_over_record(self._robot_inputs, limits)
         move = self.parameters["move"]
         text = (f"fixed damper at {self.fixed_position:.3f} m; robot moves ({move}) at "
@@ -463,12 +461,8 @@ def fatigue_over_record(
     default_damper, default_limits = default_robot()
     damper = default_damper if damper is None else damper
     limits = default_limits if limits is None else limits
-    if not isinstance(damper, MDR | ImpedanceDamper):
-        raise InputError("The 'damper' parameter must be an MDR or an ImpedanceDamper. Got "
-                         f"{type(damper).__name__}.")
-    if not isinstance(limits, RobotLimits):
-        raise InputError(f"The 'limits' parameter must be a RobotLimits. Got "
-                         f"{type(limits).__name__}.")
+    _check_robot_damper(damper)
+    _check_limits(limits)
     options = _severity_options(dict(severity_options))
     move = check_choice("move", move, ("tracked", "worst"))
     en_route = check_choice("en_route", en_route, ("average", "undamped"))

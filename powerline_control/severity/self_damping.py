@@ -36,7 +36,7 @@ import scipy.linalg
 from .._validation import check_array, check_choice, check_int, check_real
 from ..errors import InputError
 from ..line import Conductor, Span
-from ._common import _check_frequency, _check_span, _finite_power
+from ._common import _check_amplitudes, _check_frequency, _check_span, _finite_power
 
 __all__ = [
     "STRANDINGS",
@@ -551,10 +551,7 @@ class FotiMartinelli:
         """
         span = _check_span(span)
         frequency = _check_frequency(frequency)
-        y = check_array("amplitude", amplitude)
-        if np.any(y < 0):
-            raise InputError("The 'amplitude' parameter must be >= 0 m (a zero-to-peak antinode "
-                             f"amplitude). Got {float(np.min(y)):g}.")
+        y = _check_amplitudes(amplitude)
         t, m = span.tension, span.conductor.mass_per_length
         chi0 = self.limit_curvature(t)
         chi_m = 4 * math.pi**2 * y * m * frequency**2 / t

@@ -19,7 +19,13 @@ from .._validation import (
 )
 from ..errors import InputError
 from ..line import Span
-from ._common import _check_frequency, _check_span, _check_text, _finite_power
+from ._common import (
+    _check_amplitudes,
+    _check_frequency,
+    _check_span,
+    _check_text,
+    _finite_power,
+)
 from .self_damping import FotiMartinelli
 
 __all__ = [
@@ -441,8 +447,5 @@ def self_damping_power(amplitude: np.ndarray | float, frequency: float, span: Sp
     span = _check_span(span)
     frequency = _check_frequency(frequency)
     law = _resolve_law(self_damping, self_damping_k, self_damping_exponents)
-    y = check_array("amplitude", amplitude)
-    if np.any(y < 0):  # Y^2.44 of a negative amplitude is NaN
-        raise InputError("The 'amplitude' parameter must be >= 0 m (a zero-to-peak antinode "
-                         f"amplitude). Got {float(np.min(y)):g}.")
-    return _finite_power(law.power(y, frequency, span), "self-damping power")
+    return _finite_power(law.power(_check_amplitudes(amplitude), frequency, span),
+                         "self-damping power")
