@@ -327,3 +327,36 @@ def test_windowed_rms_of_a_constant_sine_is_a_over_root_2_to_the_ends():
         assert rms[60:-60] == pytest.approx(expected, rel=1e-9), line.get_label()
         assert rms == pytest.approx(expected, rel=0.045), line.get_label()
         assert rms[0] > 0.95 * expected and rms[-1] > 0.95 * expected
+
+
+# ------------------------------------------------------------------ 7. alpha at the sweep's cap
+
+def test_the_identification_text_says_when_alpha_sits_at_the_cap_of_its_sweep(lab):
+    import warnings
+
+    from powerline_control.scenario.summary import _recipe_text, alpha_at_sweep_cap
+
+    # A record white in time (one smooth shape times white noise): no linear one-step map
+    # predicts it, so the held-out error falls with every alpha up to the recipe's cap.
+    rng = np.random.default_rng(0)
+    x = np.linspace(0.0, 1.0, 12)[1:-1]
+    y = (np.sin(np.pi * x)[:, None] * rng.standard_normal(2000)[None, :]
+         + 0.01 * rng.standard_normal((10, 2000)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # the recipe's warnings about such a record
+        design = plc.design_estimator(y, n_sensors=2, dt=1e-3)
+    sweep = design.alpha_sweep
+    errors = np.asarray(sweep.held_out_error)
+    # Independent of the summary: the best held-out error is the sweep's last alpha.
+    assert int(np.argmin(errors)) == errors.size - 1
+    assert design.model.alpha_relative == sweep.alphas[-1]
+    text = _recipe_text(design)
+    assert alpha_at_sweep_cap(design)
+    assert f"alpha {sweep.alphas[-1]:.3g} relative" in text
+    assert "sits at the cap of the sweep" in text and "may still have been falling" in text
+    # The lab scenario's alpha is inside its sweep: the plain wording, and the JSON says so.
+    lab_design = lab.identification.design
+    lab_errors = np.asarray(lab_design.alpha_sweep.held_out_error)
+    assert int(np.argmin(lab_errors)) < lab_errors.size - 1
+    assert "(chosen on held-out data)" in _recipe_text(lab_design)
+    assert lab.to_json()["alpha_at_sweep_cap"] is False

@@ -145,8 +145,33 @@ def _recipe_text(design) -> str:
                 f"plus {m.n_unseen} white states for unexcited directions; {m.n_states} states "
                 f"in all, trained on {design.n_train} samples")
     return (f"time-delay DMD, {m.delays} delays ({m.delays * m.dt * 1e3:.3g} ms of history), "
-            f"{m.n_states} states, Tikhonov alpha {m.alpha_relative:.3g} relative (chosen on "
-            f"held-out data), trained on {design.n_train} samples")
+            f"{m.n_states} states, Tikhonov alpha {m.alpha_relative:.3g} relative "
+            f"({alpha_choice(design)}), trained on {design.n_train} samples")
+
+
+def alpha_at_sweep_cap(design) -> bool:
+    """Whether the recipe's alpha is the largest of its held-out sweep (AlphaSweep): the held-out
+    error was lowest at the sweep's top, so it may still have been falling beyond it."""
+    import numpy as np
+
+    sweep = getattr(design, "alpha_sweep", None)
+    if sweep is None or np.size(sweep.alphas) < 2:
+        return False
+    errors = np.asarray(sweep.held_out_error, dtype=float)
+    if not np.isfinite(errors).any():
+        return False
+    best = int(np.nanargmin(np.where(np.isfinite(errors), errors, np.nan)))
+    return best == errors.size - 1
+
+
+def alpha_choice(design) -> str:
+    """How alpha was chosen, in words: on held-out data, and whether at the sweep's cap."""
+    if not alpha_at_sweep_cap(design):
+        return "chosen on held-out data"
+    alphas = design.alpha_sweep.alphas
+    return (f"chosen on held-out data, but it sits at the cap of the sweep ({len(alphas)} "
+            f"alphas up to {float(alphas[-1]):.3g} relative): the held-out error was lowest "
+            "there and may still have been falling")
 
 
 def _identification_section(r) -> dict:
@@ -667,6 +692,7 @@ def result_json(result) -> dict:
                    alpha=_f(d.model.alpha), alpha_relative=_f(d.model.alpha_relative),
                    delays=int(d.model.delays), n_states=int(d.model.n_states),
                    filter_noise_std_m=_f(d.noise_std),
+                   alpha_at_sweep_cap=alpha_at_sweep_cap(d),
                    sensor_nodes=[int(i) for i in d.sensors],
                    sensor_positions_m=[_f(x[int(i)]) for i in d.sensors],
                    **_model_kind(d.model))
