@@ -75,7 +75,7 @@ def _check_noise_ratio(q: np.ndarray, r: np.ndarray | float) -> None:
 def _check_error_weight(error_weight: object, c: np.ndarray, n: int) -> None:
     """``error_weight`` is checked for every criterion (``sensor_count_study`` uses it for its
     simulated error whatever the criterion), not only where ``"kalman"`` reads it."""
-    _error_weight(error_weight, c, n)
+    _error_rows(error_weight, c, n)
 
 
 def _check_positions(positions: object, m: int) -> np.ndarray | None:
@@ -254,6 +254,13 @@ def _build_constraints(
 
 
 def _error_weight(error_weight: object, c: np.ndarray, n: int) -> np.ndarray:
+    """The weight ``H^T H`` of the posterior trace, ``(n, n)``."""
+    h = _error_rows(error_weight, c, n)
+    return h.T @ h
+
+
+def _error_rows(error_weight: object, c: np.ndarray, n: int) -> np.ndarray:
+    """The checked rows ``H`` whose error is weighed: identity, ``C`` or a ``(q, n)`` matrix."""
     if isinstance(error_weight, str):
         choice = check_choice("error_weight", error_weight, ("states", "outputs"))
         h = np.eye(n) if choice == "states" else c
@@ -268,4 +275,4 @@ def _error_weight(error_weight: object, c: np.ndarray, n: int) -> np.ndarray:
             raise InputError(
                 f"The 'error_weight' parameter must be a (q, {n}) matrix. Got {h.shape}."
             )
-    return h.T @ h
+    return h

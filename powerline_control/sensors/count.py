@@ -25,15 +25,9 @@ from .._validation import (
     read_only,
 )
 from ..errors import EstimationError, InputError, SensorSelectionError
-from .constraints import _check_error_weight, _check_noise
+from .constraints import _check_noise, _error_rows
 from .results import SensorCountStudy
 from .select import select_sensors
-
-
-def _error_rows(error_weight: object, c: np.ndarray, n: int) -> np.ndarray:
-    if isinstance(error_weight, str):
-        return np.eye(n) if error_weight == "states" else c
-    return np.asarray(error_weight, dtype=float)
 
 
 def _simulated_rms(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, h: np.ndarray,
@@ -149,7 +143,6 @@ def sensor_count_study(
     q = check_psd("Q", Q, a.shape[0])
     variances, r_full = _check_noise(R, c.shape[0])
     r = variances if r_full is None else r_full
-    _check_error_weight(options.get("error_weight", "states"), c, a.shape[0])
     h = _error_rows(options.get("error_weight", "states"), c, a.shape[0])
     n = a.shape[0]
     # Each simulated step is a handful of small matrix products plus about ten NumPy calls,
