@@ -332,6 +332,12 @@ class _FilterInternals:
         u = check_array("u_k", u_k, shape=(self.n_inputs,))
         return u if self._m else np.zeros(0)
 
+    def _check_input_block(self, inputs: object, n_t: int) -> np.ndarray:
+        """Known inputs ``(m, n_t)`` of a block or record (zeros when not given)."""
+        if inputs is None:
+            return np.zeros((self._m, n_t))
+        u = check_array("inputs", inputs, shape=(self.n_inputs, n_t))
+        return u if self._m else np.zeros((0, n_t))
 
     def _spectral_consistency(self, consistency: Consistency, innovations: np.ndarray,
                               run: _Recursion) -> Consistency:

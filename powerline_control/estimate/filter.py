@@ -562,12 +562,7 @@ class KalmanFilter(_FilterInternals):
         y_all = check_array("measurements", measurements, shape=(self._p, None),
                             allow_nan=True)
         n_t = y_all.shape[1]
-        if inputs is None or not self._m:
-            if inputs is not None:
-                check_array("inputs", inputs, shape=(self.n_inputs, n_t))
-            u_all = np.zeros((self._m, n_t))
-        else:
-            u_all = check_array("inputs", inputs, shape=(self.n_inputs, n_t))
+        u_all = self._check_input_block(inputs, n_t)
         states = np.empty((self._n, n_t))
         for k in range(n_t):
             states[:, k] = self._advance(y_all[:, k], u_all[:, k])
@@ -621,12 +616,7 @@ class KalmanFilter(_FilterInternals):
                 f"{y_all.shape}."
             )
         n_t = y_all.shape[1]
-        if inputs is None:
-            u_all = np.zeros((self._m, n_t))
-        else:
-            u_all = check_array("inputs", inputs, shape=(self.n_inputs, n_t))
-            if not self._m:
-                u_all = np.zeros((0, n_t))
+        u_all = self._check_input_block(inputs, n_t)
         n, p = self._n, self._p
         states = np.empty((n, n_t))
         innovations = np.full((p, n_t), np.nan)
