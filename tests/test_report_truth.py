@@ -360,3 +360,35 @@ def test_the_identification_text_says_when_alpha_sits_at_the_cap_of_its_sweep(la
     assert int(np.argmin(lab_errors)) < lab_errors.size - 1
     assert "(chosen on held-out data)" in _recipe_text(lab_design)
     assert lab.to_json()["alpha_at_sweep_cap"] is False
+
+
+# ------------------------------------------------------------------ 6. a study not run says so
+
+def test_a_skipped_sensor_count_study_says_so_in_progress_report_and_json(monkeypatch, tiny):
+    from powerline_control.scenario import load_scenario, stages
+    from powerline_control.scenario.pipeline import run_scenario
+
+    # The tiny span's 13 nodes stand for drake-300m's 840: the limit set below them.
+    monkeypatch.setattr(stages, "SENSOR_COUNT_MAX_NODES", 10)
+    said = []
+    result = run_scenario(load_scenario(tiny), stages=("model", "records", "identification",
+                                                       "sensors"), progress=said.append)
+    assert result.ok and result.sensor_count is None
+    reason = "the model has 13 nodes, above the 10 the study runs on"
+    line = [s for s in said if s.startswith("how many sensors")]
+    assert line and line[0].startswith(f"how many sensors: skipped ({reason}")
+    assert "predicted error of 1 to" not in line[0]        # not printed as if it ran
+    rows = {row[0]: row[1] for s in result.sections() for row in s["rows"]}
+    assert rows["how many sensors"].startswith(f"not studied: {reason}")
+    entry = result.to_json()["sensor_count"]
+    assert entry["studied"] is False and entry["reason"].startswith(reason)
+    assert not [f for s in result.sections() for f in s.get("figures", ())
+                if f["name"] == "sensor_count"]
+
+
+def test_drake_300m_is_over_the_sensor_count_limit():
+    from powerline_control.scenario import load_scenario, stages
+    from powerline_control.scenario.pipeline import run_scenario
+
+    model = run_scenario(load_scenario("drake-300m"), stages=("model",)).model
+    assert model.node_positions.size > stages.SENSOR_COUNT_MAX_NODES   # 840 > 201

@@ -59,6 +59,7 @@ from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     layout_filter,
     longest_complete_run,
     read_wind_record,
+    sensor_count_skipped,
     severity_inputs,
     severity_span,
     support_intervals,
@@ -238,7 +239,12 @@ def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, 
                              "_wind": wind}
     say = progress or (lambda text: None)
     for stage in plan:
-        say(_STAGE_WORDS[stage](scenario))
+        words = _STAGE_WORDS[stage](scenario)
+        if stage == "sensors" and state.get("identification") is not None:
+            skipped = sensor_count_skipped(state["identification"])
+            if skipped is not None:   # not printed as if it ran
+                words = f"how many sensors: skipped ({skipped})"
+        say(words)
         start = time.perf_counter()
         try:
             _run_stage(stage, scenario, state, record, plan)

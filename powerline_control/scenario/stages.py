@@ -30,8 +30,8 @@ from .result import (
 __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
            "ANTINODE_WINDOW", "SENSOR_COUNT_MAX_NODES", "LAB_CONDUCTOR", "closed_loop_timing",
            "driven_mode", "evenly_spaced_nodes", "given_sensors", "layout_filter",
-           "longest_complete_run", "read_wind_record", "severity_inputs", "severity_span",
-           "support_intervals", "tune_robot"]
+           "longest_complete_run", "read_wind_record", "sensor_count_skipped", "severity_inputs",
+           "severity_span", "support_intervals", "tune_robot"]
 
 #: Share of the simulated record that trains the estimator; the rest tests it (held out).
 TRAIN_FRACTION = 0.6
@@ -319,15 +319,36 @@ def layout_filter(design, nodes):
 SENSOR_COUNT_MAX_NODES = 201
 
 
+def sensor_count_skipped(ident: Identification) -> str | None:
+    """Why the sensor-count study does not run on this identification (None: it runs).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> big = SimpleNamespace(sensors_given=False,
+    ...                       design=SimpleNamespace(model=SimpleNamespace(n_nodes=840)))
+    >>> sensor_count_skipped(big)
+    'the model has 840 nodes, above the 201 the study runs on (one sensor optimisation per count)'
+    """
+    if ident.sensors_given:
+        return "the scenario gives the sensor positions"
+    n_nodes = int(ident.design.model.n_nodes)
+    if n_nodes > SENSOR_COUNT_MAX_NODES:
+        return (f"the model has {n_nodes} nodes, above the {SENSOR_COUNT_MAX_NODES} the study "
+                "runs on (one sensor optimisation per count)")
+    return None
+
+
 def _sensor_count(ident: Identification, model):
-    """The predicted steady-state error against the sensor count (None above the size)."""
+    """The predicted steady-state error against the sensor count (None when skipped: see
+    :func:`sensor_count_skipped`)."""
     import numpy as np
 
     from ..sensors import sensor_count_study
 
     design = ident.design
     n_nodes = design.model.n_nodes
-    if ident.sensors_given or n_nodes > SENSOR_COUNT_MAX_NODES:
+    if sensor_count_skipped(ident) is not None:
         return None
     dmd = design.model
     q = np.array(dmd.residual_covariance)

@@ -233,6 +233,17 @@ def _eigenvalue_figure(plain, model):
                                          "the recipe's model": model})
 
 
+def _sensor_count_skipped(r) -> str | None:
+    """Why the sensor-count study was not run although its stage was (None: it ran, or its
+    stage was not asked for or failed)."""
+    from .stages import sensor_count_skipped
+
+    if r.sensor_count is not None or r.identification is None or "sensors" not in r.stages \
+            or (r.failure is not None and r.failure.stage == "sensors"):
+        return None
+    return sensor_count_skipped(r.identification)
+
+
 def _sensors_section(r) -> dict:
     ident = r.identification
     d = ident.design
@@ -251,6 +262,11 @@ def _sensors_section(r) -> dict:
                      "The relaxation gives a bound no layout can beat; the gap says how far the "
                      "chosen layout can be from the best possible one, at most."))
     figures = []
+    skipped = _sensor_count_skipped(r)
+    if skipped is not None:
+        rows.append(("how many sensors", f"not studied: {skipped}",
+                     "The sensor-count study optimises one layout per count; the chosen layout "
+                     "above is still optimised."))
     if r.sensor_count is not None:
         study = r.sensor_count
         draw = functools.partial(_plotting().plot_sensor_count, list(study.k),
@@ -700,8 +716,11 @@ def result_json(result) -> dict:
         if rm is not None:
             out["record_model"] = {"spectral_radius": _f(rm.spectral_radius),
                                    "least_damped_frequencies_hz": _least_damped(rm)}
+    skipped = _sensor_count_skipped(r)
+    if skipped is not None:
+        out["sensor_count"] = {"studied": False, "reason": skipped}
     if r.sensor_count is not None:
-        out["sensor_count"] = {"n_sensors": [int(k) for k in r.sensor_count.k],
+        out["sensor_count"] = {"studied": True, "n_sensors": [int(k) for k in r.sensor_count.k],
                                "predicted_rms_error_m": [_f(v) for v in
                                                          r.sensor_count.rms_error]}
     if r.layouts is not None:
