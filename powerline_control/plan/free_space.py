@@ -16,7 +16,7 @@ import numpy as np
 
 from .._validation import check_real
 from ..errors import InputError, PlanningError
-from .limits import RobotLimits
+from .limits import RobotLimits, _check_limits
 
 # Positions closer than this (metres) are treated as equal when testing contact with obstacles.
 _GEOMETRY_TOL = 1e-9
@@ -120,10 +120,7 @@ def free_interval(
     >>> free_interval(1.0, RobotLimits(v_max=0.5, a_max=1.0, length=0.2), 3.66, [(2.0, 2.1)])
     (0.1, 1.9)
     """
-    if not isinstance(limits, RobotLimits):
-        raise InputError(
-            f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__} instead."
-        )
+    _check_limits(limits)
     span_length = _check_span_length(span_length, limits)
     position = check_real("position", position, low=0.0, high=span_length, low_inclusive=True)
     checked = _check_obstacles(obstacles, span_length)

@@ -120,6 +120,13 @@ class RobotLimits:
         return float(sum(duration for duration, _ in pieces))
 
 
+def _check_limits(limits: object) -> None:
+    if not isinstance(limits, RobotLimits):
+        raise InputError(
+            f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__} instead."
+        )
+
+
 def _check_velocity_state(start_velocity: float, end_velocity: float, limits: RobotLimits) -> None:
     for name, value in (("start_velocity", start_velocity), ("end_velocity", end_velocity)):
         if abs(value) > limits.v_max * (1 + _STATE_RTOL):

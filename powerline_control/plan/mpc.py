@@ -28,7 +28,7 @@ from .free_space import (
     _free_interval,
     _push_out_of_obstacles,
 )
-from .limits import RobotLimits
+from .limits import RobotLimits, _check_limits
 from .nlp import (
     _FAR,
     _IPOPT_QUIET,
@@ -251,11 +251,7 @@ class MotionPlanner:
         warm_start: str = "closed_form",
         memory_budget: float | None = None,
     ) -> None:
-        if not isinstance(limits, RobotLimits):
-            raise InputError(
-                f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__} "
-                "instead."
-            )
+        _check_limits(limits)
         self.limits = limits
         self.dt = check_real("dt", dt, low=0.0)
         self.horizon = check_int("horizon", horizon, low=2)

@@ -40,7 +40,7 @@ from .free_space import (
     _check_target_reachable,
     _free_interval,
 )
-from .limits import RobotLimits, _check_velocity_state
+from .limits import RobotLimits, _check_limits, _check_velocity_state
 
 _IPOPT_QUIET = {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes"}
 # Stand-in for an infinite position bound (no span ends), m.
@@ -337,10 +337,7 @@ def plan_motion(
     ...
     powerline_control.errors.PlanningError: The target 1.8 m cannot be reached from 0.2 m: ...
     """
-    if not isinstance(limits, RobotLimits):
-        raise InputError(
-            f"The 'limits' parameter must be a RobotLimits. Got {type(limits).__name__} instead."
-        )
+    _check_limits(limits)
     objective = check_choice("objective", objective, ("time", "energy"))
     method = check_choice("method", method, ("auto", "closed_form", "ipopt"))
     n = check_int("n_intervals", n_intervals, low=2)
