@@ -392,3 +392,37 @@ def test_drake_300m_is_over_the_sensor_count_limit():
 
     model = run_scenario(load_scenario("drake-300m"), stages=("model",)).model
     assert model.node_positions.size > stages.SENSOR_COUNT_MAX_NODES   # 840 > 201
+
+
+# ------------------------------------------------------------------ 3. how many sensors, in %
+
+def test_sensor_count_figure_is_in_percent_and_its_chosen_point_is_the_tables(lab, drawn):
+    figure = drawn["sensor_count"]
+    ax = figure["figure"].axes[0]
+    assert "%" in ax.get_ylabel() and "mm" not in ax.get_ylabel()
+    assert "% of RMS displacement over the span" in " ".join(ax.get_ylabel().split())
+    lines = {ln.get_label(): ln for ln in ax.get_lines()}
+    measured = lines["measured on held-out data"]
+    predicted = lines["predicted by the filter (its covariance)"]
+    k = int(lab.identification.design.sensors.size)
+    at = list(measured.get_xdata()).index(k)
+    chosen = lab.layouts["chosen"]
+    # The caption says the measured curve at the recipe's count is the table's error at
+    # unmeasured nodes: the figure draws exactly that number.
+    assert measured.get_ydata()[at] == pytest.approx(chosen.error_unmeasured_percent, rel=1e-12)
+    assert f"the table's error at unmeasured nodes, {chosen.error_unmeasured_percent:.3g} %" \
+        in figure["caption"]
+    # ... and the predicted curve is the chosen filter's own variance at the unmeasured nodes,
+    # recomputed here from the table's estimate (its field variances) over the same samples.
+    est, nodes = chosen.estimate, list(chosen.nodes)
+    unmeasured = np.setdiff1d(np.arange(est.field.shape[0]), nodes)
+    discard = chosen.accuracy.n_samples
+    discard = est.field.shape[1] - discard                  # the transient the table leaves out
+    variance = np.asarray(est.field_variances)[unmeasured, discard:]
+    expected = 100 * np.sqrt(np.mean(variance)) / chosen.accuracy.rms_truth
+    assert predicted.get_ydata()[at] == pytest.approx(expected, rel=1e-12)
+    assert "predicts it from its own covariance" in figure["caption"]
+    assert "measured against the simulated truth" in figure["caption"]
+    numbers = lab.to_json()["sensor_count"]
+    assert numbers["error_unmeasured_percent"][at] == pytest.approx(
+        chosen.error_unmeasured_percent, rel=1e-12)

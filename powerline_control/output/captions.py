@@ -57,7 +57,9 @@ def _categories(axis) -> list | None:
 
 
 def _plain(label: str) -> str:
-    return " ".join(str(label).replace("\n", ", ").split())
+    # A line break before a parenthesis (a unit on its own line) reads as a space.
+    text = str(label).replace("\n(", " (").replace("\n", ", ")
+    return " ".join(text.split())
 
 
 _LINESTYLES = {"-": "solid", "--": "dashed", ":": "dotted", "-.": "dash-dot"}

@@ -235,7 +235,9 @@ def plot_layouts(
 
 
 def plot_sensor_count(
-    k: Sequence[int], predicted: Sequence[float], simulated: Sequence[float] | None = None
+    k: Sequence[int], predicted: Sequence[float], simulated: Sequence[float] | None = None, *,
+    percent: bool = False, labels: tuple[str, str] = ("predicted (Riccati)", "simulated"),
+    ylabel: str | None = None, chosen: int | None = None,
 ) -> Figure:
     """How many sensors: the RMS estimation error against the number of sensors.
 
@@ -244,9 +246,17 @@ def plot_sensor_count(
     k : sequence of int
         Sensor counts.
     predicted : sequence of float
-        Predicted steady-state RMS error per state, m.
+        Predicted steady-state RMS error, m (or % with ``percent``).
     simulated : sequence of float, optional
-        The same measured on a simulation, m.
+        The same measured on a simulation, m (or % with ``percent``).
+    percent : bool
+        The errors are percentages (drawn as given); otherwise metres, drawn in mm.
+    labels : (str, str)
+        Legend entries of the two curves.
+    ylabel : str or None
+        The vertical axis' label (default: "RMS estimation error (mm)", or "(%)").
+    chosen : int or None
+        A count to mark (e.g. the recipe's), with a vertical line.
 
     Returns
     -------
@@ -256,13 +266,20 @@ def plot_sensor_count(
     --------
     >>> len(plot_sensor_count([1, 2, 3], [3e-4, 1e-4, 8e-5], [3.1e-4, 1e-4, 8e-5]).axes)
     1
+    >>> ax = plot_sensor_count([1, 2], [5.0, 1.0], [6.0, 1.2], percent=True).axes[0]
+    >>> ax.get_ylabel(), ax.get_lines()[0].get_ydata().tolist()
+    ('RMS estimation error (%)', [5.0, 1.0])
     """
+    scale = 1.0 if percent else 1e3
     fig = Figure(figsize=(6, 3.5), layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(k, 1e3 * np.asarray(predicted), "o-", label="predicted (Riccati)")
+    ax.plot(k, scale * np.asarray(predicted), "o-", label=labels[0])
     if simulated is not None:
-        ax.plot(k, 1e3 * np.asarray(simulated), "x--", label="simulated")
-    ax.set(xlabel="number of sensors", ylabel="RMS estimation error (mm)")
+        ax.plot(k, scale * np.asarray(simulated), "x--", label=labels[1])
+    if chosen is not None:
+        ax.axvline(chosen, color="k", ls=":", lw=1, label=f"{chosen} sensors (the recipe's)")
+    default = "RMS estimation error (%)" if percent else "RMS estimation error (mm)"
+    ax.set(xlabel="number of sensors", ylabel=ylabel or default)
     ax.set_yscale("log")
     ax.set_xticks(list(k))
     # off the curves
