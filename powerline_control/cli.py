@@ -615,7 +615,9 @@ def _build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--record", type=Path, default=None, metavar="FILE",
                          help="a measured record (.csv with time_s and x_<position>_m columns, "
                          "or .npz from simulate --out): its channels become the sensors and, "
-                         "for estimate, the filter runs on it (NaN = missing)")
+                         "for estimate, the filter runs on it (NaN = missing); a channel on a "
+                         "support (x = 0 or the span length), where the line does not move, "
+                         "is not used")
     verb("plan", "estimate, then locate the antinodes (m) and plan the robot's move (s)")
     verb("closed-loop", "the robot driven to the antinode in closed loop, against parked")
     severity = verb("severity", "aeolian severity: antinode amplitude (mm) and clamp strain "

@@ -426,3 +426,13 @@ def test_sensor_count_figure_is_in_percent_and_its_chosen_point_is_the_tables(la
     numbers = lab.to_json()["sensor_count"]
     assert numbers["error_unmeasured_percent"][at] == pytest.approx(
         chosen.error_unmeasured_percent, rel=1e-12)
+
+
+def test_a_random_bytes_npz_record_is_bad_input_for_the_command(tiny, tmp_path, capsys):
+    from powerline_control import cli
+
+    path = tmp_path / "junk.npz"
+    path.write_bytes(np.random.default_rng(1).bytes(1000))
+    assert cli.main(["estimate", str(tiny), "--record", str(path), "-q"]) == cli.EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.startswith("powerline-control: error: ") and "junk.npz: not an .npz file" in err
