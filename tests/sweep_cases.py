@@ -549,8 +549,10 @@ def bound_arguments(name: str, k: Kit):
             values[parameter.name] = parameter.default
         else:
             raise AssertionError(f"baseline of {name} lacks {parameter.name}")
-    extra = set(given) - set(values)
-    for parameter in extra:   # **kwargs entries (parameter_grid axes)
+    # **kwargs entries (parameter_grid axes), in the baseline's order: a set's order changes with
+    # the hash seed, and parallel test workers must collect the same cases in the same order
+    extra = [parameter for parameter in given if parameter not in values]
+    for parameter in extra:
         values[parameter] = given[parameter]
     return fn, values
 
