@@ -19,6 +19,8 @@ This module imports only the standard library at import time: ``--help`` and ``s
 fast, and numpy, SciPy, python-control, cvxpy, CasADi and matplotlib load inside the verbs. The
 numerical work runs under one BLAS thread (threadpoolctl, in the verb's scope only): its matrices
 are small, and two contending threads on a 2-core machine made ``run`` 2.5x slower.
+
+Test seam: ``_numerics``: the verbs' BLAS scope, tested to limit the threads inside it only.
 """
 
 from __future__ import annotations

@@ -365,11 +365,11 @@ def test_the_identification_text_says_when_alpha_sits_at_the_cap_of_its_sweep(la
 # ------------------------------------------------------------------ 6. a study not run says so
 
 def test_a_skipped_sensor_count_study_says_so_in_progress_report_and_json(monkeypatch, tiny):
-    from powerline_control.scenario import load_scenario, stages
+    from powerline_control.scenario import load_scenario, sensor_count
     from powerline_control.scenario.pipeline import run_scenario
 
     # The tiny span's 13 nodes stand for drake-300m's 840: the limit set below them.
-    monkeypatch.setattr(stages, "SENSOR_COUNT_MAX_NODES", 10)
+    monkeypatch.setattr(sensor_count, "SENSOR_COUNT_MAX_NODES", 10)
     said = []
     result = run_scenario(load_scenario(tiny), stages=("model", "records", "identification",
                                                        "sensors"), progress=said.append)
@@ -387,11 +387,11 @@ def test_a_skipped_sensor_count_study_says_so_in_progress_report_and_json(monkey
 
 
 def test_drake_300m_is_over_the_sensor_count_limit():
-    from powerline_control.scenario import load_scenario, stages
-    from powerline_control.scenario.pipeline import run_scenario
+    from powerline_control.scenario import load_scenario
+    from powerline_control.scenario.pipeline import SENSOR_COUNT_MAX_NODES, run_scenario
 
     model = run_scenario(load_scenario("drake-300m"), stages=("model",)).model
-    assert model.node_positions.size > stages.SENSOR_COUNT_MAX_NODES   # 840 > 201
+    assert model.node_positions.size > SENSOR_COUNT_MAX_NODES   # 840 > 201
 
 
 # ------------------------------------------------------------------ 3. how many sensors, in %

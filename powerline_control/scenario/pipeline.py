@@ -19,6 +19,9 @@ that trains (:data:`TRAIN_FRACTION`), where the identification run's shaker acts
 (:data:`SHAKER_POSITION`), the closed loop's calibration (:func:`closed_loop_timing`).
 A stage that fails leaves the finished stages' results in the returned (or attached) result
 with the failure recorded (:class:`StageFailure`).
+
+Test seam: ``_records``, ``_plan`` and ``_closed_loop``, the stage functions as the pipeline
+calls them: tests replace one to make its stage fail (exit codes, the partial result).
 """
 
 from __future__ import annotations
@@ -33,12 +36,16 @@ from ..errors import InputError
 from .config import Scenario
 from .files import load_scenario
 from .result import ScenarioResult, StageFailure, Tuning
+from .sensor_count import (  # noqa: F401  (re-exported, as before it had its own module)
+    SENSOR_COUNT_MAX_NODES,
+    _sensor_count,
+    sensor_count_skipped,
+)
 from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     ANTINODE_WINDOW,
     CONTROL_PERIOD,
     LAB_CONDUCTOR,
     MAX_CALIBRATION,
-    SENSOR_COUNT_MAX_NODES,
     SHAKER_POSITION,
     TRAIN_FRACTION,
     _closed_loop,
@@ -49,7 +56,6 @@ from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     _model,
     _plan,
     _records,
-    _sensor_count,
     _severity,
     _with_record_sensors,
     closed_loop_timing,
@@ -59,7 +65,6 @@ from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     layout_filter,
     longest_complete_run,
     read_wind_record,
-    sensor_count_skipped,
     severity_inputs,
     severity_span,
     support_intervals,

@@ -11,7 +11,6 @@ from __future__ import annotations
 import dataclasses
 import time
 import warnings
-import weakref
 
 from ..errors import InputError
 from .config import Scenario
@@ -29,11 +28,10 @@ from .result import (
 )
 
 __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
-           "ANTINODE_WINDOW", "SENSOR_COUNT_MAX_NODES", "LAB_CONDUCTOR", "closed_loop_timing",
+           "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing",
            "driven_mode", "evenly_spaced_nodes", "given_sensors", "layout_filter",
-           "longest_complete_run", "read_wind_record", "SensorCountCheck", "sensor_count_check",
-           "sensor_count_skipped", "severity_inputs", "severity_span", "support_intervals",
-           "tune_robot"]
+           "longest_complete_run", "read_wind_record", "severity_inputs", "severity_span",
+           "support_intervals", "tune_robot"]
 
 #: Share of the simulated record that trains the estimator; the rest tests it (held out).
 TRAIN_FRACTION = 0.6
@@ -317,134 +315,6 @@ def layout_filter(design, nodes):
                         field_map=model.field_map, nis_dof_fraction=design.nis_dof_fraction)
 
 
-#: Largest node count for which the sensor-count study (one optimisation per count) runs.
-SENSOR_COUNT_MAX_NODES = 201
-
-
-@dataclasses.dataclass(frozen=True)
-class SensorCountCheck:
-    """The sensor-count study's layouts run like the table's: the designed filter on the
-    held-out record, error at the nodes without a sensor, % of the held-out RMS displacement.
-
-    Attributes
-    ----------
-    k : tuple of int
-        Sensor counts (the study's).
-    layouts : tuple of tuple of int
-        The nodes measured at each count: the study's optimised layout, except at the recipe's
-        own count, where it is the recipe's chosen layout (the table's "chosen" row).
-    predicted_percent : tuple of float
-        What the filter predicts: the RMS of its own error standard deviation (its covariance,
-        mapped to the nodes) over the unmeasured nodes.
-    measured_percent : tuple of float
-        What it achieves: the RMS of (estimate - FE truth) over the unmeasured nodes; at the
-        recipe's count it is the table's error at unmeasured nodes.
-    chosen_k : int
-        The recipe's sensor count.
-    """
-
-    k: tuple
-    layouts: tuple
-    predicted_percent: tuple
-    measured_percent: tuple
-    chosen_k: int
-
-
-# id(study) -> (a weak reference to the study, its check): the study's fields are arrays, so it
-# has no hash; an entry whose study is gone is dropped by the reference's callback.
-_SENSOR_COUNT_CHECKS: dict = {}
-
-
-def sensor_count_check(result) -> SensorCountCheck | None:
-    """The sensor-count study of ``result`` run on its held-out record (None: no study).
-
-    Computed once per study (the report, the JSON and the summary all read it).
-    """
-    study = getattr(result, "sensor_count", None)
-    if study is None or result.records is None or result.identification is None:
-        return None
-    key = id(study)
-    entry = _SENSOR_COUNT_CHECKS.get(key)
-    if entry is None or entry[0]() is not study:
-        check = _check_sensor_count(study, result.records, result.identification)
-        reference = weakref.ref(study, lambda _, key=key: _SENSOR_COUNT_CHECKS.pop(key, None))
-        entry = _SENSOR_COUNT_CHECKS[key] = (reference, check)
-    return entry[1]
-
-
-def _held_out_discard(records: Records) -> int:
-    """Samples at the start of the held-out record left out of the errors (filter transient)."""
-    return min(200, (records.test.t.size - records.n_train) // 4)
-
-
-def _check_sensor_count(study, records: Records, ident: Identification) -> SensorCountCheck:
-    import numpy as np
-
-    from ..estimate import estimation_accuracy
-
-    snap, held = records.test, slice(records.n_train, None)
-    truth = snap.true_displacement[:, held]
-    discard = _held_out_discard(records)
-    chosen = [int(i) for i in ident.design.sensors]   # as the table's layout (_layouts)
-    layouts, predicted, measured = [], [], []
-    for k, nodes in zip(study.k, study.layouts, strict=True):
-        nodes = chosen if k == len(chosen) else sorted(int(i) for i in nodes)
-        estimate = layout_filter(ident.design, nodes).filter(snap.displacement[nodes, held])
-        accuracy = estimation_accuracy(estimate.field, truth, measured=nodes, discard=discard)
-        unmeasured = np.ones(truth.shape[0], dtype=bool)
-        unmeasured[nodes] = False
-        variance = np.asarray(estimate.field_variances)[unmeasured, discard:]
-        layouts.append(tuple(nodes))
-        predicted.append(100.0 * float(np.sqrt(np.mean(variance))) / accuracy.rms_truth)
-        measured.append(100.0 * float(accuracy.relative_rms_error_unmeasured))
-    return SensorCountCheck(k=tuple(int(k) for k in study.k), layouts=tuple(layouts),
-                            predicted_percent=tuple(predicted),
-                            measured_percent=tuple(measured), chosen_k=len(chosen))
-
-
-def sensor_count_skipped(ident: Identification) -> str | None:
-    """Why the sensor-count study does not run on this identification (None: it runs).
-
-    Examples
-    --------
-    >>> from types import SimpleNamespace
-    >>> big = SimpleNamespace(sensors_given=False,
-    ...                       design=SimpleNamespace(model=SimpleNamespace(n_nodes=840)))
-    >>> sensor_count_skipped(big)
-    'the model has 840 nodes, above the 201 the study runs on (one sensor optimisation per count)'
-    """
-    if ident.sensors_given:
-        return "the scenario gives the sensor positions"
-    n_nodes = int(ident.design.model.n_nodes)
-    if n_nodes > SENSOR_COUNT_MAX_NODES:
-        return (f"the model has {n_nodes} nodes, above the {SENSOR_COUNT_MAX_NODES} the study "
-                "runs on (one sensor optimisation per count)")
-    return None
-
-
-def _sensor_count(ident: Identification, model):
-    """The predicted steady-state error against the sensor count (None when skipped: see
-    :func:`sensor_count_skipped`)."""
-    import numpy as np
-
-    from ..sensors import sensor_count_study
-
-    design = ident.design
-    n_nodes = design.model.n_nodes
-    if sensor_count_skipped(ident) is not None:
-        return None
-    dmd = design.model
-    q = np.array(dmd.residual_covariance)
-    q[np.diag_indices_from(q)] += design.q_floor
-    scale = design.covariance_scale
-    k = int(design.sensors.size)
-    return sensor_count_study(dmd.to_statespace(measured=list(range(n_nodes))),
-                              list(range(1, k + 3)), Q=scale * q,
-                              R=scale * float(design.noise_std) ** 2,
-                              positions=np.asarray(model.node_positions),
-                              forbidden=ident.forbidden, n_steps=500)
-
-
 def driven_mode(model, load_frequency: float) -> int:
     """The line's mode (1-based) whose natural frequency is nearest the load's.
 
@@ -470,6 +340,11 @@ def driven_mode(model, load_frequency: float) -> int:
     n = min(400, model.n_dofs)
     frequencies = np.asarray(model.natural_frequencies(n))
     return int(np.argmin(np.abs(frequencies - load_frequency))) + 1
+
+
+def _held_out_discard(records: Records) -> int:
+    """Samples at the start of the held-out record left out of the errors (filter transient)."""
+    return min(200, (records.test.t.size - records.n_train) // 4)
 
 
 def _layouts(scenario: Scenario, records: Records, ident: Identification, model) -> dict:

@@ -6,6 +6,9 @@ beside them, frequencies in Hz, times in s, strain in microstrain. Figures are h
 functions that draw them; their captions are generated from the drawn figure
 (:func:`~powerline_control.output.captions.figure_caption`), so a caption cannot contradict its
 figure.
+
+Test seam: ``_recipe_text``, ``_model_kind`` and ``_least_damped``: the identification row's
+words and the JSON's model kind, tested against the model's type, its sweep and eigenvalues.
 """
 
 from __future__ import annotations
@@ -231,72 +234,6 @@ def _least_damped(model, n: int = 3) -> list:
 def _eigenvalue_figure(plain, model):
     return _plotting().plot_eigenvalues({"plain DMD (alpha = 0)": plain,
                                          "the recipe's model": model})
-
-
-def _sensor_count_check(r):
-    from .stages import sensor_count_check
-
-    return sensor_count_check(r)
-
-
-def _sensor_count_skipped(r) -> str | None:
-    """Why the sensor-count study was not run although its stage was (None: it ran, or its
-    stage was not asked for or failed)."""
-    from .stages import sensor_count_skipped
-
-    if r.sensor_count is not None or r.identification is None or "sensors" not in r.stages \
-            or (r.failure is not None and r.failure.stage == "sensors"):
-        return None
-    return sensor_count_skipped(r.identification)
-
-
-def _sensors_section(r) -> dict:
-    ident = r.identification
-    d = ident.design
-    x = r.records.test.x
-    nodes = [int(i) for i in d.sensors]
-    rows = [("sensors", positions_text([x[i] for i in nodes], nodes), ident.sensors_how)]
-    selection = d.sensor_selection
-    if selection is not None and not ident.sensors_given:
-        k = len(nodes)
-        if selection.certificate == "exhaustive" or selection.gap == 0:
-            text = f"{selection.certificate}: proved the best of all layouts of {k} sensors"
-        else:
-            text = (f"{selection.certificate}: the chosen layout's criterion is at most "
-                    f"{100 * selection.gap:.2g} % above the best possible layout of {k} sensors")
-        rows.append(("optimality certificate", text,
-                     "The relaxation gives a bound no layout can beat; the gap says how far the "
-                     "chosen layout can be from the best possible one, at most."))
-    figures = []
-    skipped = _sensor_count_skipped(r)
-    if skipped is not None:
-        rows.append(("how many sensors", f"not studied: {skipped}",
-                     "The sensor-count study optimises one layout per count; the chosen layout "
-                     "above is still optimised."))
-    check = _sensor_count_check(r)
-    if check is not None:
-        draw = functools.partial(
-            _plotting().plot_sensor_count, list(check.k), list(check.predicted_percent),
-            list(check.measured_percent), percent=True, chosen=check.chosen_k,
-            labels=("predicted by the filter (its covariance)",
-                    "measured on held-out data"),
-            ylabel="RMS error at unmeasured nodes\n(% of RMS displacement over the span)")
-        at = check.k.index(check.chosen_k) if check.chosen_k in check.k else None
-        same = ("" if at is None else
-                f" At {check.chosen_k} sensors (the recipe's layout) the measured curve is the "
-                f"table's error at unmeasured nodes, {check.measured_percent[at]:.3g} %; the "
-                f"filter predicted {check.predicted_percent[at]:.3g} %.")
-        figures.append(_figure("sensor_count", draw,
-                               "How many sensors: for each count, the layout optimised for it "
-                               "(by the filter's predicted steady-state error), and the "
-                               "designed filter run on the held-out record with those sensors: "
-                               "its error at the nodes without a sensor as the filter predicts "
-                               "it from its own covariance, and as measured against the "
-                               "simulated truth, both % of the held-out RMS displacement over "
-                               "the span (the estimation table's definition)." + same,
-                               "where the measured curve flattens: more sensors than that buy "
-                               "little; and how far the prediction sits from it"))
-    return {"title": "Sensor placement", "rows": rows, "figures": figures}
 
 
 def _estimation_section(r) -> dict:
@@ -648,16 +585,18 @@ def result_sections(result) -> list:
     >>> [s["title"] for s in result_sections(run_scenario(stages=("model",)))]
     ['Span and model']
     """
+    from .sensor_count import sensors_section
+
     builders = [("model", _model_section), ("records", _records_section),
                 ("identification", _identification_section),
-                ("identification", _sensors_section), ("layouts", _estimation_section),
+                ("identification", sensors_section), ("layouts", _estimation_section),
                 ("measured", _measured_section),
                 ("plan", _plan_section), ("closed_loop", _closed_loop_section),
                 ("severity", _severity_section), ("fatigue", _fatigue_section)]
     sections = []
     for attribute, build in builders:
         if getattr(result, attribute, None) is not None:
-            if build is _sensors_section and "sensors" not in result.stages \
+            if build is sensors_section and "sensors" not in result.stages \
                     and not result.identification.sensors_given:
                 continue
             sections.append(build(result))
@@ -735,19 +674,9 @@ def result_json(result) -> dict:
         if rm is not None:
             out["record_model"] = {"spectral_radius": _f(rm.spectral_radius),
                                    "least_damped_frequencies_hz": _least_damped(rm)}
-    skipped = _sensor_count_skipped(r)
-    if skipped is not None:
-        out["sensor_count"] = {"studied": False, "reason": skipped}
-    if r.sensor_count is not None:
-        check = _sensor_count_check(r)
-        out["sensor_count"] = {
-            "studied": True, "n_sensors": [int(k) for k in r.sensor_count.k],
-            # the study's criterion: predicted RMS error per state of the model (its reduced
-            # coordinates), m; the two below are the estimation table's quantity
-            "predicted_rms_error_m": [_f(v) for v in r.sensor_count.rms_error],
-            "sensor_nodes": [list(nodes) for nodes in check.layouts],
-            "predicted_error_unmeasured_percent": [_f(v) for v in check.predicted_percent],
-            "error_unmeasured_percent": [_f(v) for v in check.measured_percent]}
+    from .sensor_count import sensor_count_json
+
+    out.update(sensor_count_json(r))
     if r.layouts is not None:
         out["error_unmeasured_percent"] = r.layouts["chosen"].error_unmeasured_percent
         out["layouts"] = {name: {"error_unmeasured_percent": lay.error_unmeasured_percent,
