@@ -234,6 +234,14 @@ def plot_layouts(
     return fig
 
 
+def _plain_tick(value: float, _position=None) -> str:
+    """A log axis' tick as a plain number (0.5, not 5x10^-1), labelled at 1, 2 and 5 only."""
+    if value <= 0:
+        return ""
+    mantissa = value / 10.0 ** np.floor(np.log10(value) + 1e-9)
+    return f"{value:g}" if any(abs(mantissa - m) < 1e-6 for m in (1, 2, 5)) else ""
+
+
 def plot_sensor_count(
     k: Sequence[int], predicted: Sequence[float], simulated: Sequence[float] | None = None, *,
     percent: bool = False, labels: tuple[str, str] = ("predicted (Riccati)", "simulated"),
@@ -271,7 +279,7 @@ def plot_sensor_count(
     ('RMS estimation error (%)', [5.0, 1.0])
     """
     scale = 1.0 if percent else 1e3
-    fig = Figure(figsize=(6, 3.5), layout="constrained")
+    fig = Figure(figsize=(7.5, 3.5), layout="constrained")
     ax = fig.add_subplot()
     ax.plot(k, scale * np.asarray(predicted), "o-", label=labels[0])
     if simulated is not None:
@@ -281,6 +289,8 @@ def plot_sensor_count(
     default = "RMS estimation error (%)" if percent else "RMS estimation error (mm)"
     ax.set(xlabel="number of sensors", ylabel=ylabel or default)
     ax.set_yscale("log")
+    ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(_plain_tick))
+    ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(_plain_tick))
     ax.set_xticks(list(k))
     # off the curves
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)

@@ -110,14 +110,14 @@ def sensor_count_skipped(ident: Identification) -> str | None:
     >>> big = SimpleNamespace(sensors_given=False,
     ...                       design=SimpleNamespace(model=SimpleNamespace(n_nodes=840)))
     >>> sensor_count_skipped(big)
-    'the model has 840 nodes, above the 201 the study runs on (one sensor optimisation per count)'
+    'the model has 840 nodes, above the 201 the study runs on, one sensor optimisation per count'
     """
     if ident.sensors_given:
         return "the scenario gives the sensor positions"
     n_nodes = int(ident.design.model.n_nodes)
     if n_nodes > SENSOR_COUNT_MAX_NODES:
         return (f"the model has {n_nodes} nodes, above the {SENSOR_COUNT_MAX_NODES} the study "
-                "runs on (one sensor optimisation per count)")
+                "runs on, one sensor optimisation per count")
     return None
 
 
