@@ -436,3 +436,22 @@ def test_a_random_bytes_npz_record_is_bad_input_for_the_command(tiny, tmp_path, 
     assert cli.main(["estimate", str(tiny), "--record", str(path), "-q"]) == cli.EXIT_USAGE
     err = capsys.readouterr().err
     assert err.startswith("powerline-control: error: ") and "junk.npz: not an .npz file" in err
+
+
+def test_the_recipe_row_says_when_the_scenarios_own_alpha_was_not_the_one_used(tiny):
+    import warnings
+
+    from powerline_control.scenario import load_scenario
+    from powerline_control.scenario.pipeline import run_scenario
+
+    scenario = load_scenario(text=TINY + "[identification]\nalpha = 1e-8\n", source="given")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # the recipe's warnings about its sweep
+        result = run_scenario(scenario, stages=("model", "records", "identification"))
+    used = float(result.identification.design.model.alpha_relative)
+    row = [row[1] for s in result.sections() for row in s["rows"] if row[0] == "recipe"][0]
+    if used == pytest.approx(1e-8):
+        assert "the scenario's alpha" not in row
+    else:   # the recipe widened the sweep from the given alpha (measured: to 1e-4)
+        assert "the scenario's alpha = 1e-08 was only where the sweep started" in row
+        assert f"lower at {used:.3g}, which the recipe used" in row

@@ -152,19 +152,25 @@ def _recipe_text(design) -> str:
             f"({alpha_choice(design)}), trained on {design.n_train} samples")
 
 
+def _given_alpha_text(given, design) -> str:
+    """What became of the scenario's own alpha: the recipe starts its sweep there and widens."""
+    alpha = getattr(design.model, "alpha_relative", None)
+    if given == "auto" or alpha is None or math.isclose(float(given), float(alpha)):
+        return ""
+    return (f"; the scenario's alpha = {float(given):.3g} was only where the sweep started: the "
+            f"held-out error was lower at {float(alpha):.3g}, which the recipe used")
+
+
 def alpha_at_sweep_cap(design) -> bool:
-    """Whether the recipe's alpha is the largest of its held-out sweep (AlphaSweep): the held-out
-    error was lowest at the sweep's top, so it may still have been falling beyond it."""
+    """Whether the recipe's alpha is the last (largest) of its held-out sweep (AlphaSweep): the
+    held-out error was lowest at the sweep's top, so it may still have been falling beyond."""
     import numpy as np
 
     sweep = getattr(design, "alpha_sweep", None)
-    if sweep is None or np.size(sweep.alphas) < 2:
-        return False
-    errors = np.asarray(sweep.held_out_error, dtype=float)
-    if not np.isfinite(errors).any():
-        return False
-    best = int(np.nanargmin(np.where(np.isfinite(errors), errors, np.nan)))
-    return best == errors.size - 1
+    errors = np.asarray([] if sweep is None else sweep.held_out_error, dtype=float)
+    finite = np.where(np.isfinite(errors), errors, np.nan)
+    return bool(errors.size > 1 and np.isfinite(errors).any()
+                and int(np.nanargmin(finite)) == errors.size - 1)
 
 
 def alpha_choice(design) -> str:
@@ -183,7 +189,8 @@ def _identification_section(r) -> dict:
     report = d.model.stability_report(warn=False)
     radius, plain_radius = float(d.model.spectral_radius), float(plain.spectral_radius)
     rows = [
-        ("recipe", "the package's recipe (design_estimator): " + _recipe_text(d)),
+        ("recipe", "the package's recipe (design_estimator): " + _recipe_text(d)
+         + _given_alpha_text(r.scenario.identification.alpha, d)),
         ("spectral radius / unstable eigenvalues",
          f"{radius:.6f} / {int(report.n_unstable)}",
          "Largest |eigenvalue| of the identified one-step map. Below 1 the model is stable: "
