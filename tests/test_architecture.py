@@ -4,6 +4,7 @@ import ast
 import importlib
 import inspect
 import pathlib
+import re
 
 import pytest
 from numpydoc.docscrape import ClassDoc
@@ -103,6 +104,78 @@ def test_no_private_cross_imports(path):
         assert not private, f"{path.relative_to(PACKAGE)} imports private {private} of {target}"
 
 
+TESTS = pathlib.Path(__file__).parent
+# A module's one documented private seam: a paragraph of its docstring that starts "Test seam:"
+# and names (in double backquotes) the private names tests may reach, and says why.
+SEAM_PARAGRAPH = re.compile(r"^Test seam:(.*?)(?:\n\s*\n|\Z)", re.S | re.M)
+
+
+def _module_file(module: str) -> pathlib.Path | None:
+    parts = module.split(".")[1:]
+    if not parts:
+        return PACKAGE / "__init__.py"
+    relative = pathlib.Path(*parts)
+    for candidate in (PACKAGE / relative.with_suffix(".py"), PACKAGE / relative / "__init__.py"):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _private_reaches(path: pathlib.Path) -> set[tuple[str, str]]:
+    """(module, private name) pairs a test file imports, reads or monkeypatches."""
+    tree = ast.parse(path.read_text())
+    modules, found = {}, set()      # local name -> the package module it stands for
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("powerline_control"):
+            for alias in node.names:
+                modules[alias.asname or alias.name] = f"{node.module}.{alias.name}"
+                if alias.name.startswith("_"):
+                    found.add((node.module, alias.name))
+        elif isinstance(node, ast.Import):
+            modules.update({alias.asname or alias.name: alias.name for alias in node.names
+                            if alias.name.startswith("powerline_control")})
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name):
+            owner, name = modules.get(node.value.id), node.attr
+        elif (isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "setattr"
+              and len(node.args) >= 2 and isinstance(node.args[0], ast.Name)
+              and isinstance(node.args[1], ast.Constant)):
+            owner, name = modules.get(node.args[0].id), str(node.args[1].value)
+        else:
+            continue
+        if owner and name.startswith("_") and not name.startswith("__"):
+            found.add((owner, name))
+    # A private module (``_spectral``, ``estimate._recursion``) is tested through its own names.
+    return {(module, name) for module, name in found if not _module_file(f"{module}.{name}")}
+
+
+def _declared_seam(module: str) -> set[str]:
+    path = _module_file(module)
+    match = SEAM_PARAGRAPH.search(ast.get_docstring(ast.parse(path.read_text())) or "") \
+        if path else None
+    return set(re.findall(r"``(_\w+)``", match.group(1))) if match else set()
+
+
+@pytest.mark.parametrize("path", sorted(TESTS.glob("*.py")), ids=lambda p: p.name)
+def test_tests_reach_private_names_only_through_a_documented_seam(path):
+    """Tests go through public names, or through the one seam a module's docstring declares."""
+    undeclared = sorted(f"{module}.{name}" for module, name in _private_reaches(path)
+                        if name not in _declared_seam(module))
+    assert not undeclared, (f"{path.name} reaches {undeclared}: test through a public name, or "
+                            "name it in its module's 'Test seam:' docstring paragraph")
+
+
+@pytest.mark.parametrize("path", sorted(PACKAGE.rglob("*.py")),
+                         ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_a_declared_seam_names_what_the_module_has(path):
+    relative = path.relative_to(PACKAGE.parent).with_suffix("")
+    module = ".".join(relative.parts[:-1] if relative.name == "__init__" else relative.parts)
+    declared = _declared_seam(module)
+    if declared:
+        missing = sorted(declared - set(vars(importlib.import_module(module))))
+        assert not missing, f"{module} declares test seams it does not have: {missing}"
+
+
 @pytest.mark.parametrize("path", sorted(PACKAGE.rglob("*.py")),
                          ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_no_file_over_800_lines(path):
@@ -192,7 +265,7 @@ REQUIRED = {"GL08": "no docstring", "SS01": "no summary", "PR01": "undocumented 
             "EX01": "no Examples section"}
 
 
-@pytest.mark.parametrize(("name", "obj"), list(_public_objects()), ids=lambda v: str(v)[:40])
+@pytest.mark.parametrize(("name", "obj"), list(_public_objects()), ids=lambda v: v if isinstance(v, str) else "")
 def test_public_docstrings(name, obj):
     qualified = f"{obj.__module__}.{obj.__qualname__}"
     importlib.import_module(obj.__module__)
