@@ -14,39 +14,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_support import COMMAND, TINY, run_cli
 
 import powerline_control as plc
 from powerline_control import cli
 from powerline_control.scenario import load_scenario, shipped_scenarios
 
-_ENTRY = Path(sys.executable).with_name("powerline-control")
-COMMAND = [str(_ENTRY)] if _ENTRY.exists() else [sys.executable, "-m", "powerline_control"]
-
-TINY = """\
-[scenario]
-name = "tiny"
-description = "A 12-element lab span for the command's tests."
-[model]
-n_elements = 12
-[simulation]
-duration = 2.5
-[estimation]
-n_sensors = 2
-[robot]
-start = 1.0
-closed_loop = 1.5
-"""
-
 STAGE_MARK = "[1/"  # the first progress line; absent when validation refused the input
-
-
-def run_cli(*args, cwd=None, timeout=300):
-    env = dict(os.environ)
-    # The command must find this checkout's package (the tests' PYTHONPATH, if any).
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(Path(plc.__file__).parents[1])] + env.get("PYTHONPATH", "").split(os.pathsep))
-    return subprocess.run(COMMAND + [str(a) for a in args], capture_output=True, text=True,
-                          cwd=cwd, env=env, timeout=timeout)
 
 
 @pytest.fixture

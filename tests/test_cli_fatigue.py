@@ -7,11 +7,11 @@ The record is the shipped one (examples/data/wind_record_28d.csv), cut to its fi
 import json
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_support import COMMAND, run_cli
 
 import powerline_control as plc
 from powerline_control.output.captions import describe_figure, figure_caption
@@ -19,8 +19,6 @@ from powerline_control.scenario import load_scenario
 from powerline_control.scenario.pipeline import VERB_STAGES, run_scenario, stage_plan
 from powerline_control.scenario.stages import tune_robot
 
-_ENTRY = Path(sys.executable).with_name("powerline-control")
-COMMAND = [str(_ENTRY)] if _ENTRY.exists() else [sys.executable, "-m", "powerline_control"]
 RECORD = Path(__file__).resolve().parents[1] / "examples" / "data" / "wind_record_28d.csv"
 N_RECORDS = 288  # two days of 10-minute records
 
@@ -45,15 +43,6 @@ closed_loop = 0
 enabled = true
 wind_speeds = [2.0, 4.0]
 """
-
-
-def run_cli(*args, timeout=300):
-    """The installed command on this checkout's package (as tests/test_cli.py runs it)."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(Path(plc.__file__).parents[1])] + env.get("PYTHONPATH", "").split(os.pathsep))
-    return subprocess.run(COMMAND + [str(a) for a in args], capture_output=True, text=True,
-                          env=env, timeout=timeout)
 
 
 @pytest.fixture

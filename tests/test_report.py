@@ -7,17 +7,14 @@ import os
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from cli_support import COMMAND
 from matplotlib.figure import Figure
 
 import powerline_control as plc
 from powerline_control.output.report import figure_data_uri, write_report
-
-_ENTRY = Path(sys.executable).with_name("powerline-control")
-COMMAND = [str(_ENTRY)] if _ENTRY.exists() else [sys.executable, "-m", "powerline_control"]
 
 SCENARIO = """\
 [scenario]

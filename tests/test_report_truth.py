@@ -3,42 +3,13 @@ scenarios, tested against something independent of the code's earlier output (th
 what a figure draws, a hand computation)."""
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_support import TINY, run_cli
 
 import powerline_control as plc
 from powerline_control.output.records import Record, load_record, save_record
-
-_ENTRY = Path(sys.executable).with_name("powerline-control")
-COMMAND = [str(_ENTRY)] if _ENTRY.exists() else [sys.executable, "-m", "powerline_control"]
-
-TINY = """\
-[scenario]
-name = "tiny"
-description = "A 12-element lab span for the command's tests."
-[model]
-n_elements = 12
-[simulation]
-duration = 2.5
-[estimation]
-n_sensors = 2
-[robot]
-start = 1.0
-closed_loop = 1.5
-"""
-
-
-def run_cli(*args, cwd=None, timeout=300):
-    env = dict(os.environ, MPLBACKEND="Agg")
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(Path(plc.__file__).parents[1])] + env.get("PYTHONPATH", "").split(os.pathsep))
-    return subprocess.run(COMMAND + [str(a) for a in args], capture_output=True, text=True,
-                          cwd=cwd, env=env, timeout=timeout)
 
 
 @pytest.fixture

@@ -2,50 +2,22 @@
 failure that keeps what finished, and every problem of a scenario file at once."""
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_support import SMALL, run_cli
 from matplotlib.figure import Figure
 
 import powerline_control as plc
 from powerline_control.errors import InputError
-from powerline_control.output.records import Record, load_record, save_record
 from powerline_control.output.captions import describe_figure, figure_caption
+from powerline_control.output.records import Record, load_record, save_record
 from powerline_control.scenario import load_scenario, pipeline, scenario_to_toml
 from powerline_control.scenario.pipeline import evenly_spaced_nodes, run_scenario
 
 # The small scenario's 1.5 s closed loop is too short for the robot to reach the best position:
 # the closed loop says so (ReachWarning), which is right and not what these tests are about.
 pytestmark = pytest.mark.filterwarnings("ignore::powerline_control.errors.ReachWarning")
-
-_ENTRY = Path(sys.executable).with_name("powerline-control")
-COMMAND = [str(_ENTRY)] if _ENTRY.exists() else [sys.executable, "-m", "powerline_control"]
-
-SMALL = """\
-[scenario]
-name = "small"
-[model]
-n_elements = 14
-[simulation]
-duration = 2.5
-[estimation]
-n_sensors = 2
-[robot]
-start = 1.0
-closed_loop = 1.5
-"""
-
-
-def run_cli(*args, timeout=600):
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(Path(plc.__file__).parents[1])] + env.get("PYTHONPATH", "").split(os.pathsep))
-    return subprocess.run(COMMAND + [str(a) for a in args], capture_output=True, text=True,
-                          env=env, timeout=timeout)
 
 
 @pytest.fixture(scope="module")
