@@ -46,8 +46,8 @@ _LAZY_EXPORTS = {
         "AtAntinode", "ImpedanceDamper", "damper_impedance", "den_hartog_optimum", "tune_damper",
     ),
     "identify": (
-        "AlphaCurve", "DampingReport", "DMDModel", "OnlineDMD", "OscillatorModel", "StabilityReport",
-        "fit_dmd", "select_alpha",
+        "AlphaCurve", "DampingReport", "DMDModel", "OnlineDMD", "OscillatorModel",
+        "StabilityReport", "fit_dmd", "select_alpha",
     ),
     "output.io": (
         "load_model", "save_model",

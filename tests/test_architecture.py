@@ -265,7 +265,8 @@ REQUIRED = {"GL08": "no docstring", "SS01": "no summary", "PR01": "undocumented 
             "EX01": "no Examples section"}
 
 
-@pytest.mark.parametrize(("name", "obj"), list(_public_objects()), ids=lambda v: v if isinstance(v, str) else "")
+@pytest.mark.parametrize(("name", "obj"), list(_public_objects()),
+                         ids=lambda v: v if isinstance(v, str) else "")
 def test_public_docstrings(name, obj):
     qualified = f"{obj.__module__}.{obj.__qualname__}"
     importlib.import_module(obj.__module__)

@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 import powerline_control as plc
 from powerline_control import severity as sv
-from powerline_control.severity import balance
 from powerline_control.errors import InputError
+from powerline_control.severity import balance
 
 DRAKE = plc.conductors["drake"]
 

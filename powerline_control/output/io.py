@@ -9,9 +9,9 @@ before it reads any data:
 
 * the path must be a regular file (not ``/dev/zero``, a FIFO or a directory) of at most
   ``max_bytes`` bytes;
-* the archive may hold only the entries a DMDModel (or OscillatorModel) has, each of a declared (uncompressed) size
-  within ``max_bytes`` (so a zip bomb is refused from its directory, not by running out of
-  memory), and no more than the file itself when stored uncompressed;
+* the archive may hold only the entries a DMDModel (or OscillatorModel) has, each of a declared
+  (uncompressed) size within ``max_bytes`` (so a zip bomb is refused from its directory, not by
+  running out of memory), and no more than the file itself when stored uncompressed;
 * each ``.npy`` header (:func:`numpy.lib.format.read_magic` and ``read_array_header_*``) must
   declare float64 and exactly the shape that the metadata implies, before the data are read;
 * the contents must be finite, ``residual_covariance`` symmetric positive semidefinite,
@@ -28,7 +28,8 @@ Nothing is ever unpickled.
 Supported: :class:`~powerline_control.identify.DMDModel` (format ``powerline_control.DMDModel``,
 as every earlier release wrote it) and its subclass
 :class:`~powerline_control.identify.OscillatorModel` (format
-``powerline_control.OscillatorModel``: the DMDModel entries plus its own). Measured or simulated records
+``powerline_control.OscillatorModel``: the DMDModel entries plus its own). Measured or simulated
+records
 (:class:`~powerline_control.output.records.Record`) have their own module, ``records``.
 """
 
