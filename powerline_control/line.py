@@ -5,6 +5,7 @@ The presets live in ``data/conductors.toml`` inside the package, with their sour
 
 from __future__ import annotations
 
+import math
 import tomllib
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -13,7 +14,7 @@ from importlib import resources
 import numpy as np
 
 from ._constants import GRAVITY
-from ._validation import check_array, check_budget, check_int, check_real
+from ._validation import check_array, check_budget, check_choice, check_int, check_real
 from .errors import InputError, PresetNotFoundError
 
 __all__ = ["Conductor", "Span", "conductors", "tension_at_temperature",
@@ -319,6 +320,37 @@ class Span:
         with np.errstate(divide="ignore"):
             loop = np.pi / k   # inf at f = 0: a static load has no finite loop
         return float(loop) if np.ndim(loop) == 0 else loop
+
+    def standing_wave_shape(self, frequency: float, position: np.ndarray | float,
+                            bc: str = "clamped") -> np.ndarray:
+        """Relative amplitude phi(x) of the standing wave at ``position`` (m); 1 at antinodes.
+
+        Measured from the nearer support (a node). Pinned: phi = sin(beta d). Clamped: the exact
+        shape of a semi-infinite clamped taut beam, (sin beta d - (beta/alpha)(cos beta d -
+        exp(-alpha d))) / sqrt(1 + (beta/alpha)^2), with beta the travelling wavenumber
+        (:meth:`wavenumber`) and alpha^2 = beta^2 + T / EI the evanescent one, whose bending
+        boundary layer (width 1/alpha) shifts the nodes slightly away from the clamp.
+
+        Examples
+        --------
+        >>> span = Span.at_rts_fraction(300.0, "drake", 0.2)
+        >>> round(float(span.standing_wave_shape(6.57, span.loop_length(6.57) / 2, "pinned")), 9)
+        1.0
+        """
+        bc = check_choice("bc", bc, ("clamped", "pinned"))
+        x = check_array("position", position)
+        if np.any(x < 0) or np.any(x > self.length):
+            raise InputError(f"The 'position' parameter must lie in [0, {self.length:g}] m (the "
+                             f"span). Got values from {x.min():g} to {x.max():g}.")
+        d = np.minimum(x, self.length - x)
+        beta = float(self.wavenumber(frequency))
+        ei = self.conductor.ei
+        if bc == "pinned" or ei <= 0:
+            return np.sin(beta * d)
+        alpha = math.sqrt(beta**2 + self.tension / ei)
+        ratio = beta / alpha
+        return (np.sin(beta * d) - ratio * (np.cos(beta * d) - np.exp(-alpha * d))) \
+            / math.sqrt(1 + ratio**2)
 
     def frequency_of_wavenumber(self, wavenumber: float | np.ndarray) -> float | np.ndarray:
         """Frequency (Hz) of a free wave of wavenumber k (rad/m): the inverse of :meth:`wavenumber`.

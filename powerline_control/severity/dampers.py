@@ -10,7 +10,6 @@ import numpy as np
 
 from .._validation import (
     check_array,
-    check_choice,
     check_real,
 )
 from ..errors import InputError
@@ -36,17 +35,8 @@ __all__ = [
 
 
 # --------------------------------------------------------------------------- the standing wave
-def _wavenumbers(span: Span, frequency: float) -> tuple[float, float]:
-    """(beta, alpha): the travelling and the evanescent wavenumber of the taut beam at f.
-
-    beta from m omega^2 = EI k^4 + T k^2 (:meth:`Span.wavenumber`, domain.md 2.3, NOT dohl's
-    dimensionally wrong _wavelength); alpha^2 = beta^2 + T / EI (inf for a string).
-    """
-    beta = float(span.wavenumber(frequency))
-    ei = span.conductor.ei
-    return beta, (math.sqrt(beta**2 + span.tension / ei) if ei > 0 else math.inf)
-
-
+# Its home is the span (line.py: Span.loop_length, Span.standing_wave_shape); these two are the
+# energy balance's public forms, with its checks of the span and the frequency.
 def loop_length(span: Span, frequency: float) -> float:
     """Loop length (half wavelength) pi / beta of the taut beam at ``frequency``, m.
 
@@ -69,8 +59,7 @@ def loop_length(span: Span, frequency: float) -> float:
     9.985
     """
     span = _check_span(span)
-    frequency = _check_frequency(frequency)
-    return math.pi / _wavenumbers(span, frequency)[0]
+    return float(span.loop_length(_check_frequency(frequency)))
 
 
 def standing_wave_shape(span: Span, frequency: float, position: np.ndarray | float,
@@ -106,19 +95,7 @@ def standing_wave_shape(span: Span, frequency: float, position: np.ndarray | flo
     0.0
     """
     span = _check_span(span)
-    frequency = _check_frequency(frequency)
-    bc = check_choice("bc", bc, ("clamped", "pinned"))
-    x = check_array("position", position)
-    if np.any(x < 0) or np.any(x > span.length):
-        raise InputError(f"The 'position' parameter must lie in [0, {span.length:g}] m (the "
-                         f"span). Got values from {x.min():g} to {x.max():g}.")
-    d = np.minimum(x, span.length - x)
-    beta, alpha = _wavenumbers(span, frequency)
-    if bc == "pinned" or not math.isfinite(alpha):
-        return np.sin(beta * d)
-    ratio = beta / alpha
-    return (np.sin(beta * d) - ratio * (np.cos(beta * d) - np.exp(-alpha * d))) \
-        / math.sqrt(1 + ratio**2)
+    return span.standing_wave_shape(_check_frequency(frequency), position, bc)
 
 
 # --------------------------------------------------------------------------- dampers
