@@ -221,6 +221,9 @@ BASELINES: dict[str, Baseline] = {
     "DMDModel.predict": _b(lambda k: (k.dmd.predict, dict(initial=k.dmd.initial_state,
                                                           n_steps=5))),
     "DMDModel.to_statespace": _b(lambda k: (k.dmd.to_statespace, dict(measured=[0, 1]))),
+    "OscillatorModel.from_lines": _b(lambda k: (k.plc.OscillatorModel.from_lines, dict(
+        frequencies=[3.0, 7.0], shapes=[[1.0, 0.0], [0.0, 1.0], [0.5, 0.5]], dt=0.01, n_pairs=100,
+        process_noise=1e-6, unseen=None, unseen_noise=0.0, radius=1 - 1e-6))),
     "save_model": _b(lambda k: (k.plc.save_model, dict(path=str(k.tmp / "out.npz"),
                                                        model=k.dmd))),
     "load_model": _b(lambda k: (k.plc.load_model, dict(path=str(k.model_file)))),

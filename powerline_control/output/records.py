@@ -17,6 +17,7 @@ import numpy as np
 
 from .._validation import check_array, check_real, read_only
 from ..errors import FileFormatError, InputError
+from ..estimate.filter import warn_if_saturated
 from .io import _METADATA_KEY, _check_writable_target
 
 __all__ = ["Record", "save_record", "load_record"]
@@ -205,9 +206,9 @@ def _infinite(positions, values) -> str | None:
     channels, samples = np.nonzero(np.isinf(v))
     i, k = int(channels[0]), int(samples[0])
     column = _column(float(x[i])) if x.shape == (v.shape[0],) else f"channel {i}"
-    return (f"column {column} holds {int(np.isinf(v).sum())} infinite value(s), the first at "
-            f"sample {k} ({v[i, k]!r}); a displacement must be finite (mark a missing sample "
-            "with NaN, an empty CSV cell).")
+    return (f"column {column} (row {i} of the 'values') holds {int(np.isinf(v).sum())} infinite "
+            f"value(s), the first at sample {k} ({float(v[i, k])!r}); a displacement must be "
+            "finite (mark a missing sample with NaN, an empty CSV cell).")
 
 
 def save_record(path: str | os.PathLike[str], record: Record) -> list:
@@ -308,6 +309,12 @@ def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = Non
     FileFormatError
         A ``.npz`` name on a file that is not a zip archive.
 
+    Warns
+    -----
+    SaturationWarning
+        A channel is clipped at its sensor's range: many samples exactly at its largest or
+        smallest value (:func:`~powerline_control.estimate.filter.warn_if_saturated`).
+
     Examples
     --------
     >>> import pathlib, tempfile
@@ -343,6 +350,9 @@ def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = Non
         if not math.isclose(rate, float(sample_rate), rel_tol=1e-6):
             raise InputError(f"{name}: the time column gives {rate:.6g} Hz, not the sample "
                              f"rate {float(sample_rate):.6g} Hz given.")
+    # Measured data enter here: a channel at its sensor's range (flat tops) is named.
+    warn_if_saturated(name, record.values, [f"column {_column(x)} (channel {i}, at {x:g} m)"
+                                            for i, x in enumerate(record.positions)])
     return record
 
 
