@@ -97,5 +97,10 @@ class EstimatorInconsistentWarning(UserWarning):
     nor its reported uncertainty can be trusted."""
 
 
+class SaturationWarning(UserWarning):
+    """A measured channel is clipped at its sensor's range: many samples sit exactly at its
+    largest (or smallest) value, flat tops that a model or filter takes for the motion."""
+
+
 __all__ += ["UndetectableModeWarning", "ExcitationWarning", "ReachWarning",
-            "EstimatorInconsistentWarning"]
+            "EstimatorInconsistentWarning", "SaturationWarning"]

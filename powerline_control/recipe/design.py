@@ -28,6 +28,7 @@ does not excite). A DMD model of such a record learns the forced mode and little
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -45,7 +46,9 @@ from .._validation import (
 from ..errors import (
     IdentificationError,
     InputError,
+    SaturationWarning,
 )
+from ..estimate.filter import warn_if_saturated
 from .defaults import (
     _MOTIONLESS_FRACTION,
     _NARROWBAND_OCCUPANCY,
@@ -155,6 +158,10 @@ def design_estimator(
 
     Warns
     -----
+    SaturationWarning
+        A node of the training record is clipped (many samples exactly at its largest or
+        smallest value: a sensor at its range), see
+        :func:`~powerline_control.estimate.filter.warn_if_saturated`.
     ExcitationWarning
         The record is narrowband (not persistently exciting): the design knows only the modes
         among its spectral lines.
@@ -170,12 +177,15 @@ def design_estimator(
                    process_noise=process_noise, warn_inconsistent=warn_inconsistent)
     # A narrowband record gets one oscillator per spectral line, unless ("auto") its lines
     # leave more than noise unexplained; every other record gets a time-delay DMD model.
-    if rec.method == "modal" or (rec.method == "auto"
-                                 and rec.excitation.occupancy < _NARROWBAND_OCCUPANCY):
-        design = _modal_design(rec)
-        if design is not None:
-            return design
-    return _dmd_design(rec, alphas)
+    # A clipped node was named above: the held-out filter runs on its rows do not repeat it.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SaturationWarning)
+        if rec.method == "modal" or (rec.method == "auto"
+                                     and rec.excitation.occupancy < _NARROWBAND_OCCUPANCY):
+            design = _modal_design(rec)
+            if design is not None:
+                return design
+        return _dmd_design(rec, alphas)
 
 
 def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std, sensors,
@@ -220,6 +230,10 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
             "The 'snapshots' are constant in time (every node keeps its first value): there are "
             "no dynamics to identify. Give a record of the vibrating span."
         )
+    # A clipped node (a sensor at its range) would teach the model flat tops: warn, named.
+    warn_if_saturated("The 'snapshots' parameter", X, [
+        f"node {i}" + ("" if positions is None else f" (x = {positions[i]:.6g} m)")
+        for i in range(n_nodes)], stacklevel=3)
 
     # 1. Spatial POD: the coordinates above round-off (at most spatial_rank).
     spatial, s = _spatial_basis(X, min(spatial_rank, n_nodes))
