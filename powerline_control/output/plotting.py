@@ -25,6 +25,11 @@ __all__ = [
 ]
 
 
+def _legend_off_the_curves(ax, fontsize: float = 8) -> None:
+    """The legend outside the axes, to their right: it never hides a curve."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=fontsize)
+
+
 def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray]) -> Figure:
     """DMD eigenvalues in the complex plane with the unit circle (the paper's Figs. 4-5).
 
@@ -52,8 +57,7 @@ def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray]) -> Figure:
         values = np.asarray(values)
         ax.plot(values.real, values.imag, marker, ms=4, mfc="none", label=label)
     ax.set(xlabel="Re λ", ylabel="Im λ", aspect="equal")
-    # off the curves
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    _legend_off_the_curves(ax)
     return fig
 
 
@@ -90,8 +94,7 @@ def plot_estimate(
         ax.plot(t, 1e3 * truth[node], "k-", lw=1.0, label="truth")
         ax.plot(t, 1e3 * estimate[node], "r--", lw=1.0, label="estimate")
         ax.set_ylabel(f"x = {x[node]:.2f} m\ny (mm)")
-    # off the curves
-    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    _legend_off_the_curves(axes[0])
     axes[-1].set_xlabel("t (s)")
     fig.tight_layout()
     return fig
@@ -140,8 +143,7 @@ def plot_envelope(
                 position, color=style[0], ls=style[1:], lw=1, label=label if i == 0 else None
             )
     ax.set(xlabel="x (m)", ylabel="amplitude (mm)")
-    # off the curves
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    _legend_off_the_curves(ax)
     fig.tight_layout()
     return fig
 
@@ -179,8 +181,7 @@ def plot_error_along_span(
         ax.axvline(position, color="k", ls="--", lw=1, label="chosen sensors" if i == 0 else None)
     ax.set(xlabel="x (m)", ylabel="RMS error (% of RMS displacement)")
     ax.set_yscale("log")
-    # off the curves
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    _legend_off_the_curves(ax)
     return fig
 
 
@@ -292,8 +293,7 @@ def plot_sensor_count(
     ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(_plain_tick))
     ax.yaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(_plain_tick))
     ax.set_xticks(list(k))
-    # off the curves
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    _legend_off_the_curves(ax)
     return fig
 
 
@@ -352,8 +352,7 @@ def plot_plan_path(
         bottom.plot([], [], "r--", label="targeted antinode")
     bottom.plot(position[0], t[0], "go", label="start")
     bottom.set(xlabel="x (m)", ylabel="t (s)")
-    # off the curves
-    bottom.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    _legend_off_the_curves(bottom)
     visited = np.concatenate([position[np.isfinite(position)],
                               [target] if target is not None else []])
     reach = np.ptp(visited) if visited.size else 0.0
@@ -392,8 +391,7 @@ def plot_closed_loop(result) -> Figure:
     top.plot(result.t, result.target, "k:", label="antinode target")
     top.axvline(result.calibration_time, color="grey", lw=0.8, label="end of calibration")
     top.set_ylabel("x (m)")
-    # off the curves
-    top.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    _legend_off_the_curves(top)
     window = max(int(0.1 / max(result.t[1] - result.t[0], 1e-12)), 1)
 
     def moving_rms(field):
@@ -406,7 +404,7 @@ def plot_closed_loop(result) -> Figure:
     bottom.plot(result.t, 1e3 * moving_rms(result.baseline_displacement), label="robot parked")
     bottom.plot(result.t, 1e3 * moving_rms(result.displacement), label="closed loop")
     bottom.set(xlabel="t (s)", ylabel="RMS over span (mm)")
-    bottom.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    _legend_off_the_curves(bottom)
     fig.tight_layout()
     return fig
 
@@ -468,14 +466,13 @@ def plot_severity(result, ax=None, *, endurance: bool = True) -> Figure:
                              marker=marker, ls=dash, ms=size, mfc=face,
                              color=line.get_color(), label=res.label)
     axes[0].set(ylabel="antinode amplitude (mm, 0-pk)")
-    # off the curves
-    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    _legend_off_the_curves(axes[0])
     if len(axes) > 1:
         if endurance and results:
             limit = results[0].parameters.get("endurance_strain_pp", 150e-6)
             axes[1].axhline(1e6 * limit, color="k", ls=":", lw=1, label="endurance limit")
         axes[1].set(ylabel="clamp bending strain (µε, pk-pk)")
-        axes[1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+        _legend_off_the_curves(axes[1])
     axes[-1].set_xlabel("wind speed (m/s)")
     fig.tight_layout()
     return fig
@@ -646,8 +643,7 @@ def plot_closed_loop_envelope(result, ax=None) -> Figure:
     t0, t1 = result.settled_window
     ax.set(xlabel="x (m)", ylabel="envelope (mm)",
            title=f"largest |w| over the settled window {t0:.1f}-{t1:.1f} s")
-    # off the curves
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=7)
+    _legend_off_the_curves(ax, fontsize=7)
     fig.tight_layout()
     return fig
 
