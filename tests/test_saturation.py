@@ -149,3 +149,18 @@ def test_the_command_prints_the_warning_and_still_exits_0(tmp_path):
                          for line in lines)
     assert any(f"clipped at {level:.6g} m" in line for line in named)
     assert "Traceback" not in result.stderr
+
+
+def test_two_channels_at_one_position_are_refused_naming_it(tmp_path):
+    """Issue 19's duplicated sensors: the command's estimate kept the first of two channels at
+    one position and dropped the other without a word."""
+    t = np.arange(100) * 1e-3
+    y = 1e-3 * np.sin(2 * np.pi * 12 * t)
+    with pytest.raises(plc.InputError, match=r"'positions' parameter names 1\.22 m \(column "
+                                             r"x_1\.22_m\) 2 times"):
+        Record(t, [1.22, 2.0, 1.22], np.vstack([y, y, y]), "f.csv")
+    path = tmp_path / "dup.csv"
+    path.write_text("time_s,x_1.22_m,x_1.22_mm\n" + "".join(
+        f"{k / 1000!r},{float(v)!r},{float(v) * 1e3!r}\n" for k, v in enumerate(y)))
+    with pytest.raises(plc.InputError, match=r"dup\.csv: the 'positions' parameter names 1\.22 m"):
+        load_record(path)

@@ -98,6 +98,12 @@ class Record:
         if values.shape != (positions.size, t.size):
             raise InputError(f"{where}the 'values' parameter must be (n_channels, n_t) = "
                              f"({positions.size}, {t.size}); got {values.shape}.")
+        unique, counts = np.unique(positions, return_counts=True)
+        if (counts > 1).any():  # an estimator can use one channel per position, never two
+            x = float(unique[counts > 1][0])
+            raise InputError(f"{where}the 'positions' parameter names {x:g} m (column "
+                             f"{_column(x)}) {int(counts[counts > 1][0])} times: two channels at "
+                             "one position. Keep one (or their mean) per position.")
         self.t, self.positions, self.values = read_only(t), read_only(positions), \
             read_only(values)
         self.truth = None if truth is None else read_only(truth)
