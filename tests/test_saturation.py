@@ -164,3 +164,23 @@ def test_two_channels_at_one_position_are_refused_naming_it(tmp_path):
         f"{k / 1000!r},{float(v)!r},{float(v) * 1e3!r}\n" for k, v in enumerate(y)))
     with pytest.raises(plc.InputError, match=r"dup\.csv: the 'positions' parameter names 1\.22 m"):
         load_record(path)
+
+
+def test_a_constant_channel_inside_the_span_is_refused_by_the_command(tmp_path):
+    """Issue 19's constant channels: the command's estimate ran a dead sensor (one value in
+    every sample) as if it measured the line, and said only 'consistent: false'."""
+    t = np.arange(100) * 1e-3
+    rec = Record(t, [1.0, 2.0], np.vstack([1e-3 * np.sin(2 * np.pi * 12 * t),
+                                           np.full(t.size, 2e-4)]), "f.csv")
+    with pytest.raises(plc.InputError, match=r"f\.csv: channel x_2_m at 2 m holds one value "
+                                             r"\(0\.0002 m\) in all its 100 samples"):
+        rec.check_span(3.66)
+    scenario = tmp_path / "tiny.toml"
+    scenario.write_text(TINY)
+    path = tmp_path / "dead.csv"
+    path.write_text("time_s,x_1_m,x_2_m\n" + "".join(
+        f"{k / 1000!r},{1e-3 * np.sin(k / 10):.6g},0\n" for k in range(2500)))
+    result = run_cli("estimate", scenario, "--record", path)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "x_2_m at 2 m holds one value (0 m) in all its 2500" in lines[0]

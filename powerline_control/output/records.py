@@ -117,7 +117,8 @@ class Record:
                 f"dt = {self.dt:g} s, {self.n_missing} missing, from {self.source})")
 
     def check_span(self, length: float) -> None:
-        """Refuse channels on a support (x = 0 or length) or outside the span (0 < x < length).
+        """Refuse channels on a support (x = 0 or length), outside the span (0 < x < length),
+        or constant (one value in every sample: a dead sensor, where the line moves).
 
         Parameters
         ----------
@@ -142,6 +143,13 @@ span (0 < x < 3.66 m).
             if not 0.0 < x < length:
                 raise InputError(f"{self.source}: channel {_column(x)} at {x:g} m lies outside "
                                  f"the span (0 < x < {length:g} m).")
+        for x, row in zip(self.positions, self.values, strict=True):
+            seen = row[~np.isnan(row)]
+            if seen.size >= 2 and np.all(seen == seen[0]):  # inside the span the line moves
+                raise InputError(f"{self.source}: channel {_column(x)} at {x:g} m holds one "
+                                 f"value ({float(seen[0]):g} m) in all its {seen.size} samples: "
+                                 "a dead, disconnected or stuck sensor, which carries no "
+                                 "information about the span. Drop the column.")
 
     def _on_support(self, length: float) -> np.ndarray:
         # "On a support" to round-off of the written position (a CSV column name keeps 10
