@@ -111,6 +111,10 @@ class Record:
         self.source = source
         self.n_missing = int(np.isnan(values).sum())
         self.support_positions: tuple = ()
+        # Measured data enter as a Record (from a file or built in Python): a channel held at
+        # its sensor's range (flat tops) is named here, once, by its column.
+        warn_if_saturated(source, values, [f"column {_column(x)} (channel {i}, at {x:g} m)"
+                                           for i, x in enumerate(positions)])
 
     def __repr__(self) -> str:
         return (f"Record({self.values.shape[0]} channels, {self.t.size} samples at "
@@ -364,9 +368,6 @@ def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = Non
         if not math.isclose(rate, float(sample_rate), rel_tol=1e-6):
             raise InputError(f"{name}: the time column gives {rate:.6g} Hz, not the sample "
                              f"rate {float(sample_rate):.6g} Hz given.")
-    # Measured data enter here: a channel at its sensor's range (flat tops) is named.
-    warn_if_saturated(name, record.values, [f"column {_column(x)} (channel {i}, at {x:g} m)"
-                                            for i, x in enumerate(record.positions)])
     return record
 
 

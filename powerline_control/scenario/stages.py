@@ -12,7 +12,7 @@ import dataclasses
 import time
 import warnings
 
-from ..errors import InputError
+from ..errors import InputError, SaturationWarning
 from .config import Scenario
 from .files import load_scenario  # noqa: F401 (doctests)
 from .result import (
@@ -710,5 +710,8 @@ def _measured(record, ident: Identification, x) -> MeasuredEstimate:
             nodes.append(nearest[i])
             rows.append(i)
     y = np.asarray(record.values)[rows]
-    estimate = layout_filter(ident.design, nodes).filter(y)
+    with warnings.catch_warnings():
+        # the Record named its saturated channels by column when it was made
+        warnings.simplefilter("ignore", SaturationWarning)
+        estimate = layout_filter(ident.design, nodes).filter(y)
     return MeasuredEstimate(record=record, nodes=tuple(nodes), estimate=estimate)
