@@ -18,8 +18,8 @@ import pytest
 from cli_support import TINY, run_cli
 
 import powerline_control as plc
+from powerline_control._validation import warn_if_saturated
 from powerline_control.errors import SaturationWarning
-from powerline_control.estimate.filter import warn_if_saturated
 from powerline_control.output.records import Record, load_record, save_record
 
 NODE = 7  # a moving interior node of the 20-element span (x = 1.281 m)

@@ -48,11 +48,11 @@ from .._validation import (
     check_int,
     check_real,
     read_only,
+    warn_if_saturated,
 )
 from ..errors import (
     EstimatorInconsistentWarning,
     InputError,
-    SaturationWarning,
     UndetectableModeWarning,
 )
 from ._recursion import _FilterInternals, _Recursion, _selection_indices
@@ -66,7 +66,7 @@ from .consistency import (
 )
 from .result import Estimate
 
-__all__ = ["KalmanFilter", "warn_if_saturated"]
+__all__ = ["KalmanFilter"]
 
 # Stretches of converged, NaN-free samples shorter than this are run by the per-sample loop: below
 # it the set-up of the modal batch recursion costs more than it saves.
@@ -602,7 +602,7 @@ class KalmanFilter(_FilterInternals):
         -----
         SaturationWarning
             A row of ``measurements`` is clipped at its sensor's range
-            (:func:`warn_if_saturated`).
+            (``_validation.warn_if_saturated``).
         EstimatorInconsistentWarning
             With ``warn_inconsistent=True``, when the windowed NIS test rejects at 1 %
             (``Estimate.consistency.consistent`` is False): the innovations contradict the
@@ -723,73 +723,3 @@ class KalmanFilter(_FilterInternals):
                 stacklevel=2,
             )
         return dataclasses.replace(estimate, consistency=consistency)
-
-# The saturation rule of warn_if_saturated (its docstring gives the numbers behind each).
-_SATURATION_MIN_SAMPLES, _SATURATION_SHARE, _SATURATION_MIN_COUNT, _SATURATION_PILE_UP = \
-    50, 0.005, 5, 5
-
-
-def warn_if_saturated(where: str, values: object, labels: object = None, *,
-                      stacklevel: int = 2) -> list:
-    """Warn :class:`~powerline_control.errors.SaturationWarning` for each clipped channel.
-
-    A channel (row) is clipped at a level when that level is its largest or smallest finite
-    sample, it is not 0 (rest or zero padding), at least 5 samples and 0.5 % of the row's
-    samples hold exactly that value, and at least 5 times as many as hold the nearest other
-    value (a quantised signal's extreme levels fill alike, a clip piles samples up on one).
-    A continuous noisy signal reaches its extreme once; a sine clipped at 99 % of its peak
-    still keeps about 4.5 % of its samples on each clip level. Rows with fewer than 50 finite
-    samples, or constant ones, are not judged. Cost: a few passes over ``values``.
-
-    Parameters
-    ----------
-    where : str
-        Start of the message: the parameter or file (e.g. ``"The 'measurements' parameter"``).
-    values : array_like, shape (n_channels, n_t)
-        The channels; NaN = missing.
-    labels : sequence of str, optional
-        How the message names each channel (default ``"row i"``).
-    stacklevel : int, default 2
-        Passed to :func:`warnings.warn` (2: the caller of this function).
-
-    Returns
-    -------
-    list of (int, float, float)
-        For each warning: the row, the clipped level and the share of its samples there.
-
-    Examples
-    --------
-    >>> import warnings
-    >>> y = np.clip(np.sin(0.1 * np.arange(1000)), -1.0, 0.6)[None, :]
-    >>> with warnings.catch_warnings(record=True) as caught:
-    ...     warnings.simplefilter("always")
-    ...     found = warn_if_saturated("The 'y' parameter", y)
-    >>> [(row, level, round(share, 2)) for row, level, share in found], len(caught)
-    ([(0, 0.6, 0.29)], 1)
-    """
-    v = np.asarray(values, dtype=float)
-    v = v[None, :] if v.ndim == 1 else v
-    finite = np.isfinite(v)
-    n = finite.sum(axis=1)
-    found = []
-    for upper in (True, False):
-        level = np.where(finite, v, -np.inf if upper else np.inf)
-        level = level.max(axis=1) if upper else level.min(axis=1)
-        count = np.count_nonzero(v == level[:, None], axis=1)
-        suspect = ((n >= _SATURATION_MIN_SAMPLES) & (count < n) & (level != 0.0)
-                   & (count >= np.maximum(_SATURATION_MIN_COUNT, _SATURATION_SHARE * n)))
-        for i in np.flatnonzero(suspect):
-            rest = v[i][finite[i] & (v[i] != level[i])]
-            nearest = rest.max() if upper else rest.min()
-            if count[i] >= _SATURATION_PILE_UP * np.count_nonzero(rest == nearest):
-                found.append((int(i), float(level[i]), float(count[i] / n[i]), int(count[i])))
-    found.sort()
-    for i, level, share, count in found:
-        label = labels[i] if labels is not None else f"row {i}"
-        warnings.warn(
-            f"{where}: {label} is clipped at {level:.6g} m: {share:.1%} of its samples "
-            f"({count} of {int(n[i])}) hold exactly that value, the flat tops of a saturated "
-            "sensor (its range reached), which a model or filter takes for the motion. Use a "
-            "sensor with a larger range there, or leave the channel out.",
-            SaturationWarning, stacklevel=stacklevel + 1)
-    return [(i, level, share) for i, level, share, _ in found]

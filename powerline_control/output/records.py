@@ -15,9 +15,8 @@ import zipfile
 
 import numpy as np
 
-from .._validation import check_array, check_real, read_only
+from .._validation import check_array, check_real, read_only, warn_if_saturated
 from ..errors import FileFormatError, InputError
-from ..estimate.filter import warn_if_saturated
 from .io import _METADATA_KEY, _check_writable_target
 
 __all__ = ["Record", "save_record", "load_record"]
@@ -331,7 +330,7 @@ def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = Non
     -----
     SaturationWarning
         A channel is clipped at its sensor's range: many samples exactly at its largest or
-        smallest value (:func:`~powerline_control.estimate.filter.warn_if_saturated`).
+        smallest value (``_validation.warn_if_saturated``).
 
     Examples
     --------

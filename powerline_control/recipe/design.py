@@ -42,13 +42,13 @@ from .._validation import (
     check_int,
     check_real,
     read_only,
+    warn_if_saturated,
 )
 from ..errors import (
     IdentificationError,
     InputError,
     SaturationWarning,
 )
-from ..estimate.filter import warn_if_saturated
 from .defaults import (
     _MOTIONLESS_FRACTION,
     _NARROWBAND_OCCUPANCY,
@@ -161,7 +161,7 @@ def design_estimator(
     SaturationWarning
         A node of the training record is clipped (many samples exactly at its largest or
         smallest value: a sensor at its range), see
-        :func:`~powerline_control.estimate.filter.warn_if_saturated`.
+        ``_validation.warn_if_saturated``.
     ExcitationWarning
         The record is narrowband (not persistently exciting): the design knows only the modes
         among its spectral lines.
