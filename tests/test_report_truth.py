@@ -426,3 +426,16 @@ def test_the_recipe_row_says_when_the_scenarios_own_alpha_was_not_the_one_used(t
     else:   # the recipe widened the sweep from the given alpha (measured: to 1e-4)
         assert "the scenario's alpha = 1e-08 was only where the sweep started" in row
         assert f"lower at {used:.3g}, which the recipe used" in row
+
+
+def test_every_row_explanation_is_words_not_a_code(lab):
+    """An explanation is a phrase a reader understands (the R row once said just "given", the
+    recipe's internal code for where the noise level came from)."""
+    rows = {}
+    for section in lab.sections():
+        for label, _, *explanation in section["rows"]:   # (label, value[, explanation])
+            text = str(explanation[0] if explanation else "").strip()
+            assert not text or " " in text, (section["title"], label, text)
+            rows[label] = text
+    assert rows["sensor noise std (the filter's R)"] == lab.identification.design.noise_origin
+    assert "training record's sensor noise" in rows["sensor noise std (the filter's R)"]

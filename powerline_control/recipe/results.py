@@ -155,6 +155,14 @@ class EstimatorDesign:
         return self.alpha_sweep
 
     @property
+    def noise_origin(self) -> str:
+        """Where :attr:`noise_std` came from, in words (:attr:`noise_source` is its code)."""
+        return {"given": "given to the recipe (noise_std): the training record's sensor noise",
+                "snapshots": "the training Snapshots' own sensor noise (noise_std)",
+                "estimated": "estimated from the record's singular values (Gavish-Donoho noise "
+                             "floor)"}.get(self.noise_source, self.noise_source)
+
+    @property
     def n_nodes(self) -> int:
         """Number of nodes of the field the filter reconstructs."""
         return self.model.n_nodes

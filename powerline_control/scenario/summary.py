@@ -198,7 +198,7 @@ def _identification_section(r) -> dict:
         ("plain DMD (alpha = 0, one delay)", f"spectral radius {plain_radius:.6f}"
          + (" (ill-conditioned: it inverts round-off)" if ident.plain_ill_conditioned else ""),
          "The unregularised fit (the paper's eq. 11) on the same training data."),
-        ("sensor noise std (the filter's R)", mm(float(d.noise_std)), d.noise_source),
+        ("sensor noise std (the filter's R)", mm(float(d.noise_std)), d.noise_origin),
     ]
     if ident.record_model is not None:
         rm = ident.record_model
