@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from cli_support import TINY, run_cli
+from cli_support import SMALL, TINY, run_cli
 
 import powerline_control as plc
 from powerline_control.output.records import Record, load_record, save_record
@@ -178,21 +178,7 @@ def test_a_refused_record_keeps_the_users_own_empty_folder(tiny, tmp_path, outsi
 # A lab span with every stage the report draws (sensor count, closed loop, severity). Its 1.5 s
 # closed loop is too short for the robot to reach the best position, which the closed loop says
 # (ReachWarning): right, and not what these tests are about.
-SMALL_ALL = """\
-[scenario]
-name = "small"
-[model]
-n_elements = 14
-[simulation]
-duration = 2.5
-[estimation]
-n_sensors = 2
-[robot]
-start = 1.0
-closed_loop = 1.5
-[severity]
-enabled = true
-"""
+SMALL_ALL = SMALL + "[severity]\nenabled = true\n"
 
 
 @pytest.fixture(scope="module")
