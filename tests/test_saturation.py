@@ -189,3 +189,21 @@ def test_a_constant_channel_inside_the_span_is_refused_by_the_command(tmp_path):
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "x_2_m at 2 m holds one value (0 m) in all its 2500" in lines[0]
+
+
+def test_dropping_the_support_channels_does_not_judge_the_record_again(lab):
+    """A record of every node (supports included) with one clipped channel warns once per clip
+    level when it is made; its channels without the supports are the same, with no new warning."""
+    _, snap = lab
+    values = np.array(snap.displacement)
+    values[NODE], _ = _clipped(values[NODE])
+    with pytest.warns(SaturationWarning) as caught:
+        record = Record(snap.t, snap.x, values, "field")
+    assert len(_saturation(caught)) == 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        inner = record.without_supports(float(snap.x[-1]))
+    assert inner.support_positions == (float(snap.x[0]), float(snap.x[-1]))
+    np.testing.assert_array_equal(inner.values, values[1:-1])
+    np.testing.assert_array_equal(inner.positions, snap.x[1:-1])
+    assert inner.n_missing == 0 and record.values.shape[0] == inner.values.shape[0] + 2

@@ -7,6 +7,7 @@ per position, a header naming the positions and the unit).
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import os
@@ -199,9 +200,13 @@ span (0 < x < 3.66 m).
                              + ", ".join(_column(x) for x in self.positions)
                              + f") sits on a support (x = 0 or {float(length):g} m), where the "
                              "line does not move; a record needs a channel inside the span.")
+        # A subset of channels this record already validated and judged for saturation: copied,
+        # not rebuilt, so nothing is checked or warned a second time.
         keep = ~on_support
-        kept = Record(self.t, self.positions[keep], self.values[keep], self.source,
-                      None if self.truth is None else self.truth[keep])
+        kept = copy.copy(self)
+        kept.positions, kept.values = read_only(self.positions[keep]), read_only(self.values[keep])
+        kept.truth = None if self.truth is None else read_only(self.truth[keep])
+        kept.n_missing = int(np.isnan(kept.values).sum())
         kept.support_positions = tuple(float(x) for x in self.positions[on_support])
         return kept
 
