@@ -262,16 +262,13 @@ def test_negative_sensor_cost_is_refused():
                            cost=[-1.0, 1.0, 2.0, 2.0], budget=3.0)
 
 
-@pytest.mark.xfail(strict=True, raises=pytest.fail.Exception,   # "DID NOT RAISE" only
-                   reason="scenario/stages.py (pipeline engineer): given_sensors maps positions "
-                          "to a set of nearest nodes")
 def test_sensor_positions_closer_than_a_mesh_cell_are_refused_not_merged():
     from powerline_control.scenario.stages import given_sensors
 
     scenario = plc.load_scenario(text="[model]\nn_elements = 4\n[estimation]\n"
                                       "sensor_positions = [1.0, 1.001]")
     # Old code: both become node 1, one sensor where the user asked for two.
-    with pytest.raises(plc.InputError, match="sensor_positions"):
+    with pytest.raises(plc.InputError, match=r"sensor_positions.*1 m and 1\.001 m.*0\.915 m"):
         given_sensors(scenario, [0.0, 0.915, 1.83, 2.745, 3.66])
 
 

@@ -403,3 +403,20 @@ def test_binary_scenario_file_exits_2_with_one_line(tmp_path):
 def test_bad_options_are_refused(args):
     out = run_cli(*args)
     assert out.returncode == 2 and "usage:" in out.stderr
+
+
+@pytest.mark.parametrize(("gap", "advice"), [(False, "give a longer record"),
+                                             (True, "give a record with fewer gaps")])
+def test_a_record_too_short_for_its_own_model_says_why(result, gap, advice):
+    """The record's own model needs 10 (delays x channels + 1) complete samples: a short record
+    is told to be longer, a gapped one to have fewer gaps (not the other way round)."""
+    snap = result.records.test
+    rows = [4, 10]
+    n = 60 if not gap else snap.t.size
+    values = np.array(snap.displacement[rows][:, :n])
+    if gap:
+        values[0, 30::50] = np.nan   # no complete stretch longer than 49 samples
+    record = Record(snap.t[:n], snap.x[rows], values, "field")
+    with pytest.raises(plc.InputError, match=f"field: .*samples, too few .*{advice}"):
+        run_scenario(load_scenario(text=SMALL), record=record,
+                     stages=pipeline.VERB_STAGES["estimate"])

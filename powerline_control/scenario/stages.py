@@ -127,9 +127,29 @@ def given_sensors(scenario: Scenario, x) -> tuple[list | None, str]:
     if est.sensors is not None:
         return sorted(int(i) for i in est.sensors), "from the scenario (node indices)"
     if est.sensor_positions is not None:
-        return (sorted({int(np.argmin(np.abs(x - p))) for p in est.sensor_positions}),
-                "from the scenario (positions, nearest nodes)")
+        return _nearest_distinct_nodes(est.sensor_positions, x), \
+            "from the scenario (positions, nearest nodes)"
     return None, ""
+
+
+def _nearest_distinct_nodes(positions, x) -> list:
+    """Each position's nearest node, refusing two positions on one node.
+
+    Merging them would silently give the user one sensor fewer than asked for.
+    """
+    import numpy as np
+
+    nodes: dict[int, float] = {}
+    for p in positions:
+        node = int(np.argmin(np.abs(x - p)))
+        if node in nodes:
+            raise InputError(
+                f"'estimation.sensor_positions': {nodes[node]:g} m and {p:g} m both fall on "
+                f"the node at {x[node]:g} m (the mesh spacing there is about "
+                f"{float(np.max(np.diff(x))):.3g} m); give positions on different nodes or a "
+                f"finer mesh ('model.n_elements').")
+        nodes[node] = float(p)
+    return sorted(nodes)
 
 
 def evenly_spaced_nodes(x, k: int, shape=None) -> list:
@@ -226,10 +246,13 @@ def _record_model(record, design):
     run = longest_complete_run(record.values)
     data = record.values[:, run]
     delays = int(design.model.delays)
-    if data.shape[1] < 10 * (delays * data.shape[0] + 1):
-        raise InputError(f"{record.source}: its longest stretch without a missing sample has "
-                         f"{data.shape[1]} samples, too few to identify a model with "
-                         f"{delays} delays; give a record with fewer gaps.")
+    needed = 10 * (delays * data.shape[0] + 1)
+    if data.shape[1] < needed:
+        has_gaps = data.shape[1] < record.values.shape[1]
+        stretch = ("its longest stretch without a missing sample has" if has_gaps else "it has")
+        raise InputError(f"{record.source}: {stretch} {data.shape[1]} samples, too few to "
+                         f"identify a model with {delays} delays (at least {needed}); give "
+                         + ("a record with fewer gaps." if has_gaps else "a longer record."))
     return fit_dmd(data, record.dt, alpha=float(design.model.alpha_relative), delays=delays,
                    alpha_mode="relative")
 
