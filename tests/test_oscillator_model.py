@@ -293,7 +293,8 @@ def test_the_filter_estimates_exactly_as_with_the_dmd_typed_model(narrowband, mo
 
 
 def test_scenario_text_and_json_read_the_model_type(narrowband):
-    from powerline_control.scenario.summary import _model_kind, _recipe_text
+    from powerline_control.scenario.summary import _recipe_text
+    from powerline_control.scenario.summary_json import _model_kind
 
     train, _ = narrowband
     design = _design(train)

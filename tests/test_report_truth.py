@@ -425,3 +425,29 @@ def test_every_row_explanation_is_words_not_a_code(lab):
             rows[label] = text
     assert rows["sensor noise std (the filter's R)"] == lab.identification.design.noise_origin
     assert "training record's sensor noise" in rows["sensor noise std (the filter's R)"]
+
+
+def test_consistency_phases_count_every_tested_window_once_against_the_windows_times(lab):
+    """The consistency row's phases (parked, moving, settled) partition the windows the
+    filter's test counted, each judged by its own samples' times (recounted here by hand)."""
+    from powerline_control.scenario.summary import consistency_by_phase
+
+    res = lab.closed_loop.result
+    test = res.estimator_consistency
+    t = np.asarray(res.t)
+    by_hand = {"calibration": [0, 0], "moving": [0, 0], "settled": [0, 0]}
+    for k in range(1, test.window_start.size):   # window 0 holds the prior's transient
+        first, last = t[test.window_start[k]], t[test.window_start[k] + test.window - 1]
+        phase = ("calibration" if last <= res.calibration_time else
+                 "settled" if first >= res.settled_window[0] else "moving")
+        by_hand[phase][0] += int(k in set(test.rejected.tolist()))
+        by_hand[phase][1] += 1
+    phases = consistency_by_phase(res)
+    assert phases == {name: tuple(v) for name, v in by_hand.items()}
+    assert sum(n for _, n in phases.values()) == test.n_tested
+    row = next(value for s in lab.sections() for label, value, *_ in s["rows"]
+               if label == "estimator consistency")
+    for name, (bad, n) in phases.items():
+        assert (f"{name} {bad} of {n}" in row) == (n > 0), row
+    assert lab.to_json()["estimator_windows_rejected"]["moving"] == {
+        "rejected": phases["moving"][0], "tested": phases["moving"][1]}

@@ -365,7 +365,7 @@ class ScenarioResult:
         --------
         See :class:`ScenarioResult`.
         """
-        from .summary import result_json
+        from .summary_json import result_json
 
         return result_json(self)
 

@@ -1,4 +1,4 @@
-"""A ScenarioResult in words and numbers: report sections, the JSON summary, the HTML report.
+"""A ScenarioResult in words and numbers: report sections and the HTML report.
 
 One unit per quantity everywhere: displacements and noise in mm in text (m in JSON, ``_m``
 keys), estimation errors in per cent (``_percent`` keys), positions in m with the node index
@@ -7,8 +7,10 @@ functions that draw them; their captions are generated from the drawn figure
 (:func:`~powerline_control.output.captions.figure_caption`), so a caption cannot contradict its
 figure.
 
-Test seam: ``_recipe_text``, ``_model_kind`` and ``_least_damped``: the identification row's
-words and the JSON's model kind, tested against the model's type, its sweep and eigenvalues.
+The JSON summary is :mod:`.summary_json`'s.
+
+Test seam: ``_recipe_text`` and ``_least_damped``: the identification row's words, tested
+against the model's type, its sweep and eigenvalues.
 """
 
 from __future__ import annotations
@@ -18,17 +20,8 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["result_json", "result_sections", "write_result_report", "UNITS"]
+__all__ = ["result_sections", "write_result_report"]
 
-#: The units of the JSON summary's key suffixes.
-UNITS = {
-    "_m": "metres", "_mm": "millimetres", "_s": "seconds", "_hz": "hertz",
-    "_m_s": "metres per second", "_m_s2": "metres per second squared",
-    "_percent": "per cent (of the RMS displacement over the span, for errors)",
-    "_microstrain": "1e-6 (peak-to-peak strain)", "_n": "newtons", "_kg": "kilograms",
-    "_per_year": "per year (Miner damage accumulated in a year)", "_years": "years",
-    "(no suffix)": "dimensionless (counts, ratios, indices, spectral radius, alpha)",
-}
 
 
 def mm(value: float) -> str:
@@ -417,6 +410,66 @@ def _plan_agreement(plan, result, final: float) -> str:
                "; the closed loop judged from its own run (see its decisions)"))
 
 
+def consistency_by_phase(result) -> dict:
+    """The closed loop's windowed NIS rejections, counted in each phase of the run.
+
+    The filter's model is identified with the robot parked at its start, so windows while the
+    robot moves (it damps the line differently at every position) are expected to reject; a
+    rejection while parked or after it settled says the model does not fit the line.
+
+    Parameters
+    ----------
+    result : ClosedLoopResult
+        A closed-loop run.
+
+    Returns
+    -------
+    dict
+        ``{phase: (windows rejected, windows tested)}`` for "calibration" (parked at the start),
+        "moving" and "settled" (the settled window); empty when no window was tested.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from types import SimpleNamespace
+    >>> test = SimpleNamespace(window=100, window_start=np.arange(10) * 100,
+    ...                        window_nis=np.ones(10), rejected=np.array([0, 5]))
+    >>> run = SimpleNamespace(estimator_consistency=test, t=np.arange(1000) * 0.01,
+    ...                       calibration_time=3.0, settled_window=(7.0, 9.99))
+    >>> consistency_by_phase(run)
+    {'calibration': (0, 2), 'moving': (1, 4), 'settled': (0, 3)}
+    """
+    import numpy as np
+
+    test = result.estimator_consistency
+    if test is None:
+        return {}
+    dt = float(result.t[1] - result.t[0])
+    ends = dt * (np.asarray(test.window_start) + test.window - 1)   # a window's last sample
+    starts = dt * np.asarray(test.window_start)
+    tested = np.isfinite(np.asarray(test.window_nis, dtype=float))
+    tested[:1] = False   # the first window holds the filter's transient from its prior
+    rejected = np.zeros(tested.size, bool)
+    rejected[np.asarray(test.rejected, dtype=int)] = True
+    settle_start = float(result.settled_window[0])
+    phases = {"calibration": ends <= result.calibration_time,
+              "settled": starts >= max(settle_start, result.calibration_time)}
+    phases["moving"] = ~phases["calibration"] & ~phases["settled"]
+    return {name: (int(np.sum(rejected & tested & phases[name])),
+                   int(np.sum(tested & phases[name])))
+            for name in ("calibration", "moving", "settled")}
+
+
+def _consistency_text(result) -> str:
+    test = result.estimator_consistency
+    if test is None:
+        return "no complete window"
+    counts = ", ".join(f"{name} {bad} of {n}" for name, (bad, n)
+                       in consistency_by_phase(result).items() if n)
+    return (("consistent" if test.consistent else "INCONSISTENT")
+            + f" over the run (windowed NIS); windows rejected: {counts}")
+
+
 def _closed_loop_section(r) -> dict:
     import numpy as np
 
@@ -446,13 +499,11 @@ def _closed_loop_section(r) -> dict:
          "the same with the robot where the closed loop left it (> 1: moving helps)."),
         ("decisions", "; ".join(f"{t:.3g} s: {what}" for t, what in result.decisions)
          or "none", "What the robot decided, and when."),
-        ("estimator consistency",
-         "no complete window" if result.estimator_consistency is None else
-         ("consistent" if result.estimator_consistency.consistent else "INCONSISTENT")
-         + " (windowed NIS of the Kalman filter over the run)",
-         "The filter's model was identified with the robot parked at its start; once the robot "
-         "damps the line it may no longer fit. The robot's targeting does not use that "
-         "estimate."),
+        ("estimator consistency", _consistency_text(result),
+         "The filter's model was identified with the robot parked at its start, so windows "
+         "while it moves are expected to reject (it damps the line differently at every "
+         "position); rejections while parked or settled say the model does not fit the line. "
+         "The robot's targeting does not use that estimate."),
         ("planner steps", f"{len(result.statuses)} ({result.statuses.count('safe_stop')} "
          "safe stops)"),
         ("real-time factor", f"{float(result.real_time_factor):.2f}",
@@ -610,130 +661,6 @@ def result_sections(result) -> list:
     if result.failure is not None:
         sections.append(_failure_section(result))
     return sections
-
-
-# ----------------------------------------------------------------------------- JSON
-
-def _f(value) -> float:
-    return float(value)
-
-
-def _model_kind(model) -> dict:
-    """The JSON keys that say which model was built: its kind, and an oscillator's lines."""
-    from ..identify import OscillatorModel
-
-    if isinstance(model, OscillatorModel):
-        return {"model_kind": "oscillator",
-                "line_frequencies_hz": [_f(f) for f in model.line_frequencies]}
-    return {"model_kind": "dmd"}
-
-
-def result_json(result) -> dict:
-    """The JSON summary of a :class:`ScenarioResult`: units in the keys and a units table.
-
-    Parameters
-    ----------
-    result : ScenarioResult
-        The result.
-
-    Returns
-    -------
-    dict
-        Plain JSON types only.
-
-    Examples
-    --------
-    >>> from powerline_control.scenario.pipeline import run_scenario
-    >>> data = result_json(run_scenario(stages=("model",)))
-    >>> data["n_nodes"], data["span_length_m"], data["units"]["_hz"]
-    (101, 3.66, 'hertz')
-    """
-    r = result
-    out: dict = {"scenario": r.scenario.name, "stages": list(r.stages),
-                 "failure": None if r.failure is None else
-                 {"stage": r.failure.stage, "kind": r.failure.kind,
-                  "message": r.failure.message},
-                 "elapsed_s": dict(r.elapsed)}
-    if r.model is not None:
-        model = r.model
-        out.update(n_nodes=int(model.n_nodes), n_elements=int(model.n_elements),
-                   span_length_m=_f(r.span.length), tension_n=_f(r.span.tension),
-                   frequencies_hz=[_f(f) for f in model.natural_frequencies(
-                       min(5, model.n_dofs))],
-                   load_frequency_hz=_f(r.scenario.forcing.load_frequency(r.span)))
-    if r.records is not None:
-        snap = r.records.test
-        out.update(n_samples=int(snap.t.size), dt_s=_f(snap.dt), n_train=int(r.records.n_train),
-                   noise_std_m=_f(snap.noise_std))
-    if r.identification is not None:
-        d = r.identification.design
-        x = r.records.test.x
-        out.update(spectral_radius=_f(d.model.spectral_radius),
-                   spectral_radius_plain_dmd=_f(r.identification.plain.spectral_radius),
-                   alpha=_f(d.model.alpha), alpha_relative=_f(d.model.alpha_relative),
-                   delays=int(d.model.delays), n_states=int(d.model.n_states),
-                   filter_noise_std_m=_f(d.noise_std),
-                   alpha_at_sweep_cap=alpha_at_sweep_cap(d),
-                   sensor_nodes=[int(i) for i in d.sensors],
-                   sensor_positions_m=[_f(x[int(i)]) for i in d.sensors],
-                   **_model_kind(d.model))
-        rm = r.identification.record_model
-        if rm is not None:
-            out["record_model"] = {"spectral_radius": _f(rm.spectral_radius),
-                                   "least_damped_frequencies_hz": _least_damped(rm)}
-    from .sensor_count import sensor_count_json
-
-    out.update(sensor_count_json(r))
-    if r.layouts is not None:
-        out["error_unmeasured_percent"] = r.layouts["chosen"].error_unmeasured_percent
-        out["layouts"] = {name: {"error_unmeasured_percent": lay.error_unmeasured_percent,
-                                 "sensor_nodes": list(lay.nodes),
-                                 "sensor_positions_m": list(lay.positions)}
-                          for name, lay in r.layouts.items()}
-    if r.measured is not None:
-        m = r.measured
-        consistency = getattr(m.estimate, "consistency", None)
-        out["measured_record"] = {
-            "source": m.record.source, "n_samples": int(m.record.values.shape[1]),
-            "n_missing": int(m.record.n_missing),
-            "channel_positions_m": [_f(v) for v in m.record.positions],
-            "support_channels_not_used_m": [_f(v) for v in getattr(m.record,
-                                                                    "support_positions", ())],
-            "sensor_nodes": list(m.nodes),
-            "consistent": None if consistency is None else bool(consistency.consistent)}
-    if r.plan is not None:
-        p = r.plan
-        out.update(target_m=_f(p.choice.position), antinode_m=_f(p.target.position),
-                   true_antinode_m=_f(p.truth.position), n_antinodes=len(p.antinodes),
-                   move_duration_s=_f(p.trajectory.duration))
-    if r.closed_loop is not None:
-        res = r.closed_loop.result
-        out.update(vibration_reduction=_f(res.vibration_reduction),
-                   final_robot_position_m=_f(res.robot_position[-1]),
-                   rms_closed_loop_m=_f(res.rms_closed_loop), rms_baseline_m=_f(res.rms_baseline),
-                   real_time_factor=_f(res.real_time_factor),
-                   closed_loop_sensor_nodes=list(r.closed_loop.sensors))
-    if r.severity is not None:
-        bare, robot = r.severity.bare, r.severity.robot
-        out["outer_strand_diameter_m"] = _f(r.severity.outer_strand_diameter)
-        out["severity"] = [
-            {"wind_speed_m_s": _f(bare.wind_speed[i]), "frequency_hz": _f(bare.frequency[i]),
-             "loop_length_m": _f(bare.loop_length[i]), "amplitude_m": _f(bare.amplitude[i]),
-             "strain_pp_microstrain": 1e6 * _f(bare.strain_pp[i]),
-             "robot_amplitude_m": _f(robot.amplitude[i]),
-             "robot_strain_pp_microstrain": 1e6 * _f(robot.strain_pp[i])}
-            for i in range(bare.wind_speed.size)]
-    if r.fatigue is not None:
-        life = r.fatigue.life
-        out["fatigue"] = {name: {"damage_per_year": _f(life[name].damage_per_year),
-                                 "life_years": _f(life[name].life_years)}
-                          for name in life.configurations}
-        out["fatigue_record"] = {"source": r.fatigue.source,
-                                 "n_records": int(r.fatigue.record.n_records),
-                                 "step_s": _f(r.fatigue.record.step),
-                                 "fixed_damper_position_m": _f(life.fixed_position)}
-    out["units"] = dict(UNITS)
-    return out
 
 
 # ----------------------------------------------------------------------------- the report
