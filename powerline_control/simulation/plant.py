@@ -115,9 +115,9 @@ class ModalPlant:
             return self._attachment_cache[key]
         model, f = self.model, self.frequency
         index, weights = model.shape_entries(x)
-        row = np.zeros(model.n_dofs)
-        row[index] = weights
-        full = self._beyond_band(row, weights @ self.shapes[index, : self.n_band])
+        # linear in the load: the <= 4 unit-DOF responses, each one sparse solve, kept per DOF
+        # (a moving robot takes a new position every step but stays on a few elements)
+        full = weights @ np.stack([self._dof_response(int(dof)) for dof in index])
         ritz = self.shapes[:, self.n_band :]
         n_ritz = weights @ ritz[index]
         # A Ritz frequency on the load's (it sits on one side of it by construction) would make
@@ -132,6 +132,15 @@ class ModalPlant:
             self._attachment_cache.clear()
         self._attachment_cache[key] = result
         return result
+
+    def _dof_response(self, dof: int) -> np.ndarray:
+        """:meth:`_beyond_band` of a unit load on free DOF ``dof`` (cached per DOF)."""
+        cache = self.__dict__.setdefault("_dof_cache", {})
+        if dof not in cache:
+            unit = np.zeros(self.model.n_dofs)
+            unit[dof] = 1.0
+            cache[dof] = self._beyond_band(unit, self.shapes[dof, : self.n_band])
+        return cache[dof]
 
     def _beyond_band(self, load: np.ndarray, projection: np.ndarray) -> np.ndarray:
         """sum over the modes outside the band of phi_k phi_k^T load / (omega_k^2 - omega^2) at
