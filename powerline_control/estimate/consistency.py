@@ -93,6 +93,8 @@ class Consistency:
         Two-sided 1 % bounds of each window's mean NIS, ``(n_windows, 2)``.
     rejected : numpy.ndarray
         Indices of the tested windows whose mean NIS lies outside its bounds (int).
+    tested : numpy.ndarray
+        Which windows were tested, ``(n_windows,)`` bool (see ``n_tested``).
     n_tested : int
         Windows tested: every full window after the first (which holds the filter's transient
         from its prior) that has a measurement.
@@ -165,6 +167,7 @@ class Consistency:
     window_bounds: np.ndarray = dataclasses.field(
         default_factory=lambda: read_only(np.zeros((0, 2))))
     rejected: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, int)))
+    tested: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, bool)))
     n_tested: int = 0
     consistent: bool = True
     pessimistic: bool = False
@@ -239,6 +242,7 @@ def _window_test(sums: np.ndarray, counts: np.ndarray, used: np.ndarray, window:
         "window_dof": read_only(dof),
         "window_bounds": read_only(bounds),
         "rejected": read_only(rejected),
+        "tested": read_only(tested),
         "n_tested": n_tested,
         "consistent": bool(int(above.sum()) <= allowed),
         "dof_fraction": float(dof_fraction),

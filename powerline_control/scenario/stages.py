@@ -145,11 +145,17 @@ def _nearest_distinct_nodes(positions, x) -> list:
         if node in nodes:
             raise InputError(
                 f"'estimation.sensor_positions': {nodes[node]:g} m and {p:g} m both fall on "
-                f"the node at {x[node]:g} m (the mesh spacing there is about "
-                f"{float(np.max(np.diff(x))):.3g} m); give positions on different nodes or a "
+                f"the node at {x[node]:g} m (the elements beside it are "
+                f"{_spacing_beside(x, node)} long); give positions on different nodes or a "
                 f"finer mesh ('model.n_elements').")
         nodes[node] = float(p)
     return sorted(nodes)
+
+
+def _spacing_beside(x, node: int) -> str:
+    """The lengths of the elements on either side of ``node``, in words."""
+    lengths = [x[j + 1] - x[j] for j in (node - 1, node) if 0 <= j < len(x) - 1]
+    return " and ".join(f"{length:.3g} m" for length in lengths)
 
 
 def evenly_spaced_nodes(x, k: int, shape=None) -> list:

@@ -23,7 +23,6 @@ from pathlib import Path
 __all__ = ["result_sections", "write_result_report"]
 
 
-
 def mm(value: float) -> str:
     """A displacement in millimetres, 4 significant digits (``0.01923 mm``)."""
     return f"{1e3 * value:.4g} mm"
@@ -433,7 +432,7 @@ def consistency_by_phase(result) -> dict:
     >>> import numpy as np
     >>> from types import SimpleNamespace
     >>> test = SimpleNamespace(window=100, window_start=np.arange(10) * 100,
-    ...                        window_nis=np.ones(10), rejected=np.array([0, 5]))
+    ...                        tested=np.arange(10) > 0, rejected=np.array([5]))
     >>> run = SimpleNamespace(estimator_consistency=test, t=np.arange(1000) * 0.01,
     ...                       calibration_time=3.0, settled_window=(7.0, 9.99))
     >>> consistency_by_phase(run)
@@ -447,8 +446,7 @@ def consistency_by_phase(result) -> dict:
     dt = float(result.t[1] - result.t[0])
     ends = dt * (np.asarray(test.window_start) + test.window - 1)   # a window's last sample
     starts = dt * np.asarray(test.window_start)
-    tested = np.isfinite(np.asarray(test.window_nis, dtype=float))
-    tested[:1] = False   # the first window holds the filter's transient from its prior
+    tested = np.asarray(test.tested, dtype=bool)
     rejected = np.zeros(tested.size, bool)
     rejected[np.asarray(test.rejected, dtype=int)] = True
     settle_start = float(result.settled_window[0])
