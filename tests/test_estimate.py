@@ -306,6 +306,33 @@ def test_step_block_equals_filter_and_continues_the_real_time_state():
         kf.step_block(y[:, :5], u[:, :4])
 
 
+@pytest.mark.parametrize("n_inputs", [0, 1])
+@pytest.mark.parametrize("steady", [True, False])
+def test_step_block_of_a_converged_filter_is_step_by_step(n_inputs, steady):
+    # Once the gain is frozen, step_block runs its samples as the closed loop
+    # x[k] = (I - K C) A x[k-1] + K y[k] + ... (KalmanFilter.step_block); the reference is step()
+    # on each sample, the predict-update form of the same recursion: states and consistency
+    # windows agree to round-off (a stable closed loop does not amplify it: 1e-12 leaves three
+    # orders of margin over what was measured). A NaN sample falls back to step().
+    sys = lightly_damped_system(5, 3, seed=61, n_inputs=n_inputs)
+    n = sys.nstates
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(3)
+    u = np.random.default_rng(62).normal(size=(n_inputs, 900))
+    _, y = simulate_truth(sys, q, r, 900, seed=63, u=u if n_inputs else None)
+    y[1, 850] = np.nan
+    one = KalmanFilter(sys, q, r, steady_state=steady, consistency_window=50)
+    block = KalmanFilter(sys, q, r, steady_state=steady, consistency_window=50)
+    by_step = np.column_stack([one.step(y[:, k], u[:, k] if n_inputs else None)
+                               for k in range(900)])
+    cuts = [0, 7, 400, 410, 411, 700, 900]
+    by_block = np.hstack([block.step_block(y[:, a:b], u[:, a:b] if n_inputs else None)
+                          for a, b in zip(cuts[:-1], cuts[1:], strict=True)])
+    assert rel(by_block, by_step) < 1e-12
+    assert rel(block.state, one.state) < 1e-12
+    np.testing.assert_allclose(block.consistency.window_nis, one.consistency.window_nis,
+                               rtol=1e-12)
+
+
 def test_field_map_and_field_variances():
     sys = lightly_damped_system(4, 2, seed=71)
     n = sys.nstates

@@ -450,6 +450,41 @@ def test_large_mesh_with_robot_stays_sparse():
     assert np.count_nonzero(row) == index.size + 1
 
 
+def test_shape_entries_are_the_hermite_cubics_on_a_graded_mesh():
+    # Independent truth: the Hermite cubics in closed form (N1 = 1 - 3 xi^2 + 2 xi^3,
+    # N2 = h (xi - 2 xi^2 + xi^3), N3 = 3 xi^2 - 2 xi^3, N4 = h (xi^3 - xi^2)) at points of
+    # interior elements (all four DOFs free, in this order) of a mesh graded toward clamps, so
+    # that every element has its own length; nodes and element edges included. Tolerance: a
+    # few roundings of numbers <= max(1, h).
+    model = plc.LineModel(DRAKE, bc="clamped")
+    edges = model.node_positions
+    rng = np.random.default_rng(5)
+    elements = np.concatenate([np.arange(1, 12), rng.integers(1, model.n_elements - 1, 40)])
+    for element in elements:
+        h = edges[element + 1] - edges[element]
+        for xi in (0.0, 1e-9, *rng.random(3), 0.5):
+            x = edges[element] + xi * h
+            s = (x - edges[element]) / h
+            truth = [1 - 3 * s**2 + 2 * s**3, h * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3,
+                     h * (s**3 - s**2)]
+            index, weights = model.shape_entries(x)
+            assert index.tolist() == list(range(index[0], index[0] + 4))
+            np.testing.assert_allclose(weights, truth, rtol=0, atol=4e-16 * max(1.0, h))
+    # at the last element's left node the row picks its displacement (the clamp's DOFs dropped)
+    index, weights = model.shape_entries(edges[-2])
+    np.testing.assert_allclose(weights, [1.0, 0.0], atol=1e-15)
+    # displacement_map of many positions (array form) holds the same rows, ends included
+    x = np.concatenate([[0.0, edges[1], edges[-1]], rng.uniform(0.0, edges[-1], 300)])
+    rows = model.displacement_map(x).toarray()
+    for i, position in enumerate(x):
+        index, weights = model.shape_entries(position)
+        expected = np.zeros(model.n_dofs)
+        expected[index] = weights
+        np.testing.assert_allclose(rows[i], expected, rtol=0, atol=4e-16 * edges[-1] / 100)
+    with pytest.raises(InputError, match="'positions'.*300.5"):
+        model.displacement_map([1.0, 300.5])
+
+
 @pytest.mark.parametrize(
     ("make", "name"),
     [

@@ -383,8 +383,9 @@ def _move_robot(motion: Motion, records: _Records, t: np.ndarray, k: int, end: i
 
 def _advance_plant(plant_state: np.ndarray, records: _Records, line: _Line,
                    calibration: _Calibration, rng, timings: dict, k: int, end: int) -> np.ndarray:
-    """Simulate, sense and filter samples k..end in blocks that hold the robot's mid-block
-    position; leaves the loop's state at sample end."""
+    """Simulate and sense samples k..end in blocks that hold the robot's mid-block position,
+    then filter them (the filter acts on nothing before the next control step); leaves the
+    loop's state at sample end."""
     j = k
     while j < end:
         block_end = min(j + line.plant_steps, end)
@@ -396,12 +397,12 @@ def _advance_plant(plant_state: np.ndarray, records: _Records, line: _Line,
         tic = time.perf_counter()
         plant_state = _step_plant(plant_state, (phi, g0, g1), records, line.modal_force, j,
                                   block_end)
-        y_block = _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
-        tac = time.perf_counter()
-        _kalman_steps(records, calibration, y_block, j, block_end)
-        timings["plant"] += tac - tic
-        timings["filter"] += time.perf_counter() - tac
+        _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
+        timings["plant"] += time.perf_counter() - tic
         j = block_end
+    tic = time.perf_counter()
+    _kalman_steps(records, calibration, records.measured[:, k + 1 : end + 1].T, k, end)
+    timings["filter"] += time.perf_counter() - tic
     return plant_state
 
 
@@ -410,16 +411,17 @@ def _step_plant(z: np.ndarray, maps: tuple, records: _Records, modal_force: np.n
     """The plant's exact first-order-hold steps from sample j to block_end, recorded; the last
     state."""
     phi, g0, g1 = maps
+    drive = modal_force[j:block_end] @ g0.T + modal_force[j + 1 : block_end + 1] @ g1.T
+    states = records.plant_states
     for i in range(j, block_end):
-        z = phi @ z + g0 @ modal_force[i] + g1 @ modal_force[i + 1]
-        records.plant_states[i + 1] = z
+        z = phi @ z + drive[i - j]
+        states[i + 1] = z
     return z
 
 
 def _sense(records: _Records, line: _Line, at_robot: np.ndarray, noise_std: float, rng,
-           j: int, block_end: int) -> np.ndarray:
-    """The sensors' and the robot's noisy displacements over samples j+1..block_end, recorded;
-    the sensors' (n_samples, p)."""
+           j: int, block_end: int) -> None:
+    """The sensors' and the robot's noisy displacements over samples j+1..block_end, recorded."""
     sensor_list = list(line.sensors)
     block = records.plant_states[j + 1 : block_end + 1, : line.plant.r]
     y_block = block @ line.sensor_rows.T + line.residual[sensor_list, j + 1 : block_end + 1].T
@@ -429,7 +431,6 @@ def _sense(records: _Records, line: _Line, at_robot: np.ndarray, noise_std: floa
         robot_block = robot_block + noise_std * rng.standard_normal(robot_block.shape)
     records.measured[:, j + 1 : block_end + 1] = y_block.T
     records.robot_measured[j + 1 : block_end + 1] = robot_block
-    return y_block
 
 
 def _kalman_steps(records: _Records, calibration: _Calibration, y_block: np.ndarray, j: int,

@@ -97,6 +97,7 @@ class _Recursion:
         kf = self.kf
         self.converged = True
         self.gain_ss, self.posterior_ss, self.predicted_ss = gain, posterior, predicted
+        self.closed_loop = None   # (F, (I - K C) B) of advance_frozen, built on first use
         if kf._info_form:
             self.s_factor = None  # NIS through Woodbury with posterior_ss, O(n p)
         else:
@@ -207,6 +208,47 @@ class _Recursion:
             return innovation, nis, index.size
         self._track_convergence(gain)
         return innovation, nis, index.size
+
+    def advance_frozen(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Samples ``y`` ``(p, L)`` (inputs ``u`` ``(m, L)``) through the frozen update: states
+        ``(n, L)``; the windows' NIS as :meth:`advance` then :meth:`monitor` per sample.
+
+        For a converged recursion and NaN-free samples only. Each sample is then the linear
+        closed loop ``x[k] = F x[k-1] + K y[k] + (I - K C) B u[k-1] - K D u[k]`` with
+        ``F = (I - K C) A`` (the batch form of :meth:`_FilterInternals._build_batch`, stepped
+        here, not diagonalised): one product per sample, the drives of the block and its
+        innovations in one product each; equal to :meth:`advance` per sample to round-off.
+        """
+        kf = self.kf
+        if self.closed_loop is None:
+            i_kc = np.eye(kf._n) - self.gain_ss @ kf._C
+            self.closed_loop = (i_kc @ kf._A, i_kc @ kf._B if kf._m else None)
+        closed, input_map = self.closed_loop
+        n_t = y.shape[1]
+        drive = self.gain_ss @ y
+        previous = np.empty((kf._n, n_t))      # x[k-1] per column
+        if kf._m:
+            u_prev = np.column_stack([self.u_prev, u[:, :-1]])
+            drive += input_map @ u_prev - self.gain_ss @ (kf._D @ u)
+        states = np.empty((kf._n, n_t))
+        x = self.x
+        for k in range(n_t):
+            previous[:, k] = x
+            x = closed @ x + drive[:, k]
+            states[:, k] = x
+        predicted = kf._A @ previous
+        if kf._m:
+            predicted += kf._B @ u_prev
+        innovations = y - (predicted[kf._sel] if kf._sel is not None else kf._C @ predicted)
+        if kf._m:
+            innovations -= kf._D @ u
+        self.x, self.P, self.k = x, self.posterior_ss, self.k + n_t
+        if n_t:
+            self.u_prev = u[:, -1]
+        if kf._window is not None:
+            for nis in self.nis_frozen(innovations).tolist():
+                self.monitor(nis, kf._p)
+        return states
 
     def _joseph_update(self, p_pred, x_pred, y, u, index):
         """Covariance form (``p <= n``): gain through a Cholesky of ``S``, Joseph update."""

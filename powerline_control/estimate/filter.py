@@ -564,6 +564,9 @@ class KalmanFilter(_FilterInternals):
                             allow_nan=True)
         n_t = y_all.shape[1]
         u_all = self._check_input_block(inputs, n_t)
+        run = self._running
+        if run.converged and not run.first and not np.isnan(y_all).any():
+            return run.advance_frozen(y_all, u_all)   # no covariance work: one loop, no checks
         states = np.empty((self._n, n_t))
         for k in range(n_t):
             states[:, k] = self._advance(y_all[:, k], u_all[:, k])

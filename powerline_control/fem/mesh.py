@@ -181,6 +181,10 @@ def physics_mesh(span: Span, bc: tuple[str, str], max_frequency: float,
     return edges
 
 
+# The four line DOFs of an element, counted from its first: w_left, theta_left, w_right, theta_right
+_ELEMENT_DOFS = np.arange(4)
+
+
 def _hermite(xi: np.ndarray, h: float | np.ndarray) -> np.ndarray:
     """Hermite cubic shape functions N1..N4 at local coordinates xi in [0, 1], shape (..., 4).
 
@@ -196,6 +200,15 @@ def _hermite(xi: np.ndarray, h: float | np.ndarray) -> np.ndarray:
         ],
         axis=-1,
     )
+
+
+def _hermite_at(xi: float, h: float) -> np.ndarray:
+    """:func:`_hermite` at one local coordinate, shape (4,): the same formulas on floats, equal
+    to the array form to round-off (a moving robot asks for one point thousands of times; the
+    array form costs ten times more for a single point)."""
+    xi2, xi3 = xi * xi, xi**3
+    return np.array([1 - 3 * xi2 + 2 * xi3, h * (xi - 2 * xi2 + xi3), 3 * xi2 - 2 * xi3,
+                     h * (-xi2 + xi3)])
 
 
 def _element_matrices(h: np.ndarray, ei: float, tension: float, mass: float):
@@ -413,9 +426,9 @@ class _Mesh:
     def _line_entries(self, x: float) -> tuple[np.ndarray, np.ndarray]:
         """Global line DOFs and Hermite values of the displacement at ``x`` (4 entries)."""
         element = self._element_of(x)
-        h = self.element_lengths[element]
-        xi = (x - self.node_positions[element]) / h
-        return 2 * element + np.arange(4), _hermite(np.array(xi), h)
+        h = float(self.element_lengths[element])
+        xi = (x - float(self.node_positions[element])) / h
+        return 2 * element + _ELEMENT_DOFS, _hermite_at(xi, h)
 
     def shape_entries(self, position: float) -> tuple[np.ndarray, np.ndarray]:
         """Sparse interpolation row: (free-DOF indices, weights) of the displacement at position.
@@ -475,19 +488,42 @@ class _Mesh:
             return sp.csr_array(
                 (np.ones(rows.size), (rows, cols[rows])), shape=(self.n_nodes, self.n_dofs)
             )
+        index, weights = self.shape_rows(positions)
+        keep = index >= 0
+        rows = np.broadcast_to(np.arange(index.shape[0])[:, None], index.shape)
+        return sp.csr_array((weights[keep], (rows[keep], index[keep])),
+                            shape=(index.shape[0], self.n_dofs))
+
+    def shape_rows(self, positions: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`shape_entries` of many positions at once, as (K, 4) arrays.
+
+        Row k holds the free-DOF indices and weights of the displacement at ``positions[k]``
+        (the four DOFs of its element in order); a DOF a support constrains has index -1 and
+        weight 0. A few array operations instead of a Python call per position.
+
+        Examples
+        --------
+        >>> from powerline_control import LineModel, Span
+        >>> model = LineModel(Span.paper_lab(), n_elements=4)
+        >>> index, weights = model.shape_rows([0.0, model.node_positions[1]])
+        >>> index.tolist()                       # w_0 is pinned: -1
+        [[-1, 0, 1, 2], [1, 2, 3, 4]]
+        >>> weights[1].round(12).tolist()
+        [1.0, 0.0, 0.0, 0.0]
+        """
         positions = check_array("positions", positions, ndim=1)
-        rows, cols, vals = [], [], []
-        for i, x in enumerate(positions):
-            index, values = self.shape_entries(x)
-            rows.append(np.full(index.size, i))
-            cols.append(index)
-            vals.append(values)
-        if not positions.size:
-            return sp.csr_array((0, self.n_dofs))
-        return sp.csr_array(
-            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-            shape=(positions.size, self.n_dofs),
-        )
+        outside = np.flatnonzero((positions < 0.0) | (positions > self.span.length))
+        if outside.size:
+            raise InputError(
+                f"The 'positions' parameter must lie on the span, 0 to {self.span.length:g} m. "
+                f"Got {positions[outside[0]]!r} at index {int(outside[0])}."
+            )
+        element = np.clip(np.searchsorted(self.node_positions, positions, side="right") - 1, 0,
+                          self.n_elements - 1)
+        h = self.element_lengths[element]
+        weights = _hermite((positions - self.node_positions[element]) / h, h)
+        index = self._free_index[2 * element[:, None] + _ELEMENT_DOFS]
+        return index, np.where(index >= 0, weights, 0.0)
 
     def point_load(self, position: float) -> np.ndarray:
         """Consistent load vector of a unit point force at ``position``, shape (n_dofs,)."""

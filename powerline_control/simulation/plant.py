@@ -101,45 +101,80 @@ class ModalPlant:
             self._coupling_cache[key] = read_only(weights @ self.shapes[index])
         return self._coupling_cache[key]
 
+    def couplings(self, positions: np.ndarray) -> np.ndarray:
+        """:meth:`coupling` at each of ``positions`` (K,): (K, r)."""
+        index, weights = self.model.shape_rows(positions)
+        return _combine(weights, self.shapes, index)
+
     def attachment(self, x: float) -> tuple[float, np.ndarray]:
         """(h, rho): what the basis leaves out of a unit force at x, at the plant's frequency.
 
         ``h`` is the displacement at x (the robot's residual flexibility, m/N) and ``rho`` the
         nodal field (n_nodes,), undamped mode acceleration: (K - omega^2 M)^-1 N(x) minus the
-        basis' own terms. Zero without a frequency. One sparse solve (cached LU) per position.
+        basis' own terms. Zero without a frequency. :meth:`attachments` at one position, kept
+        per position.
         """
         if self.frequency is None:
             return 0.0, np.zeros(self.model.n_nodes)
         key = round(float(x), 6)
-        if key in self._attachment_cache:
-            return self._attachment_cache[key]
-        model, f = self.model, self.frequency
-        index, weights = model.shape_entries(x)
-        # linear in the load: the <= 4 unit-DOF responses, each one sparse solve, kept per DOF
-        # (a moving robot takes a new position every step but stays on a few elements)
-        full = weights @ np.stack([self._dof_response(int(dof)) for dof in index])
-        ritz = self.shapes[:, self.n_band :]
-        n_ritz = weights @ ritz[index]
-        # A Ritz frequency on the load's (it sits on one side of it by construction) would make
-        # its term singular; 1e-9 relative keeps it finite at a negligible change.
-        gaps = self.omega2[self.n_band :] - (2 * np.pi * f) ** 2
-        gaps = np.where(np.abs(gaps) < 1e-9 * (2 * np.pi * f) ** 2, 1e-9 * (2 * np.pi * f) ** 2,
-                        gaps)
-        ritz_part = n_ritz / gaps
-        result = (float(weights @ full[index] - n_ritz @ ritz_part),
-                  self._node_map @ full - self.nodal[:, self.n_band :] @ ritz_part)
-        if len(self._attachment_cache) > 1024:
-            self._attachment_cache.clear()
-        self._attachment_cache[key] = result
+        if key not in self._attachment_cache:
+            index, weights = self.model.shape_entries(x)
+            h, rho = self._attachments(index[None, :], weights[None, :])
+            if len(self._attachment_cache) > 1024:
+                self._attachment_cache.clear()
+            self._attachment_cache[key] = (float(h[0]), rho[0])
+        return self._attachment_cache[key]
+
+    def attachments(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`attachment` at each of ``positions`` (K,): h (K,) and rho (K, n_nodes)."""
+        positions = np.asarray(positions, dtype=float)
+        if self.frequency is None or positions.size == 0:
+            return np.zeros(positions.size), np.zeros((positions.size, self.model.n_nodes))
+        last = self.__dict__.get("_last_attachments")
+        if last is not None and np.array_equal(last[0], positions):
+            return last[1]   # a record's corrections ask three times for the same positions
+        result = self._attachments(*self.model.shape_rows(positions))
+        self._last_attachments = (positions.copy(), result)
         return result
 
-    def _dof_response(self, dof: int) -> np.ndarray:
-        """:meth:`_beyond_band` of a unit load on free DOF ``dof`` (cached per DOF)."""
+    def _attachments(self, index: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray,
+                                                                              np.ndarray]:
+        """h (K,) and rho (K, n_nodes) of unit forces given by their shape rows (K, m): free-DOF
+        ``index`` (-1 with weight 0 for a constrained DOF) and ``weights``.
+
+        Linear in the load: a unit force at x is the shape-function combination of <= 4 unit
+        DOF loads, whose responses (one sparse solve each) are kept per DOF (a moving robot takes
+        a new position every step but stays on a few elements).
+        """
+        omega2 = (2 * np.pi * self.frequency) ** 2
+        # a constrained entry (weight 0) points at its row's last free DOF: no solve of its own
+        index = np.where(index >= 0, index, index.max(axis=1, keepdims=True))
+        dofs, local = np.unique(index, return_inverse=True)
+        local = local.reshape(index.shape)
+        at_nodes, at_dofs = (np.stack(parts) for parts in zip(
+            *(self._dof_response(int(dof)) for dof in dofs), strict=True))
+        n_ritz = _combine(weights, self.shapes[:, self.n_band :], index)
+        # A Ritz frequency on the load's (it sits on one side of it by construction) would make
+        # its term singular; 1e-9 relative keeps it finite at a negligible change.
+        gaps = self.omega2[self.n_band :] - omega2
+        gaps = np.where(np.abs(gaps) < 1e-9 * omega2, 1e-9 * omega2, gaps)
+        ritz_part = n_ritz / gaps
+        # h = sum_jl w_j w_l R_l[dof_j]: the responses at the DOFs themselves
+        among = at_dofs[:, dofs][local[:, :, None], local[:, None, :]]     # (K, m, m)
+        h = np.einsum("kj,kl,klj->k", weights, weights, among) - np.einsum(
+            "kj,kj->k", n_ritz, ritz_part)
+        rho = _combine(weights, at_nodes, local) - ritz_part @ self.nodal[:, self.n_band :].T
+        return read_only(h), read_only(rho)
+
+    def _dof_response(self, dof: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_beyond_band` of a unit load on free DOF ``dof`` at the nodes (n_nodes,) and
+        at every free DOF (n_dofs,), kept per DOF."""
         cache = self.__dict__.setdefault("_dof_cache", {})
         if dof not in cache:
             unit = np.zeros(self.model.n_dofs)
             unit[dof] = 1.0
-            cache[dof] = self._beyond_band(unit, self.shapes[dof, : self.n_band])
+            response = self._beyond_band(unit, self.shapes[dof, : self.n_band])
+            cache[dof] = (self._node_map @ response, response)
         return cache[dof]
 
     def _beyond_band(self, load: np.ndarray, projection: np.ndarray) -> np.ndarray:
@@ -156,22 +191,21 @@ class ModalPlant:
         """The robot's force on the line per sample (N), for the residual field it drives.
 
         The absorber's spring and damper force from the states, and the body's inertia at the
-        plant's frequency (omega^2 m_b a: exact in steady state, where the residual is).
+        plant's frequency (omega^2 m_b a: exact in steady state, where the residual is); the
+        robot's position per sample on the grid of :func:`_position_keys`.
         """
         if self.robot is None or self.frequency is None:
             return np.zeros(states.shape[0])
         nq, r = self.n_q, self.r
         xs = np.broadcast_to(np.asarray(positions, dtype=float), (states.shape[0],))
-        force = np.empty(states.shape[0])
-        for key, rows in _position_groups(self, xs):
-            n = self.coupling(key)
-            body, spring, damper = self.robot_parameters(key)
-            a = states[rows, :r] @ n
-            value = (2 * np.pi * self.frequency) ** 2 * body * a
-            if self.absorber:
-                value -= spring * (a - states[rows, r])
-                value -= damper * (states[rows, nq : nq + r] @ n - states[rows, nq + r])
-            force[rows] = value
+        keys, group = _position_keys(self, xs)
+        body, spring, damper = self.robot_parameters_at(keys)[group].T
+        rows = self.couplings(keys)
+        a = _along(states[:, :r], rows, group)
+        force = (2 * np.pi * self.frequency) ** 2 * body * a
+        if self.absorber:
+            force -= spring * (a - states[:, r])
+            force -= damper * (_along(states[:, nq : nq + r], rows, group) - states[:, nq + r])
         return force
 
     def robot_field(self, x: float, amplitude: np.ndarray) -> np.ndarray:
@@ -203,34 +237,49 @@ class ModalPlant:
         own parameters.
         """
         robot = self.robot
-        own = (robot.body_mass, robot.stiffness, robot.damping)
         if self.frequency is None:
-            return own
+            return (robot.body_mass, robot.stiffness, robot.damping)
         key = round(float(x), 6)
-        if key in self._robot_cache:
-            return self._robot_cache[key]
-        h = self.residual_flexibility(x)
+        if key not in self._robot_cache:
+            if len(self._robot_cache) > 4096:
+                self._robot_cache.clear()
+            self._robot_cache[key] = tuple(
+                float(v) for v in self._retuned(np.array([self.residual_flexibility(x)]))[0])
+        return self._robot_cache[key]
+
+    def robot_parameters_at(self, positions: np.ndarray) -> np.ndarray:
+        """:meth:`robot_parameters` at each of ``positions`` (K,): (K, 3)."""
+        positions = np.asarray(positions, dtype=float)
+        if self.frequency is None:
+            robot = self.robot
+            return np.tile([robot.body_mass, robot.stiffness, robot.damping], (positions.size, 1))
+        return self._retuned(self.attachments(positions)[0])
+
+    def _retuned(self, h: np.ndarray) -> np.ndarray:
+        """(body mass, absorber stiffness, absorber damping) per residual flexibility ``h``
+        (K,): the rule of :meth:`robot_parameters`, (K, 3)."""
+        robot = self.robot
         omega = 2 * np.pi * self.frequency
+        result = np.tile([robot.body_mass, robot.stiffness, robot.damping], (h.size, 1))
         dynamic = robot_dynamic_stiffness(robot, omega)
-        effective = dynamic / (1.0 - h * dynamic)
-        result = own
-        if not self.absorber:
-            body_share = 1.0 - h * omega**2 * robot.body_mass
-            if body_share > 0:   # the body alone behind h
-                result = (robot.body_mass / body_share, 0.0, 0.0)
-        else:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            if not self.absorber:
+                body_share = 1.0 - h * omega**2 * robot.body_mass
+                alone = body_share > 0    # the body alone behind h
+                result[alone, 0] = robot.body_mass / body_share[alone]
+                result[alone, 1:] = 0.0
+                return result
             # The body keeps its mass and the absorber carries the whole correction: continuous
             # in x (the body alone behind h, m_b / (1 - h omega^2 m_b), is singular at its local
             # resonance on h, which 0.5 m from a clamp of a long span sits at the load).
+            effective = dynamic / (1.0 - h * dynamic)
             absorber = effective - omega**2 * robot.body_mass
             spring = absorber * omega**2 * robot.suspended_mass / (
                 absorber - omega**2 * robot.suspended_mass)
-            if np.isfinite(spring) and spring.real > 0:
-                result = (robot.body_mass, float(spring.real),
-                          max(float(spring.imag) / omega, 0.0) if robot.damping > 0 else 0.0)
-        if len(self._robot_cache) > 4096:
-            self._robot_cache.clear()
-        self._robot_cache[key] = result
+        passive = np.isfinite(spring) & (spring.real > 0)
+        result[passive, 1] = spring.real[passive]
+        result[passive, 2] = (np.maximum(spring.imag[passive] / omega, 0.0)
+                              if robot.damping > 0 else 0.0)
         return result
 
     def matrices(self, x: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -590,16 +639,16 @@ def nodal_field(plant: ModalPlant, states: np.ndarray, residual: np.ndarray,
     if np.all(np.isnan(xs)):
         return field
     force = plant.robot_force(states, xs)
-    groups = _position_groups(plant, xs)
-    # field += attachments (n_nodes, groups) @ (each sample's force in its group's row): one
-    # sparse product instead of an outer product per group
-    attachments = np.column_stack([plant.attachment(key)[1] for key, _ in groups])
-    group_of = np.empty(xs.size, dtype=np.intp)
-    for g, (_, columns) in enumerate(groups):
-        group_of[columns] = g
-    spread = scipy.sparse.csc_array((force, (group_of, np.arange(xs.size))),
-                                    shape=(len(groups), xs.size))
-    return field + (spread.T @ attachments.T).T
+    keys, group = _position_keys(plant, xs)
+    rho = plant.attachments(keys)[1]                         # (groups, n_nodes)
+    if keys.size == 1:
+        field += np.outer(rho[0], force)
+        return field
+    # field += rho^T @ (each sample's force in its group's row): one sparse product
+    spread = scipy.sparse.csc_array((force, (group, np.arange(xs.size))),
+                                    shape=(keys.size, xs.size))
+    field += (spread.T @ rho).T
+    return field
 
 
 # The robot's residual corrections of a record (its force's field, its re-tuned damper) are
@@ -609,18 +658,32 @@ def nodal_field(plant: ModalPlant, states: np.ndarray, residual: np.ndarray,
 CORRECTION_GRID_PER_LOOP = 2000
 
 
-def _position_groups(plant: ModalPlant, positions: np.ndarray) -> list[tuple[float, np.ndarray]]:
-    """(position, sample indices) for each distinct position of a record, on the grid of
-    ``CORRECTION_GRID_PER_LOOP`` (positions to 1 um without a plant frequency)."""
+def _combine(weights: np.ndarray, rows: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Per k, ``sum_j weights[k, j] rows[index[k, j]]``: (K, row length); a weight 0 entry's
+    index must only be valid."""
+    out = weights[:, :1] * rows[index[:, 0]]
+    for j in range(1, weights.shape[1]):
+        out += weights[:, j : j + 1] * rows[index[:, j]]
+    return out
+
+
+def _position_keys(plant: ModalPlant, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct positions of a record on the grid of ``CORRECTION_GRID_PER_LOOP``
+    (positions to 1 um without a plant frequency), and each sample's index among them."""
     keys = np.round(positions, 6)
     if plant.frequency is not None:
         step = float(plant.model.span.loop_length(plant.frequency)) / CORRECTION_GRID_PER_LOOP
         keys = np.clip(np.round(np.round(positions / step) * step, 6), 0.0,
                        plant.model.span.length)
-    order = np.argsort(keys, kind="stable")
-    distinct, starts = np.unique(keys[order], return_index=True)
-    return [(float(key), rows) for key, rows in zip(distinct, np.split(order, starts[1:]),
-                                                     strict=True)]
+    distinct, group = np.unique(keys, return_inverse=True)
+    return distinct, group.ravel()
+
+
+def _along(states: np.ndarray, rows: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """Per sample, ``states[i] @ rows[group[i]]`` (one product when there is one row)."""
+    if rows.shape[0] == 1:
+        return states @ rows[0]
+    return np.einsum("ij,ij->i", states, rows[group])
 
 
 def relative_velocity(plant: ModalPlant, states: np.ndarray, positions) -> np.ndarray:
@@ -634,8 +697,8 @@ def relative_velocity(plant: ModalPlant, states: np.ndarray, positions) -> np.nd
     else:
         # one coupling per distinct position: the robot is parked most of a run
         distinct, which = np.unique(np.asarray(positions, dtype=float), return_inverse=True)
-        coupling = np.stack([plant.coupling(float(x)) for x in distinct])[which.ravel()]
-        line_velocity = np.einsum("ij,ij->i", states[:, nq : nq + r], coupling)
+        line_velocity = _along(states[:, nq : nq + r], plant.couplings(distinct),
+                               which.ravel())
     return line_velocity - states[:, nq + r]
 
 
@@ -649,9 +712,8 @@ def damper_power(plant: ModalPlant, robot: MDR, states: np.ndarray, positions) -
     if not robot.has_absorber or plant.robot is None:
         return np.zeros(states.shape[0])
     xs = np.broadcast_to(np.asarray(positions, dtype=float), (states.shape[0],))
-    coefficient = np.empty(states.shape[0])
-    for key, rows in _position_groups(plant, xs):
-        coefficient[rows] = plant.robot_parameters(key)[2]
+    keys, group = _position_keys(plant, xs)
+    coefficient = plant.robot_parameters_at(keys)[group, 2]
     return coefficient * relative_velocity(plant, states, positions) ** 2
 
 
