@@ -16,6 +16,7 @@ the signals: a tone they share (a mode seen at several nodes) adds up whatever i
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -73,13 +74,44 @@ def _check_dt(dt: object) -> float:
 
 # ---------------------------------------------------------------------------------- peaks
 def _summed_periodogram(signals: np.ndarray, window: np.ndarray, n_fft: int) -> np.ndarray:
-    """|rfft(signal * window, n_fft)|^2 summed over the signals: one-sided bins 0 .. n_fft // 2.
+    """|rfft(signal * window, n_fft)|^2 summed over the signals: one-sided bins 0 .. n_fft // 2."""
+    return np.sum(np.abs(_padded_rfft(signals * window, n_fft)) ** 2, axis=0)
 
-    scipy.fft, not numpy.fft: the same pocketfft, but it keeps its plans. A padded length with a
-    large prime factor (2 x 1999 for the closed loop's 2 s of velocities at 1 kHz) takes a
-    Bluestein plan, which numpy rebuilt on every call (1.3 ms against 0.5 ms).
+
+def _padded_rfft(signals: np.ndarray, n_fft: int) -> np.ndarray:
+    """rfft of the rows zero-padded to ``n_fft`` points, bins 0 .. n_fft // 2 (scipy.fft).
+
+    A length with a large prime factor (2 x 1999 for the closed loop's 2 s of velocities at
+    1 kHz) goes through the chirp z-transform as one convolution of a fast length with cached
+    chirps (0.19 ms for three such rows against 0.53 ms in pocketfft's own Bluestein, which also
+    does the work for the padding zeros; equal to 1.3e-15 of the largest bin).
     """
-    return np.sum(np.abs(scipy.fft.rfft(signals * window, n_fft, axis=1)) ** 2, axis=0)
+    n = signals.shape[1]
+    if n < 2 or scipy.fft.next_fast_len(n_fft, real=True) == n_fft:
+        return scipy.fft.rfft(signals, n_fft, axis=1)
+    chirp, kernel, post = _chirp_tables(n, n_fft)
+    size = kernel.size
+    spectrum = scipy.fft.fft(signals * chirp, size, axis=1)
+    return scipy.fft.ifft(spectrum * kernel, axis=1)[:, : post.size] * post
+
+
+@functools.lru_cache(maxsize=8)
+def _chirp_tables(n: int, n_fft: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Chirp z-transform of ``n`` samples to bins 0 .. n_fft // 2 of an ``n_fft``-point DFT:
+    X[k] = w^(k^2/2) sum_j (x[j] w^(j^2/2)) w^(-(k - j)^2/2) with w = exp(-2 pi i / n_fft).
+    Returns the input chirp (n,), the FFT of the lag kernel over a fast length, and the output
+    chirp (bins,). Squares are reduced mod 2 n_fft (exact integers) before the exponential."""
+    bins = n_fft // 2 + 1
+
+    def chirp(index: np.ndarray) -> np.ndarray:
+        return np.exp(-1j * np.pi * ((index * index) % (2 * n_fft)) / n_fft)
+
+    size = scipy.fft.next_fast_len(n + bins - 1)
+    lags = np.zeros(size, dtype=complex)
+    lags[:bins] = np.conj(chirp(np.arange(bins, dtype=np.int64)))
+    lags[size - (n - 1) :] = np.conj(chirp(np.arange(n - 1, 0, -1, dtype=np.int64)))
+    return (chirp(np.arange(n, dtype=np.int64)), read_only(scipy.fft.fft(lags)),
+            chirp(np.arange(bins, dtype=np.int64)))
 
 
 def _log_parabola_offset(power: np.ndarray, k: int) -> float:

@@ -104,6 +104,27 @@ def test_dominant_frequency_in_hertz_ignores_the_mean_and_sums_signals():
     assert sp.dominant_frequency(signals, dt) == pytest.approx(23.7, abs=6e-4)
 
 
+@pytest.mark.parametrize("n", [1999, 1000, 997])
+def test_dominant_frequency_is_that_of_the_brute_force_padded_periodogram(n):
+    # Padded lengths 2 x 1999 and 2 x 997 have a large prime factor (the FFT goes through a
+    # chirp z-transform), 2000 does not. Truth: the Hann periodogram as a direct DFT sum over
+    # the padded bins, summed over the signals, its largest bin above DC and the documented
+    # log-parabola through it; equal to round-off (the DFT sum's own error is ~1e-13).
+    rng = np.random.default_rng(n)
+    t = np.arange(n)
+    signals = (np.outer([1.0, -0.4, 0.7], np.sin(2 * np.pi * 0.0613 * t + 0.2))
+               + 0.8 * np.sin(2 * np.pi * 0.1377 * t) + 0.3 * rng.standard_normal((3, n)))
+    n_fft = 2 * n
+    windowed = (signals - signals.mean(axis=1, keepdims=True)) * np.hanning(n)
+    bins = np.arange(n_fft // 2 + 1)
+    power = np.sum(np.abs(windowed @ np.exp(-2j * np.pi * np.outer(t, bins) / n_fft)) ** 2,
+                   axis=0)
+    k = int(np.argmax(power[1:])) + 1
+    left, mid, right = np.log(power[k - 1 : k + 2])
+    expected = (k + 0.5 * (left - right) / (left - 2 * mid + right)) / n_fft
+    assert sp.dominant_frequency(signals, 1.0) == pytest.approx(expected, rel=1e-12)
+
+
 def test_the_stronger_of_two_tones_is_dominant():
     t = np.arange(4000) * 1e-3
     signals = np.vstack([np.sin(2 * np.pi * 11.0 * t) + 3.0 * np.sin(2 * np.pi * 31.3 * t)])

@@ -11,7 +11,13 @@ from .._validation import read_only
 from ..errors import ModelError
 from ..fem import MDR
 from ..simulation import ParkedSteadyState, parked_steady_state
-from ..simulation.plant import ModalPlant, damper_power, nodal_field, run_parked
+from ..simulation.plant import (
+    ModalPlant,
+    damper_power,
+    nodal_field,
+    robot_correction,
+    run_parked,
+)
 from .policy import reach_within
 from .result import Comparison
 
@@ -68,9 +74,12 @@ def settling_of(records, t: np.ndarray, segments, n_cal: int, loop_length: float
 
 
 def window_comparison(name: str, position: float, states: np.ndarray, plant: ModalPlant,
-                power: np.ndarray, line, mask: np.ndarray) -> Comparison:
-    """The vibration of the plant's states over the settled window (``mask``)."""
-    field_window = nodal_field(plant, states[mask], line.residual[:, mask], position)
+                      power: np.ndarray, line, mask: np.ndarray,
+                      field_window: np.ndarray | None = None) -> Comparison:
+    """The vibration of the plant's states over the settled window (``mask``); its field when
+    already known (the run's own records)."""
+    if field_window is None:
+        field_window = nodal_field(plant, states[mask], line.residual[:, mask], position)
     rms = float(np.sqrt(np.mean(line.weights @ field_window**2)))
     envelope = np.max(np.abs(field_window), axis=1)
     return Comparison(name, float(position), rms, float(envelope.max()),
@@ -139,13 +148,23 @@ def _window_only(window: Comparison, line, states, plant, mask) -> Comparison:
 
 def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, limits,
                     bounds: tuple[float, float], travel_time: float, last_loads,
-                    loop_power: np.ndarray) -> tuple[tuple, ParkedSteadyState | None]:
+                    loop_power: np.ndarray, fields: tuple[np.ndarray, np.ndarray]
+                    ) -> tuple[tuple, ParkedSteadyState | None]:
     """no robot, parked near a clamp, parked at the start, parked at the best position within
     reach, and where the closed loop ended: in exact steady state when the last load is one
     sine (with the settled window's RMS beside it), else over the settled window; and the
-    steady-state scan the best position comes from (None without a sine)."""
+    steady-state scan the best position comes from (None without a sine). ``fields``: the
+    run's field and the field parked at the start, whose windows are not computed again."""
     start_states, plant = calibration.start_states, line.plant
     n_t = line.t.size
+    run_field, start_field = fields
+    # The closed loop's window is that of the robot parked where it ended: the run's field with
+    # the robot's residual field at its final position in place of the one along its path.
+    end_states, path = records.plant_states[mask], records.position[mask]
+    loop_window = run_field[:, mask]
+    along, final = (robot_correction(plant, end_states, x) for x in (path, path[-1]))
+    if along is not None:
+        loop_window = loop_window - along + final
     free_states = run_parked(line.free_plant, None, line.modal_force, n_t)
     windows = {
         "no_robot": (window_comparison("no_robot", np.nan, free_states, line.free_plant,
@@ -153,9 +172,10 @@ def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, li
         "near_clamp": _parked_window("near_clamp", line.clamp_distance, line, robot, mask),
         "start": (window_comparison("start", robot.position, start_states, plant,
                                     damper_power(plant, robot, start_states, robot.position),
-                                    line, mask), start_states, plant),
+                                    line, mask, start_field[:, mask]), start_states, plant),
         "closed_loop": (window_comparison("closed_loop", records.position[-1],
-                                          records.plant_states, plant, loop_power, line, mask),
+                                          records.plant_states, plant, loop_power, line, mask,
+                                          loop_window),
                         records.plant_states, plant),
     }
     if line.harmonic is None:

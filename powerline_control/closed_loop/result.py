@@ -135,9 +135,10 @@ class ClosedLoopResult:
     timings : dict
         Wall-clock seconds spent in: setup (modes, calibration, identification), plant (sample
         stepping and sensing), plant update (re-discretising after a move), filter (Kalman
-        steps), policy and motion, comparisons (parked runs and the steady-state scan); and
-        "loop cpu", the process time of the loop (less sensitive to the machine's load), and
-        "modes", the number of bare-line modes the plant kept.
+        steps), policy and motion, comparisons (parked runs and the steady-state scan); the
+        process times (less sensitive to the machine's load) "setup cpu", "loop cpu",
+        "comparisons cpu" and "call cpu" (the whole call); and "modes", the number of bare-line
+        modes the plant kept.
 
     Examples
     --------

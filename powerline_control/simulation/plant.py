@@ -508,12 +508,13 @@ def run_parked(plant, x, modal_force, n_t, z0=None):
     """States (n_t, 2 n_q) of the plant with the robot parked at x (None: no robot)."""
     phi, g0, g1 = plant.discretise(x)
     states = np.empty((n_t, phi.shape[0]))
-    z = np.zeros(phi.shape[0]) if z0 is None else z0
-    states[0] = z
-    drive = modal_force[:-1] @ g0.T + modal_force[1:] @ g1.T
+    states[0] = 0.0 if z0 is None else z0
+    # the drive in place first, then z[k+1] = drive[k] + phi z[k]: one product and one add a
+    # sample (the same sums as phi @ z + drive[k])
+    np.matmul(modal_force[:-1], g0.T, out=states[1:])
+    states[1:] += modal_force[1:] @ g1.T
     for k in range(n_t - 1):
-        z = phi @ z + drive[k]
-        states[k + 1] = z
+        states[k + 1] += phi @ states[k]
     return states
 
 
@@ -631,24 +632,32 @@ def nodal_field(plant: ModalPlant, states: np.ndarray, residual: np.ndarray,
                 positions=None) -> np.ndarray:
     """Nodal displacements (n_nodes, n_t) of plant states (n_t, 2 n_q) plus the loads' residual
     and, given the robot's ``positions`` (one, or one per sample), the field its force drives in
-    what the basis leaves out (:meth:`ModalPlant.attachment`)."""
+    what the basis leaves out (:func:`robot_correction`)."""
     field = plant.nodal @ states[:, : plant.r].T + residual
+    correction = robot_correction(plant, states, positions)
+    if correction is not None:
+        field += correction
+    return field
+
+
+def robot_correction(plant: ModalPlant, states: np.ndarray, positions) -> np.ndarray | None:
+    """The field (n_nodes, n_t) the robot's force drives in what the plant's basis leaves out
+    (:meth:`ModalPlant.attachment`), the robot at ``positions`` (one, or one per sample); None
+    when there is none (no robot, no plant frequency, no position)."""
     if positions is None or plant.robot is None or plant.frequency is None:
-        return field
+        return None
     xs = np.broadcast_to(np.asarray(positions, dtype=float), (states.shape[0],))
     if np.all(np.isnan(xs)):
-        return field
+        return None
     force = plant.robot_force(states, xs)
     keys, group = _position_keys(plant, xs)
     rho = plant.attachments(keys)[1]                         # (groups, n_nodes)
     if keys.size == 1:
-        field += np.outer(rho[0], force)
-        return field
-    # field += rho^T @ (each sample's force in its group's row): one sparse product
+        return np.outer(rho[0], force)
+    # rho^T @ (each sample's force in its group's row): one sparse product
     spread = scipy.sparse.csc_array((force, (group, np.arange(xs.size))),
                                     shape=(keys.size, xs.size))
-    field += (spread.T @ rho).T
-    return field
+    return (spread.T @ rho).T
 
 
 # The robot's residual corrections of a record (its force's field, its re-tuned damper) are
