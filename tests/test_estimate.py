@@ -345,6 +345,36 @@ def test_field_map_and_field_variances():
     np.testing.assert_allclose(est.field_variances[:, -1], brute, rtol=1e-10)
 
 
+@pytest.mark.parametrize("window", [None, 50])
+def test_field_model_error_terms_against_a_literal_loop(window):
+    """The reported field variance is ``scale * diag(M P M^T) + relative * m_i(t)``, with m_i the
+    exponential average of the estimate's square (time constant the consistency window, 200
+    without one), written here as a plain loop; the states, the gain and the NIS do not change
+    (the terms report model error, they do not enter the filter)."""
+    sys = lightly_damped_system(4, 2, seed=71)
+    n = sys.nstates
+    field_map = np.random.default_rng(72).normal(size=(5, n))
+    q, r = 1e-3 * np.eye(n), 1e-2 * np.eye(2)
+    _, y = simulate_truth(sys, q, r, 500, seed=73)
+    plain = KalmanFilter(sys, q, r, steady_state=True, field_map=field_map,
+                         consistency_window=window).filter(y)
+    est = KalmanFilter(sys, q, r, steady_state=True, field_map=field_map,
+                       consistency_window=window, field_variance_scale=3.0,
+                       field_relative_variance=0.25).filter(y)
+    np.testing.assert_array_equal(est.states, plain.states)
+    np.testing.assert_array_equal(est.nis, plain.nis)
+    keep = 1 - 1 / (window or 200)
+    mean_square = np.empty_like(est.field)
+    mean_square[:, 0] = est.field[:, 0] ** 2
+    for k in range(1, y.shape[1]):
+        mean_square[:, k] = keep * mean_square[:, k - 1] + (1 - keep) * est.field[:, k] ** 2
+    brute = np.diag(field_map @ est.covariance @ field_map.T)
+    np.testing.assert_allclose(est.field_variances, 3.0 * brute[:, None] + 0.25 * mean_square,
+                               rtol=1e-10)
+    with pytest.raises(InputError, match="'field_relative_variance'.*>= 0"):
+        KalmanFilter(sys, q, r, field_map=field_map, field_relative_variance=-1e-3)
+
+
 def test_results_are_frozen():
     sys = lightly_damped_system(2, 1, seed=81)
     est = KalmanFilter(sys, 1e-3, 1e-2).filter(np.zeros((1, 10)))

@@ -207,6 +207,49 @@ def test_real_span_design_estimates_a_new_aeolian_run():
     assert acc.relative_rms_error_unmeasured < 0.03
 
 
+def test_reported_sigma_follows_the_model_error_from_rest_and_in_steady_state():
+    """Issue 19 part 1 on a real span whose model is poor (70-75 % error at unmeasured nodes):
+    Drake 300 m clamped, trained 12 s from rest on a sine near mode 6 plus a broadband load,
+    then a new load history of the same kind run 7.2 s from rest and 21.6 s (judged on its
+    last third, steady). The truth is the simulation's field. The error there grows 1.7x in
+    sigma as the line rings up; the reported sigma (a scale of the Riccati variance plus
+    a share of the estimate's running mean square, fitted on the training record and levelled
+    on its held-out part) follows it: measured 0.96 from rest and 0.73 steady. With the
+    previous constant rule (the held-out tail's ratio) the from-rest run read about 2x; a
+    constant cannot be within 1.5x of both."""
+    span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
+    model = plc.LineModel(span, n_elements=300, bc="clamped")
+    rng = np.random.default_rng(1)
+    f_sine = model.natural_frequencies(10)[5] * 0.99
+    p_sine, p_random = span.length * rng.uniform(0.15, 0.85, size=2)
+
+    def load(seed, phase):
+        return [plc.HarmonicForce(1.0, f_sine, p_sine, phase=phase),
+                plc.RandomForce(1.0, p_random, 10.0, seed=seed)]
+
+    train = plc.simulate(model, load(1, 0.0), duration=12.0, dt=4e-3, noise_fraction=0.01,
+                         seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", plc.ExcitationWarning)
+        design = plc.design_estimator(train, n_sensors=5, seed=0)
+    assert design.field_relative_variance > 0
+    assert "running mean square" in design.summary()
+    unmeasured = np.setdiff1d(np.arange(1, model.node_positions.size - 1), design.sensors)
+    ratios, errors = [], []
+    for duration, judged_from in ((7.2, 0.0), (21.6, 2 / 3)):
+        run = plc.simulate(model, load(11, 1.0), duration=duration, dt=4e-3,
+                           noise_std=design.noise_std, seed=12, start_time=2.0)
+        est = design.filter.filter(run.displacement[design.sensors])
+        first = max(200, int(judged_from * run.t.size))  # 200: the filter's start-up
+        truth = run.true_displacement[unmeasured, first:]
+        error2 = np.mean((est.field[unmeasured, first:] - truth) ** 2)
+        ratios.append(float(np.sqrt(np.mean(est.field_variances[unmeasured, first:]) / error2)))
+        errors.append(float(np.sqrt(error2)))
+    print(f"reported / actual sigma from rest, steady: {ratios}; errors {errors}")
+    assert errors[1] > 1.5 * errors[0]  # the error does grow as the line rings up
+    assert all(1 / 1.5 < ratio < 1.5 for ratio in ratios)
+
+
 def test_noise_level_is_estimated_from_an_array_without_metadata(small_design):
     """An array carries no noise_std: the Marchenko-Pastur bulk of its spectrum gives it."""
     _, snap, _ = small_design

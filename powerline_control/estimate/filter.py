@@ -55,6 +55,7 @@ from ..errors import (
     InputError,
     UndetectableModeWarning,
 )
+from ._model_error import running_mean_square
 from ._recursion import _FilterInternals, _Recursion, _selection_indices
 from .consistency import (
     DEFAULT_CONSISTENCY_WINDOW,
@@ -139,8 +140,13 @@ class KalmanFilter(_FilterInternals):
         Factor ``> 0`` on the field variances the filter reports (``Estimate.field_variances``;
         the state covariance, the gain and the NIS are unchanged): the model error at nodes
         the sensors do not see, which the innovations cannot show.
-        :func:`~powerline_control.recipe.design_estimator` measures it on held-out data at the
+        :func:`~powerline_control.recipe.design_estimator` fits it on its training record at the
         unmeasured nodes. Default 1.
+    field_relative_variance : float
+        Factor ``>= 0`` on the running mean square of each node's estimate (time constant
+        ``consistency_window`` samples, or 200 without a window), added to that node's reported
+        variance: model error that grows with the field, as an identified model's does while
+        the line rings up. Default 0 (none). The gain, the states and the NIS are unchanged.
 
     Attributes
     ----------
@@ -226,6 +232,7 @@ class KalmanFilter(_FilterInternals):
         spectral_reference: object = None,
         spectral_reference_count: int = 1,
         field_variance_scale: float = 1.0,
+        field_relative_variance: float = 0.0,
     ) -> None:
         sys = check_discrete_system("sys", sys)
         if not isinstance(warn_inconsistent, bool):
@@ -237,6 +244,8 @@ class KalmanFilter(_FilterInternals):
         self._dof_fraction = check_real("nis_dof_fraction", nis_dof_fraction, low=0.0, high=1.0)
         self._spectral_ref = None
         self._fv_scale = check_real("field_variance_scale", field_variance_scale, low=0.0)
+        self._fv_relative = check_real("field_relative_variance", field_relative_variance,
+                                       low=0.0, low_inclusive=True)
         self._spectral_count = check_int("spectral_reference_count", spectral_reference_count,
                                          low=1)
         if spectral_reference is not None:
@@ -449,6 +458,11 @@ class KalmanFilter(_FilterInternals):
     def field_variance_scale(self) -> float:
         """Factor on the reported field variances (as given)."""
         return self._fv_scale
+
+    @property
+    def field_relative_variance(self) -> float:
+        """Factor on the running mean square of the field added to its variances (as given)."""
+        return self._fv_relative
 
     @property
     def spectral_reference_count(self) -> int:
@@ -685,6 +699,9 @@ class KalmanFilter(_FilterInternals):
                     self._fv_scale * mapped_variances(run.P, field_map)[:, None],
                     (field.shape[0], n_t)
                 )
+            if self._fv_relative > 0:
+                field_variances = field_variances + self._fv_relative * running_mean_square(
+                    field, self._window or DEFAULT_CONSISTENCY_WINDOW)
         gain = run.last_full_gain if run.last_full_gain is not None else np.full((n, p), np.nan)
         estimate = Estimate(
             states=states,

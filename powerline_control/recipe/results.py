@@ -115,10 +115,13 @@ class EstimatorDesign:
         the unmeasured moving nodes, the sensor noise removed from the actual one. Near 1: the
         reported sigma is honest on data like the training record; NaN when not measured (the
         modal model, short records), measured before ``field_variance_scale``.
-    field_variance_scale : float
-        Factor on the field variances the filter reports, ``held_out_sigma_ratio ** -2``
-        (clipped to 0.01-100; 1 when not measured): the model error at nodes no sensor sees,
-        which the innovations (and ``covariance_scale``) cannot show.
+    field_variance_scale, field_relative_variance : float
+        The model error at nodes no sensor sees, which the innovations (and
+        ``covariance_scale``) cannot show: the filter reports at each node
+        ``field_variance_scale`` times its Riccati variance plus ``field_relative_variance``
+        times the running mean square of its estimate there (the filter's parameters of the
+        same names), fitted on the whole training record at the unmeasured moving nodes (the
+        scale clipped to 0.01-100). 1 and 0 when not fitted (the modal model, short records).
 
     Examples
     --------
@@ -148,6 +151,7 @@ class EstimatorDesign:
     coverage: Coverage | None = None
     held_out_sigma_ratio: float = math.nan
     field_variance_scale: float = 1.0
+    field_relative_variance: float = 0.0
 
     @property
     def alpha_curve(self) -> AlphaSweep:
@@ -208,7 +212,8 @@ class EstimatorDesign:
                 kf = _steady_filter(self.model, self.sensors, noise_std, self.q_floor,
                                     self.covariance_scale, self.nis_dof_fraction,
                                     self.filter.warn_inconsistent,
-                                    field_scale=self.field_variance_scale)
+                                    field_scale=self.field_variance_scale,
+                                    field_relative=self.field_relative_variance)
         return read_only(kf.filter(y).field)
 
     def summary(self) -> str:
@@ -278,8 +283,15 @@ class EstimatorDesign:
         if math.isfinite(self.held_out_sigma_ratio):
             lines.append(
                 f"On the held-out part the reported sigma at unmeasured nodes was "
-                f"{self.held_out_sigma_ratio:.3g} x the actual error: field variances scaled by "
-                f"{self.field_variance_scale:.3g}."
+                f"{self.held_out_sigma_ratio:.3g} x the actual error (before the model-error "
+                "terms)."
+            )
+        if self.field_variance_scale != 1.0 or self.field_relative_variance != 0.0:
+            lines.append(
+                f"Model error at unmeasured nodes (fitted on the training record): variances "
+                f"scaled by {self.field_variance_scale:.3g} plus "
+                f"{self.field_relative_variance:.3g} x the running mean square of the estimate "
+                "(Estimate.field_variances)."
             )
         if self.filter.spectral_reference is not None:
             lines.append("Every record's innovation spectrum is compared with the held-out one "

@@ -37,7 +37,7 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
                    q_floor: float, scale: float = 1.0, dof_fraction: float = 1.0,
                    warn: bool = False,
                    reference: tuple[np.ndarray, int] | None = None,
-                   field_scale: float = 1.0) -> KalmanFilter:
+                   field_scale: float = 1.0, field_relative: float = 0.0) -> KalmanFilter:
     """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2,
     both times ``scale`` (the covariance matching of :func:`_calibration`).
 
@@ -45,7 +45,9 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
     residual) keeps the Riccati equation solvable on noise-free data, whose residual covariance
     is round-off: undamped modes without process noise have no stabilising solution. A common
     scale of Q and R scales the Riccati solution alike and leaves the gain, hence the estimate,
-    unchanged: only the reported covariance (and the NIS) changes.
+    unchanged: only the reported covariance (and the NIS) changes. ``field_scale`` and
+    ``field_relative`` are the filter's ``field_variance_scale`` and ``field_relative_variance``
+    (the model error at unmeasured nodes, fitted by ``dmd._field_error_model``).
     """
     q = np.array(model.residual_covariance)
     q[np.diag_indices_from(q)] += q_floor
@@ -60,4 +62,5 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
         spectral_reference=None if reference is None else reference[0],
         spectral_reference_count=1 if reference is None else reference[1],
         field_variance_scale=field_scale,
+        field_relative_variance=field_relative,
     )
