@@ -29,6 +29,9 @@ from .plant import robot_dynamic_stiffness
 # frequency. Above it a mode's damping changes its term 1 / (w_k^2 - w^2 + 2 i zeta w_k w) by
 # less than 2 zeta / 3 relative (w_k >= 2 w), and that term is itself off resonance.
 MODAL_DAMPING_BAND = 2.0
+# Robot positions per multi-right-hand-side solve: (n_dofs, 256) complex is 8 MB on a 2000-element
+# mesh.
+_SOLVE_CHUNK = 256
 
 
 @dataclass(frozen=True)
@@ -171,7 +174,9 @@ def _bare_receptance(model: LineModel, frequency: float):
     if correction is None:
         return base
     shapes, extra = correction
-    return lambda v: base(v) + shapes @ (extra * (shapes.T @ v))
+    # v: one vector (n_dofs,) or one per column (n_dofs, k)
+    return lambda v: base(v) + shapes @ (extra.reshape(-1, *([1] * (v.ndim - 1)))
+                                         * (shapes.T @ v))
 
 
 def parked_steady_state(model: LineModel, force: object, robot: MDR | None,
@@ -271,23 +276,29 @@ def parked_steady_state(model: LineModel, force: object, robot: MDR | None,
     power = np.zeros(n_p)
     dynamic = 0j if robot is None else robot_dynamic_stiffness(robot, omega)
     absorbing = 0.0 if robot is None else damper_impedance(robot, frequency).real
-    for i, p in enumerate(positions):
-        if dynamic == 0 or np.isnan(p):
-            field[i] = bare_field
-            at_robot[i] = np.nan if np.isnan(p) else model.shape_vector(p) @ bare
-            continue
-        index, weights = model.shape_entries(float(p))
-        row = np.zeros(model.n_dofs)
-        row[index] = weights
-        column = solve(row.astype(complex))            # H s_p (Z is symmetric: also s_p^T H)
-        denominator = 1.0 - dynamic * (weights @ column[index])
-        if not np.isfinite(denominator) or abs(denominator) < 1e-12:
+    bare_only = np.isnan(positions) if dynamic != 0 else np.ones(n_p, dtype=bool)
+    field[bare_only] = bare_field
+    for i in np.flatnonzero(bare_only & ~np.isnan(positions)):
+        at_robot[i] = model.shape_vector(positions[i]) @ bare
+    at_robot[np.isnan(positions)] = np.nan
+    # The robot's positions in chunks: H s_p for a chunk is one solve with many right-hand sides
+    # (and stays a few MB on fine meshes).
+    placed = np.flatnonzero(~bare_only)
+    for chunk in np.array_split(placed, -(-placed.size // _SOLVE_CHUNK)) if placed.size else []:
+        index, weights = model.shape_rows(positions[chunk])
+        rows = model.displacement_map(positions[chunk])
+        columns = solve(rows.T.toarray().astype(complex))   # H s_p (Z symmetric: also s_p^T H)
+        at_p = np.take_along_axis(columns, np.where(index >= 0, index, 0).T, axis=0).T
+        denominator = 1.0 - dynamic * np.sum(weights * at_p, axis=1)
+        bad = ~np.isfinite(denominator) | (np.abs(denominator) < 1e-12)
+        if np.any(bad):
+            p = positions[chunk][np.flatnonzero(bad)[0]]
             raise ModelError(f"The line with the robot at {p:g} m is singular at {frequency:g} "
                              "Hz (1 - D_r H(p, p) = 0); shift the frequency or add damping.")
-        bare_at = weights @ bare[index]
-        at_robot[i] = bare_at / denominator
-        field[i] = bare_field + (nodal @ column) * (dynamic * at_robot[i])
-        power[i] = 0.5 * absorbing * omega**2 * abs(at_robot[i]) ** 2
+        at_robot[chunk] = np.sum(weights * bare[np.where(index >= 0, index, 0)], axis=1) / (
+            denominator)
+        field[chunk] = bare_field + (nodal @ columns).T * (dynamic * at_robot[chunk])[:, None]
+    power[~bare_only] = 0.5 * absorbing * omega**2 * np.abs(at_robot[~bare_only]) ** 2
     rms = np.sqrt(0.5 * (np.abs(field) ** 2) @ model.span_weights)
     return ParkedSteadyState(
         frequency=frequency, positions=read_only(positions.copy()),
