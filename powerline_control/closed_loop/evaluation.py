@@ -73,15 +73,34 @@ def settling_of(records, t: np.ndarray, segments, n_cal: int, loop_length: float
                      (float(t[mask][0]), float(t[-1])))
 
 
+# Window statistics are summed over blocks of samples of about this many field values (2 MB):
+# the field of a fine mesh over a long window (tens of MB) is never formed whole.
+_WINDOW_BLOCK_VALUES = 2**18
+
+
 def window_comparison(name: str, position: float, states: np.ndarray, plant: ModalPlant,
                       power: np.ndarray, line, mask: np.ndarray,
-                      field_window: np.ndarray | None = None) -> Comparison:
-    """The vibration of the plant's states over the settled window (``mask``); its field when
-    already known (the run's own records)."""
-    if field_window is None:
-        field_window = nodal_field(plant, states[mask], line.residual[:, mask], position)
-    rms = float(np.sqrt(np.mean(line.weights @ field_window**2)))
-    envelope = np.max(np.abs(field_window), axis=1)
+                      recorded: tuple | None = None) -> Comparison:
+    """The vibration of the plant's states over the settled window (``mask``), the robot
+    parked at ``position``. ``recorded``: (field, path) of the run's own records, the field over
+    the whole run with the robot's residual field along ``path`` (None: parked at ``position``
+    already), reused instead of computed again."""
+    columns = np.flatnonzero(mask)
+    per_block = max(64, _WINDOW_BLOCK_VALUES // line.bare.n_nodes)
+    sum_square, envelope = 0.0, np.zeros(line.bare.n_nodes)
+    for block in np.array_split(columns, -(-columns.size // per_block)):
+        if recorded is None:
+            field = nodal_field(plant, states[block], line.residual[:, block], position)
+        else:
+            field = recorded[0][:, block]
+            along = None if recorded[1] is None else robot_correction(
+                plant, states[block], recorded[1][block])
+            if along is not None:   # the robot's residual field at position, not along path
+                field -= along
+                field += robot_correction(plant, states[block], position)
+        sum_square += float(np.sum(line.weights @ field**2))
+        np.maximum(envelope, np.max(np.abs(field), axis=1), out=envelope)
+    rms = float(np.sqrt(sum_square / columns.size))
     return Comparison(name, float(position), rms, float(envelope.max()),
                       float(np.mean(power[mask])) if power.size else 0.0,
                       read_only(envelope))
@@ -158,13 +177,6 @@ def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, li
     start_states, plant = calibration.start_states, line.plant
     n_t = line.t.size
     run_field, start_field = fields
-    # The closed loop's window is that of the robot parked where it ended: the run's field with
-    # the robot's residual field at its final position in place of the one along its path.
-    end_states, path = records.plant_states[mask], records.position[mask]
-    loop_window = run_field[:, mask]
-    along, final = (robot_correction(plant, end_states, x) for x in (path, path[-1]))
-    if along is not None:
-        loop_window = loop_window - along + final
     free_states = run_parked(line.free_plant, None, line.modal_force, n_t)
     windows = {
         "no_robot": (window_comparison("no_robot", np.nan, free_states, line.free_plant,
@@ -172,10 +184,11 @@ def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, li
         "near_clamp": _parked_window("near_clamp", line.clamp_distance, line, robot, mask),
         "start": (window_comparison("start", robot.position, start_states, plant,
                                     damper_power(plant, robot, start_states, robot.position),
-                                    line, mask, start_field[:, mask]), start_states, plant),
+                                    line, mask, (start_field, None)), start_states, plant),
+        # parked where it ended: the run's field, the robot's residual field moved there
         "closed_loop": (window_comparison("closed_loop", records.position[-1],
                                           records.plant_states, plant, loop_power, line, mask,
-                                          loop_window),
+                                          (run_field, records.position)),
                         records.plant_states, plant),
     }
     if line.harmonic is None:
