@@ -304,7 +304,7 @@ class LineModel(_Mesh):
         # global DOF -> free index (-1 where a support removes it): O(1) shape rows.
         self._free_index = np.full(self._n_total, -1, dtype=np.int64)
         self._free_index[self._free] = np.arange(self._free.size)
-        self._modes_cache: dict[int, ModalBasis] = {}
+        self._modes_cache: dict = {}   # n_modes -> ModalBasis; "dense": the full (omega^2, shapes)
         self._factor_cache: dict[float, object] = {}
         if self._free.size == 0:
             raise InputError(
@@ -507,11 +507,15 @@ class LineModel(_Mesh):
                 # relative 1e-4 of f1 (clamped Drake 300 m, 75 m elements, SciPy 1.11; 3e-5 on
                 # 1.17) where the full solve is within 3e-7 of the root finder; at most twice
                 # the subset's time at the dense limit.
-                omega2, shapes = scipy.linalg.eigh(
-                    self.stiffness_matrix.toarray(),
-                    self.mass_matrix.toarray(),
-                    driver="gvd",
-                )
+                # The full solve is kept: another mode count takes its first columns (the same
+                # arrays as its own full solve) instead of solving again.
+                if self._modes_cache.get("dense") is None:
+                    self._modes_cache["dense"] = scipy.linalg.eigh(
+                        self.stiffness_matrix.toarray(),
+                        self.mass_matrix.toarray(),
+                        driver="gvd",
+                    )
+                omega2, shapes = self._modes_cache["dense"]
                 omega2, shapes = omega2[:n_modes], shapes[:, :n_modes]
             else:
                 # A fixed start vector: without one ARPACK draws a fresh random start, and two
