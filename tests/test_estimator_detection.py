@@ -76,6 +76,13 @@ def test_held_out_family_runs_warn_when_mismatched():
     # Wrong without saying so (actual error above 1.5 x the reported sigma): always warned.
     hidden = [r for r in runs if r.kind != "matched" and r.reported_over_actual < 1 / 1.5]
     assert all(r.warned for r in hidden), [(r.seed, r.kind) for r in hidden if not r.warned]
+    # Issue 19 part 1 on the same held-out runs: the reported sigma at unmeasured nodes against
+    # the simulation's error, matched runs (lab and real spans). Measured 0.73-1.54, 11 of 12
+    # within 1.5x (the constant scale from the held-out tail read 0.89-2.17, 9 of 12 above
+    # 1.5x: the real spans' error grows as they ring up, which it did not follow).
+    ratios = np.array([r.reported_over_actual for r in matched])
+    assert np.sum((ratios > 1 / 1.5) & (ratios < 1.5)) >= 11, ratios
+    assert np.all((ratios > 1 / 1.6) & (ratios < 1.6)), ratios
 
 
 def test_coverage_band_and_check_on_the_lab_span():
