@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validation import check_array, read_only
-from ..errors import EstimatorInconsistentWarning, InputError
+from ..errors import EstimatorInconsistentWarning, InputError, SaturationWarning
+from ..estimate import DEFAULT_CONSISTENCY_WINDOW
 
 __all__ = ["Coverage", "build_coverage"]
 
@@ -76,7 +77,10 @@ class Coverage:
         Per mode, the share of its field shape's norm that lies at the sensors
         (``||phi[sensors]|| / ||phi||``; 0: the sensors cannot see it).
     node_sigma : numpy.ndarray
-        Steady-state standard deviation the filter reports at every node, m ``(n_nodes,)``.
+        Standard deviation the filter reports at every node, m ``(n_nodes,)``: its steady
+        Riccati part and, with ``field_relative_variance``, the share of the field, as an RMS
+        over the training record (after the first consistency window): what it reports on a
+        record like that one.
 
     Examples
     --------
@@ -209,8 +213,16 @@ def build_coverage(train_sensors: np.ndarray, dt: float, noise_std: float, model
     order = np.argsort(mode_f)
     p = np.asarray(kf.steady_covariance)
     m = np.asarray(model.field_map)
-    sigma = np.sqrt(np.maximum(kf.field_variance_scale * np.einsum("ij,jk,ik->i", m, p, m),
-                               0.0))
+    variance = kf.field_variance_scale * np.einsum("ij,jk,ik->i", m, p, m)
+    if kf.field_relative_variance > 0:  # plus the share of the training field it reports
+        with warnings.catch_warnings():
+            # The training record was checked (and warned about) once already.
+            warnings.simplefilter("ignore", EstimatorInconsistentWarning)
+            warnings.simplefilter("ignore", SaturationWarning)
+            reported = kf.filter(train_sensors).field_variances
+        start = DEFAULT_CONSISTENCY_WINDOW if reported.shape[1] > DEFAULT_CONSISTENCY_WINDOW else 0
+        variance = np.mean(reported[:, start:], axis=1)
+    sigma = np.sqrt(np.maximum(variance, 0.0))
     return Coverage(band=band, frequencies=read_only(freqs), training_power=read_only(power),
                     noise_power=noise_power, covered=read_only(covered),
                     mode_frequencies=read_only(mode_f[order]),
