@@ -48,5 +48,6 @@ _ROUND_OFF_FRACTION = 1e-7
 _MOTIONLESS_FRACTION = 1e-6
 
 
-# Bounds of the field-variance scale learned on held-out data (a factor 10 on the sigma).
+# Bounds of the field-variance scale of the model-error fit (dmd._field_error_model): a factor
+# 10 on the sigma either way.
 _FIELD_SCALE_MIN, _FIELD_SCALE_MAX = 1e-2, 1e2

@@ -204,7 +204,7 @@ def _field_error_model(X: np.ndarray, kf, partial_kf, n_fit: int, candidates: np
 
     Why (measured on the 24 tune designs of ``tests/estimator_family.py``, reported over actual
     sigma at unmeasured nodes, median and range): an identified real-span model is wrong by
-    20-50 % of the field, so its error grows as the line rings up (2-4x in variance over a 7 s
+    20-60 % of the field, so its error grows as the line rings up (2-4x in variance over a 7 s
     run from rest). A constant scale learned on the held-out tail (the previous rule) matched
     steady records (0.84, 0.59-1.24) and over-reported new runs from rest (1.46, 0.98-2.92); a
     constant fitted on the whole record did the reverse (1.02 from rest, 0.57 in steady
