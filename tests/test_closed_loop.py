@@ -13,7 +13,6 @@ from threadpoolctl import threadpool_limits
 
 import powerline_control as plc
 from powerline_control.closed_loop import run_closed_loop
-from powerline_control.closed_loop.policy import Targeting
 from powerline_control.closed_loop.policy import reach_within as _reach
 from powerline_control.fem import tune_damper
 from powerline_control.simulation.plant import ModalPlant as _ModalPlant
@@ -202,18 +201,6 @@ def test_wind_change_robot_follows_to_the_new_best_position():
 
 
 @pytest.mark.filterwarnings("ignore::powerline_control.ReachWarning")  # a short run: no trip
-def test_no_confirmation_while_the_frequency_has_left_the_anchor():
-    # A wind change seen for less than a window (or with the robot moving) is neither confirmed
-    # against the old anchor nor acted on: a confirmation would move the robot on the new
-    # excitation's window as if it were the old one (a Condor span moved 0.17 loop at 28.8 s).
-    targeting = Targeting(goal=1.0, anchor=1.0, loop=0.5, anchor_frequency=20.0)
-    targeting.update_clocks(5.0, True, 20.0, 0.05)             # still since 5 s, same tone
-    assert targeting.due(7.0, True, 1.0, 1.0) == (False, True)  # confirm after a window
-    targeting.update_clocks(7.0, True, 25.0, 0.05)             # the tone moved 25 %
-    assert targeting.due(7.5, True, 1.0, 1.0) == (False, False)
-    assert targeting.due(8.0, True, 1.0, 1.0) == (True, False)   # held for 1 s: a new target
-
-
 def test_noise_free_sensors_work():
     robot = _robot(2, LAB.length / 2)
     result = run_closed_loop(LAB, plc.HarmonicForce(1.0, FREQS[1], 1.0), robot, sensors=[5, 9, 14],

@@ -321,11 +321,8 @@ class Targeting:
             and now - self.pending_since >= max(window_time, 1.0)
             and robot_still
         )
-        # No confirmation while the frequency is away from the anchor's: the window shows
-        # another excitation, which only a new target (once it has held) may act on.
         confirm = (
             not retarget
-            and self.pending_since is None
             and not self.confirmed
             and self.still_since is not None
             and now - self.still_since >= max(window_time, settle_margin)
