@@ -229,8 +229,15 @@ class ClosedLoopResult:
 
     @property
     def real_time_factor(self) -> float:
-        """Simulated loop time over its wall-clock time (> 1: faster than real time)."""
-        return (self.t[-1] - self.calibration_time) / self.wall_time
+        """Simulated loop time over the loop's process (CPU) time (> 1: faster than real time).
+
+        Process time, not wall-clock time, so that the figure does not depend on what else the
+        machine runs (:attr:`wall_time` is the loop's wall-clock time; a result built without
+        ``timings["loop cpu"]`` falls back to it). The whole call, calibration and comparisons
+        included, is ``timings["call cpu"]``.
+        """
+        busy = self.timings.get("loop cpu", self.wall_time)
+        return (self.t[-1] - self.calibration_time) / max(busy, 1e-12)
 
     def summary(self) -> str:
         """A few lines: the settled window and every comparison."""

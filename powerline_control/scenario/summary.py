@@ -505,8 +505,9 @@ def _closed_loop_section(r) -> dict:
         ("planner steps", f"{len(result.statuses)} ({result.statuses.count('safe_stop')} "
          "safe stops)"),
         ("real-time factor", f"{float(result.real_time_factor):.2f}",
-         "Simulated seconds per second of computing: above 1 the loop runs faster than the line "
-         "moves, as a controller on the robot must."),
+         "Simulated seconds per CPU second of the loop (process time, whatever else the "
+         "machine runs): above 1 the loop runs faster than the line moves, as a controller on "
+         "the robot must."),
     ]
     window = getattr(result, "settled_window", None)
     if window is not None and window[1] > window[0]:
