@@ -137,6 +137,64 @@ def test_estimate_field_rejects_wrong_shape(small_design):
         design.estimate_field(np.zeros((design.sensors.size + 1, 10)))
 
 
+def test_summary_sigma_is_the_sigma_the_filter_reports(small_design):
+    """The summary's sigma is the RMS, over the nodes and the training record (after the first
+    consistency window, the filter's start-up), of what ``filter`` reports there, model-error
+    terms included; recomputed here from the filter's own output on that record."""
+    import re
+
+    _, snap, design = small_design
+    assert design.field_relative_variance > 0 and design.field_variance_scale != 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", plc.EstimatorInconsistentWarning)
+        reported = design.filter.filter(snap.displacement[design.sensors]).field_variances
+    expected = float(np.sqrt(np.mean(np.mean(reported[:, 200:], axis=1))))
+    line = next(t for t in design.summary().splitlines() if t.startswith("Reported field sigma"))
+    assert "running mean square" in line
+    # Printed to 3 significant digits: within half a unit of the third.
+    assert float(re.search(r"RMS ([0-9.e+-]+) m", line).group(1)) == pytest.approx(expected,
+                                                                                 rel=5e-3)
+
+
+def test_filter_on_other_sensors_is_the_recipe_s_filter_with_its_model_error_terms(small_design):
+    """Another layout's filter reports its sigma as the design's does. Truth: the Riccati
+    equation solved here by python-control (``dlqe``) for the same model on the other sensors,
+    and the running mean square written as a plain loop: field variance = field scale *
+    diag(M P M^T) + relative share * running mean square of the estimate."""
+    _, snap, design = small_design
+    m = design.model
+    design = dataclasses.replace(design, field_variance_scale=1.7,
+                                 field_relative_variance=0.05)
+    nodes = [4, 10, 16]
+    kf = design.filter_on(nodes)
+    y = snap.displacement[nodes, :400]
+    est = kf.filter(y)
+    C = np.asarray(m.field_map)[nodes]
+    q = design.covariance_scale * (np.asarray(m.residual_covariance)
+                                   + design.q_floor * np.eye(m.n_states))
+    r = design.covariance_scale * design.noise_std**2 * np.eye(len(nodes))
+    _, predicted, _ = ct.dlqe(np.asarray(m.A), np.eye(m.n_states), C, q, r)
+    posterior = predicted - predicted @ C.T @ np.linalg.solve(C @ predicted @ C.T + r,
+                                                              C @ predicted)
+    M = np.asarray(m.field_map)
+    riccati = np.einsum("ij,jk,ik->i", M, posterior, M)
+    window = kf.consistency_window
+    mean_square = np.empty_like(est.field)
+    mean_square[:, 0] = est.field[:, 0] ** 2
+    for k in range(1, est.field.shape[1]):
+        mean_square[:, k] = (mean_square[:, k - 1] * (1 - 1 / window)
+                             + est.field[:, k] ** 2 / window)
+    expected = 1.7 * riccati[:, None] + 0.05 * mean_square
+    # Two DARE solvers and two orders of summation: round-off, relative to the variances' scale.
+    assert np.allclose(est.field_variances, expected, rtol=1e-6, atol=1e-9 * expected.max())
+    assert kf.spectral_reference is None       # measured on the design's own sensors only
+    assert design.filter_on(design.sensors) is design.filter
+    with pytest.raises(InputError, match="'sensors'.*repeat"):
+        design.filter_on([4, 4])
+    with pytest.raises(InputError, match="'sensors'.*\\[0, 20\\]"):
+        design.filter_on([4, 21])
+
+
 # ------------------------------------------------------------------ generalisation (issue 10.4)
 # Lab span, 100 elements, 1 % noise. The training run is a harmonic load near mode 2
 # (14.39 Hz) plus a broadband load elsewhere on the span: richer excitation than the harmonic

@@ -15,6 +15,7 @@ import numpy as np
 
 from .._validation import (
     check_array,
+    check_indices,
     read_only,
 )
 from ..errors import (
@@ -204,17 +205,82 @@ class EstimatorDesign:
                 f"The 'measurements' parameter must have one row per sensor ({self.sensors.size}:"
                 f" nodes {self.sensors.tolist()}), time along columns. Got shape {y.shape}."
             )
-        kf = self.filter
+        return read_only(self.filter_on(self.sensors, noise_std=noise_std).filter(y).field)
+
+    def filter_on(self, sensors: object, *, noise_std: float | None = None) -> KalmanFilter:
+        """The design's steady-state filter on other sensors (or with another sensor noise).
+
+        Built as the recipe builds :attr:`filter`: the same model, process-noise floor,
+        covariance scale, NIS degrees-of-freedom share and model-error terms
+        (:attr:`field_variance_scale`, :attr:`field_relative_variance`), so that another layout
+        is judged with the same model and reports its sigma the same way. Only the measured
+        rows (and ``R`` with ``noise_std``) differ; the spectral test's reference, measured on
+        the design's own sensors and noise, is left out.
+
+        Parameters
+        ----------
+        sensors : sequence of int
+            Measured node indices (distinct, in ``0..n_nodes - 1``), one filter output each, in
+            the order given.
+        noise_std : float, optional
+            Sensor noise standard deviation, m (default the design's :attr:`noise_std`).
+
+        Returns
+        -------
+        KalmanFilter
+            :attr:`filter` itself when ``sensors`` and ``noise_std`` are the design's.
+
+        Raises
+        ------
+        InputError
+            If ``sensors`` is not a list of distinct node indices or ``noise_std`` is not a
+            positive finite number.
+
+        Examples
+        --------
+        >>> import powerline_control as plc
+        >>> model = plc.LineModel(plc.Span.paper_lab(), n_elements=20)
+        >>> snap = plc.simulate(model, plc.RandomForce(1.0, 0.5, 80.0, seed=1), 2.0, 1e-3,
+        ...                     noise_fraction=0.01, seed=0)
+        >>> design = plc.design_estimator(snap, n_sensors=3, delays=4, rank=12, seed=0)
+        >>> kf = design.filter_on([4, 10, 16])
+        >>> kf.n_outputs, kf.field_variance_scale == design.field_variance_scale
+        (3, True)
+        """
+        nodes = check_indices("sensors", sensors, self.model.n_nodes)
+        noise = self.noise_std
         if noise_std is not None:
             rms = math.sqrt(self.q_floor / _Q_FLOOR_FRACTION) if self.q_floor > 0 else math.nan
-            noise_std = _check_noise_std(noise_std, rms)
-            if noise_std != self.noise_std:
-                kf = _steady_filter(self.model, self.sensors, noise_std, self.q_floor,
-                                    self.covariance_scale, self.nis_dof_fraction,
-                                    self.filter.warn_inconsistent,
-                                    field_scale=self.field_variance_scale,
-                                    field_relative=self.field_relative_variance)
-        return read_only(kf.filter(y).field)
+            noise = _check_noise_std(noise_std, rms)
+        if np.array_equal(nodes, self.sensors) and noise == self.noise_std:
+            return self.filter
+        return _steady_filter(self.model, nodes, noise, self.q_floor, self.covariance_scale,
+                              self.nis_dof_fraction, self.filter.warn_inconsistent,
+                              field_scale=self.field_variance_scale,
+                              field_relative=self.field_relative_variance)
+
+    def _sigma_line(self) -> str:
+        """The summary's line on the sigma the filter reports: what it is and its RMS."""
+        kf = self.filter
+        if self.coverage is not None:
+            # Coverage.node_sigma: the RMS over the training record of the sigma the filter
+            # reports (Estimate.field_variances), model-error terms included.
+            sigma = np.asarray(self.coverage.node_sigma)
+            where = "the nodes and the training record"
+        else:
+            m = self.model
+            sigma = np.sqrt(np.maximum(kf.field_variance_scale * np.einsum(
+                "ij,jk,ik->i", m.field_map, kf.steady_covariance, m.field_map), 0.0))
+            where = "the nodes, in steady state"
+        terms = "its Riccati variance"
+        if kf.field_variance_scale != 1.0:
+            terms = f"{kf.field_variance_scale:.3g} x its Riccati variance"
+        if kf.field_relative_variance > 0:
+            terms += (f" + {kf.field_relative_variance:.3g} x the running mean square of the "
+                      "estimate")
+        return (f"Reported field sigma: RMS {float(np.sqrt(np.mean(sigma**2))):.3g} m over "
+                f"{where} (the filter's Estimate.field_variances: {terms}; check it on "
+                "held-out data).")
 
     def summary(self) -> str:
         """A few lines in words: model, alpha, sensors and the filter's predicted accuracy.
@@ -267,12 +333,7 @@ class EstimatorDesign:
                 f"Sensors chosen by the {sel.criterion} criterion ({sel.certificate} "
                 f"certificate, gap {100 * sel.gap:.2g} %)."
             )
-        field_std = np.sqrt(np.maximum(self.field_variance_scale * np.einsum(
-            "ij,jk,ik->i", m.field_map, self.filter.steady_covariance, m.field_map), 0.0))
-        lines.append(
-            f"Predicted steady-state RMS field error {float(np.sqrt(np.mean(field_std**2))):.3g}"
-            " m (from the model's own Riccati solution; check it on held-out data)."
-        )
+        lines.append(self._sigma_line())
         if self.covariance_scale != 1.0 or self.nis_dof_fraction != 1.0:
             lines.append(
                 f"Q and R scaled by {self.covariance_scale:.3g} so that the held-out NIS is "

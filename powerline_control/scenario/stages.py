@@ -304,8 +304,9 @@ def _identification(scenario: Scenario, records: Records, model, *,
 def layout_filter(design, nodes):
     """A steady-state filter of ``design``'s model on other sensors, built as the recipe does.
 
-    The noise model and the covariance scale are the design's; only the measured rows differ,
-    so baselines are judged with the same model as the chosen layout.
+    The recipe's own :meth:`~powerline_control.EstimatorDesign.filter_on`: the noise model,
+    the covariance scale and the model-error terms of the reported sigma are the design's; only
+    the measured rows differ, so baselines are judged with the same model as the chosen layout.
 
     Parameters
     ----------
@@ -328,20 +329,7 @@ def layout_filter(design, nodes):
     >>> layout_filter(design, [3, 9]).n_outputs
     2
     """
-    import numpy as np
-
-    from ..estimate import KalmanFilter
-
-    nodes = [int(i) for i in nodes]
-    if list(map(int, design.sensors)) == nodes:
-        return design.filter
-    model = design.model
-    q = np.array(model.residual_covariance)
-    q[np.diag_indices_from(q)] += design.q_floor
-    scale = design.covariance_scale
-    return KalmanFilter(model.to_statespace(measured=nodes), Q=scale * q,
-                        R=scale * float(design.noise_std) ** 2, steady_state=True,
-                        field_map=model.field_map, nis_dof_fraction=design.nis_dof_fraction)
+    return design.filter_on([int(i) for i in nodes])
 
 
 def driven_mode(model, load_frequency: float) -> int:
