@@ -2,7 +2,9 @@
 
 The family is ``tests/estimator_family.py`` (lab span and real spans of every shape there,
 pinned and clamped; even seeds tune the spectral test's constants, odd seeds are held out). For
-each split: mismatched runs that warn (``EstimatorInconsistentWarning``), matched runs that warn,
+each split: mismatched runs that warn (``EstimatorInconsistentWarning``; all of them, and those
+visible at the sensors, ``estimator_family.VISIBLE_SNR``), matched runs that warn (from rest, and
+with ``--steady`` the steady runs),
 the reported / actual sigma at unmeasured nodes on matched runs (all; lab and real spans; runs
 whose actual error is under 10 %, i.e. an adequate model; with ``--steady`` also one matched run
 per design judged once the line has rung up), and the coverage check's share of power outside
@@ -49,8 +51,12 @@ def table(split: str, n_designs: int, steady: bool = False) -> None:
               f"{r.max_ratio:9.3g} {r.outside_share:7.3f} {r.error:6.3f} "
               f"{r.reported_over_actual:7.2f} {r.sensor_snr:6.3g}")
     rates = family.rates(runs)
-    print(f"detected {rates['detected']}/{rates['n_mismatched']}, false alarms "
-          f"{rates['false_alarms']}/{rates['n_matched']}; reported/actual sigma on matched runs "
+    print(f"detected {rates['detected']}/{rates['n_mismatched']} (raw), "
+          f"{rates['detected_visible']}/{rates['n_visible']} of the mismatches visible at the "
+          f"sensors (SNR >= {family.VISIBLE_SNR:g}); false alarms "
+          f"{rates['false_alarms']}/{rates['n_matched']} from rest"
+          + (f", {rates['steady_false_alarms']}/{rates['n_steady']} steady" if rates['n_steady']
+             else "") + "; reported/actual sigma on matched runs "
           f"median {rates['calibration_median']:.2f}, range {rates['calibration_range'][0]:.2f}-"
           f"{rates['calibration_range'][1]:.2f}")
     matched = [r for r in runs if r.kind == "matched"]
