@@ -375,6 +375,68 @@ def test_field_model_error_terms_against_a_literal_loop(window):
         KalmanFilter(sys, q, r, field_map=field_map, field_relative_variance=-1e-3)
 
 
+@pytest.mark.parametrize("share", [0.0, 0.6])
+def test_innovation_growth_against_a_literal_loop(share):
+    """With ``innovation_growth=(reference, share)`` the NIS is ``e^T S_k^-1 e`` with
+    ``S_k = S (1 + share * max(m[k-1] / reference - 1, 0))``, ``m`` the exponential average of
+    the filtered estimate's square at the sensors (averaged over them; 0 before the first
+    sample), written here as a plain loop; the spectral test whitens by ``S_k``; states and
+    gain do not change; ``step`` and ``step_block`` monitor the same windows as ``filter``."""
+    from powerline_control.estimate import whitened_psd, whitening_factor
+
+    sys = lightly_damped_system(4, 2, seed=81)
+    q, r = 1e-3 * np.eye(sys.nstates), 1e-2 * np.eye(2)
+    _, y = simulate_truth(sys, q, r, 1500, seed=82)
+    y = y * np.linspace(0.2, 3.0, y.shape[1])  # a field that grows through the record
+    window, ones = 100, np.ones(33)
+    plain = KalmanFilter(sys, q, r, steady_state=True, consistency_window=window,
+                         spectral_reference=ones).filter(y)
+    reference = float(np.mean(y[:, :300] ** 2))
+    def make():
+        return KalmanFilter(sys, q, r, steady_state=True, consistency_window=window,
+                            spectral_reference=ones, innovation_growth=(reference, share))
+
+    est = make().filter(y)
+    np.testing.assert_array_equal(est.states, plain.states)
+    at_sensors = np.asarray(sys.C) @ est.states
+    keep, m, factor = 1 - 1 / window, 0.0, np.empty(y.shape[1])
+    for k in range(y.shape[1]):
+        factor[k] = 1 + share * max(m / reference - 1, 0.0)
+        m = keep * m + (1 - keep) * float(np.mean(at_sensors[:, k] ** 2))
+    assert (factor.max() > 3) == (share > 0)  # the field does rise well above the reference
+    np.testing.assert_allclose(est.nis, plain.nis / factor, rtol=1e-10)
+    psd, _ = whitened_psd(est.innovations / np.sqrt(factor),
+                          whitening_factor(make().innovation_covariance), discard=window,
+                          segment=64)
+    np.testing.assert_allclose(est.consistency.spectral_ratio, psd, rtol=1e-9)
+    stepped, blocked = make(), make()
+    for k in range(y.shape[1]):
+        stepped.step(y[:, k])
+    blocked.step_block(y[:, :700])
+    blocked.step_block(y[:, 700:])
+    for online in (stepped, blocked):
+        np.testing.assert_allclose(online.consistency.window_nis, est.consistency.window_nis,
+                                   rtol=1e-8)
+    warm = make()
+    warm.filter(y[:, :650], update_state=True)
+    for k in range(650, y.shape[1]):
+        warm.step(y[:, k])
+    np.testing.assert_allclose(warm.consistency.window_nis, est.consistency.window_nis,
+                               rtol=1e-8)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(innovation_growth=(1.0, 0.5)), "'innovation_growth'.*steady_state=True"),
+    (dict(innovation_growth=(1.0, 1.5), steady_state=True), "'innovation_growth\\[1\\]'.*1"),
+    (dict(innovation_growth=(0.0, 0.5), steady_state=True), "'innovation_growth\\[0\\]'"),
+    (dict(innovation_growth=1.0, steady_state=True), "'innovation_growth'.*pair"),
+])
+def test_innovation_growth_rejects_bad_values(kwargs, match):
+    sys = lightly_damped_system(2, 1, seed=3)
+    with pytest.raises(InputError, match=match):
+        KalmanFilter(sys, 1e-3, 1e-2, **kwargs)
+
+
 def test_results_are_frozen():
     sys = lightly_damped_system(2, 1, seed=81)
     est = KalmanFilter(sys, 1e-3, 1e-2).filter(np.zeros((1, 10)))

@@ -188,6 +188,8 @@ def test_filter_on_other_sensors_is_the_recipe_s_filter_with_its_model_error_ter
     # Two DARE solvers and two orders of summation: round-off, relative to the variances' scale.
     assert np.allclose(est.field_variances, expected, rtol=1e-6, atol=1e-9 * expected.max())
     assert kf.spectral_reference is None       # measured on the design's own sensors only
+    assert design.innovation_growth is not None  # measured on the held-out part of the record
+    assert kf.innovation_growth == design.innovation_growth == design.filter.innovation_growth
     assert design.filter_on(design.sensors) is design.filter
     with pytest.raises(InputError, match="'sensors'.*repeat"):
         design.filter_on([4, 4])

@@ -43,3 +43,68 @@ def running_mean_square(field: np.ndarray, window: int) -> np.ndarray:
     keep = 1.0 - 1.0 / window
     return ssig.lfilter([1.0 - keep], [1.0, -keep], square, axis=-1,
                         zi=keep * square[..., :1])[0]
+
+
+def innovation_inflation(at_sensors: np.ndarray, window: int, share: float, reference: float,
+                         start: float = 0.0) -> tuple[np.ndarray, float]:
+    """Factor on the innovation covariance of each sample, and the running mean square after it.
+
+    An identified model's one-step prediction is wrong by a share of the field, so its
+    innovations grow as the line rings up while the Riccati ``S`` stays constant. ``S`` was
+    matched (covariance matching) on a record whose running mean square at the sensors was
+    ``reference``; of it, ``share`` is model error (the rest the sensor noise). Above that
+    level the model error is taken to grow with the field:
+    ``S_k = S (1 + share * max(m[k-1] / reference - 1, 0))``, ``m`` the causal running mean
+    square (time constant ``window``) of the filtered estimate at the sensors averaged over
+    them, known before sample ``k`` arrives. Below it ``S_k = S``: never smaller than matched.
+
+    Parameters
+    ----------
+    at_sensors : numpy.ndarray
+        ``(p, n_t)`` filtered estimate at the sensors (``C x[k|k]``).
+    window : int
+        Time constant in samples.
+    share : float
+        Model error's share ``0 <= share <= 1`` of ``S`` at the reference level.
+    reference : float
+        Running mean square at the sensors where ``S`` was matched (> 0).
+    start : float
+        Running mean square before the first sample (0: a record from rest).
+
+    Returns
+    -------
+    factor : numpy.ndarray
+        ``(n_t,)`` factors ``>= 1``; the NIS with ``S_k`` is the NIS with ``S`` divided by it.
+    end : float
+        Running mean square after the last sample (to continue a recursion).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from powerline_control.estimate._model_error import innovation_inflation
+    >>> factor, end = innovation_inflation(np.full((2, 3), 2.0), 2, 0.5, 1.0)
+    >>> factor.tolist(), end   # m = 0, 2, 3, 3.5: factors 1, 1 + 0.5 * (2 - 1), 1 + 0.5 * 2
+    ([1.0, 1.5, 2.0], 3.5)
+    """
+    m = sensor_mean_square(at_sensors, window, start)
+    if m.size == 0:
+        return np.ones(0), float(start)
+    before = np.concatenate([[start], m[:-1]])
+    return growth_factor(before, share, reference), float(m[-1])
+
+
+def sensor_mean_square(at_sensors: np.ndarray, window: int, start: float = 0.0) -> np.ndarray:
+    """``m[k] = keep m[k-1] + (1 - keep) mean_i(x_i[k]^2)``, ``keep = 1 - 1 / window``,
+    ``m[-1] = start``: the running mean square at the sensors of :func:`innovation_inflation`
+    (``(p, n_t)`` in, ``(n_t,)`` out); the recipe measures its reference level with it."""
+    square = np.mean(np.asarray(at_sensors, dtype=float) ** 2, axis=0)
+    if square.size == 0:
+        return square
+    keep = 1.0 - 1.0 / window
+    return ssig.lfilter([1.0 - keep], [1.0, -keep], square, zi=[keep * start])[0]
+
+
+def growth_factor(mean_square, share: float, reference: float):
+    """``1 + share * max(mean_square / reference - 1, 0)``: the factor on ``S`` (array or float;
+    see :func:`innovation_inflation`, whose per-sample form this is)."""
+    return 1.0 + share * np.maximum(mean_square / reference - 1.0, 0.0)

@@ -83,6 +83,8 @@ class _Recursion:
         # the sums of the windows closed so far (three numbers per window, never per sample).
         self.w_sum, self.w_valid, self.w_used, self.w_len = 0.0, 0, 0, 0
         self.closed: list[tuple[float, int, int]] = []
+        # Running mean square of the estimate at the sensors (KalmanFilter's innovation_growth).
+        self.mean_square = 0.0
         if kf.steady_state:
             gain, posterior, predicted = kf._steady_solution()
             self.freeze(gain, posterior, predicted)
@@ -245,8 +247,12 @@ class _Recursion:
         self.x, self.P, self.k = x, self.posterior_ss, self.k + n_t
         if n_t:
             self.u_prev = u[:, -1]
+        nis_block = self.nis_frozen(innovations)
+        if kf._innov_rel > 0:
+            factor, self.mean_square = kf._inflation(states, self.mean_square)
+            nis_block = nis_block / factor
         if kf._window is not None:
-            for nis in self.nis_frozen(innovations).tolist():
+            for nis in nis_block.tolist():
                 self.monitor(nis, kf._p)
         return states
 

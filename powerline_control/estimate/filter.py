@@ -55,7 +55,7 @@ from ..errors import (
     InputError,
     UndetectableModeWarning,
 )
-from ._model_error import running_mean_square
+from ._model_error import growth_factor, innovation_inflation, running_mean_square
 from ._recursion import _FilterInternals, _Recursion, _selection_indices
 from .consistency import (
     DEFAULT_CONSISTENCY_WINDOW,
@@ -147,6 +147,16 @@ class KalmanFilter(_FilterInternals):
         ``consistency_window`` samples, or 200 without a window), added to that node's reported
         variance: model error that grows with the field, as an identified model's does while
         the line rings up. Default 0 (none). The gain, the states and the NIS are unchanged.
+    innovation_growth : tuple of float, optional
+        ``(reference, share)``: the running mean square at the sensors (m^2) of the record
+        ``Q`` and ``R`` were matched on, and the model error's share ``0 <= share <= 1`` of
+        ``S`` there. An identified model's one-step error grows with the field, so once the
+        line rings up beyond that level the consistency test uses
+        ``S_k = S (1 + share * max(m[k-1] / reference - 1, 0))`` (``m`` the running mean square
+        of the filtered estimate at the sensors, time constant ``consistency_window``;
+        ``estimate._model_error.innovation_inflation``). ``Estimate.nis`` and the spectral test
+        use ``S_k``; the gain and the states are unchanged. Needs ``steady_state=True``.
+        Default ``None`` (``S_k = S``).
 
     Attributes
     ----------
@@ -233,6 +243,7 @@ class KalmanFilter(_FilterInternals):
         spectral_reference_count: int = 1,
         field_variance_scale: float = 1.0,
         field_relative_variance: float = 0.0,
+        innovation_growth: tuple[float, float] | None = None,
     ) -> None:
         sys = check_discrete_system("sys", sys)
         if not isinstance(warn_inconsistent, bool):
@@ -246,6 +257,19 @@ class KalmanFilter(_FilterInternals):
         self._fv_scale = check_real("field_variance_scale", field_variance_scale, low=0.0)
         self._fv_relative = check_real("field_relative_variance", field_relative_variance,
                                        low=0.0, low_inclusive=True)
+        self._innov_rel, self._innov_ref = 0.0, 1.0
+        if innovation_growth is not None:
+            if not isinstance(innovation_growth, tuple | list) or len(innovation_growth) != 2:
+                raise InputError("The 'innovation_growth' parameter must be None or a pair "
+                                 f"(reference, share). Got {innovation_growth!r}.")
+            self._innov_ref = check_real("innovation_growth[0]", innovation_growth[0], low=0.0)
+            self._innov_rel = check_real("innovation_growth[1]", innovation_growth[1], low=0.0,
+                                         high=1.0, low_inclusive=True)
+            if steady_state is not True:
+                raise InputError(
+                    "The 'innovation_growth' parameter scales the steady-state innovation "
+                    f"covariance and needs steady_state=True. Got steady_state={steady_state!r}."
+                )
         self._spectral_count = check_int("spectral_reference_count", spectral_reference_count,
                                          low=1)
         if spectral_reference is not None:
@@ -465,6 +489,17 @@ class KalmanFilter(_FilterInternals):
         return self._fv_relative
 
     @property
+    def innovation_growth(self) -> tuple[float, float] | None:
+        """``(reference, share)`` of the innovation covariance's growth (as given)."""
+        return (self._innov_ref, self._innov_rel) if self._innov_rel > 0 else None
+
+    def _inflation(self, states: np.ndarray, start: float) -> tuple[np.ndarray, float]:
+        """(factor on ``S`` per sample, running mean square after them) for ``states``."""
+        return innovation_inflation(self._measure(states), self._window or
+                                    DEFAULT_CONSISTENCY_WINDOW, self._innov_rel, self._innov_ref,
+                                    start)
+
+    @property
     def spectral_reference_count(self) -> int:
         """Segments times channels averaged in :attr:`spectral_reference` (as given)."""
         return self._spectral_count
@@ -532,6 +567,11 @@ class KalmanFilter(_FilterInternals):
         """One checked sample through the real-time recursion and its consistency window."""
         run = self._running
         _, nis, used = run.advance(y, u)
+        if self._innov_rel > 0:  # one sample of _inflation, without the array set-up
+            nis = nis / float(growth_factor(run.mean_square, self._innov_rel, self._innov_ref))
+            keep = 1.0 - 1.0 / (self._window or DEFAULT_CONSISTENCY_WINDOW)
+            at = self._measure(run.x)
+            run.mean_square = keep * run.mean_square + (1.0 - keep) * float(at @ at) / self._p
         if self._window is not None:
             run.monitor(nis, used)
         return run.x
@@ -689,6 +729,11 @@ class KalmanFilter(_FilterInternals):
             k += 1
         if variance_constant:
             variances = np.broadcast_to(np.diag(run.P)[:, None], (n, n_t))
+        whitened_innovations = innovations
+        if self._innov_rel > 0:  # S_k = S * factor_k: the model error that grows with the field
+            factor, run.mean_square = self._inflation(states, run.mean_square)
+            nis = nis / factor
+            whitened_innovations = innovations / np.sqrt(factor)
         if update_state:
             self._running = run
         field = None
@@ -733,7 +778,7 @@ class KalmanFilter(_FilterInternals):
         consistency = filter_consistency(estimate, window=self._window,
                                          dof_fraction=self._dof_fraction)
         if self._spectral_ref is not None:
-            consistency = self._spectral_consistency(consistency, innovations, run)
+            consistency = self._spectral_consistency(consistency, whitened_innovations, run)
         if self._warn and not consistency.consistent:
             warnings.warn(
                 consistency.message + " Neither the estimate nor its variances describe this "

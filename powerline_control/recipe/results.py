@@ -123,6 +123,12 @@ class EstimatorDesign:
         times the running mean square of its estimate there (the filter's parameters of the
         same names), fitted on the whole training record at the unmeasured moving nodes (the
         scale clipped to 0.01-100). 1 and 0 when not fitted (the modal model, short records).
+    innovation_growth : tuple of float or None
+        The filter's ``innovation_growth``: the running mean square at the sensors of the
+        held-out part where ``covariance_scale`` was matched, and the model error's share of
+        ``S`` there; once a record's field at the sensors rises above that level, the
+        consistency test's ``S`` grows with it (an identified model's one-step error is a share
+        of the field). ``None`` when not measured (the modal model, short records).
 
     Examples
     --------
@@ -153,6 +159,7 @@ class EstimatorDesign:
     held_out_sigma_ratio: float = math.nan
     field_variance_scale: float = 1.0
     field_relative_variance: float = 0.0
+    innovation_growth: tuple[float, float] | None = None
 
     @property
     def alpha_curve(self) -> AlphaSweep:
@@ -257,7 +264,8 @@ class EstimatorDesign:
         return _steady_filter(self.model, nodes, noise, self.q_floor, self.covariance_scale,
                               self.nis_dof_fraction, self.filter.warn_inconsistent,
                               field_scale=self.field_variance_scale,
-                              field_relative=self.field_relative_variance)
+                              field_relative=self.field_relative_variance,
+                              innovation_growth=self.innovation_growth)
 
     def _sigma_line(self) -> str:
         """The summary's line on the sigma the filter reports: what it is and its RMS."""
@@ -353,6 +361,12 @@ class EstimatorDesign:
                 f"scaled by {self.field_variance_scale:.3g} plus "
                 f"{self.field_relative_variance:.3g} x the running mean square of the estimate "
                 "(Estimate.field_variances)."
+            )
+        if self.innovation_growth is not None:
+            lines.append(
+                f"The consistency test's innovation covariance grows with the field above the "
+                f"held-out level ({self.innovation_growth[0]:.3g} m^2 at the sensors; model error "
+                f"{100 * self.innovation_growth[1]:.3g} % of S there)."
             )
         if self.filter.spectral_reference is not None:
             lines.append("Every record's innovation spectrum is compared with the held-out one "

@@ -37,7 +37,8 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
                    q_floor: float, scale: float = 1.0, dof_fraction: float = 1.0,
                    warn: bool = False,
                    reference: tuple[np.ndarray, int] | None = None,
-                   field_scale: float = 1.0, field_relative: float = 0.0) -> KalmanFilter:
+                   field_scale: float = 1.0, field_relative: float = 0.0,
+                   innovation_growth: tuple[float, float] | None = None) -> KalmanFilter:
     """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2,
     both times ``scale`` (the covariance matching of :func:`_calibration`).
 
@@ -47,7 +48,9 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
     scale of Q and R scales the Riccati solution alike and leaves the gain, hence the estimate,
     unchanged: only the reported covariance (and the NIS) changes. ``field_scale`` and
     ``field_relative`` are the filter's ``field_variance_scale`` and ``field_relative_variance``
-    (the model error at unmeasured nodes, fitted by ``dmd._field_error_model``).
+    (the model error at unmeasured nodes, fitted by ``dmd._field_error_model``);
+    ``innovation_growth`` its ``innovation_growth`` (the model error at the sensors that grows
+    with the field, measured by ``dmd._calibration``).
     """
     q = np.array(model.residual_covariance)
     q[np.diag_indices_from(q)] += q_floor
@@ -63,4 +66,5 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
         spectral_reference_count=1 if reference is None else reference[1],
         field_variance_scale=field_scale,
         field_relative_variance=field_relative,
+        innovation_growth=innovation_growth,
     )
