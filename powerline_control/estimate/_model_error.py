@@ -104,6 +104,13 @@ def sensor_mean_square(at_sensors: np.ndarray, window: int, start: float = 0.0) 
     return ssig.lfilter([1.0 - keep], [1.0, -keep], square, zi=[keep * start])[0]
 
 
+def next_mean_square(previous: float, at_sensors: np.ndarray, window: int) -> float:
+    """One step of :func:`sensor_mean_square`: ``m[k]`` from ``m[k-1]`` and ``x[k]`` ``(p,)``
+    (the real-time filter's form, one sample at a time)."""
+    keep = 1.0 - 1.0 / window
+    return keep * previous + (1.0 - keep) * float(at_sensors @ at_sensors) / at_sensors.size
+
+
 def growth_factor(mean_square, share: float, reference: float):
     """``1 + share * max(mean_square / reference - 1, 0)``: the factor on ``S`` (array or float;
     see :func:`innovation_inflation`, whose per-sample form this is)."""

@@ -55,7 +55,12 @@ from ..errors import (
     InputError,
     UndetectableModeWarning,
 )
-from ._model_error import growth_factor, innovation_inflation, running_mean_square
+from ._model_error import (
+    growth_factor,
+    innovation_inflation,
+    next_mean_square,
+    running_mean_square,
+)
 from ._recursion import _FilterInternals, _Recursion, _selection_indices
 from .consistency import (
     DEFAULT_CONSISTENCY_WINDOW,
@@ -495,9 +500,14 @@ class KalmanFilter(_FilterInternals):
 
     def _inflation(self, states: np.ndarray, start: float) -> tuple[np.ndarray, float]:
         """(factor on ``S`` per sample, running mean square after them) for ``states``."""
-        return innovation_inflation(self._measure(states), self._window or
-                                    DEFAULT_CONSISTENCY_WINDOW, self._innov_rel, self._innov_ref,
-                                    start)
+        return innovation_inflation(self._measure(states), self._mean_square_window,
+                                    self._innov_rel, self._innov_ref, start)
+
+    @property
+    def _mean_square_window(self) -> int:
+        """Time constant (samples) of the running mean squares of the model-error terms: the
+        consistency window, so that S and the variances follow the field as the test does."""
+        return self._window or DEFAULT_CONSISTENCY_WINDOW
 
     @property
     def spectral_reference_count(self) -> int:
@@ -569,9 +579,8 @@ class KalmanFilter(_FilterInternals):
         _, nis, used = run.advance(y, u)
         if self._innov_rel > 0:  # one sample of _inflation, without the array set-up
             nis = nis / float(growth_factor(run.mean_square, self._innov_rel, self._innov_ref))
-            keep = 1.0 - 1.0 / (self._window or DEFAULT_CONSISTENCY_WINDOW)
-            at = self._measure(run.x)
-            run.mean_square = keep * run.mean_square + (1.0 - keep) * float(at @ at) / self._p
+            run.mean_square = next_mean_square(run.mean_square, self._measure(run.x),
+                                               self._mean_square_window)
         if self._window is not None:
             run.monitor(nis, used)
         return run.x
@@ -746,7 +755,7 @@ class KalmanFilter(_FilterInternals):
                 )
             if self._fv_relative > 0:
                 field_variances = field_variances + self._fv_relative * running_mean_square(
-                    field, self._window or DEFAULT_CONSISTENCY_WINDOW)
+                    field, self._mean_square_window)
         gain = run.last_full_gain if run.last_full_gain is not None else np.full((n, p), np.nan)
         estimate = Estimate(
             states=states,

@@ -50,6 +50,11 @@ from .record import _Record
 from .results import AlphaSweep, EstimatorDesign
 from .sensing import _choose_sensors, _steady_filter
 
+# What a model of the sweep (or its filter) raises when it cannot be built: that alpha, or that
+# calibration, is then skipped rather than the whole design failing.
+_MODEL_FAILURES = (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
+                   ct.ControlDimension)
+
 
 def _stabilise(model: DMDModel) -> DMDModel:
     """Pull eigenvalues outside the unit circle to radius ``_STABLE_RADIUS``, nothing else.
@@ -97,8 +102,7 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
     try:
         model = _sweep_model(train, spatial, dt, alpha, delays, rank)
         field = _steady_filter(model, layout, noise, q_floor).filter(held[layout]).field
-    except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
-            ct.ControlDimension):
+    except _MODEL_FAILURES:
         return math.inf
     unmeasured = np.setdiff1d(candidates, layout)
     if unmeasured.size == 0:  # every moving node measured: score the filtered measured nodes
@@ -112,11 +116,11 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
     return math.sqrt(max(mse, 0.0) / power)
 
 
-def _calibration(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: float,
-                 alpha: float, delays: int, rank: int, sensors: np.ndarray, noise: float,
+def _calibration(model, held: np.ndarray, sensors: np.ndarray, noise: float,
                  q_floor: float, candidates: np.ndarray | None = None, data_noise: float = 0.0
                  ) -> tuple[float, float, tuple[np.ndarray, int] | None, float, tuple | None]:
-    """(covariance scale, NIS dof fraction, spectral reference, held-out sigma ratio, growth).
+    """(covariance scale, NIS dof fraction, spectral reference, held-out sigma ratio, growth)
+    of ``model``, the model fitted on the training part (None: it could not be fitted).
 
     The last is the reported over the actual RMS error at the unmeasured moving nodes of the
     held-out part (the sensor noise variance removed from the actual one), after the scale;
@@ -144,13 +148,13 @@ def _calibration(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt: f
     """
     window = DEFAULT_CONSISTENCY_WINDOW
     failed = 1.0, 1.0, None, math.nan, None
+    if model is None:
+        return failed
     try:
-        model = _sweep_model(train, spatial, dt, alpha, delays, rank)
         kf = _steady_filter(model, sensors, noise, q_floor)
         held_est = kf.filter(held[sensors])
         nis = held_est.nis
-    except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
-            ct.ControlDimension):
+    except _MODEL_FAILURES:
         return failed
     n_windows = nis.size // window
     if n_windows < 4 or not np.all(np.isfinite(nis)):
@@ -341,18 +345,23 @@ def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
                                         rec.criterion, noise, rec.positions, rec.forbidden,
                                         rec.seed)
 
+    # The model of the training part at the chosen alpha: fitted once, for the covariance
+    # matching on the held-out part and the level of the model-error terms below.
+    try:
+        partial_model = _sweep_model(coords[:, :n_fit], spatial, dt, alpha, delays, rank)
+    except _MODEL_FAILURES:
+        partial_model = None
     scale, fraction, reference, sigma_ratio, growth = _calibration(
-        coords[:, :n_fit], X[:, n_fit:], spatial, dt, alpha, delays, rank, chosen, noise,
-        q_floor, rec.candidates, rec.data_noise)
+        partial_model, X[:, n_fit:], chosen, noise, q_floor, rec.candidates, rec.data_noise)
     # Model error at the unmeasured nodes, which the innovations cannot show: fitted on the
     # shipped filter's own record, a scale of its variance and a share of the field.
+    field_scale, field_relative = 1.0, 0.0
     try:
-        partial = _steady_filter(_sweep_model(coords[:, :n_fit], spatial, dt, alpha, delays,
-                                              rank), chosen, noise, q_floor, scale)
-    except (EstimationError, IdentificationError, InputError, np.linalg.LinAlgError,
-            ct.ControlDimension):
-        field_scale, field_relative = 1.0, 0.0
-    else:
+        partial = None if partial_model is None else _steady_filter(partial_model, chosen,
+                                                                    noise, q_floor, scale)
+    except _MODEL_FAILURES:
+        partial = None
+    if partial is not None:
         field_scale, field_relative = _field_error_model(
             X, _steady_filter(model, chosen, noise, q_floor, scale), partial, n_fit,
             rec.candidates, chosen, rec.data_noise)
