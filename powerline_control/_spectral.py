@@ -83,8 +83,8 @@ def _padded_rfft(signals: np.ndarray, n_fft: int) -> np.ndarray:
 
     A length with a large prime factor (2 x 1999 for the closed loop's 2 s of velocities at
     1 kHz) goes through the chirp z-transform as one convolution of a fast length with cached
-    chirps (0.19 ms for three such rows against 0.53 ms in pocketfft's own Bluestein, which also
-    does the work for the padding zeros; equal to 1.3e-15 of the largest bin).
+    chirps: cheaper than pocketfft's own Bluestein, which also does the work for the padding
+    zeros (benchmarks/bench_closed_loop.py; equal to 1.3e-15 of the largest bin).
     """
     n = signals.shape[1]
     if n < 2 or scipy.fft.next_fast_len(n_fft, real=True) == n_fft:
