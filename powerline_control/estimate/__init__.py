@@ -13,6 +13,7 @@ from ._model_error import sensor_mean_square as sensor_mean_square
 from ._recursion import _SCAN_BLOCK as _SCAN_BLOCK
 from ._recursion import _diagonal_recursion as _diagonal_recursion
 from ._recursion import _recursion_tables as _recursion_tables
+from ._spectrum import measurement_psd as measurement_psd
 from ._spectrum import spectral_test as spectral_test
 from ._spectrum import whitened_psd as whitened_psd
 from ._spectrum import whitening_factor as whitening_factor

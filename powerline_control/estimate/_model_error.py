@@ -12,6 +12,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.signal as ssig
 
+from .._validation import check_real
+from ..errors import InputError
+
 
 def running_mean_square(field: np.ndarray, window: int) -> np.ndarray:
     """Causal exponential average of ``field**2`` along time, time constant ``window`` samples.
@@ -115,3 +118,23 @@ def growth_factor(mean_square, share: float, reference: float):
     """``1 + share * max(mean_square / reference - 1, 0)``: the factor on ``S`` (array or float;
     see :func:`innovation_inflation`, whose per-sample form this is)."""
     return 1.0 + share * np.maximum(mean_square / reference - 1.0, 0.0)
+
+
+def check_innovation_growth(innovation_growth: object, steady_state: object
+                            ) -> tuple[float, float]:
+    """``KalmanFilter``'s ``innovation_growth`` checked: ``(reference, share)``, ``(1, 0)``
+    (no growth) for ``None``. Raises ``InputError`` naming the parameter."""
+    if innovation_growth is None:
+        return 1.0, 0.0
+    if not isinstance(innovation_growth, tuple | list) or len(innovation_growth) != 2:
+        raise InputError("The 'innovation_growth' parameter must be None or a pair "
+                         f"(reference, share). Got {innovation_growth!r}.")
+    reference = check_real("innovation_growth[0]", innovation_growth[0], low=0.0)
+    share = check_real("innovation_growth[1]", innovation_growth[1], low=0.0, high=1.0,
+                       low_inclusive=True)
+    if steady_state is not True:
+        raise InputError(
+            "The 'innovation_growth' parameter scales the steady-state innovation "
+            f"covariance and needs steady_state=True. Got steady_state={steady_state!r}."
+        )
+    return reference, share

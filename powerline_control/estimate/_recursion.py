@@ -32,7 +32,13 @@ from .._validation import (
 from ..errors import (
     EstimationError,
 )
-from ._spectrum import spectral_test, whitened_psd, whitening_factor
+from ._spectrum import (
+    following_reference,
+    measurement_psd,
+    spectral_test,
+    whitened_psd,
+    whitening_factor,
+)
 
 if TYPE_CHECKING:  # annotations only: both modules import this one
     from .consistency import Consistency
@@ -388,8 +394,14 @@ class _FilterInternals:
         return u if self._m else np.zeros((0, n_t))
 
     def _spectral_consistency(self, consistency: Consistency, innovations: np.ndarray,
+                              scaled: np.ndarray, measurements: np.ndarray,
                               run: _Recursion) -> Consistency:
-        """``consistency`` with the spectral test of the whitened innovations added."""
+        """``consistency`` with the spectral test of the whitened innovations added.
+
+        ``scaled`` are the innovations over ``sqrt`` of the growth factor of ``S_k`` (the
+        test's innovations without a field reference); with one, the raw ``innovations``
+        whitened by ``S`` are judged against the reference following the field of
+        ``measurements``."""
         if not run.converged:
             return consistency
         if run.s_factor is not None:
@@ -398,8 +410,14 @@ class _FilterInternals:
             s = self._C @ run.predicted_ss @ self._C.T + self._r_eff
             factor = whitening_factor(s)
         segment = 2 * (self._spectral_ref.size - 1)
+        reference = self._spectral_ref
+        if self._spectral_field is not None:
+            field = measurement_psd(measurements, factor, discard=self._window, segment=segment)
+            reference = following_reference(reference, *self._spectral_field, field)
+        else:
+            innovations = scaled
         psd, n_avg = whitened_psd(innovations, factor, discard=self._window, segment=segment)
-        fields = spectral_test(psd, n_avg, self._spectral_ref, self._spectral_count)
+        fields = spectral_test(psd, n_avg, reference, self._spectral_count)
         fields["spectral_ratio"] = read_only(fields["spectral_ratio"])
         fields["spectral_rejected"] = read_only(fields["spectral_rejected"])
         dt = 1.0 if self.dt is None else self.dt

@@ -127,7 +127,9 @@ class Consistency:
     spectral_ratio : numpy.ndarray or None
         The record's whitened innovation power in each bin over the reference's (1: like the
         held-out part of the training record; far above 1: power the model does not predict,
-        a load that drives modes the training never saw).
+        a load that drives modes the training never saw). With the filter's
+        ``spectral_field_reference`` the reference has followed the record's field where the
+        training saw one (``estimate._spectrum.following_reference``).
     spectral_threshold : float or None
         The ratio above which a bin is rejected: the larger of a fixed factor (two matched
         records of an identified model differ by more than sampling) and the F quantile at 1 %

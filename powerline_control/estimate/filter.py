@@ -56,12 +56,14 @@ from ..errors import (
     UndetectableModeWarning,
 )
 from ._model_error import (
+    check_innovation_growth,
     growth_factor,
     innovation_inflation,
     next_mean_square,
     running_mean_square,
 )
 from ._recursion import _FilterInternals, _Recursion, _selection_indices
+from ._spectrum import check_spectral_arguments
 from .consistency import (
     DEFAULT_CONSISTENCY_WINDOW,
     Consistency,
@@ -141,6 +143,12 @@ class KalmanFilter(_FilterInternals):
         test.
     spectral_reference_count : int
         Segments times channels averaged in ``spectral_reference`` (its sampling spread).
+    spectral_field_reference : tuple, optional
+        ``(power, noise)``: the whitened measurement power per bin of the reference record and
+        the sensor noise's (flat) share of it. With it the reference follows the field: where
+        the reference record's field stood above its noise, the model-error part of a bin's
+        reference grows with the record's field power there (``estimate._spectrum.
+        following_reference``), and the test whitens by ``S`` rather than ``S_k``.
     field_variance_scale : float
         Factor ``> 0`` on the field variances the filter reports (``Estimate.field_variances``;
         the state covariance, the gain and the NIS are unchanged): the model error at nodes
@@ -246,6 +254,7 @@ class KalmanFilter(_FilterInternals):
         warn_inconsistent: bool = False,
         spectral_reference: object = None,
         spectral_reference_count: int = 1,
+        spectral_field_reference: tuple[object, float] | None = None,
         field_variance_scale: float = 1.0,
         field_relative_variance: float = 0.0,
         innovation_growth: tuple[float, float] | None = None,
@@ -258,34 +267,14 @@ class KalmanFilter(_FilterInternals):
         self._window = (None if consistency_window is None
                         else check_int("consistency_window", consistency_window, low=1))
         self._dof_fraction = check_real("nis_dof_fraction", nis_dof_fraction, low=0.0, high=1.0)
-        self._spectral_ref = None
         self._fv_scale = check_real("field_variance_scale", field_variance_scale, low=0.0)
         self._fv_relative = check_real("field_relative_variance", field_relative_variance,
                                        low=0.0, low_inclusive=True)
-        self._innov_rel, self._innov_ref = 0.0, 1.0
-        if innovation_growth is not None:
-            if not isinstance(innovation_growth, tuple | list) or len(innovation_growth) != 2:
-                raise InputError("The 'innovation_growth' parameter must be None or a pair "
-                                 f"(reference, share). Got {innovation_growth!r}.")
-            self._innov_ref = check_real("innovation_growth[0]", innovation_growth[0], low=0.0)
-            self._innov_rel = check_real("innovation_growth[1]", innovation_growth[1], low=0.0,
-                                         high=1.0, low_inclusive=True)
-            if steady_state is not True:
-                raise InputError(
-                    "The 'innovation_growth' parameter scales the steady-state innovation "
-                    f"covariance and needs steady_state=True. Got steady_state={steady_state!r}."
-                )
-        self._spectral_count = check_int("spectral_reference_count", spectral_reference_count,
-                                         low=1)
-        if spectral_reference is not None:
-            ref = check_array("spectral_reference", spectral_reference, ndim=1)
-            if ref.size < 3 or ref.size % 2 == 0 or np.any(ref < 0):
-                raise InputError(
-                    "The 'spectral_reference' parameter must hold the whitened innovation power "
-                    "of segment // 2 + 1 bins (an odd count >= 3, every value >= 0). Got "
-                    f"{ref.size} values, smallest {float(ref.min()):.3g}."
-                )
-            self._spectral_ref = read_only(ref.copy())
+        self._innov_ref, self._innov_rel = check_innovation_growth(innovation_growth,
+                                                                   steady_state)
+        self._spectral_ref, self._spectral_count, self._spectral_field = \
+            check_spectral_arguments(spectral_reference, spectral_reference_count,
+                                     spectral_field_reference)
         self._A = np.array(sys.A, dtype=float)
         self._B = np.array(sys.B, dtype=float)
         self._C = np.array(sys.C, dtype=float)
@@ -513,6 +502,11 @@ class KalmanFilter(_FilterInternals):
     def spectral_reference_count(self) -> int:
         """Segments times channels averaged in :attr:`spectral_reference` (as given)."""
         return self._spectral_count
+
+    @property
+    def spectral_field_reference(self) -> tuple[np.ndarray, float] | None:
+        """``(power, noise)`` the spectral reference follows the field by (as given)."""
+        return self._spectral_field
 
     # ------------------------------------------------------------------ public API
 
@@ -787,7 +781,8 @@ class KalmanFilter(_FilterInternals):
         consistency = filter_consistency(estimate, window=self._window,
                                          dof_fraction=self._dof_fraction)
         if self._spectral_ref is not None:
-            consistency = self._spectral_consistency(consistency, whitened_innovations, run)
+            consistency = self._spectral_consistency(consistency, innovations,
+                                                     whitened_innovations, y_all, run)
         if self._warn and not consistency.consistent:
             warnings.warn(
                 consistency.message + " Neither the estimate nor its variances describe this "

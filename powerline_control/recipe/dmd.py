@@ -31,6 +31,7 @@ from ..errors import (
 )
 from ..estimate import (
     DEFAULT_CONSISTENCY_WINDOW,
+    measurement_psd,
     running_mean_square,
     sensor_mean_square,
     whitened_psd,
@@ -175,10 +176,14 @@ def _calibration(model, held: np.ndarray, sensors: np.ndarray, noise: float,
         sstats.chi2.ppf(0.05, ratios.size - 1))
     nominal = 2.0 / (window * sensors.size)  # variance of a window's mean NIS / p, chi-square
     fraction = 1.0 if spread <= nominal else nominal / spread
-    # The spectral test's reference: the held-out innovations whitened by the scaled S.
+    # The spectral test's reference: the held-out innovations whitened by the scaled S, and
+    # the held-out measurements whitened alike with the noise's share of them (white noise
+    # whitened by S: noise_share in every bin), which the reference follows.
     factor = whitening_factor(scale * np.asarray(kf.innovation_covariance))
     psd, count = whitened_psd(held_est.innovations, factor, discard=window)
-    reference = (psd, count) if count and np.all(np.isfinite(psd)) else None
+    field = measurement_psd(held[sensors], factor, discard=window)
+    reference = ((psd, count, field, noise_share)
+                 if count and np.all(np.isfinite(psd)) and np.all(np.isfinite(field)) else None)
     ratio = math.nan
     if candidates is not None:
         unmeasured = np.setdiff1d(candidates, sensors)

@@ -370,7 +370,9 @@ class EstimatorDesign:
             )
         if self.filter.spectral_reference is not None:
             lines.append("Every record's innovation spectrum is compared with the held-out one "
-                         "(Consistency.spectral_ratio).")
+                         + ("(following the field where the training saw one) "
+                            if self.filter.spectral_field_reference is not None else "")
+                         + "(Consistency.spectral_ratio).")
         if self.coverage is not None and math.isfinite(self.coverage.band[0]):
             lines.append(
                 f"Training band at the sensors {self.coverage.band[0]:.4g}-"

@@ -36,7 +36,7 @@ def _choose_sensors(model: DMDModel, given, candidates: np.ndarray, n_sensors: i
 def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
                    q_floor: float, scale: float = 1.0, dof_fraction: float = 1.0,
                    warn: bool = False,
-                   reference: tuple[np.ndarray, int] | None = None,
+                   reference: tuple[np.ndarray, int, np.ndarray, float] | None = None,
                    field_scale: float = 1.0, field_relative: float = 0.0,
                    innovation_growth: tuple[float, float] | None = None) -> KalmanFilter:
     """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2,
@@ -50,7 +50,8 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
     ``field_relative`` are the filter's ``field_variance_scale`` and ``field_relative_variance``
     (the model error at unmeasured nodes, fitted by ``dmd._field_error_model``);
     ``innovation_growth`` its ``innovation_growth`` (the model error at the sensors that grows
-    with the field, measured by ``dmd._calibration``).
+    with the field, measured by ``dmd._calibration``). ``reference`` is the spectral test's
+    ``(innovation power, count, measurement power, noise power)`` from ``dmd._calibration``.
     """
     q = np.array(model.residual_covariance)
     q[np.diag_indices_from(q)] += q_floor
@@ -64,6 +65,7 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
         warn_inconsistent=warn,
         spectral_reference=None if reference is None else reference[0],
         spectral_reference_count=1 if reference is None else reference[1],
+        spectral_field_reference=None if reference is None else reference[2:],
         field_variance_scale=field_scale,
         field_relative_variance=field_relative,
         innovation_growth=innovation_growth,
