@@ -6,6 +6,12 @@ broadband load the identified model is the weak part (a rank-30 model of hundred
 the answer here is measured: for every sensor count, the whole recipe
 (:func:`~powerline_control.recipe.design_estimator`) is trained on the first part of a record of
 every node and judged on the rest, by the RMS error at the nodes it does not measure.
+
+The rest of one record is the continuation of the load histories the model was fitted on: a
+line whose modes ring longer than the record (real spans; the simulated ones are undamped) keeps
+the same modal amplitudes into it, so it understates the error on a new load history (Drake
+300 m, 24 sensors: 9.5 % held out, 16-30 % on three new runs). ``check`` records of other load
+histories judge the design that ships (trained on the whole record) where that matters.
 """
 
 from __future__ import annotations
@@ -42,11 +48,16 @@ class EstimatorCountStudy:
     target_error : float
         The relative error asked for.
     smallest_k : int or None
-        The smallest ``k`` whose held-out error is below ``target_error``; ``None`` when no
-        count studied reaches it.
+        The smallest ``k`` whose held-out error, and every ``check_error`` when there are check
+        records, is below ``target_error``; ``None`` when no count studied reaches it.
     message : str
         The answer in words: the count, or that the estimator cannot reach the target with
-        these counts and this record (and the best it reached).
+        these counts and this record (and the best it reached); without check records, that
+        the count is measured on the training record's own continuation only.
+    check_error : numpy.ndarray or None
+        ``(len(k), n_check)``: per ``k``, the error of the design trained on the whole record
+        (the one :func:`~powerline_control.recipe.design_estimator` would ship) on each check
+        record, measured as ``held_out_error``; ``None`` without check records.
 
     Examples
     --------
@@ -60,10 +71,11 @@ class EstimatorCountStudy:
     target_error: float
     smallest_k: int | None
     message: str
+    check_error: np.ndarray | None = None
 
 
 def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: float = 0.1,
-                          held_out_fraction: float = 0.3,
+                          held_out_fraction: float = 0.3, check=None,
                           seed: int | np.random.Generator | None = 0,
                           **design_options: object) -> EstimatorCountStudy:
     """How many sensors for a target error, measured on the held-out end of a record.
@@ -78,6 +90,13 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
         Relative RMS error at unmeasured nodes to reach (0.1: 10 %).
     held_out_fraction : float, default 0.3
         Share of the record (its end) that judges each design; the rest trains it.
+    check : Snapshots or sequence of Snapshots, optional
+        Records of every node under other load histories (independent runs: new random loads,
+        another day), same nodes and sampling. Each count's design trained on the whole of
+        ``snapshots`` is also judged on each, and a count is named only if it reaches the target
+        on all of them and on the held-out part. Without them the answer rests on the
+        continuation of the training record, which on a line that rings longer than the record
+        understates the error on new loads (module docstring).
     seed : int, numpy.random.Generator or None, default 0
         Seed of :func:`~powerline_control.recipe.design_estimator` (its sensor selection's
         random baseline), as everywhere in the package: an int or a Generator, ``None`` for
@@ -96,7 +115,8 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
     ------
     InputError
         Bad arguments (named): counts not ascending, a target outside (0, 1], a split leaving
-        either part too short.
+        either part too short, a check record that is not a record of the same nodes and
+        sampling.
 
     Examples
     --------
@@ -141,7 +161,8 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
     held = x_all[:, n_fit:]
     positions = getattr(snapshots, "x", None)
     given_noise = {"noise_std": noise} if math.isfinite(noise) and noise > 0 else {}
-    errors, reported, layouts = [], [], []
+    checks = _check_records(check, x_all.shape[0], dt)
+    errors, reported, layouts, check_errors = [], [], [], []
     warned = False
     for k in ks:
         with warnings.catch_warnings(record=True) as caught:
@@ -153,30 +174,82 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
                 warnings.warn(w.message, w.category, stacklevel=2)
                 warned = True
         sigma = noise if given_noise else design.noise_std
-        est = design.filter.filter(held[design.sensors])
-        rms = np.sqrt(np.mean(held**2, axis=1))
-        moving = np.flatnonzero(rms > 1e-6 * rms.max())
-        unmeasured = np.setdiff1d(moving, design.sensors)
-        skip = min(200, held.shape[1] // 4)  # the filter's transient from its prior
-        truth = held[unmeasured, skip:]
-        err2 = float(np.mean((est.field[unmeasured, skip:] - truth) ** 2)) - sigma**2
-        sig2 = float(np.mean(truth**2)) - sigma**2
-        scale = math.sqrt(max(sig2, 1e-300))
-        errors.append(math.sqrt(max(err2, 0.0)) / scale)
-        reported.append(float(np.sqrt(np.mean(est.field_variances[unmeasured, skip:]))) / scale)
+        error, sigma_reported = _judge(design, held, sigma)
+        errors.append(error)
+        reported.append(sigma_reported)
         layouts.append(read_only(np.array(design.sensors)))
-    reached = [k for k, e in zip(ks, errors, strict=True) if e <= target_error]
-    smallest = reached[0] if reached else None
+        if checks:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ExcitationWarning)  # warned once above
+                shipped = design_estimator(x_all, n_sensors=k, dt=dt, seed=seed,
+                                           positions=positions, **given_noise,
+                                           **design_options)
+            check_errors.append([_judge(shipped, rec, sigma)[0] for rec in checks])
+    passed = [e <= target_error and all(c <= target_error for c in (check_errors[i]
+                                                                     if checks else []))
+              for i, e in enumerate(errors)]
+    smallest = next((k for k, ok in zip(ks, passed, strict=True) if ok), None)
+    worst = [max([e, *(check_errors[i] if checks else [])]) for i, e in enumerate(errors)]
+    where = (f"the held-out record and {len(checks)} check record(s) of other load histories"
+             if checks else "the held-out record")
     if smallest is not None:
-        message = (f"{smallest} sensors reach {100 * errors[ks.index(smallest)]:.3g} % at the "
-                   f"unmeasured nodes of the held-out record (target {100 * target_error:.3g} %).")
+        i = ks.index(smallest)
+        message = (f"{smallest} sensors reach {100 * worst[i]:.3g} % at the unmeasured nodes of "
+                   f"{where} (target {100 * target_error:.3g} %).")
+        if not checks:
+            message += (" Measured on the continuation of the training record only, which "
+                        "understates the error on new load histories when the line's modes ring "
+                        "longer than the record: pass check= records of other loads to confirm "
+                        "the count.")
     else:
-        best = int(np.argmin(errors))
+        best = int(np.argmin(worst))
         message = (f"No count studied ({ks[0]}-{ks[-1]} sensors) reaches {100 * target_error:.3g}"
-                   f" %: the best is {100 * errors[best]:.3g} % with {ks[best]} sensors. This "
-                   "record and recipe cannot give that accuracy; more sensors, a longer record or "
-                   "a richer model (rank, delays) are needed.")
+                   f" % on {where}: the best is {100 * worst[best]:.3g} % with {ks[best]} "
+                   "sensors. This record and recipe cannot give that accuracy; more sensors, a "
+                   "longer record or a richer model (rank, delays) are needed.")
     return EstimatorCountStudy(k=tuple(ks), held_out_error=read_only(np.array(errors)),
                                reported_error=read_only(np.array(reported)),
                                sensors=tuple(layouts), target_error=float(target_error),
-                               smallest_k=smallest, message=message)
+                               smallest_k=smallest, message=message,
+                               check_error=read_only(np.array(check_errors)) if checks
+                               else None)
+
+
+def _judge(design, record: np.ndarray, sigma: float) -> tuple[float, float]:
+    """(actual, reported) RMS error of ``design`` filtering ``record`` (every node) at its
+    unmeasured moving nodes, relative to the RMS field there, the noise variance ``sigma^2``
+    removed from both, after the filter's transient from its prior."""
+    est = design.filter.filter(record[design.sensors])
+    rms = np.sqrt(np.mean(record**2, axis=1))
+    moving = np.flatnonzero(rms > 1e-6 * rms.max())
+    unmeasured = np.setdiff1d(moving, design.sensors)
+    skip = min(200, record.shape[1] // 4)  # the filter's transient from its prior
+    truth = record[unmeasured, skip:]
+    err2 = float(np.mean((est.field[unmeasured, skip:] - truth) ** 2)) - sigma**2
+    scale = math.sqrt(max(float(np.mean(truth**2)) - sigma**2, 1e-300))
+    return (math.sqrt(max(err2, 0.0)) / scale,
+            float(np.sqrt(np.mean(est.field_variances[unmeasured, skip:]))) / scale)
+
+
+def _check_records(check, n_nodes: int, dt: float) -> list[np.ndarray]:
+    """The displacement of each check record (``[]`` for None), checked against the study's."""
+    if check is None:
+        return []
+    records = [check] if hasattr(check, "displacement") else check
+    if isinstance(records, str) or not isinstance(records, Sequence) or not records:
+        raise InputError("The 'check' parameter must be None, a Snapshots record or a non-empty "
+                         f"sequence of them. Got {type(check).__name__}.")
+    out = []
+    for i, rec in enumerate(records):
+        try:
+            x, rec_dt = np.asarray(rec.displacement, dtype=float), float(rec.dt)
+        except AttributeError:
+            raise InputError(f"The 'check' parameter's record {i} must be a Snapshots record "
+                             f"(with .displacement and .dt). Got {type(rec).__name__}.") from None
+        if x.ndim != 2 or x.shape[0] != n_nodes or x.shape[1] < 400 or not np.all(
+                np.isfinite(x)) or not math.isclose(rec_dt, dt, rel_tol=1e-9):
+            raise InputError(f"The 'check' parameter's record {i} must hold the same {n_nodes} "
+                             f"nodes at the same dt={dt:g} s, finite, over at least 400 samples. "
+                             f"Got shape {x.shape}, dt={rec_dt:g} s.")
+        out.append(x)
+    return out
