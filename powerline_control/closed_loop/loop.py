@@ -47,6 +47,7 @@ from .policy import (
     pick_target,
     predicted_rms,
     reach_within,
+    resolve_time,
 )
 from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
@@ -90,6 +91,11 @@ class _Line:
     residual: np.ndarray        # (n_nodes, n_t): the dropped modes' response to the loads
     harmonic: tuple | None      # (frequency, parts) of the last load when it is one sine
     weights: np.ndarray         # (n_nodes,) trapezoid weights: RMS over the span by length
+
+    @property
+    def mode_frequencies(self) -> np.ndarray:
+        """The policy model's bare mode frequencies, Hz, sorted."""
+        return np.sort(np.sqrt(self.model.omega2)) / (2 * np.pi)
 
 
 def _build_line(robot, segments, settings: Settings, sensors, *, n_modes,
@@ -269,16 +275,33 @@ def _bare_shape(records: _Records, line: _Line, robot: MDR, x_r: float, lo: int,
 
 
 def _excited_shape(records: _Records, line: _Line, robot: MDR, x_r: float, end: int,
-                   frequency: float, window: int) -> tuple[np.ndarray, float]:
-    """W_bare over the last window (estimate phasor minus the robot's own reaction), and how
-    unsteady it is: the relative difference of the shapes fitted on its two halves."""
+                   frequency: float, window: int, record: int) -> tuple[np.ndarray, float]:
+    """W_bare over the last ``record`` samples (estimate phasor minus the robot's own reaction),
+    and how unsteady the last ``window`` is: the relative difference of the shapes fitted on its
+    two halves."""
     lo = max(end + 1 - window, 0)
     mid = (lo + end) // 2
     first = _bare_shape(records, line, robot, x_r, lo, mid, frequency)
     second = _bare_shape(records, line, robot, x_r, mid, end, frequency)
     scale = np.linalg.norm(first) + np.linalg.norm(second)
     unsteady = 2 * float(np.linalg.norm(first - second)) / max(scale, 1e-300)
-    return _bare_shape(records, line, robot, x_r, lo, end, frequency), unsteady
+    shape = _bare_shape(records, line, robot, x_r, max(end + 1 - record, 0), end, frequency)
+    return shape, unsteady
+
+
+def _decision_tone(records: _Records, settings: Settings, targeting: Targeting, k: int,
+                   tone_from: float) -> tuple[float, int]:
+    """The tone a decision is made at, measured on the excitation's record since ``tone_from`` s
+    (at least the change-detection window), and how many samples the robot-free shape is fitted
+    on: the part of that record since the robot stopped and the excitation was seen (at least
+    one antinode window). Spectrum of the velocities, as in :func:`_observe`."""
+    dt = settings.dt
+    lo = max(min(int(np.ceil(tone_from / dt - 1e-9)), k + 1 - settings.frequency_samples), 0)
+    frequency = dominant_frequency(np.diff(records.measured[:, lo : k + 1], axis=1), dt)
+    moved = np.flatnonzero(records.position[: k + 1] != records.position[k])
+    still_from = int(moved[-1]) + 1 if moved.size else 0
+    shape_from = max(lo, still_from, int(np.ceil(targeting.excitation_seen / dt - 1e-9)))
+    return frequency, max(k + 1 - shape_from, settings.window)
 
 
 def _update_target(targeting: Targeting, motion: Motion, records: _Records, line: _Line,
@@ -289,12 +312,18 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     t = line.t
     robot_still = motion.at_rest
     targeting.update_clocks(t[k], robot_still, frequency, settings.retarget_threshold)
+    resolve = resolve_time(frequency, line.mode_frequencies)
     retarget, confirm = targeting.due(t[k], robot_still, settings.window * settings.dt,
-                                      settings.settle_margin)
+                                      settings.settle_margin, resolve)
     if not robot_still or not (retarget or confirm):
         return
+    tone_from = targeting.tone_start(retarget, t[k], settings.frequency_samples * settings.dt)
+    if retarget and targeting.tone_wait(t[k], resolve, t[-1]):
+        return
+    tone = frequency   # the last window's: what a wind change is detected against
+    frequency, shape_window = _decision_tone(records, settings, targeting, k, tone_from)
     shape, unsteady = _excited_shape(records, line, robot, motion.position, k, frequency,
-                                     settings.window)
+                                     settings.window, shape_window)
     retarget, confirm = targeting.gate_unsteady(retarget, confirm, unsteady, t[k])
     if not (retarget or confirm):
         return
@@ -303,7 +332,8 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     choice = choose_target(shape, line.model, robot, 2 * np.pi * frequency, line.weights,
                            motion.position, low, high, reach,
                            obstacle_ends((low, high), settings.obstacles, settings.limits.length))
-    records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape)))
+    records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape),
+                                frequency))
     if retarget:
         note = _out_of_reach(choice, shape, line, robot, settings, 2 * np.pi * frequency, reach,
                              (low, high))
@@ -317,7 +347,7 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
                                         retarget, unsteady <= UNSTEADY_LIMIT, reach)
     if decision is None:
         decision = targeting.accept(choice, motion.position,
-                                    float(line.span.loop_length(frequency)), frequency, retarget)
+                                    float(line.span.loop_length(frequency)), tone, retarget)
     records.decisions.append((float(t[k]), decision))
     if targeting.goal != motion.goal:
         motion.send(targeting.goal, float(t[k]))
@@ -528,8 +558,10 @@ def run_closed_loop(
     antinode_window : float
         Length of the window the excited shape is fitted on, s.
     frequency_window : float
-        Length of the window the dominant frequency is measured on, s (its resolution is about
-        1 / window: long enough to tell the load from the beating of a decaying mode).
+        Length of the window the dominant frequency is watched on for a wind change, s (its
+        resolution is about 1 / window). The tone a target is chosen at is measured on the
+        excitation's whole record, which resolves the load from the free modes beside it
+        (``policy.DECISION_TONE_WINDOW``; docs/closed_loop.md).
     retarget_threshold : float
         Relative change of the dominant frequency that, held for ``antinode_window`` (and at
         least 1 s), makes the robot choose a new target (a wind change).

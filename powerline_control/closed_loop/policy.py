@@ -50,6 +50,22 @@ REFINE_GAIN = 0.01
 # A move after which the sensors measure this much more vibration (mean square amplitude at the
 # load frequency, same load) than before it is undone: the robot goes back and stays.
 WORSE_TOLERANCE = 0.5
+# A decision's tone and robot-free shape come from the excitation's record, not from the last
+# window: a lightly damped long span rings in free modes a mode spacing or less from the load for
+# tens of seconds, and a 2 s window's spectral peak lands up to a mode spacing off the load (the
+# shape fitted at that tone swaps nodes and antinodes). The tone is measured over the record since
+# the excitation began, at most DECISION_TONE_WINDOW s; the shape over the part of it since the
+# robot stopped.
+DECISION_TONE_WINDOW = 12.0
+# Such a record separates the load from the free modes beside it once it is TONE_RESOLUTION /
+# spacing long (spacing: of the line's modes around the tone; a Hann window's main lobe is
+# 4 / length wide). A new target waits for that much record, but at most MAX_TONE_WAIT s and
+# TONE_WAIT_FRACTION of what is left of the run, so the robot keeps time to move and settle; a
+# confirmation waits for CONFIRM_RESOLVE of it with the robot still.
+TONE_RESOLUTION = 2.0
+MAX_TONE_WAIT = 8.0
+TONE_WAIT_FRACTION = 0.25
+CONFIRM_RESOLVE = 0.5
 
 def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
     """Robot-free excited shape at every node from the sensors' and the robot's phasors.
@@ -265,6 +281,22 @@ def obstacle_ends(bounds: tuple[float, float], obstacles, body_length: float) ->
             any(abs(left - half - bounds[1]) < 1e-9 for left, _ in obstacles))
 
 
+def resolve_time(frequency: float, mode_frequencies: np.ndarray) -> float:
+    """Record length (s) that resolves ``frequency`` from the modes beside it (at most
+    MAX_TONE_WAIT)."""
+    return min(TONE_RESOLUTION / mode_spacing(mode_frequencies, frequency), MAX_TONE_WAIT)
+
+
+def mode_spacing(mode_frequencies: np.ndarray, frequency: float) -> float:
+    """Spacing of the modes (Hz, sorted) around ``frequency``: the gap of the pair bracketing
+    it (the nearest pair at either end of the band)."""
+    modes = np.asarray(mode_frequencies, dtype=float)
+    if modes.size < 2:
+        return np.inf
+    i = int(np.clip(np.searchsorted(modes, frequency), 1, modes.size - 1))
+    return float(modes[i] - modes[i - 1])
+
+
 def reach_within(limits: RobotLimits, time_budget: float) -> float:
     """Longest rest-to-rest move within ``time_budget`` s under every limit (jerk included), m:
     the inverse of :meth:`RobotLimits.rest_to_rest_time`, which grows with the distance."""
@@ -289,6 +321,8 @@ class Targeting:
     loop: float = np.nan                # the loop length at the anchor, m
     anchor_frequency: float = np.nan    # the dominant frequency the anchor was chosen at
     pending_since: float | None = None  # when the frequency left the anchor's (a wind change)
+    excitation_start: float = 0.0       # when the current excitation began (at the earliest)
+    excitation_seen: float = 0.0        # ... and when it was seen (at the latest)
     still_since: float | None = None    # since when the robot is still at its steer point
     choices: int = 0                    # loops tried for this excitation
     confirmed: bool = False             # the choice is final until the frequency changes
@@ -313,9 +347,10 @@ class Targeting:
             self.pending_since = None
 
     def due(self, now: float, robot_still: bool, window_time: float,
-            settle_margin: float) -> tuple[bool, bool]:
+            settle_margin: float, resolve: float = 0.0) -> tuple[bool, bool]:
         """(retarget, confirm): a first target or a wind change held for a window with the robot
-        still; else a confirmation once the robot has been still for a window."""
+        still; else a confirmation once the robot has been still for a window (and for
+        CONFIRM_RESOLVE of ``resolve``, the record that resolves the tone, s)."""
         retarget = np.isnan(self.goal) or (
             self.pending_since is not None
             and now - self.pending_since >= max(window_time, 1.0)
@@ -325,9 +360,26 @@ class Targeting:
             not retarget
             and not self.confirmed
             and self.still_since is not None
-            and now - self.still_since >= max(window_time, settle_margin)
+            and now - self.still_since >= max(window_time, settle_margin,
+                                              CONFIRM_RESOLVE * resolve)
         )
         return retarget, confirm
+
+    def tone_start(self, retarget: bool, now: float, change_window: float) -> float:
+        """Start of the record a decision's tone is measured on: the excitation's start (a wind
+        change began at most ``change_window`` s before the tone was seen to leave the anchor's),
+        at most DECISION_TONE_WINDOW s back."""
+        if retarget and self.pending_since is not None:
+            self.excitation_start = max(self.pending_since - change_window, 0.0)
+            self.excitation_seen = self.pending_since
+        return max(self.excitation_start, now - DECISION_TONE_WINDOW)
+
+    def tone_wait(self, now: float, resolve: float, end: float) -> bool:
+        """Whether a new target should wait for a longer record of the excitation: at most
+        TONE_WAIT_FRACTION of what is left of the run from the excitation's start, so that the
+        robot keeps time to move and settle."""
+        wait = min(resolve, TONE_WAIT_FRACTION * (end - self.excitation_start))
+        return now - self.excitation_start < wait
 
     def gate_unsteady(self, retarget: bool, confirm: bool, unsteady: float,
                       now: float) -> tuple[bool, bool]:

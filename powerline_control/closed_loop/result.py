@@ -118,10 +118,11 @@ class ClosedLoopResult:
         on the calibration record: the estimator's model is taken as valid below 3.
     damper_power : ndarray, shape (n_t,)
         Power dissipated in the robot's damper, W.
-    predictions : tuple of (float, ndarray, ndarray, ndarray)
+    predictions : tuple of (float, ndarray, ndarray, ndarray, float)
         At each target choice and confirmation: the time (s), the positions and the steady-state
-        RMS (m) the controller predicted for the robot parked there, and the robot-free excited
-        shape (complex amplitude at every node, m) it predicted from.
+        RMS (m) the controller predicted for the robot parked there, the robot-free excited
+        shape (complex amplitude at every node, m) it predicted from, and the tone it was made at
+        (Hz, measured on the excitation's record since it began, not on the last window).
     decisions : tuple of (float, str)
         Every decision of the policy, in words: the time (s) and what it chose ("target ...",
         "confirm ...", "another loop ...", "final ...") or why it held still ("hold ...: the
