@@ -37,6 +37,8 @@ from ..simulation.plant import (
 from .evaluation import all_comparisons, settling_of
 from .motion import Motion
 from .policy import (
+    DECISION_TONE_WINDOW,
+    MAX_WAIT,
     MIN_GAIN,
     TRAVEL_FRACTION,
     UNSTEADY_LIMIT,
@@ -48,6 +50,7 @@ from .policy import (
     predicted_rms,
     reach_within,
     resolve_time,
+    tone_wait,
 )
 from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
@@ -243,19 +246,21 @@ class _Records:
         return records
 
 
+def _sensor_tone(records: _Records, lo: int, k: int, dt: float) -> float:
+    """Dominant frequency of the sensors over samples lo..k, from the spectrum of their
+    velocities (first differences: a weight 4 sin^2(omega dt / 2) ~ (omega dt)^2, bounded at
+    Nyquist so noise is not amplified): the tone carrying the most vibration energy. By
+    displacement the fundamental's start-up ringing (or the ringing the robot's own motion
+    excites) can outweigh a load three times higher and send the robot after it."""
+    return dominant_frequency(np.diff(records.measured[:, lo : k + 1], axis=1), dt)
+
+
 def _observe(records: _Records, calibration: _Calibration, settings: Settings,
              k: int) -> float:
     """The dominant frequency the sensors show up to sample k; logs it and the innovation ratio
     (the estimator's recent one-step error over its calibration value)."""
     lo = max(k + 1 - settings.window, 0)
-    # The spectrum of the sensors' velocities (first differences: a weight 4 sin^2(omega dt / 2)
-    # ~ (omega dt)^2, bounded at Nyquist so noise is not amplified): the tone carrying the most
-    # vibration energy. By displacement the fundamental's start-up ringing (or the ringing the
-    # robot's own motion excites) can outweigh a load three times higher and send the robot
-    # after it.
-    frequency = dominant_frequency(
-        np.diff(records.measured[:, max(k + 1 - settings.frequency_samples, 0) : k + 1],
-                axis=1), settings.dt)
+    frequency = _sensor_tone(records, max(k + 1 - settings.frequency_samples, 0), k, settings.dt)
     records.frequencies.append(frequency)
     records.innovation_ratio.append(
         float(np.sqrt(np.mean(records.innovation_power[lo + 1 : k + 1])))
@@ -290,64 +295,71 @@ def _excited_shape(records: _Records, line: _Line, robot: MDR, x_r: float, end: 
 
 
 def _decision_tone(records: _Records, settings: Settings, targeting: Targeting, k: int,
-                   tone_from: float) -> tuple[float, int]:
-    """The tone a decision is made at, measured on the excitation's record since ``tone_from`` s
-    (at least the change-detection window), and how many samples the robot-free shape is fitted
-    on: the part of that record since the robot stopped and the excitation was seen (at least
-    one antinode window). Spectrum of the velocities, as in :func:`_observe`."""
+                   excitation: tuple[float, float]) -> tuple[float, int]:
+    """The tone a decision is made at, measured on the excitation's record (``excitation``: when
+    it began and when it was seen, s; at least the change-detection window, at most
+    DECISION_TONE_WINDOW s back), and how many samples the robot-free shape is fitted on: the
+    part of that record since the robot stopped and the excitation was seen (at least one
+    antinode window)."""
     dt = settings.dt
+    begun, seen = excitation
+    tone_from = max(begun, k * dt - DECISION_TONE_WINDOW)
     lo = max(min(int(np.ceil(tone_from / dt - 1e-9)), k + 1 - settings.frequency_samples), 0)
-    frequency = dominant_frequency(np.diff(records.measured[:, lo : k + 1], axis=1), dt)
-    moved = np.flatnonzero(records.position[: k + 1] != records.position[k])
-    still_from = int(moved[-1]) + 1 if moved.size else 0
-    shape_from = max(lo, still_from, int(np.ceil(targeting.excitation_seen / dt - 1e-9)))
-    return frequency, max(k + 1 - shape_from, settings.window)
+    shape_from = max(lo, *(int(np.ceil(time / dt - 1e-9)) for time in (targeting.last_moving,
+                                                                          seen)))
+    return _sensor_tone(records, lo, k, dt), max(k + 1 - shape_from, settings.window)
 
 
 def _update_target(targeting: Targeting, motion: Motion, records: _Records, line: _Line,
-                   robot: MDR, settings: Settings, k: int, frequency: float) -> None:
+                   robot: MDR, settings: Settings, k: int, watched: float) -> None:
     """The policy at control step k: choose a first target, confirm it once the robot has
     settled, or choose anew after a wind change (module doc). It decides only with the robot at
-    rest, so that every move is one rest-to-rest plan."""
+    rest, so that every move is one rest-to-rest plan. ``watched``: the dominant frequency of the
+    last change-detection window (what a wind change is detected on); a decision is made at the
+    tone of the excitation's record (:func:`_decision_tone`)."""
     t = line.t
     robot_still = motion.at_rest
-    targeting.update_clocks(t[k], robot_still, frequency, settings.retarget_threshold)
-    resolve = resolve_time(frequency, line.mode_frequencies)
+    targeting.update_clocks(t[k], robot_still, watched, settings.retarget_threshold)
+    resolve = resolve_time(watched, line.mode_frequencies)
     retarget, confirm = targeting.due(t[k], robot_still, settings.window * settings.dt,
                                       settings.settle_margin, resolve)
     if not robot_still or not (retarget or confirm):
         return
-    tone_from = targeting.tone_start(retarget, t[k], settings.frequency_samples * settings.dt)
-    if retarget and targeting.tone_wait(t[k], resolve, t[-1]):
+    excitation = targeting.excitation(retarget, settings.frequency_samples * settings.dt)
+    if retarget and tone_wait(t[k], excitation[0], resolve, t[-1]):
         return
-    tone = frequency   # the last window's: what a wind change is detected against
-    frequency, shape_window = _decision_tone(records, settings, targeting, k, tone_from)
-    shape, unsteady = _excited_shape(records, line, robot, motion.position, k, frequency,
+    tone, shape_window = _decision_tone(records, settings, targeting, k, excitation)
+    shape, unsteady = _excited_shape(records, line, robot, motion.position, k, tone,
                                      settings.window, shape_window)
+    searching = not targeting.confirmed
     retarget, confirm = targeting.gate_unsteady(retarget, confirm, unsteady, t[k])
     if not (retarget or confirm):
+        if searching and targeting.confirmed:
+            records.decisions.append((float(t[k]), f"final at {targeting.goal:.4g} m: the "
+                                      f"line still beats {MAX_WAIT:g} s after the robot stopped"))
         return
     low, high = motion.bounds()
     reach = reach_within(settings.limits, TRAVEL_FRACTION * (t[-1] - t[k]))
-    choice = choose_target(shape, line.model, robot, 2 * np.pi * frequency, line.weights,
+    choice = choose_target(shape, line.model, robot, 2 * np.pi * tone, line.weights,
                            motion.position, low, high, reach,
                            obstacle_ends((low, high), settings.obstacles, settings.limits.length))
     records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape),
-                                frequency))
+                                tone))
     if retarget:
-        note = _out_of_reach(choice, shape, line, robot, settings, 2 * np.pi * frequency, reach,
+        note = _out_of_reach(choice, shape, line, robot, settings, 2 * np.pi * tone, reach,
                              (low, high))
         if note is not None:
             records.decisions.append((float(t[k]), note))
     if retarget:
         records.retarget_times.append(float(t[k]))
         records.target_starts.append(k)
-    measured = _sensed_power(records, line, k, frequency, settings.window)
+    measured = _sensed_power(records, line, k, tone, settings.window)
     decision = targeting.check_measured(measured, choice.predicted_here, motion.position,
                                         retarget, unsteady <= UNSTEADY_LIMIT, reach)
     if decision is None:
         decision = targeting.accept(choice, motion.position,
-                                    float(line.span.loop_length(frequency)), tone, retarget)
+                                    float(line.span.loop_length(tone)), watched, retarget,
+                                    excitation)
     records.decisions.append((float(t[k]), decision))
     if targeting.goal != motion.goal:
         motion.send(targeting.goal, float(t[k]))
@@ -556,7 +568,9 @@ def run_closed_loop(
         Rank of the estimator's model (None: the recipe's default). The filter's cost grows
         with it, not with the mesh.
     antinode_window : float
-        Length of the window the excited shape is fitted on, s.
+        Shortest record the excited shape is fitted on, s (it is fitted on everything since the
+        robot stopped and the excitation began, at most 12 s), and the window whose two halves
+        tell whether the line still beats.
     frequency_window : float
         Length of the window the dominant frequency is watched on for a wind change, s (its
         resolution is about 1 / window). The tone a target is chosen at is measured on the

@@ -281,10 +281,21 @@ def obstacle_ends(bounds: tuple[float, float], obstacles, body_length: float) ->
             any(abs(left - half - bounds[1]) < 1e-9 for left, _ in obstacles))
 
 
+def tone_wait(now: float, begun: float, resolve: float, end: float) -> bool:
+    """Whether a new target should wait for a longer record of the excitation that began at
+    ``begun`` s: until it is ``resolve`` s long, but at most TONE_WAIT_FRACTION of what is left
+    of the run (until ``end``) from that start, so that the robot keeps time to move and
+    settle."""
+    return now - begun < min(resolve, TONE_WAIT_FRACTION * (end - begun))
+
+
 def resolve_time(frequency: float, mode_frequencies: np.ndarray) -> float:
     """Record length (s) that resolves ``frequency`` from the modes beside it (at most
     MAX_TONE_WAIT)."""
-    return min(TONE_RESOLUTION / mode_spacing(mode_frequencies, frequency), MAX_TONE_WAIT)
+    spacing = mode_spacing(mode_frequencies, frequency)
+    if not spacing > 0:   # two modes at one frequency: no record separates them
+        return MAX_TONE_WAIT
+    return min(TONE_RESOLUTION / spacing, MAX_TONE_WAIT)
 
 
 def mode_spacing(mode_frequencies: np.ndarray, frequency: float) -> float:
@@ -319,11 +330,12 @@ class Targeting:
     goal: float = np.nan                # where the robot is sent
     anchor: float = np.nan              # the choice the confirmation gate is anchored to
     loop: float = np.nan                # the loop length at the anchor, m
-    anchor_frequency: float = np.nan    # the dominant frequency the anchor was chosen at
+    anchor_frequency: float = np.nan    # the watched (last window's) tone when it was chosen
     pending_since: float | None = None  # when the frequency left the anchor's (a wind change)
     excitation_start: float = 0.0       # when the current excitation began (at the earliest)
     excitation_seen: float = 0.0        # ... and when it was seen (at the latest)
     still_since: float | None = None    # since when the robot is still at its steer point
+    last_moving: float = 0.0            # when it was last seen moving (0: parked from the start)
     choices: int = 0                    # loops tried for this excitation
     confirmed: bool = False             # the choice is final until the frequency changes
     reference_power: float = np.nan     # what the sensors measured before this excitation's move
@@ -334,7 +346,7 @@ class Targeting:
                       threshold: float) -> None:
         """Track how long the robot has been still and the frequency away from the anchor's."""
         if not robot_still:
-            self.still_since = None
+            self.still_since, self.last_moving = None, now
         elif self.still_since is None:
             self.still_since = now
         changed = (
@@ -347,7 +359,7 @@ class Targeting:
             self.pending_since = None
 
     def due(self, now: float, robot_still: bool, window_time: float,
-            settle_margin: float, resolve: float = 0.0) -> tuple[bool, bool]:
+            settle_margin: float, resolve: float) -> tuple[bool, bool]:
         """(retarget, confirm): a first target or a wind change held for a window with the robot
         still; else a confirmation once the robot has been still for a window (and for
         CONFIRM_RESOLVE of ``resolve``, the record that resolves the tone, s)."""
@@ -365,21 +377,14 @@ class Targeting:
         )
         return retarget, confirm
 
-    def tone_start(self, retarget: bool, now: float, change_window: float) -> float:
-        """Start of the record a decision's tone is measured on: the excitation's start (a wind
-        change began at most ``change_window`` s before the tone was seen to leave the anchor's),
-        at most DECISION_TONE_WINDOW s back."""
+    def excitation(self, retarget: bool, change_window: float) -> tuple[float, float]:
+        """(begun, seen), s: the record a decision's tone is measured on starts at ``begun``, its
+        shape's no earlier than ``seen``. For a wind change, ``seen`` is when the watched tone
+        left the anchor's and ``begun`` the start of that first window (``change_window`` s
+        earlier); otherwise the current excitation's, kept by :meth:`accept`."""
         if retarget and self.pending_since is not None:
-            self.excitation_start = max(self.pending_since - change_window, 0.0)
-            self.excitation_seen = self.pending_since
-        return max(self.excitation_start, now - DECISION_TONE_WINDOW)
-
-    def tone_wait(self, now: float, resolve: float, end: float) -> bool:
-        """Whether a new target should wait for a longer record of the excitation: at most
-        TONE_WAIT_FRACTION of what is left of the run from the excitation's start, so that the
-        robot keeps time to move and settle."""
-        wait = min(resolve, TONE_WAIT_FRACTION * (end - self.excitation_start))
-        return now - self.excitation_start < wait
+            return max(self.pending_since - change_window, 0.0), self.pending_since
+        return self.excitation_start, self.excitation_seen
 
     def gate_unsteady(self, retarget: bool, confirm: bool, unsteady: float,
                       now: float) -> tuple[bool, bool]:
@@ -431,14 +436,16 @@ class Targeting:
         return None
 
     def accept(self, choice: Choice, here: float, loop: float, frequency: float,
-               retarget: bool) -> str:
+               retarget: bool, excitation: tuple[float, float] = (0.0, 0.0)) -> str:
         """Take the predicted best position as the goal (a new target, or a confirmation), or
         hold where the robot is (``here``) when moving is not predicted to pay; returns what was
         decided, in words (the result's decision log). A new target must be predicted to pay
         by MIN_GAIN; a confirmation may refine inside the anchor's loop or try another loop
-        (at most MAX_CHOICES per excitation)."""
+        (at most MAX_CHOICES per excitation). ``frequency``: the watched tone the anchor is
+        kept against; ``excitation``: (begun, seen) of the excitation a new target is for."""
         worth_moving = choice.gain >= MIN_GAIN
         if retarget:
+            self.excitation_start, self.excitation_seen = excitation
             self.anchor = self.goal = choice.position if worth_moving else here
             self.loop, self.anchor_frequency, self.pending_since = loop, frequency, None
             self.choices, self.confirmed = 1, False

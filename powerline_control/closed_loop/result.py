@@ -105,7 +105,9 @@ class ClosedLoopResult:
     loop_length : float
         Half-wavelength of the bare line at the final dominant frequency, m.
     frequency : ndarray, shape (n_steps,)
-        Dominant frequency the controller measured at each control step, Hz.
+        Dominant frequency the controller watched at each control step, Hz: over the last
+        ``frequency_window`` (wind changes are detected on it). Each decision's own tone, from
+        the excitation's record, is ``predictions[i][4]``.
     retarget_times, settle_times : tuple of float
         When the controller chose a new target (s), and how long the robot then took to arrive
         and stay within 1 % of a loop (s; NaN if it did not).
@@ -153,7 +155,7 @@ class ClosedLoopResult:
     >>> [c.name for c in result.comparisons]
     ['no_robot', 'near_clamp', 'start', 'best', 'closed_loop']
     >>> result.decisions[0]
-    (1.0, 'target 0.6877 m (predicted 96 % lower)')
+    (1.0, 'target 0.6882 m (predicted 96 % lower)')
     """
 
     t: np.ndarray
