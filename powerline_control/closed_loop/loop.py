@@ -38,7 +38,6 @@ from .evaluation import all_comparisons, settling_of
 from .motion import Motion
 from .policy import (
     DECISION_TONE_WINDOW,
-    MAX_WAIT,
     MIN_GAIN,
     TRAVEL_FRACTION,
     UNSTEADY_LIMIT,
@@ -94,11 +93,7 @@ class _Line:
     residual: np.ndarray        # (n_nodes, n_t): the dropped modes' response to the loads
     harmonic: tuple | None      # (frequency, parts) of the last load when it is one sine
     weights: np.ndarray         # (n_nodes,) trapezoid weights: RMS over the span by length
-
-    @property
-    def mode_frequencies(self) -> np.ndarray:
-        """The policy model's bare mode frequencies, Hz, sorted."""
-        return np.sort(np.sqrt(self.model.omega2)) / (2 * np.pi)
+    mode_frequencies: np.ndarray  # (r_model,) the policy model's bare modes, Hz, sorted
 
 
 def _build_line(robot, segments, settings: Settings, sensors, *, n_modes,
@@ -153,7 +148,7 @@ def _build_line(robot, segments, settings: Settings, sensors, *, n_modes,
         clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant, model=model,
         model_rows=model.nodal[list(sensors)],
         plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
-        weights=bare.span_weights,
+        weights=bare.span_weights, mode_frequencies=np.sort(np.sqrt(model.omega2)) / (2 * np.pi),
     )
 
 
@@ -331,12 +326,10 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     tone, shape_window = _decision_tone(records, settings, targeting, k, excitation)
     shape, unsteady = _excited_shape(records, line, robot, motion.position, k, tone,
                                      settings.window, shape_window)
-    searching = not targeting.confirmed
-    retarget, confirm = targeting.gate_unsteady(retarget, confirm, unsteady, t[k])
+    retarget, confirm, ended = targeting.gate_unsteady(retarget, confirm, unsteady, t[k])
+    if ended is not None:
+        records.decisions.append((float(t[k]), ended))
     if not (retarget or confirm):
-        if searching and targeting.confirmed:
-            records.decisions.append((float(t[k]), f"final at {targeting.goal:.4g} m: the "
-                                      f"line still beats {MAX_WAIT:g} s after the robot stopped"))
         return
     low, high = motion.bounds()
     reach = reach_within(settings.limits, TRAVEL_FRACTION * (t[-1] - t[k]))

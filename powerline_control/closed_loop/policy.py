@@ -387,21 +387,23 @@ class Targeting:
         return self.excitation_start, self.excitation_seen
 
     def gate_unsteady(self, retarget: bool, confirm: bool, unsteady: float,
-                      now: float) -> tuple[bool, bool]:
-        """(retarget, confirm) once the window's unsteadiness is known."""
+                      now: float) -> tuple[bool, bool, str | None]:
+        """(retarget, confirm, why the search ended) once the window's unsteadiness is known;
+        the last is None unless a still-beating window ends the search here."""
         since = self.pending_since if retarget else self.still_since
         waited = now - since if since is not None else 0.0
         # A window that still beats with a decaying mode misleads the prediction: wait (up to
         # MAX_WAIT s) for a steady one, except for the very first target.
         if unsteady > UNSTEADY_LIMIT and waited < MAX_WAIT and not np.isnan(self.goal):
-            return False, False
+            return False, False, None
         if confirm and unsteady > UNSTEADY_LIMIT:
             # Still beating after MAX_WAIT s: its steady-state prediction is no better than
             # the anchor's (a long, lightly damped span rings for tens of seconds after the
             # robot arrives). Keep the goal and stop.
             self.confirmed = True
-            return retarget, False
-        return retarget, confirm
+            return retarget, False, (f"final at {self.goal:.4g} m: the line still beats "
+                                     f"{waited:.3g} s after the robot stopped")
+        return retarget, confirm, None
 
     def check_measured(self, power: float, estimate: float, here: float, retarget: bool,
                        steady: bool, reach: float = np.inf) -> str | None:

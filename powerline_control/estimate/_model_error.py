@@ -43,9 +43,15 @@ def running_mean_square(field: np.ndarray, window: int) -> np.ndarray:
     square = np.asarray(field, dtype=float) ** 2
     if square.shape[-1] == 0:
         return square
+    return _exponential_average(square, window, square[..., :1])
+
+
+def _exponential_average(square: np.ndarray, window: int, before: np.ndarray) -> np.ndarray:
+    """``m[k] = keep m[k-1] + (1 - keep) square[k]`` along the last axis, ``keep = 1 - 1 /
+    window``, ``m[-1] = before`` (shape ``square.shape[:-1] + (1,)``): one recursion for the
+    running mean squares of the field and at the sensors."""
     keep = 1.0 - 1.0 / window
-    return ssig.lfilter([1.0 - keep], [1.0, -keep], square, axis=-1,
-                        zi=keep * square[..., :1])[0]
+    return ssig.lfilter([1.0 - keep], [1.0, -keep], square, axis=-1, zi=keep * before)[0]
 
 
 def innovation_inflation(at_sensors: np.ndarray, window: int, share: float, reference: float,
@@ -103,8 +109,7 @@ def sensor_mean_square(at_sensors: np.ndarray, window: int, start: float = 0.0) 
     square = np.mean(np.asarray(at_sensors, dtype=float) ** 2, axis=0)
     if square.size == 0:
         return square
-    keep = 1.0 - 1.0 / window
-    return ssig.lfilter([1.0 - keep], [1.0, -keep], square, zi=[keep * start])[0]
+    return _exponential_average(square, window, np.array([start], dtype=float))
 
 
 def next_mean_square(previous: float, at_sensors: np.ndarray, window: int) -> float:
