@@ -388,6 +388,7 @@ def test_robot_too_heavy_for_the_tension():
                         sensors=[5, 10], n_elements=20, duration=3.0, calibration=1.0)
 
 
+@pytest.mark.filterwarnings("ignore::powerline_control.ReachWarning")  # a 0.5 s loop: no trip
 def test_aeolian_load_and_mpc_motion_run():
     # A distributed lock-in load (bound to the model: it has a frequency) and the MPC planner:
     # the loop runs, the planner reports its statuses, the scan exists (the load is a sine).
@@ -642,6 +643,7 @@ class _UserLoad:
         return model.point_load(self.position)
 
 
+@pytest.mark.filterwarnings("ignore::powerline_control.ReachWarning")  # a 0.5 s loop: no trip
 def test_user_load_without_a_frequency_runs():
     # Review finding: float(load.frequency) raised a raw TypeError for frequency = None.
     result = run_closed_loop(LAB, _UserLoad(), plc.MDR(1.0, 0.03, 0.04, 1500.0, 2.0),

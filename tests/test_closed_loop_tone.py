@@ -89,3 +89,36 @@ def test_decisions_are_made_at_the_load_where_a_short_window_is_a_mode_off():
     outcome = fam.evaluate(scenario, result)
     assert outcome.settled
     assert outcome.closed_over_best < 1.5 and outcome.closed_over_start < 1.0
+
+
+def test_no_move_starts_or_ends_in_the_last_quarter_of_the_run():
+    # Lab mode (seed 155, 11 s): before the rule the robot refined its goal at 9.9 s and was
+    # still moving at the end (0.06 loop over the last quarter). Truth: the robot's recorded path.
+    scenario = fam.scenario(155)
+    args = scenario.run_arguments()
+    with threadpool_limits(limits=1):
+        result = plc.run_closed_loop(args.pop("span"), args.pop("force"), args.pop("robot"),
+                                     args.pop("limits"), **args)
+    quiet_from = result.t[0] + (1 - policy.QUIET_FRACTION) * (result.t[-1] - result.t[0])
+    assert all(time < quiet_from for time, _ in result.decisions)
+    last = result.t >= quiet_from
+    assert np.ptp(result.robot_position[last]) == 0.0
+    assert result.last_quarter_range == 0.0
+
+
+def test_a_choice_with_no_minimum_within_reach_goes_down_the_slope_as_far_as_it_can():
+    # Truth: the lowest grid point within reach, found by brute force; the predicted RMS is
+    # a parabola with its one minimum at 2.0 m.
+    grid = np.linspace(0.0, 3.0, 301)
+    predicted = 1e-3 * (1 + (grid - 2.0) ** 2)
+    here = 1e-3 * (1 + 1.5**2)
+    choice = policy.pick_target(grid, predicted, here, 0.5, reach=0.305)
+    within = np.abs(grid - 0.5) <= 0.305
+    assert choice.position == pytest.approx(grid[within][np.argmin(predicted[within])])
+    assert choice.position == pytest.approx(0.8)
+    # the gain is the prediction where the robot goes, not at the far minimum
+    assert choice.gain == pytest.approx(1 - (1 + 1.2**2) / (1 + 1.5**2))
+    # nothing within reach is lower than where it is: it stays
+    assert policy.pick_target(grid, predicted, 0.5e-3, 0.5, reach=0.3).position == 0.5
+    # with the minimum within reach the rule is unchanged
+    assert policy.pick_target(grid, predicted, here, 0.5, reach=2.0).position == pytest.approx(2.0)

@@ -39,6 +39,7 @@ from .motion import Motion
 from .policy import (
     DECISION_TONE_WINDOW,
     MIN_GAIN,
+    QUIET_FRACTION,
     TRAVEL_FRACTION,
     UNSTEADY_LIMIT,
     Targeting,
@@ -313,6 +314,8 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     last change-detection window (what a wind change is detected on); a decision is made at the
     tone of the excitation's record (:func:`_decision_tone`)."""
     t = line.t
+    if t[k] >= _quiet_from(t):
+        return
     robot_still = motion.at_rest
     targeting.update_clocks(t[k], robot_still, watched, settings.retarget_threshold)
     resolve = resolve_time(watched, line.mode_frequencies)
@@ -332,7 +335,8 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     if not (retarget or confirm):
         return
     low, high = motion.bounds()
-    reach = reach_within(settings.limits, TRAVEL_FRACTION * (t[-1] - t[k]))
+    reach = reach_within(settings.limits, min(TRAVEL_FRACTION * (t[-1] - t[k]),
+                                               _quiet_from(t) - t[k]))
     choice = choose_target(shape, line.model, robot, 2 * np.pi * tone, line.weights,
                            motion.position, low, high, reach,
                            obstacle_ends((low, high), settings.obstacles, settings.limits.length))
@@ -356,6 +360,11 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     records.decisions.append((float(t[k]), decision))
     if targeting.goal != motion.goal:
         motion.send(targeting.goal, float(t[k]))
+
+
+def _quiet_from(t: np.ndarray) -> float:
+    """When the last part of the run without moves begins, s (policy.QUIET_FRACTION)."""
+    return float(t[0] + (1 - QUIET_FRACTION) * (t[-1] - t[0]))
 
 
 def _sensed_power(records: _Records, line: _Line, k: int, frequency: float,
@@ -402,8 +411,8 @@ def _out_of_reach(choice, shape: np.ndarray, line: _Line, robot: MDR, settings: 
             f"The robot cannot reach where it would damp best: {found}, but the 'limits' "
             f"(v_max={limits.v_max:g} m/s, a_max={limits.a_max:g} m/s^2, j_max={limits.j_max}) "
             f"let it travel only {reach:.3g} m (a quarter loop is {0.25 * loop:.3g} m) in half "
-            f"the rest of the {settings.duration:g} s run ('duration'): raise the limits or "
-            "lengthen the run.", ReachWarning, stacklevel=4)
+            f"the rest of the {settings.duration:g} s run ('duration'), moves ending before its "
+            "last quarter: raise the limits or lengthen the run.", ReachWarning, stacklevel=4)
     return f"beyond the travel budget ({reach:.3g} m): {found}"
 
 

@@ -66,6 +66,11 @@ TONE_RESOLUTION = 2.0
 MAX_TONE_WAIT = 8.0
 TONE_WAIT_FRACTION = 0.25
 CONFIRM_RESOLVE = 0.5
+# Every move ends before the last QUIET_FRACTION of the run, the window the result judges
+# settling on (``ClosedLoopResult.last_quarter_range``): a move started later leaves the robot
+# moving when the run ends and the line no time to settle at the new position, and what it
+# can gain there (a refinement within a loop, a few per cent) is less than its prediction's error.
+QUIET_FRACTION = 0.25
 
 def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
     """Robot-free excited shape at every node from the sensors' and the robot's phasors.
@@ -147,16 +152,18 @@ class Choice:
     @property
     def gain(self) -> float:
         """Predicted relative drop of the span's RMS by moving there (0: none)."""
-        best = float(np.min(self.predicted)) if self.predicted.size else self.predicted_here
-        return 1.0 - min(best, self.predicted_here) / max(self.predicted_here, 1e-300)
+        there = (float(np.interp(self.position, self.grid, self.predicted))
+                 if self.predicted.size else self.predicted_here)
+        return 1.0 - min(there, self.predicted_here) / max(self.predicted_here, 1e-300)
 
 
 def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high,
                   reach=np.inf, obstacle_ends=(False, False)) -> Choice:
     """The predicted best parked position within reach: among the local minima of the predicted
     RMS no farther than ``reach`` from the robot, those within NEAR_OPTIMAL of the lowest of
-    them, the one nearest the robot (the nearest minimum when none is within reach; the robot's
-    own position when the prediction has no minimum). ``obstacle_ends``: whether an obstacle
+    them, the one nearest the robot (when none is within reach, the lowest position within
+    reach, on the way down to one; the robot's own position when the prediction has no minimum
+    or nothing within reach is lower than where it is). ``obstacle_ends``: whether an obstacle
     (not a support) bounds the interval [low, high] on each side."""
     grid = np.linspace(low, high, max(4 * plant.model.n_nodes, 200))
     predicted = predicted_rms(bare_shape, plant, robot, omega, grid, weights)
@@ -173,10 +180,18 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
     minima = [i for i in range(grid.size)
               if (predicted[i] <= predicted[i - 1] if i > 0 else obstacle_ends[0])
               and (predicted[i] <= predicted[i + 1] if i < grid.size - 1 else obstacle_ends[1])]
+    stay = Choice(robot_position, read_only(grid), read_only(predicted), here)
     if not minima:
-        return Choice(robot_position, read_only(grid), read_only(predicted), here)
-    nearest = min(minima, key=lambda i: abs(grid[i] - robot_position))
-    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach] or [nearest]
+        return stay
+    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach]
+    if not reachable:
+        # No minimum within reach: the best the robot can reach lies on the way down to one,
+        # at the edge of its reach (or it stays).
+        within = np.flatnonzero(np.abs(grid - robot_position) <= reach)
+        if within.size == 0 or predicted[within].min() >= here:
+            return stay
+        best = within[np.argmin(predicted[within])]
+        return Choice(float(grid[best]), read_only(grid), read_only(predicted), here)
     lowest = min(predicted[i] for i in reachable)
     good = [i for i in reachable if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
     pick = min(good, key=lambda i: abs(grid[i] - robot_position))
