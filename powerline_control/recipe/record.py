@@ -81,6 +81,14 @@ def _noise_floor(s: np.ndarray, shape: tuple[int, int]) -> tuple[float, float]:
     return sigma, omega * median
 
 
+def _record_noise_std(X: np.ndarray) -> float:
+    """The sensor noise std of a record of every node ``(n_nodes, n_samples)``, from the noise
+    floor of its singular values (:func:`_noise_floor`), as the recipe estimates a training
+    record's when none is given."""
+    _, s = _spatial_basis(X, 1)
+    return _noise_floor(s, X.shape)[0]
+
+
 def _marchenko_pastur_median(beta: float) -> float:
     """Median of the Marchenko-Pastur law with ratio ``beta`` (unit variance), by bisection."""
     lo, hi = (1 - math.sqrt(beta)) ** 2, (1 + math.sqrt(beta)) ** 2
