@@ -17,13 +17,14 @@ import powerline_control as plc
 from powerline_control.estimate import KalmanFilter
 
 
-def _oscillator(seed: int, tone: float = 0.0, n: int = 4000):
-    """A lightly damped oscillator measured in noise (exact model), ``n`` samples, optionally
-    plus a tone at 0.3 cycles/sample that the model does not contain."""
+def _oscillator(seed: int, tone: float = 0.0):
+    """A lightly damped oscillator measured in noise (exact model), optionally plus a tone at
+    0.3 cycles/sample that the model does not contain."""
     rng = np.random.default_rng(seed)
     r, theta = 0.99, 2 * np.pi * 0.05
     a = r * np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
     sys = ct.ss(a, np.zeros((2, 1)), [[1.0, 0.0]], 0, dt=1.0)
+    n = 4000
     x = np.zeros((2, n))
     for k in range(1, n):
         x[:, k] = a @ x[:, k - 1] + rng.normal(scale=0.1, size=2)
@@ -134,69 +135,6 @@ def test_spectral_reference_follows_the_field_where_the_reference_saw_one():
             growth = min(max((field_power[i] - noise) / (field[i] - noise), 1.0), 8.0)
         expected[i] = min(reference[i], noise) + max(reference[i] - noise, 0.0) * growth
     np.testing.assert_allclose(c.spectral_ratio, innovation_power / expected, rtol=1e-8)
-
-
-def _tone_filter(field_power: np.ndarray):
-    """The exact oscillator model of ``_oscillator`` with the white closed-form reference (1 in
-    every bin) and a field reference of ``field_power`` over a noise power of 0.5."""
-    sys, _ = _oscillator(0)
-    return KalmanFilter(sys, Q=0.01, R=0.01, steady_state=True, spectral_reference=np.ones(129),
-                        spectral_reference_count=10**6,
-                        spectral_field_reference=(field_power, 0.5))
-
-
-def test_tone_test_finds_a_sub_noise_tone_at_the_closed_form_ratio():
-    """A tone the exact model lacks, amplitude 0.018 (its mean square 0.5 % of the innovation
-    variance), 12,000 samples: the coarse test (256-sample segments) passes it (measured
-    1.8-2.3 against 2.5 in the first 10 draws), the tone test (2048) rejects it (7.4-13.6
-    against 7).
-    Closed form for the mean ratio in the tone's bin (the tone on a bin centre):
-    1 + a^2 |H|^2 (sum w)^2 / (4 S sum w^2), H the innovation filter's response at the tone,
-    1 - C (zI - A(I - KC))^-1 A K with the Kalman gain K and S from scipy's DARE (not the
-    filter's code), w the Hann taper. Averaged over 40 noise draws (one draw's bin scatters by
-    ~17 %, the tone-noise cross term: the mean's standard error is 2.7 %), within 8 %. White
-    records (40 draws) reject at most twice (1 % level: 0.4 expected; measured 0)."""
-    import scipy.linalg as sla
-
-    kf = _tone_filter(np.full(129, 0.5))
-    a, f0, n = 0.018, 614 / 2048, 12000
-    sys, _ = _oscillator(0)
-    A, C = np.asarray(sys.A), np.asarray(sys.C)  # noqa: N806 (the textbook's names)
-    P = sla.solve_discrete_are(A.T, C.T, 0.01 * np.eye(2), np.array([[0.01]]))  # noqa: N806
-    S = float((C @ P @ C.T)[0, 0]) + 0.01  # noqa: N806
-    K = P @ C.T / S  # noqa: N806
-    z = np.exp(2j * np.pi * f0)
-    H = 1 - (C @ np.linalg.solve(z * np.eye(2) - A @ (np.eye(2) - K @ C), A @ K))[0, 0]  # noqa: N806
-    taper = np.hanning(2050)[1:-1]
-    expected = 1 + a**2 * abs(H) ** 2 * np.sum(taper) ** 2 / (4 * S * np.sum(taper**2))
-    runs = []
-    for seed in range(40):
-        y = _oscillator(seed, n=n)[1] + a * np.sin(2 * np.pi * f0 * np.arange(n) + seed)
-        runs.append(kf.filter(y).consistency)
-    assert sum(c.spectral_consistent for c in runs) >= 36
-    assert sum(not c.tone_consistent and not c.consistent for c in runs) >= 36
-    assert all(abs(c.tone_frequency - f0) <= 1 / 2048 for c in runs)
-    assert np.mean([c.tone_ratio for c in runs]) == pytest.approx(expected, rel=0.08)
-    false_alarms = sum(not kf.filter(_oscillator(seed, n=n)[1]).consistency.tone_consistent
-                       for seed in range(40, 80))
-    assert false_alarms <= 2
-    plain = KalmanFilter(sys, Q=0.01, R=0.01, steady_state=True, spectral_reference=np.ones(129),
-                         spectral_reference_count=10**6)
-    assert plain.filter(y).consistency.tone_consistent is None  # no field reference: no test
-
-
-def test_tone_test_leaves_bins_where_the_reference_saw_a_field_to_the_coarse_test():
-    """The same sub-noise tone, but the reference record's field stood 3x its noise around
-    0.3 cycles/sample: the reference there may hold lines of its own, so the tone test does not
-    look there (its largest ratio lies elsewhere), and the record passes."""
-    n = 12000
-    toned = _oscillator(0, n=n)[1] + 0.018 * np.sin(2 * np.pi * 0.3 * np.arange(n))
-    assert not _tone_filter(np.full(129, 0.5)).filter(toned).consistency.tone_consistent
-    field = np.full(129, 0.5)
-    field[70:85] = 1.5  # bins 0.27-0.33 cycles/sample
-    c = _tone_filter(field).filter(toned).consistency
-    assert c.consistent and c.tone_consistent
-    assert not 70 / 256 <= c.tone_frequency <= 85 / 256
 
 
 @pytest.mark.parametrize("kwargs, match", [

@@ -35,9 +35,7 @@ from ..errors import (
 from ._spectrum import (
     following_reference,
     measurement_psd,
-    quiet_bins,
     spectral_test,
-    tone_test,
     whitened_psd,
     whitening_factor,
 )
@@ -403,8 +401,7 @@ class _FilterInternals:
         ``scaled`` are the innovations over ``sqrt`` of the growth factor of ``S_k`` (the
         test's innovations without a field reference); with one, the raw ``innovations``
         whitened by ``S`` are judged against the reference following the field of
-        ``measurements``, and in the bins where the reference record's field was only noise
-        also at the tone test's finer resolution."""
+        ``measurements``."""
         if not run.converged:
             return consistency
         if run.s_factor is not None:
@@ -421,18 +418,11 @@ class _FilterInternals:
             innovations = scaled
         psd, n_avg = whitened_psd(innovations, factor, discard=self._window, segment=segment)
         fields = spectral_test(psd, n_avg, reference, self._spectral_count)
-        if self._spectral_field is not None:
-            quiet = quiet_bins(*self._spectral_field, self._spectral_count)
-            fields.update(tone_test(innovations, factor, reference, self._spectral_count, quiet,
-                                    discard=self._window))
         fields["spectral_ratio"] = read_only(fields["spectral_ratio"])
         fields["spectral_rejected"] = read_only(fields["spectral_rejected"])
         dt = 1.0 if self.dt is None else self.dt
         fields["spectral_frequencies"] = read_only(np.fft.rfftfreq(segment, dt))
-        if "tone_frequency" in fields:
-            fields["tone_frequency"] /= dt
-        consistent = (consistency.consistent and fields["spectral_consistent"] is not False
-                      and fields.get("tone_consistent") is not False)
+        consistent = consistency.consistent and fields["spectral_consistent"] is not False
         return dataclasses.replace(consistency, consistent=consistent, **fields)
 
     # ------------------------------------------------------------------ batch recursion

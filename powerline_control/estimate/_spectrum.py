@@ -13,15 +13,6 @@ has rung up further than the reference record (a matched load run for longer) ha
 power in the bins of the modes it drives, by as much as the field grew there. With a *field
 reference* (the whitened measurement power of the reference record, and the sensor noise's share
 of it) the reference follows that growth: :func:`following_reference`.
-
-A tone under broadband noise (a sine the model lacks, weaker than the sensor noise overall)
-spreads its power over fewer bins the longer the segment: in a bin ``n`` samples wide it stands
-``~n / 6`` times its mean square over the noise power (Hann), while the noise stays at 1. The
-*tone test* (:func:`tone_test`) repeats the comparison with segments ``TONE_SEGMENT_FACTOR`` times
-longer, in the bins where the reference record's field was indistinguishable from its sensor
-noise (:func:`quiet_bins`): there the reference is flat noise, so its value at the coarse
-resolution is its value at the fine one. Elsewhere the reference's own lines (the training's
-field, the model error at its modes) would be resolved too, and the coarse test stays the judge.
 """
 
 from __future__ import annotations
@@ -64,18 +55,6 @@ FIELD_SEEN = 2.0
 #: verdicts there, and 8 kept the larger margin on the weakest mismatched runs (Aster seed 34:
 #: 2.6 against 1.3 times the threshold).
 FIELD_GROWTH_CAP = 8.0
-#: The tone test's segments are this many times ``SPECTRAL_SEGMENT`` (the whole record after the
-#: first window when shorter): a tone's power per bin over the noise's grows by as much. Set on
-#: the tune seeds of ``benchmarks/bench_detection.py --steady``: 4x caught the sub-noise lab sine
-#: (seed 16, SNR 0.27: 4.9 against 4) by 1.2x; 8x by 1.3x (9.1 against 7); 16x also caught it
-#: but two steady matched runs alarmed on above-band modes that had rung up (12.5, 6.6).
-TONE_SEGMENT_FACTOR = 8
-#: A fine bin is rejected only above this ratio as well as the F quantile: a long matched run's
-#: modes just above the training band ring up into lines the training saw as noise. Set on the
-#: tune seeds (8x segments): the largest matched or steady ratio not already rejected was 5.5
-#: (lab pinned seed 24, steady, 185 Hz); the sub-noise sine 9.1; 6, 7 and 8 gave the same
-#: verdicts, 7 the larger margin on both sides.
-TONE_MIN_RATIO = 7.0
 
 
 def whitening_factor(s: np.ndarray) -> np.ndarray:
@@ -179,58 +158,6 @@ def check_spectral_arguments(reference: object, count: object, field: object
                          f"bin. Got smallest {float(power.min()):.3g}.")
     noise = check_real("spectral_field_reference[1]", field[1], low=0.0, low_inclusive=True)
     return read_only(ref.copy()), count, (read_only(power.copy()), noise)
-
-
-def quiet_bins(field_reference: np.ndarray, noise_power: float, n_ref: int) -> np.ndarray:
-    """Bins where the reference record's whitened measurement power is consistent with its
-    sensor noise alone: at most the one-sided ``SPECTRAL_LEVEL`` chi-square quantile of the
-    noise power with ``2 f n_ref`` degrees of freedom (``f = SPECTRAL_DOF_FRACTION``).
-
-    Examples
-    --------
-    >>> quiet_bins(np.array([1.0, 1.2, 3.0]), 1.0, 100).tolist()   # 1 % quantile: 1.34
-    [True, True, False]
-    """
-    dof = max(2.0 * SPECTRAL_DOF_FRACTION * n_ref, 2.0)
-    return np.asarray(field_reference) <= sstats.chi2.ppf(1 - SPECTRAL_LEVEL, dof) / dof * float(
-        noise_power)
-
-
-def tone_test(innovations: np.ndarray, factor: np.ndarray, reference: np.ndarray, n_ref: int,
-              quiet: np.ndarray, *, discard: int = 0) -> dict:
-    """The tone test: whitened innovation power in segments ``TONE_SEGMENT_FACTOR`` times the
-    reference's, over the reference of the coarse bin each fine bin falls in, in the ``quiet``
-    coarse bins (:func:`quiet_bins`; the DC bin is not tested).
-
-    Under the hypothesis that the record is like the reference one, a fine bin's ratio follows
-    the F law of :func:`spectral_test` with the fine segments' average count; a bin is rejected
-    above ``max(TONE_MIN_RATIO, F quantile at SPECTRAL_LEVEL / n_tested)``. Returns the fields
-    ``tone_*`` of ``Consistency`` (the ratio, its frequency in cycles per sample and the
-    threshold; ``tone_consistent`` None when no fine bin could be tested: the record is no
-    longer than a coarse segment, or no quiet bin).
-    """
-    coarse = 2 * (np.asarray(reference).size - 1)
-    n = np.asarray(innovations).shape[1] - discard
-    segment = min(TONE_SEGMENT_FACTOR * coarse, n)
-    none = {"tone_ratio": math.nan, "tone_frequency": math.nan, "tone_threshold": math.nan,
-            "tone_consistent": None}
-    if segment <= coarse:
-        return none
-    psd, n_avg = whitened_psd(innovations, factor, discard=discard, segment=segment)
-    frequencies = np.fft.rfftfreq(segment)
-    home = np.minimum(np.round(frequencies * coarse).astype(int), reference.size - 1)
-    tested = quiet[home] & (home > 0) & (reference[home] > 0)
-    n_tested = int(tested.sum())
-    if not n_tested or n_avg == 0:
-        return none
-    ratio = np.where(tested, psd / np.where(tested, reference[home], 1.0), -np.inf)
-    worst = int(np.argmax(ratio))
-    d_new = max(2.0 * SPECTRAL_DOF_FRACTION * n_avg, 2.0)
-    d_ref = max(2.0 * SPECTRAL_DOF_FRACTION * n_ref, 2.0)
-    threshold = max(TONE_MIN_RATIO, float(sstats.f.ppf(1 - SPECTRAL_LEVEL / n_tested, d_new,
-                                                       d_ref)))
-    return {"tone_ratio": float(ratio[worst]), "tone_frequency": float(frequencies[worst]),
-            "tone_threshold": threshold, "tone_consistent": bool(ratio[worst] <= threshold)}
 
 
 def spectral_test(psd: np.ndarray, n_avg: int, reference: np.ndarray, n_ref: int) -> dict:

@@ -25,7 +25,6 @@ from .._validation import (
 from ..errors import (
     InputError,
 )
-from ._spectrum import TONE_SEGMENT_FACTOR
 from .result import Estimate, _freeze_arrays
 
 __all__ = ["Consistency", "filter_consistency", "DEFAULT_CONSISTENCY_WINDOW"]
@@ -138,23 +137,8 @@ class Consistency:
     spectral_rejected : numpy.ndarray or None
         Indices of the rejected bins.
     spectral_consistent : bool or None
-        No bin rejected (``None``: no spectral test). ``consistent`` is False when the windowed
-        NIS test, the spectral test or the tone test rejects.
-    tone_ratio : float or None
-        The tone test (filters with a ``spectral_field_reference``): the largest ratio of the
-        whitened innovation power, in segments ``TONE_SEGMENT_FACTOR`` (8) times the spectral
-        test's, to the reference, over the bins where the reference record's field was only
-        its sensor noise. A tone the model lacks, weaker than the noise overall, stands out
-        there as it does not in the coarse bins (``estimate._spectrum.tone_test``). NaN when
-        not tested (the record is no longer than one coarse segment).
-    tone_frequency : float or None
-        Where ``tone_ratio`` lies (Hz; cycles per sample without ``dt``).
-    tone_threshold : float or None
-        The ratio above which the tone test rejects: the larger of a fixed factor (a long
-        matched run's modes just above the training band ring up into lines) and the F
-        quantile at 1 % with a Bonferroni correction over the fine bins tested.
-    tone_consistent : bool or None
-        ``tone_ratio`` not above ``tone_threshold`` (``None``: no tone test).
+        No bin rejected (``None``: no spectral test). ``consistent`` is False when either the
+        windowed NIS test or the spectral test rejects.
 
     Examples
     --------
@@ -197,10 +181,6 @@ class Consistency:
     spectral_threshold: float | None = None
     spectral_rejected: np.ndarray | None = None
     spectral_consistent: bool | None = None
-    tone_ratio: float | None = None
-    tone_frequency: float | None = None
-    tone_threshold: float | None = None
-    tone_consistent: bool | None = None
 
     def __post_init__(self) -> None:
         _freeze_arrays(self)
@@ -227,11 +207,6 @@ class Consistency:
                         f"above {self.spectral_threshold:.3g} times the reference (largest "
                         f"{self.spectral_ratio[worst]:.3g} at "
                         f"{self.spectral_frequencies[worst]:.4g} Hz).")
-        if self.tone_consistent is not None:
-            spectral += (f" Tone test ({TONE_SEGMENT_FACTOR}x finer, where the training saw only "
-                         f"noise): largest "
-                         f"{self.tone_ratio:.3g} times the reference at {self.tone_frequency:.4g}"
-                         f" Hz, threshold {self.tone_threshold:.3g}.")
         return (f"Windowed NIS test ({self.window} samples per window, 1 % two-sided chi-square "
                 f"bounds): {self.rejected.size} of {self.n_tested} windows rejected, mean NIS "
                 f"{float(np.mean(tested)):.3g} per sample against {float(np.mean(expected)):.3g}"
