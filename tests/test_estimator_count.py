@@ -154,9 +154,10 @@ def test_count_study_bad_input():
     with pytest.raises(plc.InputError, match=r"'check'.*record 1.*node positions.*Got node 20 "
                                              r"at 3\.6966 m against 3\.66 m"):
         plc.estimator_count_study(rec, [2], check=[rec, moved])
-    with pytest.raises(plc.InputError, match="'check'.*record 0.*21 node positions. Got 20"):
+    with pytest.raises(plc.InputError,
+                       match="'check'.*record 0.*21 node positions of 'snapshots'. Got 20"):
         plc.estimator_count_study(rec, [2], check=dataclasses.replace(rec, x=rec.x[:20]))
-    with pytest.raises(plc.InputError, match="'check_noise_std'.*one per check record \\(2\\)"):
+    with pytest.raises(plc.InputError, match="'check_noise_std'.*one per record \\(2\\)"):
         plc.estimator_count_study(rec, [2], check=[rec, rec], check_noise_std=[1e-3] * 3)
     with pytest.raises(plc.InputError, match="'check_noise_std'"):
         plc.estimator_count_study(rec, [2], check=rec, check_noise_std=-1e-3)

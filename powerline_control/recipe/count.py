@@ -32,7 +32,7 @@ import numpy as np
 from .._validation import check_int, check_real, check_rng, read_only
 from ..errors import ExcitationWarning, InputError
 from .design import design_estimator
-from .record import _record_noise_std
+from .record import _other_records
 
 __all__ = ["EstimatorCountStudy", "estimator_count_study"]
 
@@ -188,7 +188,9 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
     held = x_all[:, n_fit:]
     positions = getattr(snapshots, "x", None)
     given_noise = {"noise_std": noise} if math.isfinite(noise) and noise > 0 else {}
-    checks, check_sigmas = _check_records(check, check_noise_std, positions, x_all.shape[0], dt)
+    checks, check_sigmas = _other_records(check, "check", positions, x_all.shape[0], dt,
+                                          noise_std=check_noise_std,
+                                          noise_name="check_noise_std")
     errors, reported, layouts, shipped_layouts, check_errors = [], [], [], [], []
     warned = False
     for k in ks:
@@ -260,73 +262,3 @@ def _judge(design, record: np.ndarray, sigma: float) -> tuple[float, float]:
     scale = math.sqrt(max(float(np.mean(truth**2)) - sigma**2, 1e-300))
     return (math.sqrt(max(err2, 0.0)) / scale,
             float(np.sqrt(np.mean(est.field_variances[unmeasured, skip:]))) / scale)
-
-
-def _check_records(check, noise_std, positions, n_nodes: int, dt: float
-                   ) -> tuple[list[np.ndarray], list[float]]:
-    """(displacement, noise std) of each check record (``[], []`` for None), checked against the
-    study's nodes (their positions when both records carry them) and sample time."""
-    if check is None:
-        if noise_std is not None:
-            raise InputError("The 'check_noise_std' parameter needs 'check' records. Got "
-                             f"{noise_std!r} with check=None.")
-        return [], []
-    records = [check] if hasattr(check, "displacement") else check
-    if isinstance(records, str) or not isinstance(records, Sequence) or not records:
-        raise InputError("The 'check' parameter must be None, a Snapshots record or a non-empty "
-                         f"sequence of them. Got {type(check).__name__}.")
-    given = _check_noise_levels(noise_std, len(records))
-    out, sigmas = [], []
-    for i, rec in enumerate(records):
-        try:
-            x, rec_dt = np.asarray(rec.displacement, dtype=float), float(rec.dt)
-        except AttributeError:
-            raise InputError(f"The 'check' parameter's record {i} must be a Snapshots record "
-                             f"(with .displacement and .dt). Got {type(rec).__name__}.") from None
-        if x.ndim != 2 or x.shape[0] != n_nodes or x.shape[1] < 400 or not np.all(
-                np.isfinite(x)) or not math.isclose(rec_dt, dt, rel_tol=1e-9):
-            raise InputError(f"The 'check' parameter's record {i} must hold the same {n_nodes} "
-                             f"nodes at the same dt={dt:g} s, finite, over at least 400 samples. "
-                             f"Got shape {x.shape}, dt={rec_dt:g} s.")
-        _check_positions(i, getattr(rec, "x", None), positions)
-        if given is not None:
-            sigmas.append(given[i])
-        else:
-            own = float(getattr(rec, "noise_std", math.nan))
-            sigmas.append(own if math.isfinite(own) and own >= 0 else _record_noise_std(x))
-        out.append(x)
-    return out, sigmas
-
-
-def _check_noise_levels(noise_std, n_records: int) -> list[float] | None:
-    """``check_noise_std`` as one non-negative float per check record (None: not given)."""
-    if noise_std is None:
-        return None
-    values = np.atleast_1d(np.asarray(noise_std, dtype=object))
-    if values.ndim != 1 or values.size not in (1, n_records):
-        raise InputError(f"The 'check_noise_std' parameter must be one number or one per check "
-                         f"record ({n_records}). Got {noise_std!r}.")
-    levels = [check_real("check_noise_std", v, low=0.0, low_inclusive=True) for v in values]
-    return levels * n_records if len(levels) == 1 else levels
-
-
-#: Node positions of a check record must equal the study record's within this distance (m):
-#: the same mesh written twice agrees to round-off, a different mesh differs by centimetres.
-_POSITION_TOLERANCE = 1e-6
-
-
-def _check_positions(i: int, x, reference) -> None:
-    """Check record ``i``'s node positions ``x`` against the study record's (when both known)."""
-    if x is None or reference is None:
-        return
-    x, reference = np.asarray(x, dtype=float), np.asarray(reference, dtype=float)
-    if x.shape != reference.shape:
-        raise InputError(f"The 'check' parameter's record {i} must be a record of the study's "
-                         f"{reference.size} node positions. Got {x.size} positions.")
-    off = np.abs(x - reference)
-    if not np.all(off <= _POSITION_TOLERANCE):
-        j = int(np.argmax(off))
-        raise InputError(f"The 'check' parameter's record {i} must be a record of the study's "
-                         f"node positions (within {_POSITION_TOLERANCE:g} m; the design's "
-                         f"sensors are nodes of 'snapshots'). Got node {j} at {x[j]:.9g} m "
-                         f"against {reference[j]:.9g} m in 'snapshots'.")
