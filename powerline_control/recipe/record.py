@@ -232,6 +232,9 @@ class _Record:
     line_basis: np.ndarray
     line_coords: np.ndarray
     excitation: object
+    #: records of every node under other load histories, and their sensor noise std
+    others: tuple = ()
+    others_noise: tuple = ()
 
     @property
     def n_samples(self) -> int:
