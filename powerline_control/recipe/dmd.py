@@ -259,8 +259,14 @@ def _field_error_model(X: np.ndarray, kf, partial_kf, n_fit: int, candidates: np
         return 1.0, 0.0, 0
     try:
         error2, reported, power = _unmeasured_error(kf, X, unmeasured, sensors, data_noise)
-        held2, held_reported, held_power = _unmeasured_error(partial_kf, X, unmeasured, sensors,
-                                                             data_noise)
+        # What sets the level: kf on the other records from their second window on, else the
+        # model of the first part on the held-out samples.
+        if others:
+            level_runs = [(_unmeasured_error(kf, other, unmeasured, sensors, sigma), window)
+                          for other, sigma in zip(others, others_noise, strict=True)]
+        else:
+            level_runs = [(_unmeasured_error(partial_kf, X, unmeasured, sensors, data_noise),
+                           n_fit)]
     except (EstimationError, np.linalg.LinAlgError):  # pragma: no cover - the design's filter
         return 1.0, 0.0, 0
     kept = np.isfinite(error2) & np.isfinite(power)
@@ -272,23 +278,12 @@ def _field_error_model(X: np.ndarray, kf, partial_kf, n_fit: int, candidates: np
     norms = np.sqrt(np.mean(columns**2, axis=0))
     norms[norms == 0] = 1.0
     coef = sopt.nnls(columns / norms, error2[kept])[0] / norms
-    if others:
-        predicted = actual = 0.0
-        for other, sigma in zip(others, others_noise, strict=True):
-            try:
-                other2, other_reported, other_power = _unmeasured_error(kf, other, unmeasured,
-                                                                        sensors, sigma)
-            except (EstimationError, np.linalg.LinAlgError):  # pragma: no cover - as above
-                return 1.0, 0.0, 0
-            used = np.isfinite(other2) & np.isfinite(other_power)
-            used[:window] = False
-            predicted += float(np.sum(coef[0] * other_reported + coef[1] * other_power[used]))
-            actual += float(np.sum(other2[used]))
-    else:
-        held = np.isfinite(held2) & np.isfinite(held_power)
-        held[:n_fit] = False
-        predicted = float(np.mean(coef[0] * held_reported + coef[1] * held_power[held]))
-        actual = float(np.mean(held2[held])) if np.any(held) else math.nan
+    predicted = actual = 0.0
+    for (run2, run_reported, run_power), start in level_runs:
+        used = np.isfinite(run2) & np.isfinite(run_power)
+        used[:start] = False
+        predicted += float(np.sum(coef[0] * run_reported + coef[1] * run_power[used]))
+        actual += float(np.sum(run2[used]))
     if not (predicted > 0 and actual > 0):
         return 1.0, 0.0, 0
     level = actual / predicted
