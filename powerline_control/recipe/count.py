@@ -12,6 +12,12 @@ line whose modes ring longer than the record (real spans; the simulated ones are
 the same modal amplitudes into it, so it understates the error on a new load history (Drake
 300 m, 24 sensors: 9.5 % held out, 16-30 % on three new runs). ``check`` records of other load
 histories judge the design that ships (trained on the whole record) where that matters.
+
+Two designs per count, then: the one trained on the first part of the record (its layout is
+``sensors``; ``held_out_error`` and ``reported_error`` judge it) and, with check records, the one
+trained on the whole record (its layout is ``shipped_sensors``; ``check_error`` judges it). Each
+error has the noise variance of the record it is measured on removed: the training record's for
+the held-out part, each check record's own for that record.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ import numpy as np
 from .._validation import check_int, check_real, check_rng, read_only
 from ..errors import ExcitationWarning, InputError
 from .design import design_estimator
+from .record import _other_records
 
 __all__ = ["EstimatorCountStudy", "estimator_count_study"]
 
@@ -40,11 +47,14 @@ class EstimatorCountStudy:
         Sensor counts studied.
     held_out_error : numpy.ndarray
         Per ``k``: RMS error at unmeasured moving nodes over the held-out part of the record,
-        relative to the RMS displacement there, both with the sensor noise variance removed.
+        relative to the RMS displacement there, both with the sensor noise variance removed, of
+        the design trained on the first part of the record (layout ``sensors``).
     reported_error : numpy.ndarray
-        Per ``k``: the filter's reported RMS sigma at the same nodes, relative the same way.
+        Per ``k``: that design's reported RMS sigma at the same nodes, relative the same way.
     sensors : tuple of numpy.ndarray
-        The layout chosen for each ``k`` (node indices).
+        Per ``k``: the layout (node indices) of the design trained on the first part of the
+        record, the one ``held_out_error`` and ``reported_error`` judge. The design trained on
+        the whole record may choose another (``shipped_sensors``).
     target_error : float
         The relative error asked for.
     smallest_k : int or None
@@ -56,8 +66,18 @@ class EstimatorCountStudy:
         the count is measured on the training record's own continuation only.
     check_error : numpy.ndarray or None
         ``(len(k), n_check)``: per ``k``, the error of the design trained on the whole record
-        (the one :func:`~powerline_control.recipe.design_estimator` would ship) on each check
-        record, measured as ``held_out_error``; ``None`` without check records.
+        (the one :func:`~powerline_control.recipe.design_estimator` would ship, layout
+        ``shipped_sensors``) on each check record, measured as ``held_out_error`` with that
+        check record's own noise variance (``check_noise_std``) removed; ``None`` without check
+        records.
+    shipped_sensors : tuple of numpy.ndarray or None
+        Per ``k``: the layout of the design trained on the whole record, the one
+        ``check_error`` judges (what ``design_estimator(snapshots, n_sensors=k)`` returns with
+        the same options); ``None`` without check records.
+    check_noise_std : tuple of float or None
+        The sensor noise std (m) removed from each check record's error: given, the record's
+        own ``noise_std``, or estimated from its singular values; ``None`` without check
+        records.
 
     Examples
     --------
@@ -72,10 +92,12 @@ class EstimatorCountStudy:
     smallest_k: int | None
     message: str
     check_error: np.ndarray | None = None
+    shipped_sensors: tuple[np.ndarray, ...] | None = None
+    check_noise_std: tuple[float, ...] | None = None
 
 
 def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: float = 0.1,
-                          held_out_fraction: float = 0.3, check=None,
+                          held_out_fraction: float = 0.3, check=None, check_noise_std=None,
                           seed: int | np.random.Generator | None = 0,
                           **design_options: object) -> EstimatorCountStudy:
     """How many sensors for a target error, measured on the held-out end of a record.
@@ -92,11 +114,16 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
         Share of the record (its end) that judges each design; the rest trains it.
     check : Snapshots or sequence of Snapshots, optional
         Records of every node under other load histories (independent runs: new random loads,
-        another day), same nodes and sampling. Each count's design trained on the whole of
-        ``snapshots`` is also judged on each, and a count is named only if it reaches the target
-        on all of them and on the held-out part. Without them the answer rests on the
-        continuation of the training record, which on a line that rings longer than the record
-        understates the error on new loads (module docstring).
+        another day), at the same node positions and sample time. Each count's design trained
+        on the whole of ``snapshots`` is also judged on each, and a count is named only if it
+        reaches the target on all of them and on the held-out part. Without them the answer
+        rests on the continuation of the training record, which on a line that rings longer than
+        the record understates the error on new loads (module docstring).
+    check_noise_std : float or sequence of float, optional
+        Sensor noise std (m) of the check records, one for all or one per record; its variance
+        is removed from each record's error. Default: each record's own ``noise_std`` when it
+        has one (a :class:`~powerline_control.simulation.Snapshots`), else estimated from the
+        noise floor of its singular values (as the recipe estimates the training record's).
     seed : int, numpy.random.Generator or None, default 0
         Seed of :func:`~powerline_control.recipe.design_estimator` (its sensor selection's
         random baseline), as everywhere in the package: an int or a Generator, ``None`` for
@@ -115,8 +142,8 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
     ------
     InputError
         Bad arguments (named): counts not ascending, a target outside (0, 1], a split leaving
-        either part too short, a check record that is not a record of the same nodes and
-        sampling.
+        either part too short, a check record that is not a record of the same node positions
+        and sample time, check noise levels that are not one non-negative number per record.
 
     Examples
     --------
@@ -161,8 +188,10 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
     held = x_all[:, n_fit:]
     positions = getattr(snapshots, "x", None)
     given_noise = {"noise_std": noise} if math.isfinite(noise) and noise > 0 else {}
-    checks = _check_records(check, x_all.shape[0], dt)
-    errors, reported, layouts, check_errors = [], [], [], []
+    checks, check_sigmas = _other_records(check, "check", positions, x_all.shape[0], dt,
+                                          noise_std=check_noise_std,
+                                          noise_name="check_noise_std")
+    errors, reported, layouts, shipped_layouts, check_errors = [], [], [], [], []
     warned = False
     for k in ks:
         with warnings.catch_warnings(record=True) as caught:
@@ -184,7 +213,9 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
                 shipped = design_estimator(x_all, n_sensors=k, dt=dt, seed=seed,
                                            positions=positions, **given_noise,
                                            **design_options)
-            check_errors.append([_judge(shipped, rec, sigma)[0] for rec in checks])
+            shipped_layouts.append(read_only(np.array(shipped.sensors)))
+            check_errors.append([_judge(shipped, rec, rec_sigma)[0]
+                                 for rec, rec_sigma in zip(checks, check_sigmas, strict=True)])
     passed = [e <= target_error and all(c <= target_error for c in (check_errors[i]
                                                                      if checks else []))
               for i, e in enumerate(errors)]
@@ -212,7 +243,9 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
                                sensors=tuple(layouts), target_error=float(target_error),
                                smallest_k=smallest, message=message,
                                check_error=read_only(np.array(check_errors)) if checks
-                               else None)
+                               else None,
+                               shipped_sensors=tuple(shipped_layouts) if checks else None,
+                               check_noise_std=tuple(check_sigmas) if checks else None)
 
 
 def _judge(design, record: np.ndarray, sigma: float) -> tuple[float, float]:
@@ -229,27 +262,3 @@ def _judge(design, record: np.ndarray, sigma: float) -> tuple[float, float]:
     scale = math.sqrt(max(float(np.mean(truth**2)) - sigma**2, 1e-300))
     return (math.sqrt(max(err2, 0.0)) / scale,
             float(np.sqrt(np.mean(est.field_variances[unmeasured, skip:]))) / scale)
-
-
-def _check_records(check, n_nodes: int, dt: float) -> list[np.ndarray]:
-    """The displacement of each check record (``[]`` for None), checked against the study's."""
-    if check is None:
-        return []
-    records = [check] if hasattr(check, "displacement") else check
-    if isinstance(records, str) or not isinstance(records, Sequence) or not records:
-        raise InputError("The 'check' parameter must be None, a Snapshots record or a non-empty "
-                         f"sequence of them. Got {type(check).__name__}.")
-    out = []
-    for i, rec in enumerate(records):
-        try:
-            x, rec_dt = np.asarray(rec.displacement, dtype=float), float(rec.dt)
-        except AttributeError:
-            raise InputError(f"The 'check' parameter's record {i} must be a Snapshots record "
-                             f"(with .displacement and .dt). Got {type(rec).__name__}.") from None
-        if x.ndim != 2 or x.shape[0] != n_nodes or x.shape[1] < 400 or not np.all(
-                np.isfinite(x)) or not math.isclose(rec_dt, dt, rel_tol=1e-9):
-            raise InputError(f"The 'check' parameter's record {i} must hold the same {n_nodes} "
-                             f"nodes at the same dt={dt:g} s, finite, over at least 400 samples. "
-                             f"Got shape {x.shape}, dt={rec_dt:g} s.")
-        out.append(x)
-    return out

@@ -11,6 +11,7 @@ Marchenko-Pastur density and against white noise of known std (tests/test_recipe
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,6 +82,14 @@ def _noise_floor(s: np.ndarray, shape: tuple[int, int]) -> tuple[float, float]:
     return sigma, omega * median
 
 
+def _record_noise_std(X: np.ndarray) -> float:
+    """The sensor noise std of a record of every node ``(n_nodes, n_samples)``, from the noise
+    floor of its singular values (:func:`_noise_floor`), as the recipe estimates a training
+    record's when none is given."""
+    _, s = _spatial_basis(X, 1)
+    return _noise_floor(s, X.shape)[0]
+
+
 def _marchenko_pastur_median(beta: float) -> float:
     """Median of the Marchenko-Pastur law with ratio ``beta`` (unit variance), by bisection."""
     lo, hi = (1 - math.sqrt(beta)) ** 2, (1 + math.sqrt(beta)) ** 2
@@ -109,6 +118,82 @@ def _spatial_basis(X: np.ndarray, max_rank: int) -> tuple[np.ndarray, np.ndarray
         return V[:, order[:max_rank]], s
     U, s, _ = sla.svd(X, full_matrices=False)
     return U[:, :max_rank], s
+
+
+def _other_records(records, name: str, positions, n_nodes: int, dt: float, *, noise_std=None,
+                   noise_name: str | None = None) -> tuple[list[np.ndarray], list[float]]:
+    """(displacement, noise std) of each record of every node under other load histories passed
+    as the parameter ``name`` (``[], []`` for None), checked against the main record's nodes
+    (their positions when both records carry them) and sample time. The noise std is
+    ``noise_std`` (the parameter ``noise_name``: one for all or one per record) when given,
+    else each record's own ``noise_std``, else estimated from its singular values."""
+    if records is None:
+        if noise_std is not None:
+            raise InputError(f"The '{noise_name}' parameter needs '{name}' records. Got "
+                             f"{noise_std!r} with {name}=None.")
+        return [], []
+    given = records
+    records = [records] if hasattr(records, "displacement") else records
+    if isinstance(records, str) or not isinstance(records, Sequence) or not records:
+        raise InputError(f"The '{name}' parameter must be None, a Snapshots record or a "
+                         f"non-empty sequence of them. Got {type(given).__name__}.")
+    levels = _noise_levels(noise_std, noise_name, len(records))
+    out, sigmas = [], []
+    for i, rec in enumerate(records):
+        try:
+            x, rec_dt = np.asarray(rec.displacement, dtype=float), float(rec.dt)
+        except AttributeError:
+            raise InputError(f"The '{name}' parameter's record {i} must be a Snapshots record "
+                             f"(with .displacement and .dt). Got {type(rec).__name__}.") from None
+        if x.ndim != 2 or x.shape[0] != n_nodes or x.shape[1] < 400 or not np.all(
+                np.isfinite(x)) or not math.isclose(rec_dt, dt, rel_tol=1e-9):
+            raise InputError(f"The '{name}' parameter's record {i} must hold the same {n_nodes} "
+                             f"nodes at the same dt={dt:g} s, finite, over at least 400 samples. "
+                             f"Got shape {x.shape}, dt={rec_dt:g} s.")
+        _check_positions(name, i, getattr(rec, "x", None), positions)
+        if levels is not None:
+            sigmas.append(levels[i])
+        else:
+            own = float(getattr(rec, "noise_std", math.nan))
+            sigmas.append(own if math.isfinite(own) and own >= 0 else _record_noise_std(x))
+        out.append(x)
+    return out, sigmas
+
+
+def _noise_levels(noise_std, name: str | None, n_records: int) -> list[float] | None:
+    """``noise_std`` (the parameter ``name``) as one non-negative float per record (None: not
+    given)."""
+    if noise_std is None:
+        return None
+    values = np.atleast_1d(np.asarray(noise_std, dtype=object))
+    if values.ndim != 1 or values.size not in (1, n_records):
+        raise InputError(f"The '{name}' parameter must be one number or one per record "
+                         f"({n_records}). Got {noise_std!r}.")
+    levels = [check_real(name, v, low=0.0, low_inclusive=True) for v in values]
+    return levels * n_records if len(levels) == 1 else levels
+
+
+#: Node positions of another record must equal the main record's within this distance (m): the
+#: same mesh written twice agrees to round-off, a different mesh differs by centimetres.
+_POSITION_TOLERANCE = 1e-6
+
+
+def _check_positions(name: str, i: int, x, reference) -> None:
+    """Record ``i`` of the parameter ``name``: its node positions ``x`` against the main
+    record's (when both are known)."""
+    if x is None or reference is None:
+        return
+    x, reference = np.asarray(x, dtype=float), np.asarray(reference, dtype=float)
+    if x.shape != reference.shape:
+        raise InputError(f"The '{name}' parameter's record {i} must be a record of the "
+                         f"{reference.size} node positions of 'snapshots'. Got {x.size} positions.")
+    off = np.abs(x - reference)
+    if not np.all(off <= _POSITION_TOLERANCE):
+        j = int(np.argmax(off))
+        raise InputError(f"The '{name}' parameter's record {i} must be a record of the node "
+                         f"positions of 'snapshots' (within {_POSITION_TOLERANCE:g} m; the "
+                         f"design's sensors are its nodes). Got node {j} at {x[j]:.9g} m "
+                         f"against {reference[j]:.9g} m in 'snapshots'.")
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,6 +232,9 @@ class _Record:
     line_basis: np.ndarray
     line_coords: np.ndarray
     excitation: object
+    #: records of every node under other load histories, and their sensor noise std
+    others: tuple = ()
+    others_noise: tuple = ()
 
     @property
     def n_samples(self) -> int:

@@ -121,14 +121,20 @@ class EstimatorDesign:
         ``covariance_scale``) cannot show: the filter reports at each node
         ``field_variance_scale`` times its Riccati variance plus ``field_relative_variance``
         times the running mean square of its estimate there (the filter's parameters of the
-        same names), fitted on the whole training record at the unmeasured moving nodes (the
-        scale clipped to 0.01-100). 1 and 0 when not fitted (the modal model, short records).
+        same names), their shape fitted on the whole training record at the unmeasured moving
+        nodes, their level on the held-out part or on ``model_error_records`` (the scale
+        clipped to 0.01-100). 1 and 0 when not fitted (the modal model, short records).
     innovation_growth : tuple of float or None
         The filter's ``innovation_growth``: the running mean square at the sensors of the
         held-out part where ``covariance_scale`` was matched, and the model error's share of
         ``S`` there; once a record's field at the sensors rises above that level, the
         consistency test's ``S`` grows with it (an identified model's one-step error is a share
         of the field). ``None`` when not measured (the modal model, short records).
+    model_error_records : int
+        How many records of other load histories (``design_estimator``'s
+        ``model_error_records``) set the level of ``field_variance_scale`` and
+        ``field_relative_variance``; 0 when the held-out part of the training record set it
+        (or nothing was fitted).
 
     Examples
     --------
@@ -160,6 +166,7 @@ class EstimatorDesign:
     field_variance_scale: float = 1.0
     field_relative_variance: float = 0.0
     innovation_growth: tuple[float, float] | None = None
+    model_error_records: int = 0
 
     @property
     def alpha_curve(self) -> AlphaSweep:
@@ -356,9 +363,12 @@ class EstimatorDesign:
                 "terms)."
             )
         if self.field_variance_scale != 1.0 or self.field_relative_variance != 0.0:
+            level = (f"its level on {self.model_error_records} record(s) of other load histories"
+                     if self.model_error_records else
+                     "its level on the held-out part, which continues the training loads")
             lines.append(
-                f"Model error at unmeasured nodes (fitted on the training record): variances "
-                f"scaled by {self.field_variance_scale:.3g} plus "
+                f"Model error at unmeasured nodes (shape fitted on the training record, {level}):"
+                f" variances scaled by {self.field_variance_scale:.3g} plus "
                 f"{self.field_relative_variance:.3g} x the running mean square of the estimate "
                 "(Estimate.field_variances)."
             )
