@@ -99,7 +99,7 @@ def test_no_move_starts_or_ends_in_the_last_quarter_of_the_run():
     with threadpool_limits(limits=1):
         result = plc.run_closed_loop(args.pop("span"), args.pop("force"), args.pop("robot"),
                                      args.pop("limits"), **args)
-    quiet_from = result.t[0] + (1 - policy.QUIET_FRACTION) * (result.t[-1] - result.t[0])
+    quiet_from = result.t[0] + 0.75 * (result.t[-1] - result.t[0])   # the last quarter
     assert all(time < quiet_from for time, _ in result.decisions)
     last = result.t >= quiet_from
     assert np.ptp(result.robot_position[last]) == 0.0
@@ -118,7 +118,25 @@ def test_a_choice_with_no_minimum_within_reach_goes_down_the_slope_as_far_as_it_
     assert choice.position == pytest.approx(0.8)
     # the gain is the prediction where the robot goes, not at the far minimum
     assert choice.gain == pytest.approx(1 - (1 + 1.2**2) / (1 + 1.5**2))
+    # no reach: it stays, and gains nothing
+    still = policy.pick_target(grid, predicted, here, 0.5, reach=0.0)
+    assert still.position == 0.5 and still.gain == 0.0
     # nothing within reach is lower than where it is: it stays
     assert policy.pick_target(grid, predicted, 0.5e-3, 0.5, reach=0.3).position == 0.5
     # with the minimum within reach the rule is unchanged
     assert policy.pick_target(grid, predicted, here, 0.5, reach=2.0).position == pytest.approx(2.0)
+
+
+def test_the_reach_fallback_never_ends_at_a_support_and_the_reach_holds_exactly():
+    # One minimum at 1.4 m, the robot at 0.1 m near the left support, where the predicted RMS
+    # also dips (the line does not move at a support: not a place to damp from).
+    grid = np.linspace(0.0, 3.0, 301)
+    predicted = 2 - np.cos(2 * np.pi * (grid - 1.4) / 2.4)
+    here = float(np.interp(0.1, grid, predicted))
+    choice = policy.pick_target(grid, predicted, here, 0.1, reach=0.3)
+    assert choice.position > 0.1   # towards the minimum, not to the support at 0
+    # a minimum just inside the reach: the parabola's vertex may not carry it past the reach
+    grid = np.linspace(0.0, 3.0, 31)                      # 0.1 m steps
+    predicted = (grid - 1.34) ** 2 + 1e-3
+    choice = policy.pick_target(grid, predicted, 1.0, 0.5, reach=0.8)
+    assert abs(choice.position - 0.5) <= 0.8

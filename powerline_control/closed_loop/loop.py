@@ -39,7 +39,6 @@ from .motion import Motion
 from .policy import (
     DECISION_TONE_WINDOW,
     MIN_GAIN,
-    QUIET_FRACTION,
     TRAVEL_FRACTION,
     UNSTEADY_LIMIT,
     Targeting,
@@ -48,9 +47,11 @@ from .policy import (
     obstacle_ends,
     pick_target,
     predicted_rms,
+    quiet_from,
     reach_within,
     resolve_time,
     tone_wait,
+    travel_budget,
 )
 from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
@@ -314,7 +315,7 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     last change-detection window (what a wind change is detected on); a decision is made at the
     tone of the excitation's record (:func:`_decision_tone`)."""
     t = line.t
-    if t[k] >= _quiet_from(t):
+    if t[k] >= quiet_from(t[0], t[-1]):
         return
     robot_still = motion.at_rest
     targeting.update_clocks(t[k], robot_still, watched, settings.retarget_threshold)
@@ -335,15 +336,16 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
     if not (retarget or confirm):
         return
     low, high = motion.bounds()
-    reach = reach_within(settings.limits, min(TRAVEL_FRACTION * (t[-1] - t[k]),
-                                               _quiet_from(t) - t[k]))
+    reach = reach_within(settings.limits, travel_budget(t[k], t[0], t[-1]))
     choice = choose_target(shape, line.model, robot, 2 * np.pi * tone, line.weights,
                            motion.position, low, high, reach,
                            obstacle_ends((low, high), settings.obstacles, settings.limits.length))
     records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape),
                                 tone))
     if retarget:
-        note = _out_of_reach(choice, shape, line, robot, settings, 2 * np.pi * tone, reach,
+        note = _out_of_reach(choice, shape, line, robot, settings, 2 * np.pi * tone,
+                             (reach, reach_within(settings.limits,
+                                                  TRAVEL_FRACTION * (t[-1] - t[k]))),
                              (low, high))
         if note is not None:
             records.decisions.append((float(t[k]), note))
@@ -362,11 +364,6 @@ def _update_target(targeting: Targeting, motion: Motion, records: _Records, line
         motion.send(targeting.goal, float(t[k]))
 
 
-def _quiet_from(t: np.ndarray) -> float:
-    """When the last part of the run without moves begins, s (policy.QUIET_FRACTION)."""
-    return float(t[0] + (1 - QUIET_FRACTION) * (t[-1] - t[0]))
-
-
 def _sensed_power(records: _Records, line: _Line, k: int, frequency: float,
                   window: int) -> float:
     """Mean square amplitude the sensors measure at the load's frequency over the last window:
@@ -377,12 +374,15 @@ def _sensed_power(records: _Records, line: _Line, k: int, frequency: float,
 
 
 def _out_of_reach(choice, shape: np.ndarray, line: _Line, robot: MDR, settings: Settings,
-                  omega: float, reach: float, bounds: tuple[float, float]) -> str | None:
+                  omega: float, reaches: tuple[float, float],
+                  bounds: tuple[float, float]) -> str | None:
     """What keeps the robot from a position predicted clearly better (by MIN_GAIN) than the
-    best within reach, in words (None: nothing does). A ReachWarning when the robot cannot even
-    reach a quarter loop, or the obstacles hold it at the edge of its free interval; a far loop
-    beyond the travel budget (on a long span) is only noted: few sensors rank far loops poorly,
-    and the trip would cost most of the run."""
+    best within reach, in words (None: nothing does). ``reaches``: the decision's reach and the
+    limits' alone (half the rest of the run, without the quiet end). A ReachWarning when the
+    limits let the robot reach less than a quarter loop, or the obstacles hold it at the edge
+    of its free interval; a far loop beyond the travel budget (on a long span, or late in the
+    run) is only noted: few sensors rank far loops poorly, and the trip would cost most of the
+    run."""
     half, length = settings.limits.length / 2, line.span.length
     if bounds == (half, length - half):   # no obstacle: the choice's own prediction covers it
         anywhere = pick_target(choice.grid, choice.predicted, choice.predicted_here,
@@ -406,13 +406,14 @@ def _out_of_reach(choice, shape: np.ndarray, line: _Line, robot: MDR, settings: 
             f"[{bounds[0]:.4g}, {bounds[1]:.4g}] m.", ReachWarning, stacklevel=4)
         return f"blocked by an obstacle: {found}"
     loop = float(line.span.loop_length(omega / (2 * np.pi)))
-    if reach < 0.25 * loop:
+    reach, limits_reach = reaches
+    if limits_reach < 0.25 * loop:
         warnings.warn(
             f"The robot cannot reach where it would damp best: {found}, but the 'limits' "
             f"(v_max={limits.v_max:g} m/s, a_max={limits.a_max:g} m/s^2, j_max={limits.j_max}) "
-            f"let it travel only {reach:.3g} m (a quarter loop is {0.25 * loop:.3g} m) in half "
-            f"the rest of the {settings.duration:g} s run ('duration'), moves ending before its "
-            "last quarter: raise the limits or lengthen the run.", ReachWarning, stacklevel=4)
+            f"let it travel only {limits_reach:.3g} m (a quarter loop is {0.25 * loop:.3g} m) "
+            f"in half the rest of the {settings.duration:g} s run ('duration'): raise the "
+            "limits or lengthen the run.", ReachWarning, stacklevel=4)
     return f"beyond the travel budget ({reach:.3g} m): {found}"
 
 
@@ -689,7 +690,7 @@ def run_closed_loop(
     loop_length = float(span.loop_length(frequencies[-1])) if frequencies else float("nan")
     settling = settling_of(records, t, segments, n_cal, loop_length, settings.settle_margin)
     loop_power = damper_power(line.plant, robot, records.plant_states, records.position)
-    travel_time = TRAVEL_FRACTION * (t[-1] - t[n_cal - 1])
+    travel_time = travel_budget(t[n_cal - 1], t[0], t[-1])
     bounds = free_interval(robot.position, limits, span.length, settings.obstacles)
     displacement = nodal_field(line.plant, records.plant_states, line.residual, records.position)
     baseline = nodal_field(line.plant, calibrated.start_states, line.residual, robot.position)

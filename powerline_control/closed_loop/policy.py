@@ -186,11 +186,14 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
     reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach]
     if not reachable:
         # No minimum within reach: the best the robot can reach lies on the way down to one,
-        # at the edge of its reach (or it stays).
-        within = np.flatnonzero(np.abs(grid - robot_position) <= reach)
-        if within.size == 0 or predicted[within].min() >= here:
+        # at the edge of its reach (or it stays). A support end is no such place (see above).
+        within = np.abs(grid - robot_position) <= reach
+        within[0] &= obstacle_ends[0]
+        within[-1] &= obstacle_ends[1]
+        candidates = np.flatnonzero(within & np.isfinite(predicted))
+        if candidates.size == 0 or predicted[candidates].min() >= here:
             return stay
-        best = within[np.argmin(predicted[within])]
+        best = candidates[np.argmin(predicted[candidates])]
         return Choice(float(grid[best]), read_only(grid), read_only(predicted), here)
     lowest = min(predicted[i] for i in reachable)
     good = [i for i in reachable if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
@@ -203,6 +206,8 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
         position = float(grid[pick] + offset * (grid[1] - grid[0]))
     else:
         position = float(grid[pick])
+    # the parabola's vertex may lie up to half a grid step beyond the reach
+    position = float(np.clip(position, robot_position - reach, robot_position + reach))
     return Choice(position, read_only(grid), read_only(predicted), here)
 
 
@@ -294,6 +299,17 @@ def obstacle_ends(bounds: tuple[float, float], obstacles, body_length: float) ->
     half = body_length / 2
     return (any(abs(right + half - bounds[0]) < 1e-9 for _, right in obstacles),
             any(abs(left - half - bounds[1]) < 1e-9 for left, _ in obstacles))
+
+
+def quiet_from(start: float, end: float) -> float:
+    """When the part of a run [start, end] (s) without moves begins: its last QUIET_FRACTION."""
+    return start + (1 - QUIET_FRACTION) * (end - start)
+
+
+def travel_budget(now: float, start: float, end: float) -> float:
+    """Time (s) a decision at ``now`` in a run [start, end] may spend travelling: half of what
+    is left (TRAVEL_FRACTION), and a move must end before the quiet end (:func:`quiet_from`)."""
+    return max(min(TRAVEL_FRACTION * (end - now), quiet_from(start, end) - now), 0.0)
 
 
 def tone_wait(now: float, begun: float, resolve: float, end: float) -> bool:

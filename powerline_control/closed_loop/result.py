@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from .policy import quiet_from
 
 
 @dataclass(frozen=True)
@@ -210,9 +211,9 @@ class ClosedLoopResult:
 
     @property
     def last_quarter_range(self) -> float:
-        """Range of the robot's position over the last quarter of the run, in loops (the robot
-        has settled when it is at most 0.02)."""
-        last = self.t >= self.t[0] + 0.75 * (self.t[-1] - self.t[0])
+        """Range of the robot's position over the last quarter of the run (the policy's quiet
+        end, where no move is made), in loops (the robot has settled when it is at most 0.02)."""
+        last = self.t >= quiet_from(self.t[0], self.t[-1])
         return float(np.ptp(self.robot_position[last]) / self.loop_length)
 
     @property

@@ -498,7 +498,7 @@ def _plan(scenario: Scenario, records: Records, layouts: dict, model, tuning: Tu
     import numpy as np
 
     from ..antinode import locate_antinodes, nearest_antinode
-    from ..closed_loop.policy import TRAVEL_FRACTION, choose_parked_position
+    from ..closed_loop.policy import choose_parked_position, travel_budget
     from ..plan import RobotLimits, plan_motion
 
     snap, n_train = records.test, records.n_train
@@ -511,7 +511,7 @@ def _plan(scenario: Scenario, records: Records, layouts: dict, model, tuning: Tu
     limits = RobotLimits(v_max=robot.v_max, a_max=robot.a_max)
     travel = float("inf")
     if robot.closed_loop > 0:
-        travel = TRAVEL_FRACTION * (robot.closed_loop - closed_loop_timing(scenario)[1])
+        travel = travel_budget(closed_loop_timing(scenario)[1], 0.0, robot.closed_loop)
     # The closed loop's own targeting rule on the whole held-out estimate (its resolution,
     # 1 / length, must tell the load's line from a natural frequency's ringing next to it).
     choice = choose_parked_position(model, estimate.field, snap.dt, tuning.robot, robot.start,
