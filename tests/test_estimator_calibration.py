@@ -139,15 +139,14 @@ def test_records_set_the_level_when_the_held_out_part_is_too_short(lab_records):
 
 
 def test_records_set_the_level_when_the_partial_model_fails(lab_records, monkeypatch):
-    """The model of the training part failing (no partial filter) leaves the records' level,
-    which needs no partial filter, unchanged: equal to the level with it."""
+    """The model of the training part failing (no partial filter) still leaves the records'
+    level, which needs no partial filter: it meets its defining property."""
     import sys
 
     from powerline_control.recipe import dmd
 
     _, rec, other = lab_records
     options = dict(n_sensors=3, seed=0, delays=4, rank=12, model_error_records=other)
-    reference = plc.design_estimator(rec, **options)
     original = dmd._sweep_model
 
     def failing(*args, **kwargs):
@@ -161,7 +160,6 @@ def test_records_set_the_level_when_the_partial_model_fails(lab_records, monkeyp
     # covariance_scale falls back without the partial model; the records' level is measured
     # on the shipped filter of that scale, so it still meets its defining property.
     _assert_level_defined_by(design, other)
-    assert reference.n_model_error_records == 1
 
 
 def test_records_without_error_above_their_noise_warn_and_floor_the_terms(lab_records):
