@@ -102,5 +102,12 @@ class SaturationWarning(UserWarning):
     largest (or smallest) value, flat tops that a model or filter takes for the motion."""
 
 
+class ModelErrorRecordsWarning(UserWarning):
+    """Records of other load histories given to set an estimator's model-error level
+    (``design_estimator``'s ``model_error_records``) cannot be used as given: a modal design
+    that has no model-error terms, no unmeasured node to measure the error at, sensor noise
+    unlike the training record's, or no model error above that noise."""
+
+
 __all__ += ["UndetectableModeWarning", "ExcitationWarning", "ReachWarning",
-            "EstimatorInconsistentWarning", "SaturationWarning"]
+            "EstimatorInconsistentWarning", "SaturationWarning", "ModelErrorRecordsWarning"]

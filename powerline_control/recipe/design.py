@@ -47,6 +47,7 @@ from .._validation import (
 from ..errors import (
     IdentificationError,
     InputError,
+    ModelErrorRecordsWarning,
     SaturationWarning,
 )
 from .defaults import (
@@ -152,15 +153,23 @@ def design_estimator(
         windowed NIS test (``Estimate.consistency`` reports the test either way).
     model_error_records : Snapshots or sequence of Snapshots, optional
         Records of every node under other load histories (new random loads, another run), at
-        the same node positions and sample time. The level of the model-error terms
-        (:attr:`EstimatorDesign.field_variance_scale` and ``field_relative_variance``) is then
-        measured on them, pooled, with the final filter, instead of on the held-out part of the
-        record: that part continues the training record's load histories, and on a line that
-        rings longer than the record it understates the error on new ones (Drake 300 m, 24
-        sensors: reported over actual sigma 0.60-0.72 on five new runs; 0.87-1.04 with two such
-        records, ``docs/estimation.md``). Each record's sensor noise is its own ``noise_std``,
-        else estimated from its singular values. The DMD model only (the modal model of a
-        narrowband record has no model-error terms).
+        the same node positions and sample time, **with the training record's sensor noise**
+        (the same sensors: the level subtracts each record's noise variance from its error, so
+        a record noisier or cleaner than its stated or estimated noise std biases the level).
+        The level of the model-error terms (:attr:`EstimatorDesign.field_variance_scale` and
+        ``field_relative_variance``) is then measured on them, pooled, with the final filter,
+        instead of on the held-out part of the record: that part continues the training
+        record's load histories, and on a line that rings longer than the record it understates
+        the error on new ones (Drake 300 m, 24 sensors: reported over actual sigma 0.60-0.72 on
+        five new runs; 0.87-1.04 with two such records, ``docs/estimation.md``). Each record's
+        sensor noise std is its own positive ``noise_std``, else estimated from its singular
+        values (a Snapshots' ``noise_std`` of 0 means unknown, for these records as for
+        ``snapshots``; only the ``noise_std`` parameter of 0 means noise-free). The DMD model
+        only: the modal model of a narrowband record has no model-error terms, so
+        ``method="modal"`` with records raises :class:`~powerline_control.errors.InputError`
+        and ``method="auto"`` choosing the modal model warns
+        :class:`~powerline_control.errors.ModelErrorRecordsWarning` (the records are then not
+        used).
 
     Returns
     -------
@@ -171,8 +180,8 @@ def design_estimator(
     ------
     InputError
         Bad arguments (named), a record too short for ``delays`` and ``horizon``, a
-        ``model_error_records`` record of other node positions or sample time, or a problem
-        over the memory budget.
+        ``model_error_records`` record of other node positions or sample time,
+        ``model_error_records`` with ``method="modal"``, or a problem over the memory budget.
     IdentificationError
         No dynamics in the data.
 
@@ -185,10 +194,31 @@ def design_estimator(
     ExcitationWarning
         The record is narrowband (not persistently exciting): the design knows only the modes
         among its spectral lines.
+    ModelErrorRecordsWarning
+        ``model_error_records`` that cannot be used as given: a record whose sensor noise std
+        (given or estimated) differs from the training record's by more than 1.5x; records
+        dropped because ``method="auto"`` chose the modal model or no moving node is left
+        unmeasured; records on which the estimate's error at the unmeasured nodes is no larger
+        than their noise (the model-error terms are then set to their floor).
 
     Examples
     --------
-    See :class:`EstimatorDesign`.
+    A lab span under two broadband loads; the level of the model-error terms from a record of
+    other load histories with the same sensor noise:
+
+    >>> import powerline_control as plc
+    >>> model = plc.LineModel(plc.Span.paper_lab(), n_elements=20)
+    >>> def loads(seed):
+    ...     return [plc.RandomForce(1.0, 0.9, 80.0, seed=seed),
+    ...             plc.RandomForce(1.0, 2.6, 80.0, seed=seed + 1)]
+    >>> rec = plc.simulate(model, loads(3), 3.0, 1e-3, noise_fraction=0.01, seed=0)
+    >>> other = plc.simulate(model, loads(23), 2.0, 1e-3, noise_std=rec.noise_std, seed=7)
+    >>> design = plc.design_estimator(rec, n_sensors=3, seed=0, delays=4, rank=12,
+    ...                               model_error_records=other)
+    >>> design.sensors.size, design.n_model_error_records
+    (3, 1)
+
+    See also :class:`EstimatorDesign`.
     """
     rec = _prepare(snapshots, n_sensors, dt=dt, delays=delays, rank=rank,
                    spatial_rank=spatial_rank, noise_std=noise_std, sensors=sensors,
@@ -205,8 +235,34 @@ def design_estimator(
                                      and rec.excitation.occupancy < _NARROWBAND_OCCUPANCY):
             design = _modal_design(rec)
             if design is not None:
+                if rec.others:
+                    warnings.warn(
+                        f"The 'model_error_records' parameter ({len(rec.others)} record(s)) was "
+                        "not used: method='auto' chose the modal model for this narrowband "
+                        "record, which has no model-error terms. Pass method='dmd' to set their "
+                        "level from the records.", ModelErrorRecordsWarning, stacklevel=2)
                 return design
         return _dmd_design(rec, alphas)
+
+
+#: A model-error record whose sensor noise std differs from the training record's by more than
+#: this factor (either way) warns: the level subtracts the record's noise variance.
+_NOISE_MISMATCH = 1.5
+
+
+def _warn_noise_mismatch(others_noise, data_noise: float, source: str) -> None:
+    """Warn :class:`ModelErrorRecordsWarning` for each ``model_error_records`` record whose noise
+    std is not within ``_NOISE_MISMATCH`` of the training record's ``data_noise``."""
+    for i, sigma in enumerate(others_noise):
+        low, high = sorted((sigma, data_noise))
+        if high > _NOISE_MISMATCH * low:
+            warnings.warn(
+                f"The 'model_error_records' parameter's record {i} has sensor noise std "
+                f"{sigma:.3g} m (its own or estimated), the training record {data_noise:.3g} m "
+                f"({source}): more than {_NOISE_MISMATCH:g}x apart. The records must carry the "
+                "training record's sensor noise (the same sensors) for their level to hold; give "
+                "records of the same sensors, or set their noise_std to the noise they carry.",
+                ModelErrorRecordsWarning, stacklevel=4)
 
 
 def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std, sensors,
@@ -237,6 +293,12 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
         noise_std = _check_noise_std(noise_std, float(np.sqrt(np.mean(X**2))))
     others, others_noise = _other_records(model_error_records, "model_error_records", positions,
                                           n_nodes, dt)
+    if others and method == "modal":
+        raise InputError(
+            f"The 'model_error_records' parameter sets the level of the DMD model's model-error "
+            f"terms, which the modal model has none of. Got {len(others)} record(s) with "
+            "method='modal'; leave them out, or use method='dmd' (or 'auto')."
+        )
     check_budget(
         "design_estimator's spatial Gram matrix and projection",
         nbytes=8.0 * (min(n_nodes, n_samples) ** 2 + 3 * spatial_rank * delays * n_samples),
@@ -279,6 +341,7 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
     data_noise = noise  # what the held-out measurements actually carry
     q_floor = _Q_FLOOR_FRACTION * rms**2
     noise = max(noise, 1e-4 * rms)  # noise-free data still needs a well-posed Riccati equation
+    _warn_noise_mismatch(others_noise, data_noise, source)
 
     # 3. Candidates: every node that moves; a provisional layout for the alpha sweep.
     node_rms = np.sqrt(np.mean(X**2, axis=1))

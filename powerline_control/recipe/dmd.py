@@ -28,6 +28,7 @@ from ..errors import (
     IdentificationError,
     IllConditionedWarning,
     InputError,
+    ModelErrorRecordsWarning,
 )
 from ..estimate import (
     DEFAULT_CONSISTENCY_WINDOW,
@@ -255,37 +256,103 @@ def _field_error_model(X: np.ndarray, kf, partial_kf, n_fit: int, candidates: np
     """
     unmeasured = np.setdiff1d(candidates, sensors)
     window = DEFAULT_CONSISTENCY_WINDOW
-    if unmeasured.size == 0 or n_fit <= window or X.shape[1] - n_fit <= window:
+    if others:
+        return _records_error_model(X, kf, unmeasured, sensors, data_noise, others,
+                                    others_noise)
+    if (unmeasured.size == 0 or partial_kf is None or n_fit <= window
+            or X.shape[1] - n_fit <= window):
         return 1.0, 0.0, 0
     try:
-        error2, reported, power = _unmeasured_error(kf, X, unmeasured, sensors, data_noise)
-        # What sets the level: kf on the other records from their second window on, else the
-        # model of the first part on the held-out samples.
-        if others:
-            level_runs = [(_unmeasured_error(kf, other, unmeasured, sensors, sigma), window)
-                          for other, sigma in zip(others, others_noise, strict=True)]
-        else:
-            level_runs = [(_unmeasured_error(partial_kf, X, unmeasured, sensors, data_noise),
-                           n_fit)]
+        coef = _error_shape(kf, X, unmeasured, sensors, data_noise)
+        level_runs = [(_unmeasured_error(partial_kf, X, unmeasured, sensors, data_noise), n_fit)]
     except (EstimationError, np.linalg.LinAlgError):  # pragma: no cover - the design's filter
         return 1.0, 0.0, 0
+    if coef is None:
+        return 1.0, 0.0, 0
+    predicted, actual = _pooled_level(coef, level_runs)
+    if not (predicted > 0 and actual > 0):
+        return 1.0, 0.0, 0
+    level = actual / predicted
+    return (float(np.clip(level * coef[0], _FIELD_SCALE_MIN, _FIELD_SCALE_MAX)),
+            float(level * coef[1]), 0)
+
+
+def _error_shape(kf, X: np.ndarray, unmeasured: np.ndarray, sensors: np.ndarray,
+                 data_noise: float) -> np.ndarray | None:
+    """``(a, b)`` of the error model ``a * v + b * m(t)`` fitted by NNLS on ``kf`` filtering
+    the whole record ``X`` (see :func:`_field_error_model`); None when the record cannot fit
+    it (no reported variance, too few samples after the first window)."""
+    window = DEFAULT_CONSISTENCY_WINDOW
+    error2, reported, power = _unmeasured_error(kf, X, unmeasured, sensors, data_noise)
     kept = np.isfinite(error2) & np.isfinite(power)
     kept[:window] = False
     if not (reported > 0 and np.count_nonzero(kept) > window):
-        return 1.0, 0.0, 0
+        return None
     # Columns scaled to unit RMS so that NNLS is not steered by their units.
     columns = np.column_stack([np.full(np.count_nonzero(kept), reported), power[kept]])
     norms = np.sqrt(np.mean(columns**2, axis=0))
     norms[norms == 0] = 1.0
-    coef = sopt.nnls(columns / norms, error2[kept])[0] / norms
+    return sopt.nnls(columns / norms, error2[kept])[0] / norms
+
+
+def _pooled_level(coef: np.ndarray, level_runs) -> tuple[float, float]:
+    """(predicted, actual) error variance summed over the samples of ``level_runs`` (each the
+    :func:`_unmeasured_error` of a run and the first sample that counts)."""
     predicted = actual = 0.0
     for (run2, run_reported, run_power), start in level_runs:
         used = np.isfinite(run2) & np.isfinite(run_power)
         used[:start] = False
         predicted += float(np.sum(coef[0] * run_reported + coef[1] * run_power[used]))
         actual += float(np.sum(run2[used]))
-    if not (predicted > 0 and actual > 0):
+    return predicted, actual
+
+
+def _records_error_model(X: np.ndarray, kf, unmeasured: np.ndarray, sensors: np.ndarray,
+                         data_noise: float, others, others_noise) -> tuple[float, float, int]:
+    """:func:`_field_error_model` with ``model_error_records``: the level from ``kf`` on the
+    records alone (no model of part of the record, no held-out part needed). The shape is
+    fitted on the training record; where it cannot be (or is zero) the reported variance alone
+    (``a = 1, b = 0``) takes the level. Where the records give no level, warns
+    :class:`~powerline_control.errors.ModelErrorRecordsWarning` (naming why and what would
+    work) and reports (1, 0, 0): no unmeasured moving node, or the filter fails. Records whose
+    error at the unmeasured nodes is no larger than their sensor noise measure a model error
+    below it: the terms are then set to their floor (scale ``_FIELD_SCALE_MIN``, relative 0),
+    with a warning, since a record noise std set too high reads the same."""
+    window = DEFAULT_CONSISTENCY_WINDOW
+    name = "The 'model_error_records' parameter"
+    if unmeasured.size == 0:
+        warnings.warn(f"{name} was not used: every moving node of the training record is a "
+                      f"sensor ({sensors.size}), so there is no unmeasured node to measure the "
+                      "model error at. Choose fewer sensors to use the records.",
+                      ModelErrorRecordsWarning, stacklevel=5)
         return 1.0, 0.0, 0
+    try:
+        coef = _error_shape(kf, X, unmeasured, sensors, data_noise)
+        level_runs = [(_unmeasured_error(kf, other, unmeasured, sensors, sigma), window)
+                      for other, sigma in zip(others, others_noise, strict=True)]
+    except (EstimationError, np.linalg.LinAlgError) as exc:  # pragma: no cover
+        warnings.warn(f"{name} was not used: the designed filter failed on them ({exc}). "
+                      "Give records of the same line and sensors without gaps.",
+                      ModelErrorRecordsWarning, stacklevel=5)
+        return 1.0, 0.0, 0
+    if coef is None or not np.any(coef > 0):
+        coef = np.array([1.0, 0.0])
+    predicted, actual = _pooled_level(coef, level_runs)
+    if not predicted > 0:  # pragma: no cover - a steady filter reports a positive variance
+        warnings.warn(f"{name} was not used: the filter reports no error variance at the "
+                      "unmeasured nodes on them.", ModelErrorRecordsWarning, stacklevel=5)
+        return 1.0, 0.0, 0
+    if not actual > 0:
+        n_used = sum(int(np.count_nonzero(np.isfinite(r[0][window:]))) for r, _ in level_runs)
+        warnings.warn(
+            f"{name}: on its {len(others)} record(s) the error of the estimate at the "
+            f"unmeasured nodes is no larger than their sensor noise (mean error variance minus "
+            f"noise variance {actual / max(n_used, 1):.3g} m^2, noise std "
+            f"{', '.join(f'{s:.3g}' for s in others_noise)} m): the model error is below the "
+            "noise there, and the model-error terms are set to their floor. If the records' "
+            "noise_std overstates their noise, give the true one; records of broader loads "
+            "measure more error.", ModelErrorRecordsWarning, stacklevel=5)
+        return _FIELD_SCALE_MIN, 0.0, len(others)
     level = actual / predicted
     return (float(np.clip(level * coef[0], _FIELD_SCALE_MIN, _FIELD_SCALE_MAX)),
             float(level * coef[1]), len(others))
@@ -385,7 +452,7 @@ def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
                                                                     noise, q_floor, scale)
     except _MODEL_FAILURES:
         partial = None
-    if partial is not None:
+    if partial is not None or rec.others:  # the records' level needs no partial filter
         field_scale, field_relative, level_records = _field_error_model(
             X, _steady_filter(model, chosen, noise, q_floor, scale), partial, n_fit,
             rec.candidates, chosen, rec.data_noise, rec.others, rec.others_noise)
@@ -411,5 +478,5 @@ def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
         field_variance_scale=field_scale,
         field_relative_variance=field_relative,
         innovation_growth=growth,
-        model_error_records=level_records,
+        n_model_error_records=level_records,
     )

@@ -45,7 +45,10 @@ def _check_noise_std(noise_std: object, rms: float) -> float:
 
 
 def _snapshot_matrix(snapshots: object, dt: object) -> tuple[np.ndarray, float, float, object]:
-    """(X, dt, noise_std or nan, positions or None) from Snapshots or an array."""
+    """(X, dt, noise_std or nan, positions or None) from Snapshots or an array. A Snapshots'
+    ``noise_std`` of 0 (or NaN) reads as unknown (nan): the one rule for every record's own
+    noise std (also :func:`_other_records`); only a ``noise_std`` parameter of 0 means
+    noise-free."""
     if hasattr(snapshots, "displacement") and hasattr(snapshots, "dt"):
         X = check_snapshot_matrix("snapshots.displacement", snapshots.displacement)
         given_dt = float(snapshots.dt)
@@ -125,8 +128,10 @@ def _other_records(records, name: str, positions, n_nodes: int, dt: float, *, no
     """(displacement, noise std) of each record of every node under other load histories passed
     as the parameter ``name`` (``[], []`` for None), checked against the main record's nodes
     (their positions when both records carry them) and sample time. The noise std is
-    ``noise_std`` (the parameter ``noise_name``: one for all or one per record) when given,
-    else each record's own ``noise_std``, else estimated from its singular values."""
+    ``noise_std`` (the parameter ``noise_name``: one for all or one per record) when given (0
+    then means noise-free), else each record's own positive ``noise_std``, else estimated from
+    its singular values: a record's own ``noise_std`` of 0 (or NaN) means unknown, as it does
+    for the training record (:func:`_snapshot_matrix`)."""
     if records is None:
         if noise_std is not None:
             raise InputError(f"The '{noise_name}' parameter needs '{name}' records. Got "
@@ -155,7 +160,7 @@ def _other_records(records, name: str, positions, n_nodes: int, dt: float, *, no
             sigmas.append(levels[i])
         else:
             own = float(getattr(rec, "noise_std", math.nan))
-            sigmas.append(own if math.isfinite(own) and own >= 0 else _record_noise_std(x))
+            sigmas.append(own if math.isfinite(own) and own > 0 else _record_noise_std(x))
         out.append(x)
     return out, sigmas
 

@@ -130,7 +130,7 @@ class EstimatorDesign:
         ``S`` there; once a record's field at the sensors rises above that level, the
         consistency test's ``S`` grows with it (an identified model's one-step error is a share
         of the field). ``None`` when not measured (the modal model, short records).
-    model_error_records : int
+    n_model_error_records : int
         How many records of other load histories (``design_estimator``'s
         ``model_error_records``) set the level of ``field_variance_scale`` and
         ``field_relative_variance``; 0 when the held-out part of the training record set it
@@ -166,7 +166,7 @@ class EstimatorDesign:
     field_variance_scale: float = 1.0
     field_relative_variance: float = 0.0
     innovation_growth: tuple[float, float] | None = None
-    model_error_records: int = 0
+    n_model_error_records: int = 0
 
     @property
     def alpha_curve(self) -> AlphaSweep:
@@ -363,8 +363,8 @@ class EstimatorDesign:
                 "terms)."
             )
         if self.field_variance_scale != 1.0 or self.field_relative_variance != 0.0:
-            level = (f"its level on {self.model_error_records} record(s) of other load histories"
-                     if self.model_error_records else
+            level = (f"its level on {self.n_model_error_records} record(s) of other load histories"
+                     if self.n_model_error_records else
                      "its level on the held-out part, which continues the training loads")
             lines.append(
                 f"Model error at unmeasured nodes (shape fitted on the training record, {level}):"
