@@ -5,6 +5,10 @@ by the error of the resulting estimator at the nodes it does not measure on held
 it back to the nodes, pulls unstable eigenvalues inside the unit circle, and calibrates the
 filter's covariance on the held-out part and its field variance (the model error at unmeasured
 nodes) on the whole record.
+
+Test seam: ``_sweep_model``: made to fail in tests/test_estimator_calibration.py, to show that
+records of other load histories still set the model-error level when the partial model cannot
+be built (a fault no public input produces reliably).
 """
 
 from __future__ import annotations

@@ -5,7 +5,10 @@ noise, the noise floor of the singular values (Gavish-Donoho, with the Marchenko
 and the leading spatial POD modes through the node-by-node Gram matrix.
 
 Test seam: ``_marchenko_pastur_median`` and ``_noise_floor``: checked against quadrature of the
-Marchenko-Pastur density and against white noise of known std (tests/test_recipe.py).
+Marchenko-Pastur density and against white noise of known std (tests/test_recipe.py);
+``_other_records`` and ``_snapshot_matrix``: the one rule for a record's ``noise_std`` of 0
+(unknown, estimated) against a simulated noise of known std
+(tests/test_estimator_calibration.py).
 """
 
 from __future__ import annotations
