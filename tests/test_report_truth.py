@@ -435,19 +435,25 @@ def test_consistency_phases_count_every_tested_window_once_against_the_windows_t
     res = lab.closed_loop.result
     test = res.estimator_consistency
     t = np.asarray(res.t)
-    by_hand = {"calibration": [0, 0], "moving": [0, 0], "settled": [0, 0]}
+    by_hand = {"calibration": [0, 0, 0], "moving": [0, 0, 0], "settled": [0, 0, 0]}
     for k in range(1, test.window_start.size):   # window 0 holds the prior's transient
         first, last = t[test.window_start[k]], t[test.window_start[k] + test.window - 1]
         phase = ("calibration" if last <= res.calibration_time else
                  "settled" if first >= res.settled_window[0] else "moving")
-        by_hand[phase][0] += int(k in set(test.rejected.tolist()))
-        by_hand[phase][1] += 1
+        rejected = k in set(test.rejected.tolist())
+        high = test.window_nis[k] > test.window_bounds[k, 1]
+        by_hand[phase][0] += int(rejected and high)
+        by_hand[phase][1] += int(rejected and not high)
+        by_hand[phase][2] += 1
     phases = consistency_by_phase(res)
     assert phases == {name: tuple(v) for name, v in by_hand.items()}
-    assert sum(n for _, n in phases.values()) == test.n_tested
+    assert sum(n for *_, n in phases.values()) == test.n_tested
+    assert sum(a + b for a, b, _ in phases.values()) == test.rejected.size
     row = next(value for s in lab.sections() for label, value, *_ in s["rows"]
                if label == "estimator consistency")
-    for name, (bad, n) in phases.items():
-        assert (f"{name} {bad} of {n}" in row) == (n > 0), row
+    for name, (above, below, n) in phases.items():
+        assert (f"{name} {above} of {n}" in row.split("; below")[0]) == (n > 0), row
+        assert (f"{name} {below} of {n}" in row.split("; below")[1]) == (n > 0), row
     assert lab.to_json()["estimator_windows_rejected"]["moving"] == {
-        "rejected": phases["moving"][0], "tested": phases["moving"][1]}
+        "above": phases["moving"][0], "below": phases["moving"][1],
+        "rejected": phases["moving"][0] + phases["moving"][1], "tested": phases["moving"][2]}

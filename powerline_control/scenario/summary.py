@@ -410,11 +410,14 @@ def _plan_agreement(plan, result, final: float) -> str:
 
 
 def consistency_by_phase(result) -> dict:
-    """The closed loop's windowed NIS rejections, counted in each phase of the run.
+    """The closed loop's windowed NIS verdicts, counted in each phase of the run.
 
     The filter's model is identified with the robot parked at its start, so windows while the
     robot moves (it damps the line differently at every position) are expected to reject; a
-    rejection while parked or after it settled says the model does not fit the line.
+    window above its bound while parked or after it settled says the model does not fit the
+    line. A window *below* its bound says the opposite: the filter is pessimistic (its
+    innovations are smaller than it predicts), which is no sign of a wrong estimate; the two are
+    counted apart.
 
     Parameters
     ----------
@@ -424,19 +427,22 @@ def consistency_by_phase(result) -> dict:
     Returns
     -------
     dict
-        ``{phase: (windows rejected, windows tested)}`` for "calibration" (parked at the start),
-        "moving" and "settled" (the settled window); empty when no window was tested.
+        ``{phase: (windows above, windows below, windows tested)}`` for "calibration" (parked at
+        the start), "moving" and "settled" (the settled window); empty when no window was
+        tested.
 
     Examples
     --------
     >>> import numpy as np
     >>> from types import SimpleNamespace
+    >>> nis = np.array([3.0, 1.0, 0.5, 1.0, 1.0, 2.0, 1.0, 1.0, 1.0, 1.0])
     >>> test = SimpleNamespace(window=100, window_start=np.arange(10) * 100,
-    ...                        tested=np.arange(10) > 0, rejected=np.array([5]))
+    ...                        tested=np.arange(10) > 0, window_nis=nis,
+    ...                        window_bounds=np.tile([0.8, 1.2], (10, 1)))
     >>> run = SimpleNamespace(estimator_consistency=test, t=np.arange(1000) * 0.01,
     ...                       calibration_time=3.0, settled_window=(7.0, 9.99))
     >>> consistency_by_phase(run)
-    {'calibration': (0, 2), 'moving': (1, 4), 'settled': (0, 3)}
+    {'calibration': (0, 1, 2), 'moving': (1, 0, 4), 'settled': (0, 0, 3)}
     """
     import numpy as np
 
@@ -447,13 +453,15 @@ def consistency_by_phase(result) -> dict:
     ends = dt * (np.asarray(test.window_start) + test.window - 1)   # a window's last sample
     starts = dt * np.asarray(test.window_start)
     tested = np.asarray(test.tested, dtype=bool)
-    rejected = np.zeros(tested.size, bool)
-    rejected[np.asarray(test.rejected, dtype=int)] = True
+    nis, bounds = np.asarray(test.window_nis), np.asarray(test.window_bounds)
+    with np.errstate(invalid="ignore"):
+        above = tested & (nis > bounds[:, 1])
+        below = tested & (nis < bounds[:, 0])
     settle_start = float(result.settled_window[0])
     phases = {"calibration": ends <= result.calibration_time,
               "settled": starts >= max(settle_start, result.calibration_time)}
     phases["moving"] = ~phases["calibration"] & ~phases["settled"]
-    return {name: (int(np.sum(rejected & tested & phases[name])),
+    return {name: (int(np.sum(above & phases[name])), int(np.sum(below & phases[name])),
                    int(np.sum(tested & phases[name])))
             for name in ("calibration", "moving", "settled")}
 
@@ -462,10 +470,12 @@ def _consistency_text(result) -> str:
     test = result.estimator_consistency
     if test is None:
         return "no complete window"
-    counts = ", ".join(f"{name} {bad} of {n}" for name, (bad, n)
-                       in consistency_by_phase(result).items() if n)
+    phases = {name: counts for name, counts in consistency_by_phase(result).items() if counts[2]}
+    above = ", ".join(f"{name} {n_above} of {n}" for name, (n_above, _, n) in phases.items())
+    below = ", ".join(f"{name} {n_below} of {n}" for name, (_, n_below, n) in phases.items())
     return (("consistent" if test.consistent else "INCONSISTENT")
-            + f" over the run (windowed NIS); windows rejected: {counts}")
+            + f" over the run (windowed NIS); windows above their bound (larger innovations "
+            f"than the model predicts): {above}; below it (the filter pessimistic): {below}")
 
 
 def _closed_loop_section(r) -> dict:

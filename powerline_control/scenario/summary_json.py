@@ -122,8 +122,9 @@ def result_json(result) -> dict:
                    estimator_consistent=None if res.estimator_consistency is None
                    else bool(res.estimator_consistency.consistent),
                    estimator_windows_rejected={
-                       phase: {"rejected": bad, "tested": n}
-                       for phase, (bad, n) in consistency_by_phase(res).items()})
+                       phase: {"above": above, "below": below, "rejected": above + below,
+                               "tested": n}
+                       for phase, (above, below, n) in consistency_by_phase(res).items()})
     if r.severity is not None:
         bare, robot = r.severity.bare, r.severity.robot
         out["outer_strand_diameter_m"] = _f(r.severity.outer_strand_diameter)
