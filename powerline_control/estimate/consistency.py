@@ -93,6 +93,9 @@ class Consistency:
         Two-sided 1 % bounds of each window's mean NIS, ``(n_windows, 2)``.
     rejected : numpy.ndarray
         Indices of the tested windows whose mean NIS lies outside its bounds (int).
+    above : numpy.ndarray
+        Which windows were rejected *above* their bounds (larger innovations than the model
+        predicts), ``(n_windows,)`` bool; the rest of ``rejected`` lies below.
     tested : numpy.ndarray
         Which windows were tested, ``(n_windows,)`` bool (see ``n_tested``).
     n_tested : int
@@ -169,6 +172,7 @@ class Consistency:
     window_bounds: np.ndarray = dataclasses.field(
         default_factory=lambda: read_only(np.zeros((0, 2))))
     rejected: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, int)))
+    above: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, bool)))
     tested: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, bool)))
     n_tested: int = 0
     consistent: bool = True
@@ -244,6 +248,7 @@ def _window_test(sums: np.ndarray, counts: np.ndarray, used: np.ndarray, window:
         "window_dof": read_only(dof),
         "window_bounds": read_only(bounds),
         "rejected": read_only(rejected),
+        "above": read_only(above),
         "tested": read_only(tested),
         "n_tested": n_tested,
         "consistent": bool(int(above.sum()) <= allowed),

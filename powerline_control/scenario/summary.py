@@ -435,10 +435,9 @@ def consistency_by_phase(result) -> dict:
     --------
     >>> import numpy as np
     >>> from types import SimpleNamespace
-    >>> nis = np.array([3.0, 1.0, 0.5, 1.0, 1.0, 2.0, 1.0, 1.0, 1.0, 1.0])
     >>> test = SimpleNamespace(window=100, window_start=np.arange(10) * 100,
-    ...                        tested=np.arange(10) > 0, window_nis=nis,
-    ...                        window_bounds=np.tile([0.8, 1.2], (10, 1)))
+    ...                        tested=np.arange(10) > 0, rejected=np.array([2, 5]),
+    ...                        above=np.arange(10) == 5)
     >>> run = SimpleNamespace(estimator_consistency=test, t=np.arange(1000) * 0.01,
     ...                       calibration_time=3.0, settled_window=(7.0, 9.99))
     >>> consistency_by_phase(run)
@@ -453,10 +452,10 @@ def consistency_by_phase(result) -> dict:
     ends = dt * (np.asarray(test.window_start) + test.window - 1)   # a window's last sample
     starts = dt * np.asarray(test.window_start)
     tested = np.asarray(test.tested, dtype=bool)
-    nis, bounds = np.asarray(test.window_nis), np.asarray(test.window_bounds)
-    with np.errstate(invalid="ignore"):
-        above = tested & (nis > bounds[:, 1])
-        below = tested & (nis < bounds[:, 0])
+    above = np.asarray(test.above, dtype=bool)
+    below = np.zeros(tested.size, bool)
+    below[np.asarray(test.rejected, dtype=int)] = True
+    below &= ~above
     settle_start = float(result.settled_window[0])
     phases = {"calibration": ends <= result.calibration_time,
               "settled": starts >= max(settle_start, result.calibration_time)}
