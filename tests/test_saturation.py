@@ -207,3 +207,30 @@ def test_dropping_the_support_channels_does_not_judge_the_record_again(lab):
     np.testing.assert_array_equal(inner.values, values[1:-1])
     np.testing.assert_array_equal(inner.positions, snap.x[1:-1])
     assert inner.n_missing == 0 and record.values.shape[0] == inner.values.shape[0] + 2
+
+
+def test_design_estimator_leaves_out_a_stuck_node_and_refuses_it_as_a_sensor(lab):
+    """A node of the training record that keeps one non-zero value (a stuck sensor at an offset)
+    has a large RMS, so the motion floor kept it as a candidate: it is named, left out of the
+    layout the recipe chooses, and refused when given as a sensor."""
+    _, snap = lab
+    values = np.array(snap.displacement)
+    values[NODE] = 2e-3   # larger than any displacement of the record
+    with pytest.warns(SaturationWarning, match=rf"node\(s\) \[{NODE}\] keep one non-zero value"):
+        design = plc.design_estimator(values, 3, dt=snap.dt, seed=0)
+    assert NODE not in design.sensors
+    with pytest.warns(SaturationWarning), pytest.raises(
+            plc.InputError, match=rf"'sensors' parameter holds nodes that do not move.*\[{NODE}\]"):
+        plc.design_estimator(values, 3, dt=snap.dt, sensors=[3, NODE, 12])
+
+
+def test_a_record_shorter_than_the_delays_need_names_the_record_not_a_default(lab):
+    """30 samples with the default delays: the error says the record is too short (it used to
+    say "'delays' must be <= 7", a parameter the user never gave), before any embedding."""
+    _, snap = lab
+    values = np.array(snap.displacement)[:, :30]
+    with pytest.raises(plc.InputError, match=r"record of 30 samples is too short for delays=8"):
+        plc.design_estimator(values, 3, dt=snap.dt)
+    with pytest.raises(plc.InputError, match=r"record of 4001 samples is too short for "
+                                             r"delays=2000: .* at least 8000"):
+        plc.design_estimator(np.array(snap.displacement), 3, dt=snap.dt, delays=2000)

@@ -273,7 +273,14 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
     X, dt, snap_noise, snap_positions = _snapshot_matrix(snapshots, dt)
     n_nodes, n_samples = X.shape
     n_sensors = check_int("n_sensors", n_sensors, low=1, high=n_nodes)
-    delays = check_int("delays", delays, low=1, high=max(1, n_samples // 4))
+    delays = check_int("delays", delays, low=1)
+    if 4 * delays > n_samples:   # before the delay embedding is built (the DMD design checks
+        raise InputError(        # each part of the record against it later)
+            f"The record of {n_samples} samples is too short for delays={delays}: the model "
+            f"needs at least {4 * delays} samples in each of its training and held-out parts. "
+            "Give a longer record (a few periods of the lowest mode of interest) or fewer "
+            "'delays'."
+        )
     spatial_rank = check_int("spatial_rank", spatial_rank, low=1)
     rank = check_int("rank", rank, low=1, high=spatial_rank * delays)
     criterion = check_choice("criterion", criterion, ("kalman", "gramian", "min-eig",
@@ -343,9 +350,17 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
     noise = max(noise, 1e-4 * rms)  # noise-free data still needs a well-posed Riccati equation
     _warn_noise_mismatch(others_noise, data_noise, source)
 
-    # 3. Candidates: every node that moves; a provisional layout for the alpha sweep.
+    # 3. Candidates: every node that moves; a provisional layout for the alpha sweep. A node
+    # that keeps one non-zero value (a stuck channel) reads nothing of the line, however large
+    # that value: it is no candidate, and refused as a sensor below.
     node_rms = np.sqrt(np.mean(X**2, axis=1))
-    candidates = np.flatnonzero(node_rms > _MOTIONLESS_FRACTION * node_rms.max())
+    stuck = np.all(X == X[:, :1], axis=1) & (X[:, 0] != 0)
+    if np.any(stuck):
+        warnings.warn(
+            f"The 'snapshots' parameter: node(s) {np.flatnonzero(stuck).tolist()} keep one "
+            f"non-zero value in every sample (e.g. {X[np.argmax(stuck), 0]:.6g} m): a stuck or "
+            "railed channel, left out of the sensor candidates.", SaturationWarning, stacklevel=3)
+    candidates = np.flatnonzero((node_rms > _MOTIONLESS_FRACTION * node_rms.max()) & ~stuck)
     if sensors is not None:
         given = np.sort(check_indices("sensors", sensors, n_nodes))
         # Motionless: below the RMS floor, or reading nothing but the noise (a support of a
