@@ -472,9 +472,13 @@ def _consistency_text(result) -> str:
     phases = {name: counts for name, counts in consistency_by_phase(result).items() if counts[2]}
     above = ", ".join(f"{name} {n_above} of {n}" for name, (n_above, _, n) in phases.items())
     below = ", ".join(f"{name} {n_below} of {n}" for name, (_, n_below, n) in phases.items())
+    moved_above = sum(phases[name][0] for name in ("moving", "settled") if name in phases)
+    cause = ("; the model was identified with the robot parked at its start, and the robot "
+             "damps the line differently elsewhere" if moved_above else "")
     return (("consistent" if test.consistent else "INCONSISTENT")
             + f" over the run (windowed NIS); windows above their bound (larger innovations "
-            f"than the model predicts): {above}; below it (the filter pessimistic): {below}")
+            f"than the model predicts): {above}; below it (the filter pessimistic): {below}"
+            + cause)
 
 
 def _closed_loop_section(r) -> dict:
