@@ -70,7 +70,8 @@ def table(split: str, n_designs: int, steady: bool = False) -> None:
     runs = [r for r in runs if r.kind != "steady"]
     missed = [r for r in runs if r.kind != "matched" and not r.warned]
     if missed:
-        print("missed: " + ", ".join(f"{r.case} seed {r.seed} {r.kind} (SNR {r.sensor_snr:.2g})"
+        print("missed: " + ", ".join(f"{r.case} seed {r.seed} {r.kind} (SNR {r.sensor_snr:.2g}, "
+                                     f"reported/actual sigma {r.reported_over_actual:.2f})"
                                      for r in missed))
     hidden = [r for r in runs if r.kind != "matched" and r.reported_over_actual < 1 / 1.5]
     print(f"mismatched runs whose actual error exceeds 1.5 x the reported sigma (wrong without "
