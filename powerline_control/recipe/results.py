@@ -129,7 +129,9 @@ class EstimatorDesign:
         held-out part where ``covariance_scale`` was matched, and the model error's share of
         ``S`` there; once a record's field at the sensors rises above that level, the
         consistency test's ``S`` grows with it (an identified model's one-step error is a share
-        of the field). ``None`` when not measured (the modal model, short records).
+        of the field). ``None`` when not measured (the modal model, short records). Not used
+        by a filter with a ``spectral_field_reference``, whose windowed test follows the field
+        per frequency instead.
     n_model_error_records : int
         How many records of other load histories (``design_estimator``'s
         ``model_error_records``) set the level of ``field_variance_scale`` and
@@ -372,7 +374,11 @@ class EstimatorDesign:
                 f"{self.field_relative_variance:.3g} x the running mean square of the estimate "
                 "(Estimate.field_variances)."
             )
-        if self.innovation_growth is not None:
+        if self.filter.spectral_field_reference is not None:
+            lines.append("The windowed NIS test's innovation covariance follows the field per "
+                         "frequency, as the spectral reference does (estimate._spectrum."
+                         "nis_growth).")
+        elif self.innovation_growth is not None:
             lines.append(
                 f"The consistency test's innovation covariance grows with the field above the "
                 f"held-out level ({self.innovation_growth[0]:.3g} m^2 at the sensors; model error "
