@@ -524,6 +524,64 @@ def test_windowed_nis_factor_by_hand():
     assert hand > 1.5                # the tone rang up above the reference here
     np.testing.assert_allclose(raw[1800:2000] / est.nis[1800:2000], hand, rtol=1e-10)
     assert whitening_factor(kf.innovation_covariance)[0, 0] == pytest.approx(np.sqrt(s))
+    # The same factor, by hand, on the field variances (model-error terms included).
+    field_map = np.array([[1.0, 0.0], [2.0, 0.5]])
+    mapped = KalmanFilter(sys, 1e-4 * np.eye(2), 3.0, steady_state=True,
+                          consistency_window=window, spectral_reference=reference,
+                          spectral_field_reference=(field, noise), field_map=field_map,
+                          field_variance_scale=2.5).filter(run)
+    riccati = np.diag(field_map @ mapped.covariance @ field_map.T)
+    np.testing.assert_allclose(mapped.field_growth[1800:2000], hand, rtol=1e-10)
+    np.testing.assert_allclose(mapped.field_variances[:, 1800:2000],
+                               2.5 * hand * riccati[:, None] * np.ones((1, 200)), rtol=1e-10)
+
+
+def test_field_sigma_follows_the_tone_that_grows_at_a_node_no_sensor_sees():
+    """Independent truth: a node no sensor sees moves as twice the sensor's noise-free signal, so
+    its error is twice the model's error there, mostly the tone the model lacks. The field
+    variance scale is matched on the training record against that truth (as the recipe does);
+    in the run the tone's amplitude doubles (2 -> 4), so the error variance at the node grows
+    about 4x while the innovations' expected NIS grows about 3x (noise 1 stays, the tone's 2
+    grows to 8). With the factor on S scaling the field variances too, the reported sigma stays
+    within 1.5x of the actual error; with a constant scale it falls to about half of it."""
+    from powerline_control.estimate import whitened_psd, whitening_factor
+    from powerline_control.estimate._spectrum import measurement_psd
+
+    window, q = 200, 1e-4 * np.eye(2)
+    k = np.arange(6000)
+    rng = np.random.default_rng(93)
+    low = 10 * np.sin(2 * np.pi * 0.05 * k + 0.3)
+    truth_train = low + 2 * np.sin(2 * np.pi * 0.2 * k)
+    truth_run = low + 4 * np.sin(2 * np.pi * 0.2 * k + 1.1)
+    train = (truth_train + rng.standard_normal(k.size))[None, :]
+    run = (truth_run + rng.standard_normal(k.size))[None, :]
+    sys = _tone_records(4.0, seed=93)[0]
+    field_map = np.array([[1.0, 0.0], [2.0, 0.0]])     # node 1: twice the sensor's signal
+    scale = float(np.mean(KalmanFilter(sys, q, 1.0, steady_state=True).filter(train)
+                          .nis[window:]))
+    plain = KalmanFilter(sys, scale * q, scale, steady_state=True, field_map=field_map)
+    est = plain.filter(train)
+    s = plain.innovation_covariance
+    white = whitening_factor(s)
+    reference, count = whitened_psd(est.innovations, white, discard=window)
+    field = measurement_psd(train, white, discard=window)
+    noise = float(scale * np.trace(np.linalg.inv(s)))
+    actual_train = np.mean((est.field[1, window:] - 2 * truth_train[window:]) ** 2)
+    level = actual_train / float(np.mean(est.field_variances[1, window:]))
+
+    def ratio(**kwargs):
+        kf = KalmanFilter(sys, scale * q, scale, steady_state=True, field_map=field_map,
+                          field_variance_scale=level, consistency_window=window, **kwargs)
+        out = kf.filter(run)
+        actual = np.mean((out.field[1, window:] - 2 * truth_run[window:]) ** 2)
+        return float(np.sqrt(np.mean(out.field_variances[1, window:]) / actual)), out
+
+    following, out = ratio(spectral_reference=reference, spectral_reference_count=count,
+                           spectral_field_reference=(field, noise))
+    constant, _ = ratio()
+    assert 1 / 1.5 < following < 1.5, following
+    assert constant < 1 / 1.5, constant       # the error grew ~4x in variance, the sigma not
+    assert np.mean(out.field_growth[window:]) == pytest.approx(3.0, rel=0.2)
 
 
 @pytest.mark.parametrize("kwargs, match", [

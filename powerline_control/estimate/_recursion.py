@@ -447,7 +447,8 @@ class _FilterInternals:
         the one place that chooses it. Per frequency with a field reference (one factor per
         consistency window, ``_spectrum.window_nis_growth``), else from the running mean
         square of the whole field at the sensors (``innovation_growth``; ``run.mean_square``
-        is carried on)."""
+        is carried on). :meth:`KalmanFilter.filter` scales its field variances by the
+        per-frequency factor too (``Estimate.field_growth``), not by the other."""
         if self._follows_spectrum:
             whitener = self._spectral_whitener(run)
             if whitener is None:

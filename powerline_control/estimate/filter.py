@@ -151,6 +151,8 @@ class KalmanFilter(_FilterInternals):
         NIS test follows the field alike, in :meth:`filter` and :meth:`step`: a window's ``S_k``
         is ``S`` times the mean following reference over the mean reference on the 1024
         samples up to its end (``estimate._spectrum.nis_growth``; ``innovation_growth`` unused).
+        :meth:`filter` scales its field variances (both model-error terms) by the same factor
+        (``Estimate.field_growth``): the model error grows at unseen nodes as at the sensors.
     field_variance_scale : float
         Factor ``> 0`` on the field variances the filter reports (``Estimate.field_variances``;
         the state covariance, the gain and the NIS are unchanged): the model error at nodes
@@ -743,6 +745,7 @@ class KalmanFilter(_FilterInternals):
         if factor is not None:  # S_k = S * factor_k: the model error that grows with the field
             nis = nis / factor
             whitened_innovations = innovations / np.sqrt(factor)
+        field_growth = factor if factor is not None and self._follows_spectrum else None
         if update_state:
             self._running = run
         field = None
@@ -756,6 +759,10 @@ class KalmanFilter(_FilterInternals):
             if self._fv_relative > 0:
                 field_variances = field_variances + self._fv_relative * running_mean_square(
                     field, self._mean_square_window)
+            if field_growth is not None:
+                # The model error at nodes no sensor sees grows as the innovations' does: the
+                # window's factor on S (per frequency) scales the field variances too.
+                field_variances = field_variances * field_growth
         gain = run.last_full_gain if run.last_full_gain is not None else np.full((n, p), np.nan)
         estimate = Estimate(
             states=states,
@@ -769,6 +776,7 @@ class KalmanFilter(_FilterInternals):
             dt=self.dt,
             field=field,
             field_variances=field_variances,
+            field_growth=field_growth,
             undetectable_modes=tuple(complex(v) for v in self._undetectable),
         )
         if update_state and self._window is not None:

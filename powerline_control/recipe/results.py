@@ -123,7 +123,9 @@ class EstimatorDesign:
         times the running mean square of its estimate there (the filter's parameters of the
         same names), their shape fitted on the whole training record at the unmeasured moving
         nodes, their level on the held-out part or on ``model_error_records`` (the scale
-        clipped to 0.01-100). 1 and 0 when not fitted (the modal model, short records).
+        clipped to 0.01-100). 1 and 0 when not fitted (the modal model, short records). With a
+        spectral field reference the filter scales both terms by its windowed test's factor on
+        ``S`` (``Estimate.field_growth``), and they are fitted with it.
     innovation_growth : tuple of float or None
         The filter's ``innovation_growth``: the running mean square at the sensors of the
         held-out part where ``covariance_scale`` was matched, and the model error's share of
@@ -377,7 +379,8 @@ class EstimatorDesign:
         if self.filter.spectral_field_reference is not None:
             lines.append("The windowed NIS test's innovation covariance follows the field per "
                          "frequency, as the spectral reference does (estimate._spectrum."
-                         "nis_growth).")
+                         "nis_growth), and the field variances grow by the same factor "
+                         "(Estimate.field_growth).")
         elif self.innovation_growth is not None:
             lines.append(
                 f"The consistency test's innovation covariance grows with the field above the "
