@@ -4,8 +4,10 @@ Issue 19 asks that the consistency monitor change ``KalmanFilter.step``'s cost b
 Same filter either side (the steady-state filter ``design_estimator`` builds for the paper's lab
 span, 60 elements, 5 sensors, rank 30), same record (an independent simulation, 1 % noise);
 the only difference is ``consistency_window=None`` and no spectral reference (monitor off)
-against the default window of 200 with the design's spectral reference (the windowed NIS in
-``step`` and ``filter``; the spectral test of the innovations in ``filter`` only).
+against the default window of 200 with the design's spectral reference, field reference and
+innovation growth, as ``design_estimator`` ships them (the windowed NIS in ``step`` and
+``filter``, its factor on ``S`` following the field per frequency at each window's end; the
+spectral test of the innovations in ``filter`` only).
 Timings alternate the two sides (``_common.alternate``) and report medians per sample.
 
 Run: python benchmarks/bench_consistency.py [--quick]
@@ -37,7 +39,10 @@ def _filters(design):
                             field_map=design.model.field_map, consistency_window=window,
                             nis_dof_fraction=kf.nis_dof_fraction,
                             spectral_reference=None if window is None else kf.spectral_reference,
-                            spectral_reference_count=kf.spectral_reference_count)
+                            spectral_reference_count=kf.spectral_reference_count,
+                            spectral_field_reference=(None if window is None
+                                                      else kf.spectral_field_reference),
+                            innovation_growth=None if window is None else kf.innovation_growth)
     return build(None), build(200)
 
 

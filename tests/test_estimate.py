@@ -425,6 +425,165 @@ def test_innovation_growth_against_a_literal_loop(share):
                                rtol=1e-8)
 
 
+def _tone_records(amplitude_run, seed):
+    """A measured, undamped oscillator at 0.05 cycles/sample (amplitude 10, the model's own
+    mode) plus a tone at 0.2 the model lacks (amplitude 2 in training) and unit white noise."""
+    k = np.arange(6000)
+    rng = np.random.default_rng(seed)
+    low = 10 * np.sin(2 * np.pi * 0.05 * k + 0.3)
+    train = low + 2 * np.sin(2 * np.pi * 0.2 * k) + rng.standard_normal(k.size)
+    run = low + amplitude_run * np.sin(2 * np.pi * 0.2 * k + 1.1) + rng.standard_normal(k.size)
+    c, s = np.cos(2 * np.pi * 0.05), np.sin(2 * np.pi * 0.05)
+    sys = ct.ss([[c, -s], [s, c]], [[0.0], [0.0]], [[1.0, 0.0]], [[0.0]], dt=1)
+    return sys, train[None, :], run[None, :]
+
+
+def test_windowed_nis_follows_one_mode_that_grows():
+    """Independent truth: the model error is a tone the model lacks, its power 4x larger in the
+    run than in training while the field at the sensor hardly changes (a tone 5x its amplitude
+    dominates it). The innovation variance then goes from 1 + 2^2/2 = 3 to 1 + 4^2/2 = 9 (noise
+    plus the tone), so the expected NIS grows 3x: the per-frequency factor follows it (hand
+    value 3), the factor of the whole field at the sensor (innovation_growth) stays near 1 and
+    its windowed test rejects. ``step`` closes the same windows with the same factors."""
+    from powerline_control.estimate import whitened_psd, whitening_factor
+    from powerline_control.estimate._model_error import sensor_mean_square
+    from powerline_control.estimate._spectrum import measurement_psd
+
+    sys, train, run = _tone_records(4.0, seed=91)
+    window, q = 200, 1e-4 * np.eye(2)
+    first = KalmanFilter(sys, q, 1.0, steady_state=True).filter(train)
+    scale = float(np.mean(first.nis[window:]))  # covariance matching on the training record
+    matched = KalmanFilter(sys, scale * q, scale, steady_state=True)
+    est = matched.filter(train)
+    assert np.mean(est.nis[window:]) == pytest.approx(1.0, rel=1e-9)
+    s = matched.innovation_covariance
+    white = whitening_factor(s)
+    reference, count = whitened_psd(est.innovations, white, discard=window)
+    field = measurement_psd(train, white, discard=window)
+    noise = float(scale * np.trace(np.linalg.inv(s)))  # R = scale, whitened by S
+    level = float(np.mean(sensor_mean_square(est.states[:1], window)[window:]))
+    share = 1 - noise
+    following = KalmanFilter(sys, scale * q, scale, steady_state=True,
+                             consistency_window=window, spectral_reference=reference,
+                             spectral_reference_count=count,
+                             spectral_field_reference=(field, noise),
+                             innovation_growth=(level, share))  # superseded: not used
+    total = KalmanFilter(sys, scale * q, scale, steady_state=True, consistency_window=window,
+                         innovation_growth=(level, share))
+    new, old = following.filter(run), total.filter(run)
+    raw = KalmanFilter(sys, scale * q, scale, steady_state=True).filter(run).nis
+    factor = raw[window:] / new.nis[window:]
+    # The hand value, 3, within the Welch estimates' spread (7 segments of 256 samples).
+    assert np.all(np.abs(factor / 3.0 - 1) < 0.2)
+    assert np.all(raw[window:] / old.nis[window:] < 1.1)  # the whole field grew by ~8 %
+    assert np.mean(raw[window:]) == pytest.approx(3.0, rel=0.1)  # the truth it must follow
+    assert not old.consistency.consistent and old.consistency.rejected.size > 10
+    assert new.consistency.consistent
+    stepped = KalmanFilter(sys, scale * q, scale, steady_state=True, consistency_window=window,
+                           spectral_reference=reference, spectral_reference_count=count,
+                           spectral_field_reference=(field, noise))
+    for k in range(run.shape[1]):
+        stepped.step(run[:, k])
+    np.testing.assert_allclose(stepped.consistency.window_nis, new.consistency.window_nis,
+                               rtol=1e-8)
+    warm = KalmanFilter(sys, scale * q, scale, steady_state=True, consistency_window=window,
+                        spectral_reference=reference, spectral_reference_count=count,
+                        spectral_field_reference=(field, noise))
+    warm.filter(run[:, :2150], update_state=True)
+    warm.step_block(run[:, 2150:])
+    np.testing.assert_allclose(warm.consistency.window_nis, new.consistency.window_nis,
+                               rtol=1e-8)
+
+
+def test_windowed_nis_factor_by_hand():
+    """One window's factor is the mean of the following reference over the mean of the
+    reference, ``following_reference`` evaluated here on the spectrum of the last 1024 samples
+    computed by hand (Hann segments of 256, half overlap, mean removed, whitened by S)."""
+    from powerline_control.estimate import whitening_factor
+    from powerline_control.estimate._spectrum import following_reference
+
+    sys, _, run = _tone_records(4.0, seed=92)
+    window = 200
+    kf = KalmanFilter(sys, 1e-4 * np.eye(2), 3.0, steady_state=True)
+    s = float(kf.innovation_covariance[0, 0])
+    bins = np.arange(129)
+    reference = 1.0 / s + 10.0 * np.exp(-0.5 * ((bins - 51.2) / 2) ** 2)   # a tone near 0.2
+    field = 3.0 / s + 40.0 * np.exp(-0.5 * ((bins - 51.2) / 2) ** 2)
+    noise = 3.0 / s
+    kf = KalmanFilter(sys, 1e-4 * np.eye(2), 3.0, steady_state=True, consistency_window=window,
+                      spectral_reference=reference, spectral_field_reference=(field, noise))
+    est = kf.filter(run)
+    raw = KalmanFilter(sys, 1e-4 * np.eye(2), 3.0, steady_state=True).filter(run).nis
+    end = 2000                       # the window [1800, 2000)
+    y = run[0, end - 1024:end] / np.sqrt(s)
+    y = y - y.mean()
+    taper = np.hanning(258)[1:-1]
+    psd = np.mean([np.abs(np.fft.rfft(y[a:a + 256] * taper)) ** 2 for a in range(0, 769, 128)],
+                  axis=0) / np.sum(taper**2)
+    hand = np.mean(following_reference(reference, field, noise, psd)) / np.mean(reference)
+    assert hand > 1.5                # the tone rang up above the reference here
+    np.testing.assert_allclose(raw[1800:2000] / est.nis[1800:2000], hand, rtol=1e-10)
+    assert whitening_factor(kf.innovation_covariance)[0, 0] == pytest.approx(np.sqrt(s))
+    # The same factor, by hand, on the field variances (model-error terms included).
+    field_map = np.array([[1.0, 0.0], [2.0, 0.5]])
+    mapped = KalmanFilter(sys, 1e-4 * np.eye(2), 3.0, steady_state=True,
+                          consistency_window=window, spectral_reference=reference,
+                          spectral_field_reference=(field, noise), field_map=field_map,
+                          field_variance_scale=2.5).filter(run)
+    riccati = np.diag(field_map @ mapped.covariance @ field_map.T)
+    np.testing.assert_allclose(mapped.field_growth[1800:2000], hand, rtol=1e-10)
+    np.testing.assert_allclose(mapped.field_variances[:, 1800:2000],
+                               2.5 * hand * riccati[:, None] * np.ones((1, 200)), rtol=1e-10)
+
+
+def test_field_sigma_follows_the_tone_that_grows_at_a_node_no_sensor_sees():
+    """Independent truth: a node no sensor sees moves as twice the sensor's noise-free signal, so
+    its error is twice the model's error there, mostly the tone the model lacks. The field
+    variance scale is matched on the training record against that truth (as the recipe does);
+    in the run the tone's amplitude doubles (2 -> 4), so the error variance at the node grows
+    about 4x while the innovations' expected NIS grows about 3x (noise 1 stays, the tone's 2
+    grows to 8). With the factor on S scaling the field variances too, the reported sigma stays
+    within 1.5x of the actual error; with a constant scale it falls to about half of it."""
+    from powerline_control.estimate import whitened_psd, whitening_factor
+    from powerline_control.estimate._spectrum import measurement_psd
+
+    window, q = 200, 1e-4 * np.eye(2)
+    k = np.arange(6000)
+    rng = np.random.default_rng(93)
+    low = 10 * np.sin(2 * np.pi * 0.05 * k + 0.3)
+    truth_train = low + 2 * np.sin(2 * np.pi * 0.2 * k)
+    truth_run = low + 4 * np.sin(2 * np.pi * 0.2 * k + 1.1)
+    train = (truth_train + rng.standard_normal(k.size))[None, :]
+    run = (truth_run + rng.standard_normal(k.size))[None, :]
+    sys = _tone_records(4.0, seed=93)[0]
+    field_map = np.array([[1.0, 0.0], [2.0, 0.0]])     # node 1: twice the sensor's signal
+    scale = float(np.mean(KalmanFilter(sys, q, 1.0, steady_state=True).filter(train)
+                          .nis[window:]))
+    plain = KalmanFilter(sys, scale * q, scale, steady_state=True, field_map=field_map)
+    est = plain.filter(train)
+    s = plain.innovation_covariance
+    white = whitening_factor(s)
+    reference, count = whitened_psd(est.innovations, white, discard=window)
+    field = measurement_psd(train, white, discard=window)
+    noise = float(scale * np.trace(np.linalg.inv(s)))
+    actual_train = np.mean((est.field[1, window:] - 2 * truth_train[window:]) ** 2)
+    level = actual_train / float(np.mean(est.field_variances[1, window:]))
+
+    def ratio(**kwargs):
+        kf = KalmanFilter(sys, scale * q, scale, steady_state=True, field_map=field_map,
+                          field_variance_scale=level, consistency_window=window, **kwargs)
+        out = kf.filter(run)
+        actual = np.mean((out.field[1, window:] - 2 * truth_run[window:]) ** 2)
+        return float(np.sqrt(np.mean(out.field_variances[1, window:]) / actual)), out
+
+    following, out = ratio(spectral_reference=reference, spectral_reference_count=count,
+                           spectral_field_reference=(field, noise))
+    constant, _ = ratio()
+    assert 1 / 1.5 < following < 1.5, following
+    assert constant < 1 / 1.5, constant       # the error grew ~4x in variance, the sigma not
+    assert np.mean(out.field_growth[window:]) == pytest.approx(3.0, rel=0.2)
+
+
 @pytest.mark.parametrize("kwargs, match", [
     (dict(innovation_growth=(1.0, 0.5)), "'innovation_growth'.*steady_state=True"),
     (dict(innovation_growth=(1.0, 1.5), steady_state=True), "'innovation_growth\\[1\\]'.*1"),

@@ -33,12 +33,16 @@ from ..errors import (
     EstimationError,
 )
 from ._spectrum import (
+    NIS_FIELD_SPAN,
     following_reference,
     measurement_psd,
+    nis_growth,
     spectral_test,
     whitened_psd,
     whitening_factor,
+    window_nis_growth,
 )
+from .consistency import _window_sums
 
 if TYPE_CHECKING:  # annotations only: both modules import this one
     from .consistency import Consistency
@@ -89,6 +93,11 @@ class _Recursion:
         # the sums of the windows closed so far (three numbers per window, never per sample).
         self.w_sum, self.w_valid, self.w_used, self.w_len = 0.0, 0, 0, 0
         self.closed: list[tuple[float, int, int]] = []
+        # With a field reference the window's factor on S follows the spectrum of the last
+        # NIS_FIELD_SPAN measurements: a ring buffer of them (``recent_count`` stored so far).
+        self.recent = (np.full((kf._p, NIS_FIELD_SPAN), np.nan) if kf._follows_spectrum
+                       else None)
+        self.recent_count = 0
         # Running mean square of the estimate at the sensors (KalmanFilter's innovation_growth).
         self.mean_square = 0.0
         if kf.steady_state:
@@ -122,16 +131,55 @@ class _Recursion:
                                                  lower=True)
         self.batch = None
 
-    def monitor(self, nis: float, used: int) -> None:
-        """Add one sample's NIS to the open consistency window (closing it when full)."""
+    def monitor(self, nis: float, used: int, y: np.ndarray) -> None:
+        """Add one sample's NIS (and its measurement ``y``) to the open consistency window,
+        closing it when full: with a field reference its NIS sum is then divided by the
+        window's factor on ``S`` (``_spectrum.nis_growth``)."""
+        if self.recent is not None:
+            self.recent[:, self.recent_count % NIS_FIELD_SPAN] = y
+            self.recent_count += 1
         if used:
             self.w_sum += nis
             self.w_valid += 1
             self.w_used += used
         self.w_len += 1
         if self.w_len == self.kf._window:
+            if self.recent is not None:
+                self.w_sum /= self.kf._realtime_growth(self)
             self.closed.append((self.w_sum, self.w_valid, self.w_used))
             self.w_sum, self.w_valid, self.w_used, self.w_len = 0.0, 0, 0, 0
+
+    def resume(self, nis: np.ndarray, raw_nis: np.ndarray, n_used: np.ndarray,
+               measurements: np.ndarray) -> None:
+        """Continue the real-time monitor from a record ``filter`` ran (``update_state=True``):
+        its full windows closed (``nis`` with ``S_k``), the rest open. With a field reference
+        the open window's factor on ``S`` is set when it closes, so it holds ``raw_nis`` (with
+        ``S``), and the ring buffer the record's last measurements."""
+        window, n_t = self.kf._window, nis.size
+        sums, counts, _ = _window_sums(nis, window)
+        used_sums = n_used[: sums.size * window].reshape(-1, window).sum(axis=1)
+        self.closed = list(zip(sums.tolist(), counts.tolist(), used_sums.tolist(), strict=True))
+        tail = n_t - sums.size * window
+        rest_nis = (raw_nis if self.kf._follows_spectrum else nis)[n_t - tail:]
+        ok = ~np.isnan(rest_nis)
+        self.w_sum, self.w_valid = float(rest_nis[ok].sum()), int(ok.sum())
+        self.w_used, self.w_len = int(n_used[n_t - tail:].sum()), tail
+        self.remember(measurements)
+
+    def remember(self, measurements: np.ndarray) -> None:
+        """Fill the ring buffer of :meth:`monitor` with the end of a record (``filter(...,
+        update_state=True)``)."""
+        if self.recent is None:
+            return
+        tail = measurements[:, -NIS_FIELD_SPAN:]
+        self.recent[:, :tail.shape[1]] = tail
+        self.recent_count = tail.shape[1]
+
+    def recent_measurements(self) -> np.ndarray:
+        """The buffered measurements, oldest first ``(p, min(count, NIS_FIELD_SPAN))``."""
+        if self.recent_count < NIS_FIELD_SPAN:
+            return self.recent[:, :self.recent_count]
+        return np.roll(self.recent, -(self.recent_count % NIS_FIELD_SPAN), axis=1)
 
     def nis_frozen(self, e: np.ndarray) -> np.ndarray:
         """``e^T S^-1 e`` per column of ``e`` ``(p, L)`` with the frozen covariance."""
@@ -254,12 +302,12 @@ class _Recursion:
         if n_t:
             self.u_prev = u[:, -1]
         nis_block = self.nis_frozen(innovations)
-        if kf._innov_rel > 0:
+        if kf._total_growth:
             factor, self.mean_square = kf._inflation(states, self.mean_square)
             nis_block = nis_block / factor
         if kf._window is not None:
-            for nis in nis_block.tolist():
-                self.monitor(nis, kf._p)
+            for k, nis in enumerate(nis_block.tolist()):
+                self.monitor(nis, kf._p, y[:, k])
         return states
 
     def _joseph_update(self, p_pred, x_pred, y, u, index):
@@ -393,6 +441,44 @@ class _FilterInternals:
         u = check_array("inputs", inputs, shape=(self.n_inputs, n_t))
         return u if self._m else np.zeros((0, n_t))
 
+    def _s_growth(self, states: np.ndarray, measurements: np.ndarray,
+                  run: _Recursion) -> np.ndarray | None:
+        """Factor on ``S`` per sample of a record (``S_k = S factor``), ``None`` for ``S_k = S``:
+        the one place that chooses it. Per frequency with a field reference (one factor per
+        consistency window, ``_spectrum.window_nis_growth``), else from the running mean
+        square of the whole field at the sensors (``innovation_growth``; ``run.mean_square``
+        is carried on). :meth:`KalmanFilter.filter` scales its field variances by the
+        per-frequency factor too (``Estimate.field_growth``), not by the other."""
+        if self._follows_spectrum:
+            whitener = self._spectral_whitener(run)
+            if whitener is None:
+                return None
+            return window_nis_growth(measurements, self._window, whitener,
+                                     self._spectral_ref, *self._spectral_field)
+        if self._total_growth:
+            factor, run.mean_square = self._inflation(states, run.mean_square)
+            return factor
+        return None
+
+    def _spectral_whitener(self, run: _Recursion) -> np.ndarray | None:
+        """Lower Cholesky factor of the converged ``S`` the spectral test and the windowed
+        test's factor whiten by (``None`` before the gain converges)."""
+        if not run.converged:
+            return None
+        if run.s_factor is not None:
+            return np.tril(run.s_factor[0])
+        s = self._C @ run.predicted_ss @ self._C.T + self._r_eff
+        return whitening_factor(s)
+
+    def _realtime_growth(self, run: _Recursion) -> float:
+        """Factor on ``S`` of the window :meth:`_Recursion.monitor` closes (1 before the gain
+        converges): ``_spectrum.nis_growth`` of the buffered measurements."""
+        whitener = self._spectral_whitener(run)
+        if whitener is None:
+            return 1.0
+        return nis_growth(run.recent_measurements(), whitener, self._spectral_ref,
+                          *self._spectral_field)
+
     def _spectral_consistency(self, consistency: Consistency, innovations: np.ndarray,
                               scaled: np.ndarray, measurements: np.ndarray,
                               run: _Recursion) -> Consistency:
@@ -402,13 +488,9 @@ class _FilterInternals:
         test's innovations without a field reference); with one, the raw ``innovations``
         whitened by ``S`` are judged against the reference following the field of
         ``measurements``."""
-        if not run.converged:
+        factor = self._spectral_whitener(run)
+        if factor is None:
             return consistency
-        if run.s_factor is not None:
-            factor = np.tril(run.s_factor[0])
-        else:
-            s = self._C @ run.predicted_ss @ self._C.T + self._r_eff
-            factor = whitening_factor(s)
         segment = 2 * (self._spectral_ref.size - 1)
         reference = self._spectral_ref
         if self._spectral_field is not None:

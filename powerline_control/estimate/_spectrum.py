@@ -55,6 +55,11 @@ FIELD_SEEN = 2.0
 #: verdicts there, and 8 kept the larger margin on the weakest mismatched runs (Aster seed 34:
 #: 2.6 against 1.3 times the threshold).
 FIELD_GROWTH_CAP = 8.0
+#: Trailing samples whose whitened measurement spectrum sets a window's expected NIS when the
+#: reference follows the field (:func:`nis_growth`): four ``SPECTRAL_SEGMENT``s, seven
+#: half-overlapping segments, so the spectrum is averaged about as the spectral test's is. Taken
+#: from the offline measurement of issue 19 (tune split, lab-pinned designs), not tuned further.
+NIS_FIELD_SPAN = 1024
 
 
 def whitening_factor(s: np.ndarray) -> np.ndarray:
@@ -127,6 +132,59 @@ def following_reference(reference: np.ndarray, field_reference: np.ndarray, nois
                                                                 1.0), 1.0)
     growth = np.clip(growth, 1.0, FIELD_GROWTH_CAP)
     return np.minimum(reference, noise) + np.maximum(reference - noise, 0.0) * growth
+
+
+def nis_growth(measurements: np.ndarray, factor: np.ndarray, reference: np.ndarray,
+               field_reference: np.ndarray, noise_power: float) -> float:
+    """Factor on ``S`` of the windowed NIS test for a window ending with ``measurements``' last
+    column: ``mean(following_reference(reference, field_reference, noise_power, P)) /
+    mean(reference)``, ``P`` the whitened measurement power (:func:`measurement_psd`, ``factor``
+    the Cholesky factor of ``S``) of the trailing ``NIS_FIELD_SPAN`` samples.
+
+    The windowed NIS sums the whitened innovation power over all bins, so its expectation per
+    sensor follows the field as the spectral test's reference does, bin by bin: a mode that
+    rings up raises the expectation by its model-error share, the modes and noise that stay put
+    do not. 1 when fewer samples than one segment remain, no full segment is NaN-free, or the
+    reference is zero. In the second example every bin's model error follows the field by the
+    cap: ``(0.25 + 1.75 * 8) / 2``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> y = np.random.default_rng(0).standard_normal((2, 1024))   # white: P about 1 per bin
+    >>> ref = np.full(129, 2.0)             # reference: noise 0.25, model error 1.75 per bin
+    >>> nis_growth(y, np.eye(2), ref, np.full(129, 0.4), 0.25)   # training saw no field: 1
+    1.0
+    >>> nis_growth(10 * y, np.eye(2), ref, np.full(129, 1.0), 0.25)  # 100x: capped at 8
+    7.125
+    """
+    reference = np.asarray(reference, dtype=float)
+    segment = 2 * (reference.size - 1)
+    y = np.asarray(measurements, dtype=float)[:, -NIS_FIELD_SPAN:]
+    mean_reference = float(np.mean(reference))
+    if y.shape[1] < segment or not mean_reference > 0:
+        return 1.0
+    psd = measurement_psd(y, factor, segment=segment)
+    if not np.all(np.isfinite(psd)):
+        return 1.0
+    return float(np.mean(following_reference(reference, field_reference, noise_power, psd))
+                 / mean_reference)
+
+
+def window_nis_growth(measurements: np.ndarray, window: int, factor: np.ndarray,
+                      reference: np.ndarray, field_reference: np.ndarray,
+                      noise_power: float) -> np.ndarray:
+    """``(n_t,)`` factor on ``S`` per sample of a record: :func:`nis_growth` of each window of
+    ``window`` samples (and of the trailing partial one), ending at the window's last sample,
+    given to every sample of it (the test judges a window's NIS against one expectation)."""
+    y = np.asarray(measurements, dtype=float)
+    n_t = y.shape[1]
+    growth = np.ones(n_t)
+    for start in range(0, n_t, window):
+        end = min(start + window, n_t)
+        growth[start:end] = nis_growth(y[:, max(0, end - NIS_FIELD_SPAN):end], factor,
+                                       reference, field_reference, noise_power)
+    return growth
 
 
 def check_spectral_arguments(reference: object, count: object, field: object

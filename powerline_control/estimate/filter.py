@@ -68,7 +68,6 @@ from .consistency import (
     DEFAULT_CONSISTENCY_WINDOW,
     Consistency,
     _chi2_band,
-    _window_sums,
     _window_test,
     filter_consistency,
 )
@@ -148,7 +147,12 @@ class KalmanFilter(_FilterInternals):
         the sensor noise's (flat) share of it. With it the reference follows the field: where
         the reference record's field stood above its noise, the model-error part of a bin's
         reference grows with the record's field power there (``estimate._spectrum.
-        following_reference``), and the test whitens by ``S`` rather than ``S_k``.
+        following_reference``), and the test whitens by ``S`` rather than ``S_k``. The windowed
+        NIS test follows the field alike, in :meth:`filter` and :meth:`step`: a window's ``S_k``
+        is ``S`` times the mean following reference over the mean reference on the 1024
+        samples up to its end (``estimate._spectrum.nis_growth``; ``innovation_growth`` unused).
+        :meth:`filter` scales its field variances (both model-error terms) by the same factor
+        (``Estimate.field_growth``): the model error grows at unseen nodes as at the sensors.
     field_variance_scale : float
         Factor ``> 0`` on the field variances the filter reports (``Estimate.field_variances``;
         the state covariance, the gain and the NIS are unchanged): the model error at nodes
@@ -169,7 +173,7 @@ class KalmanFilter(_FilterInternals):
         of the filtered estimate at the sensors, time constant ``consistency_window``;
         ``estimate._model_error.innovation_inflation``). ``Estimate.nis`` and the spectral test
         use ``S_k``; the gain and the states are unchanged. Needs ``steady_state=True``.
-        Default ``None`` (``S_k = S``).
+        Unused with a ``spectral_field_reference``. Default ``None`` (``S_k = S``).
 
     Attributes
     ----------
@@ -275,6 +279,9 @@ class KalmanFilter(_FilterInternals):
         self._spectral_ref, self._spectral_count, self._spectral_field = \
             check_spectral_arguments(spectral_reference, spectral_reference_count,
                                      spectral_field_reference)
+        # S's factor in the windowed test: per window and frequency, or of the whole field.
+        self._follows_spectrum = self._spectral_field is not None and self._window is not None
+        self._total_growth = self._innov_rel > 0 and self._spectral_field is None
         self._A = np.array(sys.A, dtype=float)
         self._B = np.array(sys.B, dtype=float)
         self._C = np.array(sys.C, dtype=float)
@@ -571,12 +578,12 @@ class KalmanFilter(_FilterInternals):
         """One checked sample through the real-time recursion and its consistency window."""
         run = self._running
         _, nis, used = run.advance(y, u)
-        if self._innov_rel > 0:  # one sample of _inflation, without the array set-up
+        if self._total_growth:  # one sample of _inflation, without the array set-up
             nis = nis / float(growth_factor(run.mean_square, self._innov_rel, self._innov_ref))
             run.mean_square = next_mean_square(run.mean_square, self._measure(run.x),
                                                self._mean_square_window)
         if self._window is not None:
-            run.monitor(nis, used)
+            run.monitor(nis, used, y)
         return run.x
 
     def step_block(self, measurements: object, inputs: object = None) -> np.ndarray:
@@ -733,10 +740,12 @@ class KalmanFilter(_FilterInternals):
         if variance_constant:
             variances = np.broadcast_to(np.diag(run.P)[:, None], (n, n_t))
         whitened_innovations = innovations
-        if self._innov_rel > 0:  # S_k = S * factor_k: the model error that grows with the field
-            factor, run.mean_square = self._inflation(states, run.mean_square)
+        raw_nis = nis
+        factor = self._s_growth(states, y_all, run)
+        if factor is not None:  # S_k = S * factor_k: the model error that grows with the field
             nis = nis / factor
             whitened_innovations = innovations / np.sqrt(factor)
+        field_growth = factor if factor is not None and self._follows_spectrum else None
         if update_state:
             self._running = run
         field = None
@@ -750,6 +759,10 @@ class KalmanFilter(_FilterInternals):
             if self._fv_relative > 0:
                 field_variances = field_variances + self._fv_relative * running_mean_square(
                     field, self._mean_square_window)
+            if field_growth is not None:
+                # The model error at nodes no sensor sees grows as the innovations' does: the
+                # window's factor on S (per frequency) scales the field variances too.
+                field_variances = field_variances * field_growth
         gain = run.last_full_gain if run.last_full_gain is not None else np.full((n, p), np.nan)
         estimate = Estimate(
             states=states,
@@ -763,19 +776,11 @@ class KalmanFilter(_FilterInternals):
             dt=self.dt,
             field=field,
             field_variances=field_variances,
+            field_growth=field_growth,
             undetectable_modes=tuple(complex(v) for v in self._undetectable),
         )
         if update_state and self._window is not None:
-            # The real-time monitor continues from this record's windows.
-            sums, counts, _ = _window_sums(nis, self._window)
-            used_sums = n_used[: sums.size * self._window].reshape(-1, self._window).sum(axis=1)
-            run.closed = list(zip(sums.tolist(), counts.tolist(), used_sums.tolist(),
-                                  strict=True))
-            tail = n_t - sums.size * self._window
-            rest_nis, rest_used = nis[n_t - tail:], n_used[n_t - tail:]
-            ok = ~np.isnan(rest_nis)
-            run.w_sum, run.w_valid = float(rest_nis[ok].sum()), int(ok.sum())
-            run.w_used, run.w_len = int(rest_used.sum()), tail
+            run.resume(nis, raw_nis, n_used, y_all)  # the real-time monitor continues from here
         if self._window is None or not np.any(n_used):
             return estimate
         consistency = filter_consistency(estimate, window=self._window,

@@ -64,6 +64,13 @@ class Estimate:
         Full field ``field_map @ states``, ``(n_nodes, n_t)``, when the filter has a field map.
     field_variances : numpy.ndarray or None
         Posterior variance of each field value, ``(n_nodes, n_t)``, when the filter has a field map.
+    field_growth : numpy.ndarray or None
+        With a filter whose spectral reference follows the field (``spectral_field_reference``
+        and a consistency window): the factor ``(n_t,)`` on the innovation covariance of each
+        consistency window (``S_k = S g``, ``estimate._spectrum.nis_growth``) and, with a field
+        map, on ``field_variances`` (model-error terms included): an identified model's error
+        grows at nodes no sensor sees as it does at the sensors. ``None`` otherwise (1 before
+        the gain converges).
     undetectable_modes : tuple of complex
         Eigenvalues on or outside the unit circle that the sensors cannot see (empty when the
         model is detectable). Their variance grows without bound and is reported as it grows.
@@ -96,6 +103,7 @@ class Estimate:
     dt: float | None
     field: np.ndarray | None = None
     field_variances: np.ndarray | None = None
+    field_growth: np.ndarray | None = None
     undetectable_modes: tuple[complex, ...] = ()
     consistency: Consistency | None = None
 

@@ -209,16 +209,21 @@ def _calibration(model, held: np.ndarray, sensors: np.ndarray, noise: float,
 def _unmeasured_error(kf, X: np.ndarray, unmeasured: np.ndarray, sensors: np.ndarray,
                       data_noise: float):
     """(actual error variance, reported Riccati variance, running mean square of the estimate)
-    of ``kf`` filtering the record ``X``, averaged over ``unmeasured``: two arrays over time
-    (NaN where the record has a gap) and a number."""
+    of ``kf`` filtering the record ``X``, averaged over ``unmeasured``: three arrays over time
+    (NaN where the record has a gap). With a spectral field reference the filter scales the
+    variances it reports by the factor its windowed test puts on ``S``
+    (``Estimate.field_growth``): the reported variance holds it, and the running mean square
+    is multiplied by it, as the filter does to its ``field_relative_variance`` term."""
     est = kf.filter(X[sensors])
     field = est.field[unmeasured]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN samples of a gapped record
         error2 = np.nanmean((field - X[unmeasured]) ** 2, axis=0) - data_noise**2
-    reported = float(np.mean(est.field_variances[unmeasured])) / kf.field_variance_scale
-    return error2, reported, np.mean(running_mean_square(field, DEFAULT_CONSISTENCY_WINDOW),
-                                      axis=0)
+    reported = np.mean(est.field_variances[unmeasured], axis=0) / kf.field_variance_scale
+    power = np.mean(running_mean_square(field, DEFAULT_CONSISTENCY_WINDOW), axis=0)
+    if est.field_growth is not None:
+        power = power * est.field_growth
+    return error2, reported, power
 
 
 def _field_error_model(X: np.ndarray, kf, partial_kf, n_fit: int, candidates: np.ndarray,
@@ -235,7 +240,10 @@ def _field_error_model(X: np.ndarray, kf, partial_kf, n_fit: int, candidates: np
     averaged over them, is modelled as ``a * v + b * m(t)``: ``v`` the variance the filter
     reports there (its Riccati solution) and ``m(t)`` the running mean square of the estimate
     there (:func:`~powerline_control.estimate.running_mean_square`, the filter's own
-    definition). ``kf`` filtering the whole record gives ``a`` and ``b`` by non-negative least
+    definition), both times the factor the filters (with the shipped spectral reference) put on
+    their field variances (``Estimate.field_growth``: the per-frequency growth of the windowed
+    test's ``S``, near 1 on the record itself). ``kf`` filtering the whole record gives ``a``
+    and ``b`` by non-negative least
     squares (the first consistency window, the start-up, left out); ``partial_kf`` filtering the
     whole record then gives, on the held-out samples it was not fitted on, the ratio of the
     actual error variance to ``a * v + b * m(t)``, which multiplies both: what a model makes of
@@ -295,10 +303,10 @@ def _error_shape(kf, X: np.ndarray, unmeasured: np.ndarray, sensors: np.ndarray,
     error2, reported, power = _unmeasured_error(kf, X, unmeasured, sensors, data_noise)
     kept = np.isfinite(error2) & np.isfinite(power)
     kept[:window] = False
-    if not (reported > 0 and np.count_nonzero(kept) > window):
+    if not (np.all(reported > 0) and np.count_nonzero(kept) > window):
         return None
     # Columns scaled to unit RMS so that NNLS is not steered by their units.
-    columns = np.column_stack([np.full(np.count_nonzero(kept), reported), power[kept]])
+    columns = np.column_stack([reported[kept], power[kept]])
     norms = np.sqrt(np.mean(columns**2, axis=0))
     norms[norms == 0] = 1.0
     return sopt.nnls(columns / norms, error2[kept])[0] / norms
@@ -311,7 +319,7 @@ def _pooled_level(coef: np.ndarray, level_runs) -> tuple[float, float]:
     for (run2, run_reported, run_power), start in level_runs:
         used = np.isfinite(run2) & np.isfinite(run_power)
         used[:start] = False
-        predicted += float(np.sum(coef[0] * run_reported + coef[1] * run_power[used]))
+        predicted += float(np.sum(coef[0] * run_reported[used] + coef[1] * run_power[used]))
         actual += float(np.sum(run2[used]))
     return predicted, actual
 
@@ -454,17 +462,20 @@ def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
     scale, fraction, reference, sigma_ratio, growth = _calibration(
         partial_model, X[:, n_fit:], chosen, noise, q_floor, rec.candidates, rec.data_noise)
     # Model error at the unmeasured nodes, which the innovations cannot show: fitted on the
-    # shipped filter's own record, a scale of its variance and a share of the field.
+    # shipped filter's own record, a scale of its variance and a share of the field. The
+    # filters it is fitted with have the shipped spectral reference, so that their reported
+    # variances follow the field as the shipped filter's do (Estimate.field_growth).
     field_scale, field_relative, level_records = 1.0, 0.0, 0
     try:
-        partial = None if partial_model is None else _steady_filter(partial_model, chosen,
-                                                                    noise, q_floor, scale)
+        partial = None if partial_model is None else _steady_filter(
+            partial_model, chosen, noise, q_floor, scale, reference=reference)
     except _MODEL_FAILURES:
         partial = None
     if partial is not None or rec.others:  # the records' level needs no partial filter
         field_scale, field_relative, level_records = _field_error_model(
-            X, _steady_filter(model, chosen, noise, q_floor, scale), partial, n_fit,
-            rec.candidates, chosen, rec.data_noise, rec.others, rec.others_noise)
+            X, _steady_filter(model, chosen, noise, q_floor, scale, reference=reference),
+            partial, n_fit, rec.candidates, chosen, rec.data_noise, rec.others,
+            rec.others_noise)
     kf = _steady_filter(model, chosen, noise, q_floor, scale, fraction, rec.warn_inconsistent,
                         reference, field_scale, field_relative, growth)
     return EstimatorDesign(

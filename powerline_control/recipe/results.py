@@ -123,13 +123,17 @@ class EstimatorDesign:
         times the running mean square of its estimate there (the filter's parameters of the
         same names), their shape fitted on the whole training record at the unmeasured moving
         nodes, their level on the held-out part or on ``model_error_records`` (the scale
-        clipped to 0.01-100). 1 and 0 when not fitted (the modal model, short records).
+        clipped to 0.01-100). 1 and 0 when not fitted (the modal model, short records). With a
+        spectral field reference the filter scales both terms by its windowed test's factor on
+        ``S`` (``Estimate.field_growth``), and they are fitted with it.
     innovation_growth : tuple of float or None
         The filter's ``innovation_growth``: the running mean square at the sensors of the
         held-out part where ``covariance_scale`` was matched, and the model error's share of
         ``S`` there; once a record's field at the sensors rises above that level, the
         consistency test's ``S`` grows with it (an identified model's one-step error is a share
-        of the field). ``None`` when not measured (the modal model, short records).
+        of the field). ``None`` when not measured (the modal model, short records). Not used
+        by a filter with a ``spectral_field_reference``, whose windowed test follows the field
+        per frequency instead.
     n_model_error_records : int
         How many records of other load histories (``design_estimator``'s
         ``model_error_records``) set the level of ``field_variance_scale`` and
@@ -372,7 +376,12 @@ class EstimatorDesign:
                 f"{self.field_relative_variance:.3g} x the running mean square of the estimate "
                 "(Estimate.field_variances)."
             )
-        if self.innovation_growth is not None:
+        if self.filter.spectral_field_reference is not None:
+            lines.append("The windowed NIS test's innovation covariance follows the field per "
+                         "frequency, as the spectral reference does (estimate._spectrum."
+                         "nis_growth), and the field variances grow by the same factor "
+                         "(Estimate.field_growth).")
+        elif self.innovation_growth is not None:
             lines.append(
                 f"The consistency test's innovation covariance grows with the field above the "
                 f"held-out level ({self.innovation_growth[0]:.3g} m^2 at the sensors; model error "
