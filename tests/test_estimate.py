@@ -495,6 +495,57 @@ def test_windowed_nis_follows_one_mode_that_grows():
                                rtol=1e-8)
 
 
+def test_windowed_nis_factor_waits_for_the_gain_in_filter_as_in_step():
+    """A time-varying filter (P0 = 1e6 I) converges after some windows: ``step`` gives those
+    windows the factor 1 (it has no converged S to whiten by), and ``filter`` must judge the
+    same windows alike (it used the final S for every window: window NIS 0.98 against 2.78)."""
+    from powerline_control.estimate import whitened_psd, whitening_factor
+    from powerline_control.estimate._spectrum import measurement_psd
+
+    sys, train, run = _tone_records(4.0, seed=91)
+    window, q = 200, 1e-4 * np.eye(2)
+    first = KalmanFilter(sys, q, 1.0, steady_state=True).filter(train)
+    scale = float(np.mean(first.nis[window:]))
+    matched = KalmanFilter(sys, scale * q, scale, steady_state=True)
+    est = matched.filter(train)
+    white = whitening_factor(matched.innovation_covariance)
+    reference, count = whitened_psd(est.innovations, white, discard=window)
+    field = measurement_psd(train, white, discard=window)
+    noise = float(scale * np.trace(np.linalg.inv(matched.innovation_covariance)))
+
+    def slow():
+        return KalmanFilter(sys, scale * q, scale, steady_state=False, P0=1e6 * np.eye(2),
+                            consistency_window=window, spectral_reference=reference,
+                            spectral_reference_count=count,
+                            spectral_field_reference=(field, noise))
+
+    whole = slow().filter(run)
+    assert whole.converged_at is not None and whole.converged_at > 2 * window
+    stepped = slow()
+    for k in range(run.shape[1]):
+        stepped.step(run[:, k])
+    np.testing.assert_allclose(stepped.consistency.window_nis, whole.consistency.window_nis,
+                               rtol=1e-6)
+    before = np.arange(run.shape[1]) // window * window + window - 1 < whole.converged_at
+    assert np.all(whole.field_growth[before] == 1.0) and np.any(whole.field_growth[~before] > 1)
+
+
+def test_a_field_reference_too_coarse_for_the_factor_is_refused():
+    """The windowed test's factor is measured on the last 1024 measurements: a reference of
+    1025 bins (2048-sample segments) could never fill a segment (the factor stayed 1 silently),
+    so with a field reference the segments are limited to 512 samples (257 bins)."""
+    sys, _, _ = _tone_records(1.0, seed=91)
+    for bins, ok in ((257, True), (513, False), (1025, False)):
+        kwargs = dict(consistency_window=200, spectral_reference=np.ones(bins),
+                      spectral_field_reference=(np.ones(bins), 0.1))
+        if ok:
+            KalmanFilter(sys, 1e-4 * np.eye(2), 1.0, **kwargs)
+        else:
+            with pytest.raises(InputError, match=rf"'spectral_reference' parameter has {bins} "
+                                                 r"bins .* at most 512 samples \(257 bins\)"):
+                KalmanFilter(sys, 1e-4 * np.eye(2), 1.0, **kwargs)
+
+
 def test_windowed_nis_factor_by_hand():
     """One window's factor is the mean of the following reference over the mean of the
     reference, ``following_reference`` evaluated here on the spectrum of the last 1024 samples

@@ -457,3 +457,32 @@ def test_consistency_phases_count_every_tested_window_once_against_the_windows_t
     assert lab.to_json()["estimator_windows_rejected"]["moving"] == {
         "above": phases["moving"][0], "below": phases["moving"][1],
         "rejected": phases["moving"][0] + phases["moving"][1], "tested": phases["moving"][2]}
+
+
+def test_consistency_row_names_the_robot_as_the_cause_only_when_the_model_fits_parked():
+    """Hand-built windows of 1 s on a 10 s run, calibration 3 s (windows 1-2 parked; window 0
+    untested), the robot settled from 7 s. The row blames the robot's move only when the robot
+    moved, windows after the move lie above their bound, and no more parked windows lie above
+    than chance allows (allowed_rejections(2) = 1)."""
+    from types import SimpleNamespace
+
+    from powerline_control.scenario.summary import _consistency_text
+
+    def row(above_windows, moved):
+        above = np.isin(np.arange(10), above_windows)
+        test = SimpleNamespace(window=100, window_start=np.arange(10) * 100,
+                               tested=np.arange(10) > 0, rejected=np.flatnonzero(above),
+                               above=above, consistent=not above.any())
+        position = np.where(np.arange(1000) < 400, 1.2, 0.6) if moved else np.full(1000, 1.2)
+        run = SimpleNamespace(estimator_consistency=test, t=np.arange(1000) * 0.01,
+                              calibration_time=3.0, settled_window=(7.0, 9.99),
+                              robot_position=position)
+        return _consistency_text(run)
+
+    blamed = "the robot damps the line differently elsewhere"
+    assert blamed in row([8, 9], moved=True)
+    assert "settled 2 of 3" in row([8, 9], moved=True)
+    assert blamed in row([2, 8, 9], moved=True)          # one of two parked: chance
+    assert blamed not in row([1, 2, 8, 9], moved=True)   # both parked above: the model
+    assert blamed not in row([8, 9], moved=False)        # the robot never moved
+    assert blamed not in row([], moved=True)

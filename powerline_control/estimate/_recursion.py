@@ -454,7 +454,8 @@ class _FilterInternals:
             if whitener is None:
                 return None
             return window_nis_growth(measurements, self._window, whitener,
-                                     self._spectral_ref, *self._spectral_field)
+                                     self._spectral_ref, *self._spectral_field,
+                                     converged_at=run.converged_at or 0)
         if self._total_growth:
             factor, run.mean_square = self._inflation(states, run.mean_square)
             return factor

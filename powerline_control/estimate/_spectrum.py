@@ -173,15 +173,19 @@ def nis_growth(measurements: np.ndarray, factor: np.ndarray, reference: np.ndarr
 
 def window_nis_growth(measurements: np.ndarray, window: int, factor: np.ndarray,
                       reference: np.ndarray, field_reference: np.ndarray,
-                      noise_power: float) -> np.ndarray:
+                      noise_power: float, converged_at: int = 0) -> np.ndarray:
     """``(n_t,)`` factor on ``S`` per sample of a record: :func:`nis_growth` of each window of
     ``window`` samples (and of the trailing partial one), ending at the window's last sample,
-    given to every sample of it (the test judges a window's NIS against one expectation)."""
+    given to every sample of it (the test judges a window's NIS against one expectation).
+    Windows that end before sample ``converged_at`` (the gain had not converged) keep 1, as
+    the real-time monitor gives them."""
     y = np.asarray(measurements, dtype=float)
     n_t = y.shape[1]
     growth = np.ones(n_t)
     for start in range(0, n_t, window):
         end = min(start + window, n_t)
+        if end - 1 < converged_at:
+            continue
         growth[start:end] = nis_growth(y[:, max(0, end - NIS_FIELD_SPAN):end], factor,
                                        reference, field_reference, noise_power)
     return growth
@@ -207,6 +211,15 @@ def check_spectral_arguments(reference: object, count: object, field: object
         )
     if field is None:
         return read_only(ref.copy()), count, None
+    if 2 * (ref.size - 1) > NIS_FIELD_SPAN // 2:
+        # the windowed test's factor is measured on the last NIS_FIELD_SPAN samples, which
+        # must hold at least three half-overlapping segments
+        raise InputError(
+            f"The 'spectral_reference' parameter has {ref.size} bins (segments of "
+            f"{2 * (ref.size - 1)} samples): with a 'spectral_field_reference' the segments "
+            f"must be at most {NIS_FIELD_SPAN // 2} samples ({NIS_FIELD_SPAN // 4 + 1} bins), "
+            f"so that the last {NIS_FIELD_SPAN} measurements give the windowed test's factor."
+        )
     if not isinstance(field, tuple | list) or len(field) != 2:
         raise InputError("The 'spectral_field_reference' parameter must be None or a pair "
                          f"(measurement power per bin, noise power). Got {field!r}.")

@@ -239,7 +239,7 @@ def _window_test(sums: np.ndarray, counts: np.ndarray, used: np.ndarray, window:
     above = tested & (mean > bounds[:, 1])
     below = tested & (mean < bounds[:, 0])
     n_tested = int(tested.sum())
-    allowed = int(sstats.binom.ppf(1 - _WINDOW_LEVEL, n_tested, _WINDOW_LEVEL)) if n_tested else 0
+    allowed = allowed_rejections(n_tested)
     rejected = np.flatnonzero(above | below)
     return {
         "pessimistic": bool(int(below.sum()) > allowed),
@@ -254,6 +254,19 @@ def _window_test(sums: np.ndarray, counts: np.ndarray, used: np.ndarray, window:
         "consistent": bool(int(above.sum()) <= allowed),
         "dof_fraction": float(dof_fraction),
     }
+
+
+def allowed_rejections(n_tested: int) -> int:
+    """How many of ``n_tested`` windows may lie above their bound by chance before the run
+    rejects: the 99 % quantile of the binomial law of ``n_tested`` windows each rejecting with
+    probability 1 % (the run-level test at 1 %; the same rule for any subset of the windows).
+
+    Examples
+    --------
+    >>> allowed_rejections(9), allowed_rejections(37), allowed_rejections(0)
+    (1, 2, 0)
+    """
+    return int(sstats.binom.ppf(1 - _WINDOW_LEVEL, n_tested, _WINDOW_LEVEL)) if n_tested else 0
 
 
 def _window_sums(values: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -69,8 +69,9 @@ class Estimate:
         and a consistency window): the factor ``(n_t,)`` on the innovation covariance of each
         consistency window (``S_k = S g``, ``estimate._spectrum.nis_growth``) and, with a field
         map, on ``field_variances`` (model-error terms included): an identified model's error
-        grows at nodes no sensor sees as it does at the sensors. ``None`` otherwise (1 before
-        the gain converges).
+        grows at nodes no sensor sees as it does at the sensors; 1 in the windows that end
+        before the gain converges (as ``step`` gives them). ``None`` otherwise, or when the
+        gain never converges.
     undetectable_modes : tuple of complex
         Eigenvalues on or outside the unit circle that the sensors cannot see (empty when the
         model is detectable). Their variance grows without bound and is reported as it grows.

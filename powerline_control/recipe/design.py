@@ -274,19 +274,20 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
     n_nodes, n_samples = X.shape
     n_sensors = check_int("n_sensors", n_sensors, low=1, high=n_nodes)
     delays = check_int("delays", delays, low=1)
-    if 4 * delays > n_samples:   # before the delay embedding is built (the DMD design checks
-        raise InputError(        # each part of the record against it later)
-            f"The record of {n_samples} samples is too short for delays={delays}: the model "
-            f"needs at least {4 * delays} samples in each of its training and held-out parts. "
-            "Give a longer record (a few periods of the lowest mode of interest) or fewer "
-            "'delays'."
-        )
     spatial_rank = check_int("spatial_rank", spatial_rank, low=1)
     rank = check_int("rank", rank, low=1, high=spatial_rank * delays)
     criterion = check_choice("criterion", criterion, ("kalman", "gramian", "min-eig",
                                                       "reconstruction"))
     train_fraction = check_real("train_fraction", train_fraction, low=0.0, high=1.0,
                                 high_inclusive=False)
+    n_fit = int(round(train_fraction * n_samples))
+    if min(n_fit, n_samples - n_fit) < 4 * delays:   # before any delay embedding is built
+        raise InputError(
+            f"The record of {n_samples} samples is too short for delays={delays} with "
+            f"train_fraction={train_fraction}: its training and held-out parts ({n_fit} and "
+            f"{n_samples - n_fit} samples) need at least {4 * delays} each. Give a longer "
+            "record (a few periods of the lowest mode of interest) or fewer 'delays'."
+        )
     method = check_choice("method", method, ("auto", "dmd", "modal"))
     process_noise = check_real("process_noise", process_noise, low=0.0, high=1e6)
     if not isinstance(warn_inconsistent, bool):
@@ -322,6 +323,16 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
             "The 'snapshots' are constant in time (every node keeps its first value): there are "
             "no dynamics to identify. Give a record of the vibrating span."
         )
+    # A node that keeps one non-zero value (a stuck sensor at an offset) reads nothing of the
+    # line, yet its offset would enter the basis and the model as a mode of its own.
+    stuck = np.flatnonzero(np.all(X == X[:, :1], axis=1) & (X[:, 0] != 0))
+    if stuck.size:
+        raise InputError(
+            f"The 'snapshots' parameter: node(s) {stuck.tolist()} keep one non-zero value in "
+            f"every sample (node {stuck[0]}: {X[stuck[0], 0]:.6g} m), a stuck or disconnected "
+            "sensor that carries no information about the span. Drop those rows (with their "
+            "'positions'), or set them to 0 where the line cannot move (a support)."
+        )
     # A clipped node (a sensor at its range) would teach the model flat tops: warn, named.
     warn_if_saturated("The 'snapshots' parameter", X, [
         f"node {i}" + ("" if positions is None else f" (x = {positions[i]:.6g} m)")
@@ -350,17 +361,9 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
     noise = max(noise, 1e-4 * rms)  # noise-free data still needs a well-posed Riccati equation
     _warn_noise_mismatch(others_noise, data_noise, source)
 
-    # 3. Candidates: every node that moves; a provisional layout for the alpha sweep. A node
-    # that keeps one non-zero value (a stuck channel) reads nothing of the line, however large
-    # that value: it is no candidate, and refused as a sensor below.
+    # 3. Candidates: every node that moves; a provisional layout for the alpha sweep.
     node_rms = np.sqrt(np.mean(X**2, axis=1))
-    stuck = np.all(X == X[:, :1], axis=1) & (X[:, 0] != 0)
-    if np.any(stuck):
-        warnings.warn(
-            f"The 'snapshots' parameter: node(s) {np.flatnonzero(stuck).tolist()} keep one "
-            f"non-zero value in every sample (e.g. {X[np.argmax(stuck), 0]:.6g} m): a stuck or "
-            "railed channel, left out of the sensor candidates.", SaturationWarning, stacklevel=3)
-    candidates = np.flatnonzero((node_rms > _MOTIONLESS_FRACTION * node_rms.max()) & ~stuck)
+    candidates = np.flatnonzero(node_rms > _MOTIONLESS_FRACTION * node_rms.max())
     if sensors is not None:
         given = np.sort(check_indices("sensors", sensors, n_nodes))
         # Motionless: below the RMS floor, or reading nothing but the noise (a support of a
@@ -403,7 +406,7 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
                                   method="dmd")
     return _Record(
         X=X, dt=dt, n_sensors=n_sensors, delays=delays, rank=rank, criterion=criterion,
-        train_fraction=train_fraction, method=method, process_noise=process_noise,
+        train_fraction=train_fraction, n_fit=n_fit, method=method, process_noise=process_noise,
         warn_inconsistent=warn_inconsistent, positions=positions, forbidden=forbidden,
         seed=seed, spatial=spatial, k=k, coords=coords, source=source, noise=noise,
         data_noise=data_noise, q_floor=q_floor, candidates=candidates, given=given,

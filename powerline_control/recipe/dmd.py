@@ -404,21 +404,15 @@ def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
     """The time-delay DMD design: alpha from held-out data, sensors, calibrated filter."""
     X, dt, delays, n_samples = rec.X, rec.dt, rec.delays, rec.n_samples
     coords, spatial, noise, q_floor = rec.coords, rec.spatial, rec.noise, rec.q_floor
-    train_fraction = rec.train_fraction
     # 4. Alpha from held-out data: the error of the estimator itself at unmeasured nodes.
     grid = _DEFAULT_ALPHAS if alphas is None else check_array("alphas", alphas, ndim=1)
     if grid.size == 0 or np.any(grid < 0):
         raise InputError(f"The 'alphas' parameter must be a non-empty list of values >= 0. "
                          f"Got {alphas!r}.")
-    n_fit = int(round(train_fraction * n_samples))
+    n_fit = rec.n_fit
     # The rank cannot exceed what the (training part of the) delay embedding holds above
     # round-off: a clean harmonic record has two directions per sinusoid.
     rank = max(1, min(rec.rank, _delay_rank(coords[:, :n_fit], delays)))
-    if n_fit < 4 * delays or n_samples - n_fit < 4 * delays:
-        raise InputError(
-            f"The record of {n_samples} samples is too short for delays={delays} with "
-            f"train_fraction={train_fraction}: both parts need at least {4 * delays} samples."
-        )
     errors = np.array([
         _held_out_error(coords[:, :n_fit], X[:, n_fit:], spatial, dt, float(a), delays, rank,
                         rec.provisional, rec.candidates, noise, rec.data_noise, q_floor)

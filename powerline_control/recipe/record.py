@@ -215,6 +215,7 @@ class _Record:
     rank: int
     criterion: str
     train_fraction: float
+    n_fit: int                 # samples of the training part (the rest is held out)
     method: str
     process_noise: float
     warn_inconsistent: bool
