@@ -776,3 +776,45 @@ def test_obstacles_must_be_a_sequence_of_pairs(bad):
         free_interval(1.0, limits, 3.66, bad)
     with pytest.raises(InputError, match="'obstacles'"):
         plan_motion(0.2, 1.0, limits, span_length=3.66, obstacles=bad)
+
+
+def test_ctrl_c_during_a_casadi_solve_is_raised_after_it_not_taken_for_a_failed_solve():
+    """CasADi turns a SIGINT during IPOPT into a failed solve ("NonIpopt_Exception_Thrown"),
+    which the planner took for an infeasible program and fell back from: a Ctrl-C during the
+    main job's plan was lost and the command exited 0 (seen in the CLI's Ctrl-C test under
+    load). Truth: IPOPT's own status on the same program without a signal, and CasADi's
+    behaviour with one (asserted too, so the test says when CasADi changes it)."""
+    import os
+    import signal
+    import threading
+
+    import casadi as ca
+
+    from powerline_control.plan.nlp import _ctrl_c_after_the_solve
+
+    def rosenbrock():
+        opti = ca.Opti()
+        x = opti.variable(3000)
+        opti.minimize(100 * ca.sumsqr(x[1:] - x[:-1] ** 2) + ca.sumsqr(1 - x[:-1]))
+        opti.solver("ipopt", {"print_time": False},
+                    {"print_level": 0, "max_iter": 150, "tol": 1e-14})
+        return opti
+
+    def interrupt_soon():
+        threading.Timer(0.05, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+
+    undisturbed = rosenbrock()
+    undisturbed.solve_limited()
+    status = undisturbed.stats()["return_status"]
+    assert status != "NonIpopt_Exception_Thrown"
+    plain = rosenbrock()
+    interrupt_soon()
+    with pytest.raises(RuntimeError):   # CasADi: the interrupt becomes a failed solve
+        plain.solve_limited()
+    assert plain.stats()["return_status"] == "NonIpopt_Exception_Thrown"
+    guarded = rosenbrock()
+    with pytest.raises(KeyboardInterrupt), _ctrl_c_after_the_solve():
+        interrupt_soon()
+        guarded.solve_limited()
+    assert guarded.stats()["return_status"] == status   # the solve ran to its own end
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -7,12 +7,16 @@ hull of its Bernstein control points: the limits therefore hold *between* sample
 at them.  The programs are built once (CasADi ``Opti`` with IPOPT) and re-solved with new
 parameter values, which is what makes a solve take milliseconds rather than the ~100 ms of
 building one; :func:`plan_motion` uses the closed form where it applies and IPOPT otherwise.
+
+Test seam: ``_ctrl_c_after_the_solve``, tested with a real IPOPT solve and a real SIGINT.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
+import signal
 import threading
 import time
 from collections.abc import Sequence
@@ -201,12 +205,36 @@ def _set_limits(
         opti.set_value(params["j_max"], scale.derivative(limits.j_max, 3))
 
 
+@contextlib.contextmanager
+def _ctrl_c_after_the_solve():
+    """Hold a Ctrl-C (SIGINT) that arrives during a CasADi solve until the solve returns, then
+    raise it. CasADi turns it into a failed solve ("NonIpopt_Exception_Thrown"), which the
+    planner takes for an infeasible program and falls back from, so the user's Ctrl-C was
+    lost and the run went on (only in the main thread can a handler be set; elsewhere the
+    solve runs as it is)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(frame))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught:
+        if callable(previous):
+            previous(signal.SIGINT, caught[0])
+        elif previous != signal.SIG_IGN:
+            raise KeyboardInterrupt
+
+
 def _solve(program: _Program) -> tuple[ca.OptiSol | None, dict, float]:
     started = time.perf_counter()
-    try:
-        solution = program.opti.solve_limited()
-    except RuntimeError:  # CasADi raises on evaluation errors (NaN in a function, ...)
-        solution = None
+    with _ctrl_c_after_the_solve():
+        try:
+            solution = program.opti.solve_limited()
+        except RuntimeError:  # CasADi raises on evaluation errors (NaN in a function, ...)
+            solution = None
     elapsed = time.perf_counter() - started
     stats = program.opti.stats()
     if solution is not None and not stats.get("success", False):
