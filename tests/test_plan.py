@@ -781,9 +781,8 @@ def test_obstacles_must_be_a_sequence_of_pairs(bad):
 def test_ctrl_c_during_a_casadi_solve_is_raised_after_it_not_taken_for_a_failed_solve():
     """CasADi turns a SIGINT during IPOPT into a failed solve ("NonIpopt_Exception_Thrown"),
     which the planner took for an infeasible program and fell back from: a Ctrl-C during the
-    main job's plan was lost and the command exited 0 (seen in the CLI's Ctrl-C test under
-    load). Truth: IPOPT's own status on the same program without a signal, and CasADi's
-    behaviour with one (asserted too, so the test says when CasADi changes it)."""
+    plan or MPC was lost and the run went on (CasADi 3.8; 3.6 let it through as a SystemError).
+    Truth: IPOPT's own status on the same program without a signal."""
     import os
     import signal
     import threading
@@ -807,11 +806,6 @@ def test_ctrl_c_during_a_casadi_solve_is_raised_after_it_not_taken_for_a_failed_
     undisturbed.solve_limited()
     status = undisturbed.stats()["return_status"]
     assert status != "NonIpopt_Exception_Thrown"
-    plain = rosenbrock()
-    interrupt_soon()
-    with pytest.raises(RuntimeError):   # CasADi: the interrupt becomes a failed solve
-        plain.solve_limited()
-    assert plain.stats()["return_status"] == "NonIpopt_Exception_Thrown"
     guarded = rosenbrock()
     with pytest.raises(KeyboardInterrupt), _ctrl_c_after_the_solve():
         interrupt_soon()
