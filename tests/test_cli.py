@@ -307,8 +307,11 @@ def test_demo_writes_its_report_into_powerline_demo(tmp_path):
 
 def test_ctrl_c_ends_with_one_line_and_status_130(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(Path(plc.__file__).parents[1]))
+    # As from a terminal: a runner started in the background by a non-interactive shell ignores
+    # SIGINT, and a child inherits that (Python then keeps it ignored).
     process = subprocess.Popen(COMMAND + ["run", "paper-lab-100"], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
+                               stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     # Wait for the run to be under way (its first stage printed), then interrupt it.
     line = process.stderr.readline()
     assert line.startswith(STAGE_MARK), line
