@@ -57,8 +57,8 @@ FIELD_SEEN = 2.0
 FIELD_GROWTH_CAP = 8.0
 #: Trailing samples whose whitened measurement spectrum sets a window's expected NIS when the
 #: reference follows the field (:func:`nis_growth`): four ``SPECTRAL_SEGMENT``s, seven
-#: half-overlapping segments, so the spectrum is averaged about as the spectral test's is. Taken
-#: from the offline measurement of issue 19 (tune split, lab-pinned designs), not tuned further.
+#: half-overlapping segments, so the spectrum is averaged about as the spectral test's is. Chosen
+#: on the detection family's tune split (lab-pinned designs), not tuned further.
 NIS_FIELD_SPAN = 1024
 
 

@@ -406,7 +406,7 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
                                   method="dmd")
     return _Record(
         X=X, dt=dt, n_sensors=n_sensors, delays=delays, rank=rank, criterion=criterion,
-        train_fraction=train_fraction, n_fit=n_fit, method=method, process_noise=process_noise,
+        n_fit=n_fit, method=method, process_noise=process_noise,
         warn_inconsistent=warn_inconsistent, positions=positions, forbidden=forbidden,
         seed=seed, spatial=spatial, k=k, coords=coords, source=source, noise=noise,
         data_noise=data_noise, q_floor=q_floor, candidates=candidates, given=given,

@@ -214,8 +214,7 @@ class _Record:
     delays: int
     rank: int
     criterion: str
-    train_fraction: float
-    n_fit: int                 # samples of the training part (the rest is held out)
+    n_fit: int                 # samples of the training part ('train_fraction'; the rest held out)
     method: str
     process_noise: float
     warn_inconsistent: bool
