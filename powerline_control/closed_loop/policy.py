@@ -181,24 +181,25 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
               if (predicted[i] <= predicted[i - 1] if i > 0 else obstacle_ends[0])
               and (predicted[i] <= predicted[i + 1] if i < grid.size - 1 else obstacle_ends[1])]
     stay = Choice(robot_position, read_only(grid), read_only(predicted), here)
-    if not minima:
+    within = np.flatnonzero(np.abs(grid - robot_position) <= reach)
+    if not within.size:
         return stay
-    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach]
-    if not reachable:
-        # No minimum within reach: the best the robot can reach lies on the way down to one,
-        # at the edge of its reach (or it stays). A support end is no such place (see above).
-        within = np.abs(grid - robot_position) <= reach
-        within[0] &= obstacle_ends[0]
-        within[-1] &= obstacle_ends[1]
-        candidates = np.flatnonzero(within & np.isfinite(predicted))
-        if candidates.size == 0 or predicted[candidates].min() >= here:
-            return stay
-        best = candidates[np.argmin(predicted[candidates])]
-        return Choice(float(grid[best]), read_only(grid), read_only(predicted), here)
-    lowest = min(predicted[i] for i in reachable)
-    good = [i for i in reachable if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
+    reachable = [i for i in minima if within[0] <= i <= within[-1]]
+    # Where the reach (not a grid end) cuts the curve on its way down to a lower minimum beyond,
+    # the edge of the reach is the best the robot can reach on that side: it competes with the
+    # minima inside. A support end is no such place (see above).
+    first, last = within[0], within[-1]
+    edges = [i for i, inward, beyond in ((first, first + 1, minima and minima[0] < first),
+                                         (last, last - 1, minima and minima[-1] > last))
+             if beyond and 0 <= inward < grid.size and predicted[i] < predicted[inward]]
+    if not reachable + edges:
+        return stay
+    lowest = min(predicted[i] for i in reachable + edges)
+    if not reachable and lowest >= here:
+        return stay   # nothing within reach is lower than where the robot is
+    good = [i for i in reachable + edges if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
     pick = min(good, key=lambda i: abs(grid[i] - robot_position))
-    if 0 < pick < grid.size - 1:
+    if pick in reachable and 0 < pick < grid.size - 1:
         # Parabola through the grid minimum and its neighbours (uniform grid).
         a, b, c = predicted[pick - 1 : pick + 2]
         denom = a - 2 * b + c
