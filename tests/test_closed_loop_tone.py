@@ -127,6 +127,31 @@ def test_a_choice_with_no_minimum_within_reach_goes_down_the_slope_as_far_as_it_
     assert policy.pick_target(grid, predicted, here, 0.5, reach=2.0).position == pytest.approx(2.0)
 
 
+def test_from_a_minimum_that_is_the_best_within_reach_the_robot_goes_down_the_slope_beyond():
+    # A shallow minimum at 1.0 m and a deep one at 2.2 m beyond the reach (lab seed 269: the
+    # robot, parked in the shallow one, 1.52x the best, stayed there although the edge of its
+    # reach lay on the deep one's slope). Truth: the lowest grid point within reach, by brute
+    # force.
+    grid = np.linspace(0.0, 3.0, 301)
+    predicted = 1e-3 * (1.6 - 0.4 * np.exp(-((grid - 1.0) / 0.2) ** 2)
+                        - 1.0 * np.exp(-((grid - 2.2) / 0.4) ** 2))
+    here = float(np.interp(1.0, grid, predicted))
+    within = np.abs(grid - 1.0) <= 0.905
+    choice = policy.pick_target(grid, predicted, here, 1.0, reach=0.905)
+    assert choice.position == pytest.approx(grid[within][np.argmin(predicted[within])])
+    assert choice.position == pytest.approx(1.9)
+    # the edge no lower than the minimum the robot is in: it stays there
+    assert policy.pick_target(grid, predicted, here, 1.0, reach=0.8).position == \
+        pytest.approx(1.0, abs=0.01)
+    # from farther away the minimum within reach pays for the move by itself: it goes there
+    start = float(np.interp(0.5, grid, predicted))
+    assert policy.pick_target(grid, predicted, start, 0.5, reach=1.405).position == \
+        pytest.approx(1.0, abs=0.01)
+    # an edge sloping down to a support, with no minimum beyond it, is no target
+    slope = 1e-3 * (1 + grid)
+    assert policy.pick_target(grid, slope, 2e-3, 1.0, reach=0.5).position == 1.0
+
+
 def test_the_reach_fallback_never_ends_at_a_support_and_the_reach_holds_exactly():
     # One minimum at 1.4 m, the robot at 0.1 m near the left support, where the predicted RMS
     # also dips (the line does not move at a support: not a place to damp from).

@@ -163,7 +163,9 @@ def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low,
     RMS no farther than ``reach`` from the robot, those within NEAR_OPTIMAL of the lowest of
     them, the one nearest the robot (when none is within reach, the lowest position within
     reach, on the way down to one; the robot's own position when the prediction has no minimum
-    or nothing within reach is lower than where it is). ``obstacle_ends``: whether an obstacle
+    or nothing within reach is lower than where it is). When no minimum within reach pays for a
+    move (MIN_GAIN), the edge of the reach on the way down to a lower minimum beyond it is
+    taken instead, if it lies lower. ``obstacle_ends``: whether an obstacle
     (not a support) bounds the interval [low, high] on each side."""
     grid = np.linspace(low, high, max(4 * plant.model.n_nodes, 200))
     predicted = predicted_rms(bare_shape, plant, robot, omega, grid, weights)
@@ -181,25 +183,37 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
               if (predicted[i] <= predicted[i - 1] if i > 0 else obstacle_ends[0])
               and (predicted[i] <= predicted[i + 1] if i < grid.size - 1 else obstacle_ends[1])]
     stay = Choice(robot_position, read_only(grid), read_only(predicted), here)
-    within = np.flatnonzero(np.abs(grid - robot_position) <= reach)
-    if not within.size:
+    if not minima:
         return stay
-    reachable = [i for i in minima if within[0] <= i <= within[-1]]
-    # Where the reach (not a grid end) cuts the curve on its way down to a lower minimum beyond,
-    # the edge of the reach is the best the robot can reach on that side: it competes with the
-    # minima inside. A support end is no such place (see above).
-    first, last = within[0], within[-1]
-    edges = [i for i, inward, beyond in ((first, first + 1, minima and minima[0] < first),
-                                         (last, last - 1, minima and minima[-1] > last))
-             if beyond and 0 <= inward < grid.size and predicted[i] < predicted[inward]]
-    if not reachable + edges:
-        return stay
-    lowest = min(predicted[i] for i in reachable + edges)
-    if not reachable and lowest >= here:
-        return stay   # nothing within reach is lower than where the robot is
-    good = [i for i in reachable + edges if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
+    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach]
+    if not reachable:
+        # No minimum within reach: the best the robot can reach lies on the way down to one,
+        # at the edge of its reach (or it stays). A support end is no such place (see above).
+        within = np.abs(grid - robot_position) <= reach
+        within[0] &= obstacle_ends[0]
+        within[-1] &= obstacle_ends[1]
+        candidates = np.flatnonzero(within & np.isfinite(predicted))
+        if candidates.size == 0 or predicted[candidates].min() >= here:
+            return stay
+        best = candidates[np.argmin(predicted[candidates])]
+        return Choice(float(grid[best]), read_only(grid), read_only(predicted), here)
+    lowest = min(predicted[i] for i in reachable)
+    good = [i for i in reachable if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
     pick = min(good, key=lambda i: abs(grid[i] - robot_position))
-    if pick in reachable and 0 < pick < grid.size - 1:
+    if predicted[pick] > (1 - MIN_GAIN) * here:
+        # No minimum within reach pays for a move: as when none is within reach, the best the
+        # robot can reach may lie at the edge of its reach, on the way down to a lower minimum
+        # beyond it.
+        within = np.flatnonzero(np.abs(grid - robot_position) <= reach)
+        first, last = within[0], within[-1]
+        edges = [edge for edge, inward, beyond in (
+                     (first, min(first + 1, last), minima[0] < first),
+                     (last, max(last - 1, first), minima[-1] > last))
+                 if beyond and predicted[edge] < min(predicted[inward], predicted[pick])]
+        if edges:
+            edge = min(edges, key=lambda i: predicted[i])
+            return Choice(float(grid[edge]), read_only(grid), read_only(predicted), here)
+    if 0 < pick < grid.size - 1:
         # Parabola through the grid minimum and its neighbours (uniform grid).
         a, b, c = predicted[pick - 1 : pick + 2]
         denom = a - 2 * b + c
