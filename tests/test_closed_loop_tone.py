@@ -152,6 +152,18 @@ def test_from_a_minimum_that_is_the_best_within_reach_the_robot_goes_down_the_sl
     assert policy.pick_target(grid, slope, 2e-3, 1.0, reach=0.5).position == 1.0
 
 
+def test_a_robot_parked_in_a_shallow_minimum_reaches_for_the_deep_one_beside_it():
+    # Lab seed 269 (clamped, a sine between modes at 2.951 m, the robot from 0.825 m, 11 s):
+    # before the rule it stayed in a shallow minimum at 2.206 m, 1.52x the best, with the deep
+    # one's slope at the edge of its reach. Truth: the exact steady state of the full FE model
+    # with the robot parked, searched over the whole span (the family's judge).
+    outcome = fam.run(fam.scenario(269))
+    assert outcome.error is None, outcome.error
+    assert outcome.settled
+    assert outcome.closed_over_best <= 1.1, outcome.description
+    assert abs(outcome.final_position - outcome.best_position) < 0.1
+
+
 def test_the_reach_fallback_never_ends_at_a_support_and_the_reach_holds_exactly():
     # One minimum at 1.4 m, the robot at 0.1 m near the left support, where the predicted RMS
     # also dips (the line does not move at a support: not a place to damp from).
