@@ -147,9 +147,13 @@ def test_from_a_minimum_that_is_the_best_within_reach_the_robot_goes_down_the_sl
     start = float(np.interp(0.5, grid, predicted))
     assert policy.pick_target(grid, predicted, start, 0.5, reach=1.405).position == \
         pytest.approx(1.0, abs=0.01)
-    # an edge sloping down to a support, with no minimum beyond it, is no target
-    slope = 1e-3 * (1 + grid)
-    assert policy.pick_target(grid, slope, 2e-3, 1.0, reach=0.5).position == 1.0
+    # an edge lower than the minimum the robot is in, but on a slope down to a support with no
+    # minimum beyond it (the line does not move at a support), is no target
+    slope = 1e-3 * (0.5 + 0.8 * grid - 0.4 * np.exp(-((grid - 1.0) / 0.1) ** 2))
+    here = float(np.interp(1.0, grid, slope))
+    assert slope[np.abs(grid - 0.3) < 1e-9][0] < here
+    assert policy.pick_target(grid, slope, here, 1.0, reach=0.7).position == \
+        pytest.approx(1.0, abs=0.02)
 
 
 def test_a_robot_parked_in_a_shallow_minimum_reaches_for_the_deep_one_beside_it():
