@@ -185,14 +185,15 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
     stay = Choice(robot_position, read_only(grid), read_only(predicted), here)
     if not minima:
         return stay
-    reachable = [i for i in minima if abs(grid[i] - robot_position) <= reach]
+    within = np.abs(grid - robot_position) <= reach
+    reachable = [i for i in minima if within[i]]
     if not reachable:
         # No minimum within reach: the best the robot can reach lies on the way down to one,
         # at the edge of its reach (or it stays). A support end is no such place (see above).
-        within = np.abs(grid - robot_position) <= reach
-        within[0] &= obstacle_ends[0]
-        within[-1] &= obstacle_ends[1]
-        candidates = np.flatnonzero(within & np.isfinite(predicted))
+        allowed = within.copy()
+        allowed[0] &= obstacle_ends[0]
+        allowed[-1] &= obstacle_ends[1]
+        candidates = np.flatnonzero(allowed & np.isfinite(predicted))
         if candidates.size == 0 or predicted[candidates].min() >= here:
             return stay
         best = candidates[np.argmin(predicted[candidates])]
@@ -204,8 +205,7 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
         # No minimum within reach pays for a move: as when none is within reach, the best the
         # robot can reach may lie at the edge of its reach, on the way down to a lower minimum
         # beyond it.
-        within = np.flatnonzero(np.abs(grid - robot_position) <= reach)
-        first, last = within[0], within[-1]
+        first, last = np.flatnonzero(within)[[0, -1]]
         edges = [edge for edge, inward, beyond in (
                      (first, min(first + 1, last), minima[0] < first),
                      (last, max(last - 1, first), minima[-1] > last))
