@@ -150,7 +150,8 @@ def test_quick_lab_held_out_scenario_meets_the_criteria(seed):
                    "1.012); seed 53 (Cardinal 249 m clamped, zeta 0.064 %, a sine between "
                    "modes, a parked RMS minimum 0.25 m wide) ends 2.4x the best, 0.4 m from it: "
                    "the robot-free shape from four sensors on a still-ringing line is not that "
-                   "precise")
+                   "precise (an information limit: docs/closed_loop.md, 'On a family nobody "
+                   "tuned for')")
 def test_held_out_family_meets_the_issue_18_criteria():
     seeds = fam.family("held_out", 42)
     with ProcessPoolExecutor(2, initializer=fam.pin_threads) as pool:
