@@ -1,0 +1,270 @@
+"""The simulated line of a closed-loop run: the FE model's modal plant and its loads, the
+estimator calibrated with the robot parked at its start, the run's records, and the steps that
+simulate, sense and filter a block of samples. :mod:`.loop` drives them; the policy never sees the
+plant, only what the sensors and the robot record."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._validation import check_indices, check_int, check_real
+from ..errors import InputError
+from ..estimate import KalmanFilter
+from ..fem import MDR, LineModel
+from ..line import Span
+from ..recipe import design_estimator
+from ..simulation.plant import (
+    SMALL_PLANT_MODES,
+    ModalPlant,
+    default_modes,
+    load_histories,
+    nodal_field,
+    run_parked,
+)
+from .settings import Settings
+
+
+def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
+    """The estimator recipe (:func:`~powerline_control.recipe.design_estimator`) on the
+    calibration record with the given sensors: filter, field map and the one-step sensor
+    predictor C A (for the innovation check)."""
+    options = {} if delays is None else {"delays": delays}
+    if rank is not None:
+        options["rank"] = rank
+    design = design_estimator(record, len(sensors), dt=dt, sensors=list(sensors),
+                              noise_std=noise_std if noise_std > 0 else None, **options)
+    sys = design.model.to_statespace(measured=list(sensors))
+    return (design.filter, np.asarray(design.model.field_map),
+            np.asarray(sys.C) @ np.asarray(sys.A))
+
+
+@dataclass(frozen=True)
+class SimulatedLine:
+    """The simulated line: the bare FE model, the plant with and without the robot, the loads;
+    and the controller's model of the line, which knows the robot but not the loads."""
+
+    span: Span
+    bare: LineModel
+    sensors: tuple              # measured node indices, sorted (the estimator's output order)
+    sensor_rows: np.ndarray     # (p, r): the plant modes' displacements at the sensors
+    clamp_distance: float       # where the "near_clamp" comparison parks the robot, m
+    t: np.ndarray               # (n_t,) sample times, s
+    plant: ModalPlant          # with the robot
+    free_plant: ModalPlant     # without it (the "no_robot" comparison)
+    model: ModalPlant           # the policy's receptances: the band's bare modes, no load basis
+    model_rows: np.ndarray      # (p, r_model): its modes' displacements at the sensors
+    plant_steps: int            # samples per plant block (the robot's position held)
+    modal_force: np.ndarray     # (n_t, r)
+    residual: np.ndarray        # (n_nodes, n_t): the dropped modes' response to the loads
+    harmonic: tuple | None      # (frequency, parts) of the last load when it is one sine
+    weights: np.ndarray         # (n_nodes,) trapezoid weights: RMS over the span by length
+    mode_frequencies: np.ndarray  # (r_model,) the policy model's bare modes, Hz, sorted
+
+
+def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
+                clamp_distance) -> SimulatedLine:
+    """The sensors on the FE model, the modal plant and the loads' histories."""
+    bare = settings.bare
+    span = bare.span
+    sensors = tuple(sorted(check_indices("sensors", sensors, bare.n_nodes).tolist()))
+    fixed_nodes = [j for j in sensors if bare.displacement_map()[[j]].nnz == 0]
+    if fixed_nodes:
+        raise InputError(
+            f"The 'sensors' parameter names support node(s) {fixed_nodes}, where the line does "
+            "not move: the estimator's model has no displacement there."
+        )
+    clamp_distance = (
+        min(0.05 * span.length, 1.5)
+        if clamp_distance is None
+        else check_real("clamp_distance", clamp_distance, low=0.0, high=span.length)
+    )
+    t = settings.dt * np.arange(settings.n_samples)
+    load_frequencies = [
+        float(b.frequency)
+        for _, loads in segments
+        for f in loads
+        for b in [f.bind(bare) if hasattr(f, "bind") else f]
+        if getattr(b, "frequency", None) is not None   # a user's load may say None: not a sine
+    ]
+    for frequency in load_frequencies:  # a mesh too coarse for the load: TruncationWarning
+        bare.check_resolution(frequency, "load")
+    if n_modes is None:
+        n_modes = default_modes(span, bare, load_frequencies, settings.dt)
+    else:
+        n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
+    loads = [load for _, items in segments for load in items]
+    plant = ModalPlant(bare, robot, n_modes, settings.dt, loads=loads)
+    plant_steps = settings.plant_steps
+    if plant_steps is None:
+        # 10 ms blocks, or one block per control period for a long span's band of ~100 modes
+        # (each new position costs an exponential of a (4r + 2)-square matrix).
+        plant_steps = (
+            settings.steps_per_period
+            if plant.r > SMALL_PLANT_MODES
+            else max(1, min(settings.steps_per_period, int(round(0.01 / settings.dt))))
+        )
+    free_plant = ModalPlant(bare, None, n_modes, settings.dt, loads=loads)
+    # The plant's basis carries the loads' own Ritz vectors (where they act): the simulation
+    # needs them, the controller does not know them.
+    model = ModalPlant(bare, robot, n_modes, settings.dt)
+    modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
+    return SimulatedLine(
+        span=span, bare=bare, sensors=sensors, sensor_rows=plant.nodal[list(sensors)],
+        clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant, model=model,
+        model_rows=model.nodal[list(sensors)],
+        plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
+        weights=bare.span_weights, mode_frequencies=np.sort(np.sqrt(model.omega2)) / (2 * np.pi),
+    )
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The estimator, designed on the first window with the robot parked at its start."""
+
+    start_states: np.ndarray    # (n_t, 2 n_q): the plant parked at the start for the whole run
+    noise_std: float            # the sensors' noise, m
+    record: np.ndarray          # (n_nodes, n_cal) noisy calibration field
+    robot_record: np.ndarray    # (n_cal,) noisy line displacement under the robot
+    kf: KalmanFilter            # warmed up on the record; it keeps stepping in the loop
+    field_map: np.ndarray       # estimator states -> nodal displacements
+    predict_sensors: np.ndarray  # one-step sensor predictor C A (the innovation check)
+    warm_states: np.ndarray     # (n_cal, n_states) the filter's states over the record
+    innovation_rms: float       # RMS one-step prediction error of the sensors over the record
+    innovation_power: np.ndarray  # (n_cal,) its mean square per sample (0 for the first two)
+
+
+def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng) -> Calibration:
+    """Simulate the parked start, add sensor noise, identify the estimator and warm it up."""
+    n_cal, sensor_list = settings.n_cal, list(line.sensors)
+    start_states = run_parked(line.plant, robot.position, line.modal_force, line.t.size)
+    calib_true = nodal_field(line.plant, start_states[:n_cal], line.residual[:, :n_cal])
+    calib_rms = float(np.sqrt(np.mean(calib_true**2)))
+    noise_std = settings.noise_fraction * calib_rms
+    record = calib_true + noise_std * rng.standard_normal(calib_true.shape)
+    kf, field_map, predict_sensors = _calibrated_filter(
+        record, settings.dt, sensor_list, settings.delays, noise_std, settings.estimator_rank
+    )
+    # C order, as the run's state history it is copied into (the same BLAS calls below)
+    warm_states = np.ascontiguousarray(
+        np.asarray(kf.filter(record[sensor_list], update_state=True).states).T
+    )
+    innovation = record[sensor_list, 2:] - predict_sensors @ warm_states[1 : n_cal - 1].T
+    innovation_power = np.zeros(n_cal)
+    innovation_power[2:] = np.mean(innovation**2, axis=0)
+    robot_record = start_states[:n_cal, : line.plant.r] @ line.plant.coupling(robot.position) + (
+        noise_std * rng.standard_normal(n_cal)
+    )
+    return Calibration(
+        start_states=start_states, noise_std=noise_std, record=record,
+        robot_record=robot_record, kf=kf, field_map=field_map, predict_sensors=predict_sensors,
+        warm_states=warm_states, innovation_rms=float(np.sqrt(np.mean(innovation**2))),
+        innovation_power=innovation_power,
+    )
+
+
+@dataclass
+class Records:
+    """What the run records: histories over every sample (filled as it goes; the calibration
+    window first) and a log of every control step."""
+
+    plant_states: np.ndarray    # (n_t, 2 n_q) true plant states
+    filter_states: np.ndarray   # (n_t, n_states) the Kalman filter's
+    position: np.ndarray        # (n_t,) robot position, m
+    velocity: np.ndarray        # (n_t,) robot velocity, m/s
+    target: np.ndarray          # (n_t,) the goal steered to (NaN before the first)
+    measured: np.ndarray        # (p, n_t) noisy sensor displacements
+    robot_measured: np.ndarray  # (n_t,) noisy line displacement under the robot
+    innovation_power: np.ndarray  # (n_t,) mean square one-step prediction error of the sensors
+    statuses: list = field(default_factory=list)
+    frequencies: list = field(default_factory=list)
+    innovation_ratio: list = field(default_factory=list)
+    retarget_times: list = field(default_factory=list)
+    target_starts: list = field(default_factory=list)   # sample index of each new target
+    predictions: list = field(default_factory=list)
+    decisions: list = field(default_factory=list)       # (time, what the policy decided)
+
+    @classmethod
+    def after_calibration(cls, line: SimulatedLine, calibration: Calibration, robot: MDR,
+                          n_cal: int) -> Records:
+        """Histories for the whole run, the calibration window's filled in."""
+        n_t = line.t.size
+        records = cls(
+            plant_states=np.empty((n_t, calibration.start_states.shape[1])),
+            filter_states=np.empty((n_t, calibration.field_map.shape[1])),
+            position=np.full(n_t, robot.position),
+            velocity=np.zeros(n_t),
+            target=np.full(n_t, np.nan),
+            measured=np.zeros((len(line.sensors), n_t)),
+            robot_measured=np.zeros(n_t),
+            innovation_power=np.zeros(n_t),
+        )
+        records.plant_states[:n_cal] = calibration.start_states[:n_cal]
+        records.filter_states[:n_cal] = calibration.warm_states
+        records.measured[:, :n_cal] = calibration.record[list(line.sensors)]
+        records.robot_measured[:n_cal] = calibration.robot_record
+        records.innovation_power[:n_cal] = calibration.innovation_power
+        return records
+
+
+def advance_plant(plant_state: np.ndarray, records: Records, line: SimulatedLine,
+                   calibration: Calibration, rng, timings: dict, k: int, end: int) -> np.ndarray:
+    """Simulate and sense samples k..end in blocks that hold the robot's mid-block position,
+    then filter them (the filter acts on nothing before the next control step); leaves the
+    loop's state at sample end."""
+    j = k
+    while j < end:
+        block_end = min(j + line.plant_steps, end)
+        x_mid = 0.5 * (records.position[j] + records.position[block_end])
+        tic = time.perf_counter()
+        phi, g0, g1 = line.plant.discretise(x_mid)
+        at_robot = line.plant.coupling(x_mid)
+        timings["plant update"] += time.perf_counter() - tic
+        tic = time.perf_counter()
+        plant_state = _step_plant(plant_state, (phi, g0, g1), records, line.modal_force, j,
+                                  block_end)
+        _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
+        timings["plant"] += time.perf_counter() - tic
+        j = block_end
+    tic = time.perf_counter()
+    _kalman_steps(records, calibration, records.measured[:, k + 1 : end + 1].T, k, end)
+    timings["filter"] += time.perf_counter() - tic
+    return plant_state
+
+
+def _step_plant(z: np.ndarray, maps: tuple, records: Records, modal_force: np.ndarray,
+                j: int, block_end: int) -> np.ndarray:
+    """The plant's exact first-order-hold steps from sample j to block_end, recorded; the last
+    state."""
+    phi, g0, g1 = maps
+    states = records.plant_states
+    states[j] = z
+    states[j + 1 : block_end + 1] = (modal_force[j:block_end] @ g0.T
+                                     + modal_force[j + 1 : block_end + 1] @ g1.T)
+    for i in range(j, block_end):
+        states[i + 1] += phi @ states[i]   # drive first: the sums of phi @ z + drive
+    return states[block_end].copy()
+
+
+def _sense(records: Records, line: SimulatedLine, at_robot: np.ndarray, noise_std: float, rng,
+           j: int, block_end: int) -> None:
+    """The sensors' and the robot's noisy displacements over samples j+1..block_end, recorded."""
+    sensor_list = list(line.sensors)
+    block = records.plant_states[j + 1 : block_end + 1, : line.plant.r]
+    y_block = block @ line.sensor_rows.T + line.residual[sensor_list, j + 1 : block_end + 1].T
+    robot_block = block @ at_robot
+    if noise_std:
+        y_block = y_block + noise_std * rng.standard_normal(y_block.shape)
+        robot_block = robot_block + noise_std * rng.standard_normal(robot_block.shape)
+    records.measured[:, j + 1 : block_end + 1] = y_block.T
+    records.robot_measured[j + 1 : block_end + 1] = robot_block
+
+
+def _kalman_steps(records: Records, calibration: Calibration, y_block: np.ndarray, j: int,
+                  block_end: int) -> None:
+    """The Kalman filter's steps on the block's measurements, and its one-step innovations."""
+    records.filter_states[j + 1 : block_end + 1] = calibration.kf.step_block(y_block.T).T
+    predicted = records.filter_states[j:block_end] @ calibration.predict_sensors.T
+    records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
