@@ -20,6 +20,7 @@ __all__ = [
     "check_real",
     "check_int",
     "check_bool",
+    "check_bare_line",
     "check_choice",
     "check_array",
     "check_snapshot_matrix",
@@ -109,6 +110,24 @@ def check_bool(name: str, value: object) -> bool:
             f"of type {type(value).__name__} instead."
         )
     return bool(value)
+
+
+def check_bare_line(model: object, why: str) -> None:
+    """Refuse a line model that carries a robot (``mdr=``) where the robot is given apart.
+
+    ``why`` says what the call does with the robot instead (it ends the message).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> check_bare_line(SimpleNamespace(mdr=None), "the robot is the 'robot' argument")
+    """
+    robot = getattr(model, "mdr", None)
+    if robot is not None:
+        raise InputError(
+            "The 'model' parameter must be the bare line (mdr=None): "
+            f"{why}. Got a model with a robot at {robot.position:g} m; build it without mdr."
+        )
 
 
 def check_choice(name: str, value: object, choices: Sequence[str]) -> str:

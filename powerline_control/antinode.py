@@ -590,6 +590,16 @@ def locate_antinodes(
         return []
     scale = float(np.max(np.abs(signed)))
     threshold = np.maximum(_NOISE_SIGMAS * np.sqrt(noise_variance), _ROUND_OFF * scale)
+    if data.ndim == 1 and not given and np.all(np.abs(signed) <= threshold):
+        # The shape changes between neighbouring samples as much as its amplitude: no
+        # vibration node could stand out, and one "loop" would span the whole field.
+        raise InputError(
+            "The 'field' parameter (a shape) varies from sample to sample as much as its "
+            f"amplitude (estimated noise {np.sqrt(noise_variance.max()) / scale:.0%} of it): "
+            "either it is noise, or its loops are shorter than about 3 samples and the "
+            f"positions 'x' ({n_nodes} of them) are too sparse for it. Sample it more finely, "
+            "or give 'variances' if the noise is known."
+        )
     # Loops from the nodes alone; if the signed shape is zero (a window whose dominant harmonic
     # vanishes), the envelope's span is one loop.
     bounds = [float(positions[0]), *_vibration_nodes(positions, signed, threshold),

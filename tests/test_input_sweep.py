@@ -265,8 +265,8 @@ def test_negative_sensor_cost_is_refused():
 def test_sensor_positions_closer_than_a_mesh_cell_are_refused_not_merged():
     from powerline_control.scenario.stages import given_sensors
 
-    scenario = plc.load_scenario(text="[model]\nn_elements = 4\n[estimation]\n"
-                                      "sensor_positions = [1.0, 1.001]")
+    scenario = plc.load_scenario(text="[model]\nn_elements = 4\n[forcing]\nfrequency = 9.0\n"
+                                      "[estimation]\nsensor_positions = [1.0, 1.001]")
     # Old code: both become node 1, one sensor where the user asked for two.
     with pytest.raises(plc.InputError, match=r"sensor_positions.*1 m and 1\.001 m.*0\.915 m"):
         given_sensors(scenario, [0.0, 0.915, 1.83, 2.745, 3.66])
@@ -288,3 +288,107 @@ def test_check_array_finiteness_equals_the_elementwise_truth(values, allow_nan):
     else:
         out = check_array("v", values, allow_nan=allow_nan)
         assert out.tobytes() == values.tobytes()   # returned unchanged, bit for bit
+
+
+# ================================= edge cases found by a second sweep of the newest public calls
+_TUNED = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
+_LAB_LOAD = plc.HarmonicForce(1.0, 24.0, 0.5)
+
+
+def test_a_closed_loop_that_ends_before_any_decision_returns_its_result():
+    # Old code: ValueError from zip(strict=True) once the whole run had been simulated.
+    result = plc.run_closed_loop(plc.Span.paper_lab(), _LAB_LOAD, _TUNED, sensors=[5, 10, 15],
+                                 n_elements=20, duration=1.2, calibration=1.0)
+    assert result.decisions == () and result.retarget_times == ()
+    # the robot never moved: the run's field is the parked start's, sample for sample
+    np.testing.assert_array_equal(result.robot_position, 1.2)
+    np.testing.assert_allclose(result.displacement, result.baseline_displacement, rtol=0,
+                               atol=1e-12 * np.abs(result.baseline_displacement).max())
+
+
+def test_a_closed_loop_load_above_the_nyquist_frequency_of_dt_is_refused():
+    # Old code: the 24 Hz load aliased to 4 Hz at dt = 0.05 s, and the robot chased the alias.
+    with pytest.raises(plc.InputError, match=r"'dt'.*24 Hz.*Nyquist frequency 10 Hz"):
+        plc.run_closed_loop(plc.Span.paper_lab(), _LAB_LOAD, _TUNED, sensors=[5, 10, 15],
+                            n_elements=20, duration=12.0, calibration=8.0, dt=0.05,
+                            control_period=0.05)
+
+
+@pytest.mark.parametrize("force", [plc.HarmonicForce(1.0, 24.0, 0.0), []],
+                         ids=["at-a-support", "empty"])
+def test_a_closed_loop_without_load_on_the_line_names_force(force):
+    # Old code: IdentificationError "The 'snapshots' are all zeros" (no 'snapshots' was given).
+    with pytest.raises(plc.InputError, match="'force'.*no load on the line"):
+        plc.run_closed_loop(plc.Span.paper_lab(), force, _TUNED, sensors=[5, 10, 15],
+                            n_elements=20, duration=3.0, calibration=1.0)
+
+
+def test_choose_parked_position_refuses_a_model_that_carries_the_robot():
+    model = plc.LineModel(plc.Span.paper_lab(), 20, damping=plc.ModalDamping(0.01))
+    field = plc.simulate(model, _LAB_LOAD, duration=2.0, dt=1e-3).displacement[:, -1000:]
+    robot = plc.tune_damper(model, 3, 1.83, 0.05, body_mass=0.02)
+    limits = plc.RobotLimits(0.5, 1.0)
+    # Old code: answered 1.825 m (the robot counted twice) against 0.554 m for the bare line.
+    with pytest.raises(plc.InputError, match="'model'.*bare line"):
+        plc.choose_parked_position(model.with_robot(robot), field, 1e-3, robot, 1.2, limits)
+    with pytest.raises(plc.InputError, match="'field'.*constant in time"):
+        plc.choose_parked_position(model, np.zeros_like(field), 1e-3, robot, 1.2, limits)
+
+
+def test_locate_antinodes_refuses_a_shape_sampled_twice_per_loop():
+    # sin(10 pi x): 10 loops, antinodes at 0.05 + 0.1 k. On 21 points (2 per loop) the samples
+    # fall on its nodes and antinodes only; old code: one "antinode" at 0.5 m, a node.
+    x = np.linspace(0.0, 1.0, 21)
+    with pytest.raises(plc.InputError, match="'field'.*too sparse"):
+        plc.locate_antinodes(np.sin(10 * np.pi * x), x)
+    x = np.linspace(0.0, 1.0, 31)                      # 3 per loop: found, to 1e-6
+    found = [a.position for a in plc.locate_antinodes(np.sin(10 * np.pi * x), x)]
+    np.testing.assert_allclose(found, 0.05 + 0.1 * np.arange(10), atol=1e-6)
+
+
+def test_design_estimator_never_puts_a_sensor_on_a_support_of_a_noisy_record():
+    model = plc.LineModel(plc.Span.paper_lab(), 20, damping=plc.ModalDamping(0.01))
+    record = plc.simulate(model, _LAB_LOAD, duration=2.0, dt=1e-3, noise_std=1e-6, seed=0)
+    # Old code: n_sensors = 20 and 21 were allowed and put sensors on nodes 0 and 20, where
+    # the pinned line never moves (or failed with an IdentificationError about alphas).
+    for n in (20, 21):
+        with pytest.raises(plc.InputError, match=rf"'n_sensors' parameter \({n}\).*<= 19"):
+            plc.design_estimator(record, n_sensors=n)
+
+
+def test_a_closed_loop_too_short_to_calibrate_is_refused_at_load():
+    # Old code: accepted, then stage errors about 'calibration' or 'delays'. The recipe needs
+    # 106 samples (two parts of >= 4 x 8 delays at a 0.7 split); a third of 0.3 s at 1 ms is 101.
+    with pytest.raises(plc.InputError, match=r"robot.closed_loop = 0.3 is not allowed.*106 "
+                                             r"samples.*at least 0.4 s"):
+        plc.load_scenario(text="[robot]\nclosed_loop = 0.3")
+    assert plc.load_scenario(text="[robot]\nclosed_loop = 0.4")
+    with pytest.raises(plc.InputError, match=r"closed_loop = 12.0 is not allowed.*lower "
+                                             r"simulation.dt"):   # 2 s hold 67 samples of 30 ms
+        plc.load_scenario(text="[simulation]\ndt = 0.03\nduration = 60.0\n[forcing]\n"
+                               "frequency = 5.0\n[robot]\nclosed_loop = 12.0")
+
+
+def test_a_sensor_position_that_rounds_to_a_support_is_refused():
+    from powerline_control.scenario.stages import given_sensors
+
+    scenario = plc.load_scenario(text="[model]\nn_elements = 4\n[forcing]\nfrequency = 9.0\n"
+                                      "[estimation]\nsensor_positions = [0.3, 1.0]")
+    with pytest.raises(plc.InputError, match=r"sensor_positions.*0\.3 m falls on the support"):
+        given_sensors(scenario, [0.0, 0.915, 1.83, 2.745, 3.66])
+
+
+def test_parked_steady_state_warns_of_a_load_the_mesh_cannot_show():
+    model = plc.LineModel(plc.Span.paper_lab(), 20, damping=plc.ModalDamping(0.01))
+    with pytest.warns(plc.TruncationWarning, match="n_elements"):
+        plc.parked_steady_state(model, plc.HarmonicForce(1.0, 1e5, 0.5), plc.MDR(1.0, 0.02),
+                                [1.0])
+
+
+def test_fatigue_over_record_names_an_unknown_option_and_an_impossible_default():
+    record = plc.WindRecord.constant(3.0, n_records=2)
+    with pytest.raises(plc.InputError, match=r"unknown option\(s\) \['nonsense'\]"):
+        plc.fatigue_over_record(DRAKE, record, nonsense=1)
+    short = plc.Span(length=1.0, tension=28e3, conductor=plc.conductors["drake"])
+    with pytest.raises(plc.InputError, match="default fixed damper position.*'fixed_position'"):
+        plc.fatigue_over_record(short, record)

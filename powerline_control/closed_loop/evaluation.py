@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from .._validation import read_only
-from ..errors import ModelError
+from ..errors import ModelError, TruncationWarning
 from ..fem import MDR
 from ..simulation import ParkedSteadyState, parked_steady_state
 from ..simulation.plant import (
@@ -20,6 +21,13 @@ from ..simulation.plant import (
 )
 from .policy import reach_within
 from .result import Comparison
+
+
+def _steady(model, loads, robot: MDR | None, positions=None) -> ParkedSteadyState:
+    """:func:`parked_steady_state`, without the mesh warning the run already gave (build_line)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TruncationWarning)
+        return parked_steady_state(model, loads, robot, positions)
 
 
 def arrival_index(position: np.ndarray, start: int, tolerance: float) -> int | None:
@@ -49,7 +57,7 @@ def settling_of(records, t: np.ndarray, segments, n_cal: int, loop_length: float
     position, target_starts, n_t = records.position, records.target_starts, t.size
     tolerance = 0.01 * loop_length
     settle_times = []
-    bounds = target_starts[1:] + [n_t - 1]
+    bounds = target_starts[1:] + [n_t - 1] if target_starts else []   # no decision in the run
     for begin, stop in zip(target_starts, bounds, strict=True):
         arrival = arrival_index(position[: stop + 1], begin, tolerance)
         settle_times.append(float(t[arrival] - t[begin]) if arrival is not None else float("nan"))
@@ -126,14 +134,14 @@ def reachable_positions(line, limits, start: float, bounds: tuple[float, float],
 def steady_scan(line, robot: MDR, loads, positions: np.ndarray) -> ParkedSteadyState:
     """The exact steady state along ``positions`` and refined around its minimum (41 points
     over the two grid steps either side)."""
-    coarse = parked_steady_state(line.bare, loads, robot, positions)
+    coarse = _steady(line.bare, loads, robot, positions)
     if positions.size < 3:
         return coarse
     i = int(np.argmin(coarse.rms))
     step = positions[1] - positions[0]
     fine = np.linspace(max(positions[i] - 2 * step, positions[0]),
                        min(positions[i] + 2 * step, positions[-1]), 41)
-    refined = parked_steady_state(line.bare, loads, robot, fine)
+    refined = _steady(line.bare, loads, robot, fine)
     order = np.argsort(np.concatenate([positions, fine]), kind="stable")
     return ParkedSteadyState(
         frequency=coarse.frequency, positions=read_only(np.concatenate([positions, fine])[order]),
@@ -200,7 +208,7 @@ def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, li
     scan = steady_scan(line, robot, last_loads,
                        reachable_positions(line, limits, robot.position, bounds, travel_time))
     windows["best"] = _parked_window("best", scan.best_position, line, robot, mask)
-    placed = parked_steady_state(
+    placed = _steady(
         line.bare, last_loads, robot,
         np.array([line.clamp_distance, robot.position, records.position[-1]]))
     out = {"near_clamp": _steady_comparison(windows["near_clamp"][0], placed, 0),
@@ -209,7 +217,7 @@ def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, li
            "best": _steady_comparison(windows["best"][0], scan, int(np.argmin(scan.rms)))}
     try:
         out["no_robot"] = _steady_comparison(windows["no_robot"][0],
-                                             parked_steady_state(line.bare, last_loads, None), 0)
+                                             _steady(line.bare, last_loads, None), 0)
     except ModelError:
         # An undamped bare line driven exactly at a natural frequency has no steady state.
         c, states, p = windows["no_robot"]

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._spectral import dominant_frequency, fit_phasors
-from .._validation import check_array, check_real, read_only
+from .._validation import check_array, check_bare_line, check_real, read_only
 from ..errors import InputError
 from ..fem import MDR, LineModel
 from ..plan import RobotLimits, free_interval
@@ -275,6 +275,7 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
     """
     if not isinstance(model, LineModel):
         raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
+    check_bare_line(model, "the robot is the 'robot' argument (the field is the line's without it)")
     if not isinstance(robot, MDR):
         raise InputError(f"The 'robot' parameter must be an MDR. Got {type(robot).__name__}.")
     if not isinstance(limits, RobotLimits):
@@ -290,6 +291,9 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
             f"The 'field' parameter must hold at least 8 samples to measure a frequency. "
             f"Got {field.shape[1]}."
         )
+    if not np.any(field != field[:, :1]):
+        raise InputError("The 'field' parameter is constant in time: it shows no vibration to "
+                         "place the robot by.")
     frequency = dominant_frequency(field, dt)
     if not frequency > 0.0:
         raise InputError("The 'field' parameter shows no vibration (no spectral peak above 0 Hz).")

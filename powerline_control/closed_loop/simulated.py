@@ -89,8 +89,15 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
         for b in [f.bind(bare) if hasattr(f, "bind") else f]
         if getattr(b, "frequency", None) is not None   # a user's load may say None: not a sine
     ]
+    nyquist = 0.5 / settings.dt
     for frequency in load_frequencies:  # a mesh too coarse for the load: TruncationWarning
         bare.check_resolution(frequency, "load")
+        if frequency >= nyquist:   # the sensors would alias it: the robot would chase the alias
+            raise InputError(
+                f"The 'dt' parameter ({settings.dt:g} s) cannot sample the load at "
+                f"{frequency:g} Hz: it lies at or above the Nyquist frequency {nyquist:g} Hz. "
+                f"Use dt < {0.5 / frequency:.3g} s."
+            )
     if n_modes is None:
         n_modes = default_modes(span, bare, load_frequencies, settings.dt)
     else:
@@ -111,6 +118,12 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
     # needs them, the controller does not know them.
     model = ModalPlant(bare, robot, n_modes, settings.dt)
     modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
+    if not (np.any(modal_force) or np.any(residual)):
+        given = [load for _, items in segments for load in items]
+        raise InputError(
+            "The 'force' parameter puts no load on the line: it is empty or acts only at a "
+            f"support, so there is no vibration to damp. Got {given!r}."
+        )
     return SimulatedLine(
         span=span, bare=bare, sensors=sensors, sensor_rows=plant.nodal[list(sensors)],
         clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant, model=model,

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .._validation import check_array, check_int, check_real
+from .._validation import check_array, check_bare_line, check_int, check_real
 from ..errors import InputError
 
 if TYPE_CHECKING:
@@ -209,11 +209,7 @@ def tune_damper(
         raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
     if isinstance(mode, bool) or not isinstance(mode, numbers.Integral):
         raise InputError(f"The 'mode' parameter must be an integer >= 1. Got {mode!r}.")
-    if model.mdr is not None:
-        raise InputError(
-            "The 'model' parameter must be the bare line (mdr=None): the robot's masses are "
-            f"accounted for by tune_damper. Got a model with a robot at {model.mdr.position:g} m."
-        )
+    check_bare_line(model, "the robot's masses are accounted for by tune_damper")
     mode = check_int("mode", mode, low=1, high=model.n_dofs)
     mass = check_real("mass", mass, low=0.0)
     body_mass = check_real("body_mass", body_mass, low=0.0, low_inclusive=True)

@@ -13,6 +13,8 @@ import numpy as np
 DEFAULT_DELAYS = 8
 #: Default POD rank of the delay-embedded model.
 DEFAULT_RANK = 30
+#: Default fraction of the record the model is fitted on (the rest is held out for alpha).
+DEFAULT_TRAIN_FRACTION = 0.7
 #: Largest number of spatial POD coordinates kept before delay embedding.
 DEFAULT_SPATIAL_RANK = 24
 #: Modal model: process noise per step and line coordinate, in sensor-noise variances.
@@ -51,3 +53,30 @@ _MOTIONLESS_FRACTION = 1e-6
 # Bounds of the field-variance scale of the model-error fit (dmd._field_error_model): a factor
 # 10 on the sigma either way.
 _FIELD_SCALE_MIN, _FIELD_SCALE_MAX = 1e-2, 1e2
+
+
+def record_parts(n_samples: int, train_fraction: float) -> tuple[int, int]:
+    """(training, held-out) samples of a record of ``n_samples``."""
+    n_fit = int(round(train_fraction * n_samples))
+    return n_fit, n_samples - n_fit
+
+
+def parts_too_short(n_samples: int, delays: int, train_fraction: float) -> bool:
+    """True when a part of the record holds fewer than 4 x delays samples (the delay embedding
+    of each needs a few times its depth to fit or score a model)."""
+    return min(record_parts(n_samples, train_fraction)) < 4 * delays
+
+
+def shortest_record(delays: int = DEFAULT_DELAYS,
+                    train_fraction: float = DEFAULT_TRAIN_FRACTION) -> int:
+    """Fewest samples :func:`~powerline_control.recipe.design_estimator` accepts.
+
+    Examples
+    --------
+    >>> shortest_record()
+    106
+    """
+    n = 8 * delays
+    while parts_too_short(n, delays, train_fraction):
+        n += 1
+    return n

@@ -59,6 +59,9 @@ from .defaults import (
     DEFAULT_PROCESS_NOISE,
     DEFAULT_RANK,
     DEFAULT_SPATIAL_RANK,
+    DEFAULT_TRAIN_FRACTION,
+    parts_too_short,
+    record_parts,
 )
 from .dmd import _dmd_design
 from .modal import _completed_basis, _modal_design, _smooth_basis
@@ -89,7 +92,7 @@ def design_estimator(
     positions: object = None,
     forbidden: object = None,
     criterion: str = "kalman",
-    train_fraction: float = 0.7,
+    train_fraction: float = DEFAULT_TRAIN_FRACTION,
     seed: int | np.random.Generator | None = None,
     method: str = "auto",
     process_noise: float = DEFAULT_PROCESS_NOISE,
@@ -280,8 +283,8 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
                                                       "reconstruction"))
     train_fraction = check_real("train_fraction", train_fraction, low=0.0, high=1.0,
                                 high_inclusive=False)
-    n_fit = int(round(train_fraction * n_samples))
-    if min(n_fit, n_samples - n_fit) < 4 * delays:   # before any delay embedding is built
+    n_fit = record_parts(n_samples, train_fraction)[0]
+    if parts_too_short(n_samples, delays, train_fraction):   # before any delay embedding
         raise InputError(
             f"The record of {n_samples} samples is too short for delays={delays} with "
             f"train_fraction={train_fraction}: its training and held-out parts ({n_fit} and "
@@ -362,13 +365,13 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
     _warn_noise_mismatch(others_noise, data_noise, source)
 
     # 3. Candidates: every node that moves; a provisional layout for the alpha sweep.
+    # Motionless: below the RMS floor, or reading nothing but the noise (a support of a noisy
+    # record: its mean square within 5 standard errors of the noise variance).
     node_rms = np.sqrt(np.mean(X**2, axis=1))
+    noise_only = node_rms**2 <= data_noise**2 * (1 + 5 * math.sqrt(2.0 / n_samples))
     candidates = np.flatnonzero(node_rms > _MOTIONLESS_FRACTION * node_rms.max())
     if sensors is not None:
         given = np.sort(check_indices("sensors", sensors, n_nodes))
-        # Motionless: below the RMS floor, or reading nothing but the noise (a support of a
-        # noisy record: its mean square within 5 standard errors of the noise variance).
-        noise_only = node_rms**2 <= data_noise**2 * (1 + 5 * math.sqrt(2.0 / n_samples))
         still = np.union1d(np.setdiff1d(given, candidates), given[noise_only[given]])
         if still.size:
             raise InputError(
@@ -382,10 +385,14 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
         provisional = given
     else:
         given = None
-        if candidates.size < n_sensors:
+        # (a record all noise to its own estimate says nothing of its supports: then only the
+        # RMS floor counts)
+        usable = int(np.count_nonzero(~noise_only[candidates])) or candidates.size
+        if usable < n_sensors:
             raise InputError(
-                f"The 'n_sensors' parameter ({n_sensors}) exceeds the {candidates.size} nodes "
-                "that move in the training record."
+                f"The 'n_sensors' parameter ({n_sensors}) exceeds the {usable} nodes that move "
+                "in the training record (supports and nodes that read only noise do not count): "
+                f"choose n_sensors <= {usable}."
             )
         provisional = candidates[np.linspace(0, candidates.size - 1, n_sensors + 2)
                                  .round().astype(int)[1:-1]]

@@ -251,7 +251,9 @@ class RobotConfig:
     v_max: float = _key(0.5, "m/s", "Largest robot speed.", low=0.0, high=20.0)
     a_max: float = _key(1.0, "m/s^2", "Largest robot acceleration.", low=0.0, high=100.0)
     closed_loop: float = _key(12.0, "s", "Simulated time of the closed loop (0 skips it).",
-                              low=0.0, low_inclusive=True, high=600.0)
+                              low=0.0, low_inclusive=True, high=600.0,
+                              allowed="0 (no closed loop), or up to 600 s with a calibration "
+                                      "(a third, at most 2 s) long enough for the estimator")
 
 
 @dataclass(frozen=True)
@@ -603,6 +605,8 @@ def _check_scenario(check: _Checker, scenario: Scenario, given: dict) -> None:
         check.refuse("forcing.frequency", scenario.forcing.frequency,
                    f"below the Nyquist frequency 1 / (2 dt) = {0.5 / sim.dt:g} Hz "
                    "(simulation.dt)")
+    if scenario.robot.closed_loop > 0:
+        _check_calibration_record(check, scenario)
     if scenario.robot.closed_loop > sim.duration * 10:
         check.refuse("robot.closed_loop", scenario.robot.closed_loop,
                    f"at most 10 x simulation.duration = {10 * sim.duration:g} s")
@@ -613,6 +617,35 @@ def _check_scenario(check: _Checker, scenario: Scenario, given: dict) -> None:
                      f"at most {n_el - 1}, the interior nodes of model.n_elements = {n_el} "
                      "(the two end nodes sit on the supports)")
     _check_severity(check, scenario, given)
+
+
+def _check_calibration_record(check: _Checker, scenario: Scenario) -> None:
+    """Refuse a closed loop whose calibration (a third of it, at most 2 s) holds too few
+    samples for the estimator's recipe."""
+    from ..recipe.defaults import shortest_record
+    from .stages import MAX_CALIBRATION, closed_loop_timing
+
+    needed = shortest_record()
+
+    def samples(closed_loop: float) -> int:   # the closed loop's calibration record
+        robot = dataclasses.replace(scenario.robot, closed_loop=closed_loop)
+        dt, calibration = closed_loop_timing(dataclasses.replace(scenario, robot=robot))
+        return int(calibration / dt + 1e-9) + 1
+
+    given = samples(scenario.robot.closed_loop)
+    if given >= needed:
+        return
+    shortest = next((0.1 * k for k in range(1, 6001) if samples(0.1 * k) >= needed), None)
+    if shortest is None:
+        allowed = (f"0 (no closed loop): at simulation.dt = {scenario.simulation.dt:g} s even "
+                   f"the longest calibration ({MAX_CALIBRATION:g} s) holds fewer than {needed} "
+                   "samples; lower simulation.dt")
+    else:
+        allowed = f"0 (no closed loop) or at least {shortest:.1f} s"
+    check.refuse("robot.closed_loop", scenario.robot.closed_loop, allowed,
+                 f"A third of it (at most {MAX_CALIBRATION:g} s; here {given} samples) "
+                 "calibrates the estimator with the robot parked, and the estimator's recipe "
+                 f"needs at least {needed} samples.")
 
 
 def _check_severity(check: _Checker, scenario: Scenario, given: dict) -> None:

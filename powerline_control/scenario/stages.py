@@ -115,8 +115,8 @@ def given_sensors(scenario: Scenario, x) -> tuple[list | None, str]:
 
     Examples
     --------
-    >>> s = load_scenario(text="[model]\\nn_elements = 4\\n[estimation]\\n"
-    ...                        "sensor_positions = [1.0]")
+    >>> s = load_scenario(text="[model]\\nn_elements = 4\\n[forcing]\\nfrequency = 9.0\\n"
+    ...                        "[estimation]\\nsensor_positions = [1.0]")
     >>> given_sensors(s, [0.0, 0.915, 1.83, 2.745, 3.66])
     ([1], 'from the scenario (positions, nearest nodes)')
     """
@@ -142,6 +142,12 @@ def _nearest_distinct_nodes(positions, x) -> list:
     nodes: dict[int, float] = {}
     for p in positions:
         node = int(np.argmin(np.abs(x - p)))
+        if node in (0, x.size - 1):   # a support: the line never moves there
+            raise InputError(
+                f"'estimation.sensor_positions': {p:g} m falls on the support node at "
+                f"{x[node]:g} m (the element beside it is {_spacing_beside(x, node)} long), "
+                "where the line never moves; give a position at least half an element inside "
+                "the span or a finer mesh ('model.n_elements').")
         if node in nodes:
             raise InputError(
                 f"'estimation.sensor_positions': {nodes[node]:g} m and {p:g} m both fall on "
@@ -454,8 +460,14 @@ def tune_robot(scenario: Scenario, model) -> Tuning:
     load_frequency = float(scenario.forcing.load_frequency(model.span))
     mode = driven_mode(model, load_frequency)
     frequency = float(model.natural_frequencies(mode)[mode - 1])
+    # The mode shape where its loops span at least 3 samples: at the nodes, or between them on
+    # a mesh too coarse for that (the FE's own shape functions; its antinodes fall between).
+    loop = float(model.span.loop_length(frequency))
     x = np.asarray(model.node_positions)
-    antinodes = locate_antinodes(model.mode_shapes(mode)[:, mode - 1], x)
+    if loop < 3 * model.element_length:
+        x = np.linspace(0.0, model.span.length, int(np.ceil(8 * model.span.length / loop)) + 1)
+    antinodes = locate_antinodes(model.displacement_map(x) @ model.modes(mode).shapes[:, mode - 1],
+                                 x)
     antinode = float(nearest_antinode(antinodes, cfg.start).position) if antinodes else cfg.start
     mdr = tune_damper(model, mode, antinode, cfg.suspended_mass, body_mass=cfg.body_mass)
     how = "Den Hartog"

@@ -10,6 +10,7 @@ describes the model and its assumptions.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -253,8 +254,17 @@ def _nearest_antinode(position: float, loop: float, length: float) -> float:
     return min(inside, key=lambda x: abs(x - position))
 
 
+_SET_BY_FATIGUE = ("dampers", "label", "turbulence_intensity", "wind_speeds", "span")
+
+
 def _severity_options(options: dict) -> dict:
-    for reserved in ("dampers", "label", "turbulence_intensity", "wind_speeds", "span"):
+    passed_on = set(inspect.signature(aeolian_severity).parameters) - set(_SET_BY_FATIGUE)
+    unknown = sorted(set(options) - passed_on - set(_SET_BY_FATIGUE))
+    if unknown:
+        raise InputError(
+            f"fatigue_over_record got unknown option(s) {unknown}: besides its own parameters it "
+            f"passes only aeolian_severity's options on. Allowed: {sorted(passed_on)}.")
+    for reserved in _SET_BY_FATIGUE:
         if reserved in options:
             raise InputError(
                 f"The '{reserved}' option cannot be passed to fatigue_over_record: it sets it "
@@ -519,6 +529,12 @@ def fatigue_over_record(
         search = dict(positions=tuple(candidates.tolist()), damages=tuple(damages))
     elif fixed_position is None:
         fixed_position = x_star
+        if not 0.0 < x_star <= span.length:
+            raise InputError(
+                f"The default fixed damper position (x* = {x_star:.3g} m, the harmonic mean of "
+                f"the band's loop lengths) lies beyond the {span.length:g} m span: the span is "
+                "shorter than the loops of the wind band. Give 'fixed_position' (m) or a "
+                "'band' of higher wind speeds.")
     fixed_position = check_real("fixed_position", fixed_position, low=0.0, high=span.length)
     robot_start = fixed_position if robot_start is None else \
         check_real("robot_start", robot_start, low=0.0, low_inclusive=True, high=span.length)

@@ -20,7 +20,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .._spectral import load_phasor
-from .._validation import check_array, read_only
+from .._validation import check_array, check_bare_line, read_only
 from ..errors import InputError, ModelError
 from ..fem import MDR, LineModel, ModalDamping, RayleighDamping, damper_impedance
 from .plant import robot_dynamic_stiffness
@@ -241,15 +241,12 @@ def parked_steady_state(model: LineModel, force: object, robot: MDR | None,
     """
     if not isinstance(model, LineModel):
         raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
-    if model.mdr is not None:
-        raise InputError(
-            "The 'model' parameter must be the bare line (mdr=None); the robot is the 'robot' "
-            f"argument. Got a model with {model.mdr!r}. Build it without mdr."
-        )
+    check_bare_line(model, "the robot is the 'robot' argument")
     if robot is not None and not isinstance(robot, MDR):
         raise InputError(f"The 'robot' parameter must be an MDR or None. Got "
                          f"{type(robot).__name__}.")
     frequency, load = _harmonic_load(model, force)
+    model.check_resolution(frequency, "load")   # TruncationWarning: the mesh cannot show it
     if positions is None:
         positions = np.array([robot.position if robot is not None else np.nan])
     else:
