@@ -176,6 +176,16 @@ def _spatial_noise(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.sqrt(np.median(residual**2 / (1.0 - leverage)) / _CHI2_1_MEDIAN))
 
 
+def _undersampled(signed: np.ndarray, threshold: np.ndarray) -> bool:
+    """True when a shape flips sign between most neighbouring samples and none of it stands out
+    of its noise estimate: loops of about two samples or fewer, whose nodes no threshold can
+    find (a noisy shape of long loops keeps its sign between neighbours and is still read)."""
+    if not np.all(np.abs(signed) <= threshold):
+        return False
+    real = signed.real[np.abs(signed) > _ROUND_OFF * np.max(np.abs(signed))]
+    return real.size >= 3 and np.mean(np.sign(real[1:]) != np.sign(real[:-1])) > 0.5
+
+
 # ----------------------------------------------------------------------------------------------
 # Loops: ends from the zero crossings of the signed shape
 # ----------------------------------------------------------------------------------------------
@@ -526,8 +536,10 @@ def locate_antinodes(
     Raises
     ------
     InputError
-        If shapes disagree, ``x`` is not strictly increasing, values are not finite, or an option
-        is not one of the allowed values.
+        If shapes disagree, ``x`` is not strictly increasing, values are not finite, an option
+        is not one of the allowed values, or a shape (without ``variances``) flips sign between
+        most neighbouring samples with no node above its noise: loops of about two samples or
+        fewer, which the positions cannot resolve.
 
     Examples
     --------
@@ -590,9 +602,7 @@ def locate_antinodes(
         return []
     scale = float(np.max(np.abs(signed)))
     threshold = np.maximum(_NOISE_SIGMAS * np.sqrt(noise_variance), _ROUND_OFF * scale)
-    if data.ndim == 1 and not given and np.all(np.abs(signed) <= threshold):
-        # The shape changes between neighbouring samples as much as its amplitude: no
-        # vibration node could stand out, and one "loop" would span the whole field.
+    if data.ndim == 1 and not given and _undersampled(signed, threshold):
         raise InputError(
             "The 'field' parameter (a shape) varies from sample to sample as much as its "
             f"amplitude (estimated noise {np.sqrt(noise_variance.max()) / scale:.0%} of it): "

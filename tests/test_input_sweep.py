@@ -265,8 +265,8 @@ def test_negative_sensor_cost_is_refused():
 def test_sensor_positions_closer_than_a_mesh_cell_are_refused_not_merged():
     from powerline_control.scenario.stages import given_sensors
 
-    scenario = plc.load_scenario(text="[model]\nn_elements = 4\n[forcing]\nfrequency = 9.0\n"
-                                      "[estimation]\nsensor_positions = [1.0, 1.001]")
+    scenario = plc.load_scenario(text="[model]\nn_elements = 4\n[estimation]\n"
+                                      "sensor_positions = [1.0, 1.001]")
     # Old code: both become node 1, one sensor where the user asked for two.
     with pytest.raises(plc.InputError, match=r"sensor_positions.*1 m and 1\.001 m.*0\.915 m"):
         given_sensors(scenario, [0.0, 0.915, 1.83, 2.745, 3.66])
@@ -372,8 +372,8 @@ def test_a_closed_loop_too_short_to_calibrate_is_refused_at_load():
 def test_a_sensor_position_that_rounds_to_a_support_is_refused():
     from powerline_control.scenario.stages import given_sensors
 
-    scenario = plc.load_scenario(text="[model]\nn_elements = 4\n[forcing]\nfrequency = 9.0\n"
-                                      "[estimation]\nsensor_positions = [0.3, 1.0]")
+    scenario = plc.load_scenario(text="[model]\nn_elements = 4\n[estimation]\n"
+                                      "sensor_positions = [0.3, 1.0]")
     with pytest.raises(plc.InputError, match=r"sensor_positions.*0\.3 m falls on the support"):
         given_sensors(scenario, [0.0, 0.915, 1.83, 2.745, 3.66])
 
@@ -392,3 +392,17 @@ def test_fatigue_over_record_names_an_unknown_option_and_an_impossible_default()
     short = plc.Span(length=1.0, tension=28e3, conductor=plc.conductors["drake"])
     with pytest.raises(plc.InputError, match="default fixed damper position.*'fixed_position'"):
         plc.fatigue_over_record(short, record)
+
+
+@pytest.mark.filterwarnings("ignore::powerline_control.TruncationWarning")
+@pytest.mark.parametrize("n_elements", [6, 8])
+def test_the_scenario_tunes_the_robot_at_the_driven_modes_antinode_on_a_coarse_mesh(n_elements):
+    from powerline_control.scenario.stages import tune_robot
+
+    # Mode 3 of the pinned lab span is sin(3 pi x / L): antinodes at L/6, L/2, 5L/6; the robot
+    # starts at 1.2 m, nearest L/6. A loop (L/3) spans 2 and 2.7 elements: read at the nodes
+    # alone the shape was under-resolved (at 20 elements, mode 10: an "antinode" on a node).
+    scenario = plc.load_scenario(text=f"[model]\nn_elements = {n_elements}")
+    tuning = tune_robot(scenario, plc.LineModel(scenario.span.build(), n_elements=n_elements))
+    assert tuning.mode == 3
+    assert tuning.antinode == pytest.approx(plc.Span.paper_lab().length / 6, abs=2e-3)

@@ -40,7 +40,8 @@ from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked
 from .simulated import Calibration, Records, SimulatedLine, advance_plant, build_line, calibrate
 
 # ------------------------------------------------------------------------------------ the run
-# run_closed_loop tells the story of the run; these are its stages, in the order it calls them.
+# run_closed_loop tells the story of the run; these are its decision stages (the simulated line's
+# are simulated.py's), in the order it calls them.
 
 
 def _sensor_tone(records: Records, lo: int, k: int, dt: float) -> float:
@@ -350,9 +351,10 @@ def run_closed_loop(
     ------
     InputError
         For invalid arguments: sensors outside the model or at a support, a calibration longer
-        than the run, periods that are not multiples of ``dt``, a robot off the span, inside an
-        obstacle, or heavier than the line can carry (more than 25 % of the span's mass, or a
-        static slope W / 2T above 0.05 rad).
+        than the run or too short for the estimator's recipe, periods that are not multiples of
+        ``dt``, a load at or above the Nyquist frequency of ``dt``, a force that puts no load on
+        the line, a robot off the span, inside an obstacle, or heavier than the line can carry
+        (more than 25 % of the span's mass, or a static slope W / 2T above 0.05 rad).
     PowerlineControlError
         From the stages (identification, estimation, planning) when they report trouble.
 
@@ -394,7 +396,7 @@ def run_closed_loop(
     # ---- the line, its loads, and the estimator calibrated with the robot parked at its start
     setup_start, setup_cpu = time.perf_counter(), time.process_time()
     line = build_line(robot, segments, settings, sensors, n_modes=n_modes,
-                       clamp_distance=clamp_distance)
+                      clamp_distance=clamp_distance)
     calibrated = calibrate(line, robot, settings, rng)
     n_cal, t = settings.n_cal, line.t
     records = Records.after_calibration(line, calibrated, robot, n_cal)
@@ -416,7 +418,7 @@ def run_closed_loop(
         _update_target(targeting, motion_state, records, line, robot, settings, k, frequency)
         _move_robot(motion_state, records, t, k, end)
         plant_state = advance_plant(plant_state, records, line, calibrated, rng, timings, k,
-                                     end)
+                                    end)
         k = end
     wall = time.perf_counter() - wall_start
     timings["loop cpu"] = time.process_time() - cpu_start

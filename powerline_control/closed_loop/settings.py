@@ -12,6 +12,7 @@ from ..errors import InputError
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
+from ..recipe.defaults import DEFAULT_DELAYS, shortest_record
 
 # A robot heavier than this fraction of the span's own mass is no longer a small attachment: the
 # slowly-varying-parameter plant and the single-mode tuning are not credible beyond it.
@@ -125,6 +126,14 @@ def checked_settings(model, robot, limits, sensors, *, n_elements, bc, damping, 
     settle_margin = check_real("settle_margin", settle_margin, low=0.0, low_inclusive=True)
     if delays is not None:
         delays = check_int("delays", delays, low=1)
+    recipe_delays = DEFAULT_DELAYS if delays is None else delays
+    needed = shortest_record(recipe_delays)
+    if n_cal < needed:   # the estimator is identified on this record (design_estimator)
+        raise InputError(
+            f"The 'calibration' parameter ({calibration:g} s, {n_cal} samples of dt) is too "
+            f"short: the estimator's recipe needs at least {needed} samples "
+            f"(calibration >= {(needed - 1) * dt:.6g} s) with delays={recipe_delays}."
+        )
     if estimator_rank is not None:
         estimator_rank = check_int("estimator_rank", estimator_rank, low=1)
     if motion not in ("closed_form", "mpc"):
@@ -159,13 +168,18 @@ def _checked_sampling(duration, calibration, dt, control_period, plant_period):
         _check_multiple("plant_period", plant_period, dt) if plant_period is not None else None
     )
     # Durations are sampled (floored to whole samples, as simulate does); rates must divide.
-    n_cal = int(np.floor(calibration / dt + 1e-9)) + 1
+    n_cal = calibration_samples(calibration, dt)
     if n_cal < 3:
         raise InputError(
             f"The 'calibration' parameter ({calibration:g} s) must hold at least 2 samples of "
             f"dt ({dt:g} s)."
         )
     return duration, dt, control_period, steps_per_period, plant_steps, n_cal
+
+
+def calibration_samples(calibration: float, dt: float) -> int:
+    """Samples of a calibration window of ``calibration`` s (floored to whole samples of dt)."""
+    return int(np.floor(calibration / dt + 1e-9)) + 1
 
 
 # Marks an argument the caller did not give (a LineModel brings its own mesh, supports, damping).

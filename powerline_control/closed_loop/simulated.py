@@ -65,7 +65,7 @@ class SimulatedLine:
 
 
 def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
-                clamp_distance) -> SimulatedLine:
+               clamp_distance) -> SimulatedLine:
     """The sensors on the FE model, the modal plant and the loads' histories."""
     bare = settings.bare
     span = bare.span
@@ -96,7 +96,7 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
             raise InputError(
                 f"The 'dt' parameter ({settings.dt:g} s) cannot sample the load at "
                 f"{frequency:g} Hz: it lies at or above the Nyquist frequency {nyquist:g} Hz. "
-                f"Use dt < {0.5 / frequency:.3g} s."
+                f"Use dt < 1 / (2 x {frequency:g} Hz) = {0.5 / frequency:.6g} s."
             )
     if n_modes is None:
         n_modes = default_modes(span, bare, load_frequencies, settings.dt)
@@ -223,7 +223,7 @@ class Records:
 
 
 def advance_plant(plant_state: np.ndarray, records: Records, line: SimulatedLine,
-                   calibration: Calibration, rng, timings: dict, k: int, end: int) -> np.ndarray:
+                  calibration: Calibration, rng, timings: dict, k: int, end: int) -> np.ndarray:
     """Simulate and sense samples k..end in blocks that hold the robot's mid-block position,
     then filter them (the filter acts on nothing before the next control step); leaves the
     loop's state at sample end."""

@@ -76,6 +76,8 @@ def shortest_record(delays: int = DEFAULT_DELAYS,
     >>> shortest_record()
     106
     """
+    if not 0.0 < train_fraction < 1.0:
+        raise ValueError(f"train_fraction must lie in (0, 1), got {train_fraction!r}")
     n = 8 * delays
     while parts_too_short(n, delays, train_fraction):
         n += 1

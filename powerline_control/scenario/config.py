@@ -622,20 +622,23 @@ def _check_scenario(check: _Checker, scenario: Scenario, given: dict) -> None:
 def _check_calibration_record(check: _Checker, scenario: Scenario) -> None:
     """Refuse a closed loop whose calibration (a third of it, at most 2 s) holds too few
     samples for the estimator's recipe."""
+    from ..closed_loop.settings import calibration_samples
     from ..recipe.defaults import shortest_record
     from .stages import MAX_CALIBRATION, closed_loop_timing
 
-    needed = shortest_record()
+    needed = shortest_record()   # the closed loop identifies with the recipe's default delays
 
     def samples(closed_loop: float) -> int:   # the closed loop's calibration record
         robot = dataclasses.replace(scenario.robot, closed_loop=closed_loop)
         dt, calibration = closed_loop_timing(dataclasses.replace(scenario, robot=robot))
-        return int(calibration / dt + 1e-9) + 1
+        return calibration_samples(calibration, dt)
 
     given = samples(scenario.robot.closed_loop)
     if given >= needed:
         return
-    shortest = next((0.1 * k for k in range(1, 6001) if samples(0.1 * k) >= needed), None)
+    # the calibration is a third of the run up to MAX_CALIBRATION: longer runs add nothing
+    longest = int(30 * MAX_CALIBRATION) + 1
+    shortest = next((0.1 * k for k in range(1, longest + 1) if samples(0.1 * k) >= needed), None)
     if shortest is None:
         allowed = (f"0 (no closed loop): at simulation.dt = {scenario.simulation.dt:g} s even "
                    f"the longest calibration ({MAX_CALIBRATION:g} s) holds fewer than {needed} "

@@ -115,8 +115,8 @@ def given_sensors(scenario: Scenario, x) -> tuple[list | None, str]:
 
     Examples
     --------
-    >>> s = load_scenario(text="[model]\\nn_elements = 4\\n[forcing]\\nfrequency = 9.0\\n"
-    ...                        "[estimation]\\nsensor_positions = [1.0]")
+    >>> s = load_scenario(text="[model]\\nn_elements = 4\\n[estimation]\\n"
+    ...                        "sensor_positions = [1.0]")
     >>> given_sensors(s, [0.0, 0.915, 1.83, 2.745, 3.66])
     ([1], 'from the scenario (positions, nearest nodes)')
     """

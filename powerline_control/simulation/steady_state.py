@@ -211,6 +211,12 @@ def parked_steady_state(model: LineModel, force: object, robot: MDR | None,
         The bare line is singular at the load frequency (undamped, exactly at a natural
         frequency), or the line with the robot is (1 - D_r H(p, p) = 0).
 
+    Warns
+    -----
+    TruncationWarning
+        When the mesh does not resolve the load's frequency (its loops are too short for the
+        elements): the steady state is the coarse model's, not the line's.
+
     Notes
     -----
     Exact for the FE model: the bare dynamic stiffness Z = K - omega^2 M + i omega C is
