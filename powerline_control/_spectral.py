@@ -55,14 +55,14 @@ _LINE_MASK_BINS = 2.0
 
 
 # ---------------------------------------------------------------------------------- validation
-def _check_signals(signals: object, min_samples: int) -> np.ndarray:
-    data = check_array("signals", signals, ndim=2)
+def _check_signals(signals: object, min_samples: int, name: str = "signals") -> np.ndarray:
+    data = check_array(name, signals, ndim=2)
     if data.shape[0] == 0:
-        raise InputError("The 'signals' parameter must hold at least one signal (row). "
+        raise InputError(f"The '{name}' parameter must hold at least one signal (row). "
                          f"Got shape {data.shape}.")
     if data.shape[1] < min_samples:
         raise InputError(
-            f"The 'signals' parameter must have at least {min_samples} time samples (columns); "
+            f"The '{name}' parameter must have at least {min_samples} time samples (columns); "
             f"got shape {data.shape}. Pass the signals as (n_signals, n_t)."
         )
     return data
@@ -170,7 +170,7 @@ def interpolated_peak(power: object, index: object = None) -> float:
 
 
 def dominant_frequency(signals: object, dt: object, *, pad: float = DEFAULT_PAD,
-                       min_fft: int = DEFAULT_MIN_FFT) -> float:
+                       min_fft: int = DEFAULT_MIN_FFT, name: str = "signals") -> float:
     """Frequency of the largest peak of the signals' summed spectrum (Hann, zero-padded).
 
     Each signal's mean is removed (it is not a harmonic) and the DC bin ignored; the largest
@@ -189,6 +189,8 @@ def dominant_frequency(signals: object, dt: object, *, pad: float = DEFAULT_PAD,
         bias from 0.016 to 0.0016 bin of ``1 / (n_t dt)``: measured on tones, errors ~10x closer.
     min_fft : int
         The FFT has at least this many points (>= 1): short windows get finer bins.
+    name : str
+        What the caller calls ``signals`` (its own parameter), for the messages.
 
     Returns
     -------
@@ -207,13 +209,13 @@ def dominant_frequency(signals: object, dt: object, *, pad: float = DEFAULT_PAD,
     >>> round(dominant_frequency(np.sin(2 * np.pi * 12.34 * t)[None, :], 1e-3), 2)
     12.34
     """
-    data = _check_signals(signals, MIN_SAMPLES)
+    data = _check_signals(signals, MIN_SAMPLES, name)
     dt = _check_dt(dt)
     pad = check_real("pad", pad, low=1.0, low_inclusive=True)
     min_fft = check_int("min_fft", min_fft, low=1)
     if np.all(data == data[:, :1]):
         raise InputError(
-            "The 'signals' parameter is constant in time: it has no dominant frequency. Pass a "
+            f"The '{name}' parameter is constant in time: it has no dominant frequency. Pass a "
             "record that vibrates."
         )
     n = data.shape[1]
