@@ -16,6 +16,7 @@ from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
 from ..simulation.plant import damper_power, load_segments, nodal_field
+from .belief import Belief, believe, checked_nominal
 from .evaluation import all_comparisons, settling_of
 from .motion import Motion
 from .policy import (
@@ -37,28 +38,28 @@ from .policy import (
 )
 from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
-from .simulated import Calibration, Records, SimulatedLine, advance_plant, build_line, calibrate
+from .simulated import Calibration, Measurements, Records, advance_plant, build_line, calibrate
 
 # ------------------------------------------------------------------------------------ the run
 # run_closed_loop tells the story of the run; these are its decision stages (the simulated line's
 # are simulated.py's), in the order it calls them.
 
 
-def _sensor_tone(records: Records, lo: int, k: int, dt: float) -> float:
+def _sensor_tone(seen: Measurements, lo: int, k: int, dt: float) -> float:
     """Dominant frequency of the sensors over samples lo..k, from the spectrum of their
     velocities (first differences: a weight 4 sin^2(omega dt / 2) ~ (omega dt)^2, bounded at
     Nyquist so noise is not amplified): the tone carrying the most vibration energy. By
     displacement the fundamental's start-up ringing (or the ringing the robot's own motion
     excites) can outweigh a load three times higher and send the robot after it."""
-    return dominant_frequency(np.diff(records.measured[:, lo : k + 1], axis=1), dt)
+    return dominant_frequency(np.diff(seen.sensors[:, lo : k + 1], axis=1), dt)
 
 
-def _observe(records: Records, calibration: Calibration, settings: Settings,
-             k: int) -> float:
+def _observe(records: Records, seen: Measurements, calibration: Calibration,
+             settings: Settings, k: int) -> float:
     """The dominant frequency the sensors show up to sample k; logs it and the innovation ratio
     (the estimator's recent one-step error over its calibration value)."""
     lo = max(k + 1 - settings.window, 0)
-    frequency = _sensor_tone(records, max(k + 1 - settings.frequency_samples, 0), k, settings.dt)
+    frequency = _sensor_tone(seen, max(k + 1 - settings.frequency_samples, 0), k, settings.dt)
     records.frequencies.append(frequency)
     records.innovation_ratio.append(
         float(np.sqrt(np.mean(records.innovation_power[lo + 1 : k + 1])))
@@ -67,32 +68,33 @@ def _observe(records: Records, calibration: Calibration, settings: Settings,
     return frequency
 
 
-def _bare_shape(records: Records, line: SimulatedLine, robot: MDR, x_r: float, lo: int, end: int,
+def _bare_shape(seen: Measurements, belief: Belief, robot: MDR, x_r: float, lo: int, end: int,
                 frequency: float) -> np.ndarray:
-    """The robot-free excited shape from the sensors' and the robot's own phasors on [lo, end]."""
-    tt = line.t[lo : end + 1]
-    sensed = fit_phasors(records.measured[:, lo : end + 1], tt, frequency)
-    at_robot = fit_phasors(records.robot_measured[None, lo : end + 1], tt, frequency)[0]
-    return kernel_shape(line.model, line.model_rows, sensed, robot, x_r, at_robot,
+    """The robot-free excited shape (at the believed mesh's nodes) from the sensors' and the
+    robot's own phasors on [lo, end]."""
+    tt = seen.t[lo : end + 1]
+    sensed = fit_phasors(seen.sensors[:, lo : end + 1], tt, frequency)
+    at_robot = fit_phasors(seen.robot[None, lo : end + 1], tt, frequency)[0]
+    return kernel_shape(belief.plant, belief.rows, sensed, robot, belief.inside(x_r), at_robot,
                          2 * np.pi * frequency)
 
 
-def _excited_shape(records: Records, line: SimulatedLine, robot: MDR, x_r: float, end: int,
+def _excited_shape(seen: Measurements, belief: Belief, robot: MDR, x_r: float, end: int,
                    frequency: float, window: int, record: int) -> tuple[np.ndarray, float]:
     """W_bare over the last ``record`` samples (estimate phasor minus the robot's own reaction),
     and how unsteady the last ``window`` is: the relative difference of the shapes fitted on its
     two halves."""
     lo = max(end + 1 - window, 0)
     mid = (lo + end) // 2
-    first = _bare_shape(records, line, robot, x_r, lo, mid, frequency)
-    second = _bare_shape(records, line, robot, x_r, mid, end, frequency)
+    first = _bare_shape(seen, belief, robot, x_r, lo, mid, frequency)
+    second = _bare_shape(seen, belief, robot, x_r, mid, end, frequency)
     scale = np.linalg.norm(first) + np.linalg.norm(second)
     unsteady = 2 * float(np.linalg.norm(first - second)) / max(scale, 1e-300)
-    shape = _bare_shape(records, line, robot, x_r, max(end + 1 - record, 0), end, frequency)
+    shape = _bare_shape(seen, belief, robot, x_r, max(end + 1 - record, 0), end, frequency)
     return shape, unsteady
 
 
-def _decision_tone(records: Records, settings: Settings, targeting: Targeting, k: int,
+def _decision_tone(seen: Measurements, settings: Settings, targeting: Targeting, k: int,
                    excitation: tuple[float, float]) -> tuple[float, int]:
     """The tone a decision is made at, measured on the excitation's record (``excitation``: when
     it began and when it was seen, s; at least the change-detection window, at most
@@ -100,27 +102,29 @@ def _decision_tone(records: Records, settings: Settings, targeting: Targeting, k
     part of that record since the robot stopped and the excitation was seen (at least one
     antinode window)."""
     dt = settings.dt
-    begun, seen = excitation
+    begun, noticed = excitation
     tone_from = max(begun, k * dt - DECISION_TONE_WINDOW)
     lo = max(min(int(np.ceil(tone_from / dt - 1e-9)), k + 1 - settings.frequency_samples), 0)
     shape_from = max(lo, *(int(np.ceil(time / dt - 1e-9)) for time in (targeting.last_moving,
-                                                                          seen)))
-    return _sensor_tone(records, lo, k, dt), max(k + 1 - shape_from, settings.window)
+                                                                          noticed)))
+    return _sensor_tone(seen, lo, k, dt), max(k + 1 - shape_from, settings.window)
 
 
-def _update_target(targeting: Targeting, motion: Motion, records: Records, line: SimulatedLine,
-                   robot: MDR, settings: Settings, k: int, watched: float) -> None:
+def _update_target(targeting: Targeting, motion: Motion, records: Records, seen: Measurements,
+                   belief: Belief, robot: MDR, settings: Settings, k: int,
+                   watched: float) -> None:
     """The policy at control step k: choose a first target, confirm it once the robot has
     settled, or choose anew after a wind change (module doc). It decides only with the robot at
     rest, so that every move is one rest-to-rest plan. ``watched``: the dominant frequency of the
     last change-detection window (what a wind change is detected on); a decision is made at the
-    tone of the excitation's record (:func:`_decision_tone`)."""
-    t = line.t
+    tone of the excitation's record (:func:`_decision_tone`). It reads the measurements
+    (``seen``) and predicts with the ``belief``; ``records`` only logs what it decided."""
+    t = seen.t
     if t[k] >= quiet_from(t[0], t[-1]):
         return
     robot_still = motion.at_rest
     targeting.update_clocks(t[k], robot_still, watched, settings.retarget_threshold)
-    resolve = resolve_time(watched, line.mode_frequencies)
+    resolve = resolve_time(watched, belief.mode_frequencies)
     retarget, confirm = targeting.due(t[k], robot_still, settings.window * settings.dt,
                                       settings.settle_margin, resolve)
     if not robot_still or not (retarget or confirm):
@@ -128,8 +132,8 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, line:
     excitation = targeting.excitation(retarget, settings.frequency_samples * settings.dt)
     if retarget and tone_wait(t[k], excitation[0], resolve, t[-1]):
         return
-    tone, shape_window = _decision_tone(records, settings, targeting, k, excitation)
-    shape, unsteady = _excited_shape(records, line, robot, motion.position, k, tone,
+    tone, shape_window = _decision_tone(seen, settings, targeting, k, excitation)
+    shape, unsteady = _excited_shape(seen, belief, robot, motion.position, k, tone,
                                      settings.window, shape_window)
     retarget, confirm, ended = targeting.gate_unsteady(retarget, confirm, unsteady, t[k])
     if ended is not None:
@@ -138,13 +142,13 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, line:
         return
     low, high = motion.bounds()
     reach = reach_within(settings.limits, travel_budget(t[k], t[0], t[-1]))
-    choice = choose_target(shape, line.model, robot, 2 * np.pi * tone, line.weights,
-                           motion.position, low, high, reach,
+    choice = choose_target(shape, belief.plant, robot, 2 * np.pi * tone, belief.weights,
+                           belief.inside(motion.position), *belief.within(low, high), reach,
                            obstacle_ends((low, high), settings.obstacles, settings.limits.length))
     records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape),
                                 tone))
     if retarget:
-        note = _out_of_reach(choice, shape, line, robot, settings, 2 * np.pi * tone,
+        note = _out_of_reach(choice, shape, belief, motion, robot, settings, 2 * np.pi * tone,
                              (reach, reach_within(settings.limits,
                                                   TRAVEL_FRACTION * (t[-1] - t[k]))),
                              (low, high))
@@ -153,29 +157,27 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, line:
     if retarget:
         records.retarget_times.append(float(t[k]))
         records.target_starts.append(k)
-    measured = _sensed_power(records, line, k, tone, settings.window)
+    measured = _sensed_power(seen, k, tone, settings.window)
     decision = targeting.check_measured(measured, choice.predicted_here, motion.position,
                                         retarget, unsteady <= UNSTEADY_LIMIT, reach)
     if decision is None:
-        decision = targeting.accept(choice, motion.position,
-                                    float(line.span.loop_length(tone)), watched, retarget,
-                                    excitation)
+        decision = targeting.accept(choice, motion.position, belief.loop_length(tone), watched,
+                                    retarget, excitation)
     records.decisions.append((float(t[k]), decision))
     if targeting.goal != motion.goal:
         motion.send(targeting.goal, float(t[k]))
 
 
-def _sensed_power(records: Records, line: SimulatedLine, k: int, frequency: float,
-                  window: int) -> float:
+def _sensed_power(seen: Measurements, k: int, frequency: float, window: int) -> float:
     """Mean square amplitude the sensors measure at the load's frequency over the last window:
     the vibration the robot can check its moves against (what it measures, not predicts)."""
     lo = max(k + 1 - window, 0)
-    sensed = fit_phasors(records.measured[:, lo : k + 1], line.t[lo : k + 1], frequency)
+    sensed = fit_phasors(seen.sensors[:, lo : k + 1], seen.t[lo : k + 1], frequency)
     return float(np.mean(np.abs(sensed) ** 2))
 
 
-def _out_of_reach(choice, shape: np.ndarray, line: SimulatedLine, robot: MDR, settings: Settings,
-                  omega: float, reaches: tuple[float, float],
+def _out_of_reach(choice, shape: np.ndarray, belief: Belief, motion: Motion, robot: MDR,
+                  settings: Settings, omega: float, reaches: tuple[float, float],
                   bounds: tuple[float, float]) -> str | None:
     """What keeps the robot from a position predicted clearly better (by MIN_GAIN) than the
     best within reach, in words (None: nothing does). ``reaches``: the decision's reach and the
@@ -183,16 +185,17 @@ def _out_of_reach(choice, shape: np.ndarray, line: SimulatedLine, robot: MDR, se
     limits let the robot reach less than a quarter loop, or the obstacles hold it at the edge
     of its free interval; a far loop beyond the travel budget (on a long span, or late in the
     run) is only noted: few sensors rank far loops poorly, and the trip would cost most of the
-    run."""
-    half, length = settings.limits.length / 2, line.span.length
+    run. Predictions are the ``belief``'s, on its span; the free interval is the robot's
+    (``motion``: where its body may go)."""
+    half, length = settings.limits.length / 2, motion.span_length
     if bounds == (half, length - half):   # no obstacle: the choice's own prediction covers it
         anywhere = pick_target(choice.grid, choice.predicted, choice.predicted_here,
                                choice.position)
     else:
-        anywhere = choose_target(shape, line.model, robot, omega, line.weights,
-                                 choice.position, half, length - half)
-    chosen, best = predicted_rms(shape, line.model, robot, omega,
-                                 [choice.position, anywhere.position], line.weights)
+        anywhere = choose_target(shape, belief.plant, robot, omega, belief.weights,
+                                 choice.position, *belief.within(half, length - half))
+    chosen, best = predicted_rms(shape, belief.plant, robot, omega,
+                                 [choice.position, anywhere.position], belief.weights)
     if best >= (1 - MIN_GAIN) * chosen:
         return None
     limits, gain = settings.limits, 100 * (1 - best / chosen)
@@ -206,7 +209,7 @@ def _out_of_reach(choice, shape: np.ndarray, line: SimulatedLine, robot: MDR, se
             f"{list(settings.obstacles)} confine the robot (length {limits.length:g} m) to "
             f"[{bounds[0]:.4g}, {bounds[1]:.4g}] m.", ReachWarning, stacklevel=4)
         return f"blocked by an obstacle: {found}"
-    loop = float(line.span.loop_length(omega / (2 * np.pi)))
+    loop = belief.loop_length(omega / (2 * np.pi))
     reach, limits_reach = reaches
     if limits_reach < 0.25 * loop:
         warnings.warn(
@@ -258,6 +261,7 @@ def run_closed_loop(
     motion: str = "closed_form",
     planner_time_budget: float | None = None,
     seed: int | np.random.Generator | None = 0,
+    nominal: Span | LineModel | None = None,
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
 
@@ -342,6 +346,17 @@ def run_closed_loop(
         planner's iteration limits, so results do not depend on the machine's load.
     seed : int, Generator or None
         Sensor noise.
+    nominal : Span, LineModel or None
+        What the controller is told of the line (``model`` is the line simulated, the truth):
+        the nominal span (catalogue conductor, length, supports, stringing tension), which may
+        be several per cent off the truth. The policy predicts with it only (its modes, loop
+        length and receptances, at the sensors' positions in metres); everything it sees of the
+        truth is the sensors' and its own records. A Span is meshed as the simulated line is
+        (the same number of equal elements, or the physics mesh for the same band, graded
+        toward clamps), with its supports and damping; a LineModel brings its own mesh,
+        supports and damping (a robot it carries is ignored: the robot is ``robot``). Its
+        length must be the simulated span's within 1 %. None (default): the simulated line's
+        own span, mesh and damping (the controller told the truth).
 
     Returns
     -------
@@ -355,6 +370,8 @@ def run_closed_loop(
         ``dt``, a load at or above the Nyquist frequency of ``dt``, a force that puts no load on
         the line, a robot off the span, inside an obstacle, or heavier than the line can carry
         (more than 25 % of the span's mass, or a static slope W / 2T above 0.05 rad).
+        An InputError names 'nominal' when it is not a Span or a LineModel, its length is
+        more than 1 % off the simulated span's, or it does not reach a sensor.
     PowerlineControlError
         From the stages (identification, estimation, planning) when they report trouble.
 
@@ -390,6 +407,7 @@ def run_closed_loop(
     )
     robot, limits = settings.robot, settings.limits
     span = settings.bare.span
+    told = checked_nominal(nominal, settings.bare)
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
 
@@ -400,6 +418,12 @@ def run_closed_loop(
     calibrated = calibrate(line, robot, settings, rng)
     n_cal, t = settings.n_cal, line.t
     records = Records.after_calibration(line, calibrated, robot, n_cal)
+    # What the controller is told (the nominal span, meshed as the line is) and all it sees
+    # (the measurements): it never reads the simulated line.
+    seen = records.measurements(line)
+    belief = believe(settings.bare if told is None else told, like=settings.bare, robot=robot,
+                     n_modes=n_modes, dt=settings.dt, sensor_positions=seen.sensor_positions,
+                     frequencies=line.load_frequencies)
 
     # ---- the loop: every control period, estimate, choose a target, move (and simulate)
     plant_state = calibrated.start_states[n_cal - 1].copy()
@@ -414,8 +438,9 @@ def run_closed_loop(
     k = n_cal - 1
     while k < t.size - 1:
         end = min(k + settings.steps_per_period, t.size - 1)
-        frequency = _observe(records, calibrated, settings, k)
-        _update_target(targeting, motion_state, records, line, robot, settings, k, frequency)
+        frequency = _observe(records, seen, calibrated, settings, k)
+        _update_target(targeting, motion_state, records, seen, belief, robot, settings, k,
+                       frequency)
         _move_robot(motion_state, records, t, k, end)
         plant_state = advance_plant(plant_state, records, line, calibrated, rng, timings, k,
                                     end)
@@ -475,4 +500,7 @@ def run_closed_loop(
         follow_times=settling.follow_times,
         decisions=tuple(records.decisions),
         estimator_consistency=calibrated.kf.consistency,
+        span=span,
+        nominal=span if told is None else belief.span,
+        belief=belief.span,
     )

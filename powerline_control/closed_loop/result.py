@@ -130,6 +130,18 @@ class ClosedLoopResult:
         Every decision of the policy, in words: the time (s) and what it chose ("target ...",
         "confirm ...", "another loop ...", "final ...") or why it held still ("hold ...: the
         best predicted position is only 2 % lower").
+    span : Span or None
+        The line simulated (the truth).
+    nominal : Span or None
+        The span the controller was told (``run_closed_loop``'s ``nominal``; the truth's when
+        it was None).
+    belief : Span or None
+        The span the controller last believed: the nominal one, or as calibrated from the
+        records (:attr:`calibrations`).
+    calibrations : tuple of (float, SpanCalibration)
+        Every calibration of the span from the sensors' records during the run: the time (s)
+        and the :class:`~powerline_control.identify.SpanCalibration` (empty without
+        calibration).
     estimator_consistency : Consistency or None
         The windowed NIS test (:class:`~powerline_control.estimate.Consistency`) of the
         estimator's filter over the calibration record and the loop (None when no window
@@ -188,6 +200,10 @@ class ClosedLoopResult:
     follow_times: tuple = ()
     decisions: tuple = ()
     estimator_consistency: object = field(default=None, repr=False)
+    span: object = field(default=None, repr=False)
+    nominal: object = field(default=None, repr=False)
+    belief: object = field(default=None, repr=False)
+    calibrations: tuple = field(default=(), repr=False)
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""
@@ -244,15 +260,25 @@ class ClosedLoopResult:
         return (self.t[-1] - self.calibration_time) / max(busy, 1e-12)
 
     def summary(self) -> str:
-        """A few lines: the settled window and every comparison."""
-        lines = [
+        """A few lines: what the controller believed, the settled window and every comparison."""
+        lines = [] if self.belief is None else [self._belief_line()]
+        lines.append(
             f"settled window {self.settled_window[0]:.2f}-{self.settled_window[1]:.2f} s"
-            + ("" if self.settled else " (robot did not settle)"),
-        ]
+            + ("" if self.settled else " (robot did not settle)"))
         for c in self.comparisons:
             lines.append(
                 f"{c.name:12s} x = {c.position:7.3f} m  rms {1e3 * c.rms:8.4f} mm  "
                 f"peak {1e3 * c.peak:8.4f} mm  damper {1e3 * c.damper_power:8.4f} mW"
             )
         return "\n".join(lines)
+
+    def _belief_line(self) -> str:
+        """The tension the controller believed (with its calibration's standard deviation, when
+        it calibrated), what it was told and the truth's."""
+        believed = f"belief: tension {self.belief.tension:.5g} N"
+        if self.calibrations:
+            believed += f" +- {self.calibrations[-1][1].tension_std:.2g} N (calibrated)"
+        told = "" if self.nominal is None else f", told {self.nominal.tension:.5g} N"
+        truth = "" if self.span is None else f"; truth {self.span.tension:.5g} N"
+        return believed + told + truth
 

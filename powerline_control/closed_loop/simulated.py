@@ -1,7 +1,8 @@
 """The simulated line of a closed-loop run: the FE model's modal plant and its loads, the
 estimator calibrated with the robot parked at its start, the run's records, and the steps that
-simulate, sense and filter a block of samples. :mod:`.loop` drives them; the policy never sees the
-plant, only what the sensors and the robot record."""
+simulate, sense and filter a block of samples. :mod:`.loop` drives them. The line is the truth:
+the policy never sees it, only the :class:`Measurements` it hands over (what the sensors and the
+robot record); the policy predicts with its own :class:`~.belief.Belief`."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._validation import check_indices, check_int, check_real
+from .._validation import check_indices, check_int, check_real, read_only
 from ..errors import InputError
 from ..estimate import KalmanFilter
 from ..fem import MDR, LineModel
@@ -43,8 +44,9 @@ def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
 
 @dataclass(frozen=True)
 class SimulatedLine:
-    """The simulated line: the bare FE model, the plant with and without the robot, the loads;
-    and the controller's model of the line, which knows the robot but not the loads."""
+    """The simulated line (the truth): the bare FE model, the plant with and without the robot,
+    the loads, and what the judge (:mod:`.evaluation`) compares on. Nothing here reaches the
+    policy but the measurements (:class:`Measurements`)."""
 
     span: Span
     bare: LineModel
@@ -54,14 +56,17 @@ class SimulatedLine:
     t: np.ndarray               # (n_t,) sample times, s
     plant: ModalPlant          # with the robot
     free_plant: ModalPlant     # without it (the "no_robot" comparison)
-    model: ModalPlant           # the policy's receptances: the band's bare modes, no load basis
-    model_rows: np.ndarray      # (p, r_model): its modes' displacements at the sensors
     plant_steps: int            # samples per plant block (the robot's position held)
     modal_force: np.ndarray     # (n_t, r)
     residual: np.ndarray        # (n_nodes, n_t): the dropped modes' response to the loads
     harmonic: tuple | None      # (frequency, parts) of the last load when it is one sine
-    weights: np.ndarray         # (n_nodes,) trapezoid weights: RMS over the span by length
-    mode_frequencies: np.ndarray  # (r_model,) the policy model's bare modes, Hz, sorted
+    weights: np.ndarray         # (n_nodes,) trapezoid weights: the judge's span RMS
+    load_frequencies: tuple     # the loads' frequencies, Hz: the band the plants keep
+
+    @property
+    def sensor_positions(self) -> np.ndarray:
+        """Where the sensors measure, m (what the controller is told of them)."""
+        return self.bare.node_positions[list(self.sensors)]
 
 
 def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
@@ -114,9 +119,6 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
             else max(1, min(settings.steps_per_period, int(round(0.01 / settings.dt))))
         )
     free_plant = ModalPlant(bare, None, n_modes, settings.dt, loads=loads)
-    # The plant's basis carries the loads' own Ritz vectors (where they act): the simulation
-    # needs them, the controller does not know them.
-    model = ModalPlant(bare, robot, n_modes, settings.dt)
     modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
     if not (np.any(modal_force) or np.any(residual)):
         given = [load for _, items in segments for load in items]
@@ -126,10 +128,9 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
         )
     return SimulatedLine(
         span=span, bare=bare, sensors=sensors, sensor_rows=plant.nodal[list(sensors)],
-        clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant, model=model,
-        model_rows=model.nodal[list(sensors)],
+        clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant,
         plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
-        weights=bare.span_weights, mode_frequencies=np.sort(np.sqrt(model.omega2)) / (2 * np.pi),
+        weights=bare.span_weights, load_frequencies=tuple(load_frequencies),
     )
 
 
@@ -178,6 +179,20 @@ def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng) -> Calib
     )
 
 
+@dataclass(frozen=True)
+class Measurements:
+    """What the simulated line hands the controller: the sensors' and the robot's noisy records
+    and the robot's own motion, filled in as the run goes (views of :class:`Records`' arrays).
+    Nothing of the line itself (its span, model, plant or states)."""
+
+    t: np.ndarray               # (n_t,) sample times, s
+    sensor_positions: np.ndarray  # (p,) where the sensors measure, m
+    sensors: np.ndarray         # (p, n_t) noisy sensor displacements, m
+    robot: np.ndarray           # (n_t,) noisy line displacement under the robot, m
+    position: np.ndarray        # (n_t,) the robot's position, m (its own odometry)
+    velocity: np.ndarray        # (n_t,) the robot's velocity, m/s
+
+
 @dataclass
 class Records:
     """What the run records: histories over every sample (filled as it goes; the calibration
@@ -220,6 +235,12 @@ class Records:
         records.robot_measured[:n_cal] = calibration.robot_record
         records.innovation_power[:n_cal] = calibration.innovation_power
         return records
+
+    def measurements(self, line: SimulatedLine) -> Measurements:
+        """The controller's view of these records (the same arrays, filled as the run goes)."""
+        return Measurements(t=line.t, sensor_positions=read_only(line.sensor_positions),
+                            sensors=self.measured, robot=self.robot_measured,
+                            position=self.position, velocity=self.velocity)
 
 
 def advance_plant(plant_state: np.ndarray, records: Records, line: SimulatedLine,

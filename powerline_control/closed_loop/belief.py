@@ -1,0 +1,199 @@
+"""The controller's belief: the span it is told, and the model of the line it predicts with.
+
+The simulated line is the truth (:mod:`.simulated`); a real robot is told only the nominal span
+(catalogue conductor, length, supports, stringing tension), which can be several per cent off,
+and sees only what its sensors record (design.md 4.7). Everything the policy predicts with comes
+from one :class:`Belief`, built by :func:`believe` from the nominal span meshed as the line is;
+never from the simulated line's own model.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._validation import check_int, read_only
+from ..errors import InputError, TruncationWarning
+from ..fem import MDR, LineModel
+from ..line import Span
+from ..simulation.plant import ModalPlant, default_modes
+
+# A nominal span must have the simulated span's length within this fraction: a record or a model
+# of another span is no belief about this one (lengths are surveyed; tensions drift).
+LENGTH_TOLERANCE = 0.01
+
+
+@dataclass(frozen=True)
+class Belief:
+    """What the controller predicts with: the span it believes, meshed, and its modal model.
+
+    Attributes
+    ----------
+    span : Span
+        The believed span (the nominal one as told, or as calibrated from the records).
+    bare : LineModel
+        The believed line without the robot (its mesh, supports and damping).
+    plant : ModalPlant
+        The policy's receptances: the believed line's band of bare modes with the robot, no load
+        basis (the controller does not know the loads).
+    rows : ndarray, shape (p, r)
+        The plant's modes' displacements at the sensors' positions.
+    weights : ndarray, shape (n_nodes,)
+        Trapezoid weights of the believed mesh's nodes (the span RMS of a prediction).
+    node_positions : ndarray, shape (n_nodes,)
+        The believed mesh's nodes, m (where predicted shapes are given).
+    mode_frequencies : ndarray, shape (r,)
+        The plant's bare-mode frequencies, Hz, ascending.
+    sensor_positions : ndarray, shape (p,)
+        Where the sensors measure, m from the left support.
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> truth = plc.LineModel(plc.Span.paper_lab(), 40, damping=plc.ModalDamping(0.005))
+    >>> told = plc.Span(3.66, 0.97 * truth.span.tension, truth.span.conductor)
+    >>> belief = believe(told, like=truth, robot=plc.MDR(1.2, 0.02), n_modes=12, dt=1e-3,
+    ...                  sensor_positions=[0.5, 1.5])
+    >>> belief.bare.n_elements, belief.rows.shape, belief.span.tension == told.tension
+    (40, (2, 12), True)
+    """
+
+    span: Span
+    bare: LineModel = field(repr=False)
+    plant: ModalPlant = field(repr=False)
+    rows: np.ndarray = field(repr=False)
+    weights: np.ndarray = field(repr=False)
+    node_positions: np.ndarray = field(repr=False)
+    mode_frequencies: np.ndarray = field(repr=False)
+    sensor_positions: np.ndarray = field(repr=False)
+
+    def loop_length(self, frequency: float) -> float:
+        """Half-wavelength of the believed span at ``frequency`` Hz, m."""
+        return float(self.span.loop_length(frequency))
+
+    def within(self, low: float, high: float) -> tuple[float, float]:
+        """The interval [low, high] (m) cut to the believed span: where it can predict."""
+        return max(low, 0.0), min(high, self.span.length)
+
+    def inside(self, position: float) -> float:
+        """``position`` (m) on the believed span (a robot beyond a believed support end is
+        predicted at that end; possible only when the nominal length is short by < 1 %)."""
+        return float(np.clip(position, 0.0, self.span.length))
+
+
+def checked_nominal(nominal: Span | LineModel | None, truth: LineModel) -> Span | LineModel | None:
+    """``nominal`` checked against the line simulated (``truth``, its bare model): a Span or a
+    bare LineModel (a robot it carries is dropped: the robot is run_closed_loop's) of the
+    simulated span's length within LENGTH_TOLERANCE; None stays None (the model's own span)."""
+    if nominal is None:
+        return None
+    if not isinstance(nominal, Span | LineModel):
+        raise InputError(
+            "The 'nominal' parameter must be a Span, a LineModel or None (the span the "
+            f"controller is told). Got {type(nominal).__name__}."
+        )
+    span = nominal.span if isinstance(nominal, LineModel) else nominal
+    length = truth.span.length
+    low, high = (1 - LENGTH_TOLERANCE) * length, (1 + LENGTH_TOLERANCE) * length
+    if not low <= span.length <= high:
+        raise InputError(
+            f"The 'nominal' parameter describes a span {span.length:g} m long, but the line "
+            f"simulated ('model') is {length:g} m long: the nominal span must have its length "
+            f"within {100 * LENGTH_TOLERANCE:g} % ({low:.6g} to {high:.6g} m). A span or record "
+            "of another line is no nominal for this one."
+        )
+    if isinstance(nominal, LineModel) and nominal.mdr is not None:
+        return nominal.with_robot(None)
+    return nominal
+
+
+def meshed_like(span: Span, like: LineModel) -> LineModel:
+    """``span`` meshed as ``like`` is: the same number of equal elements when its mesh is
+    uniform, else the physics mesh of ``span`` for the same band top and frequency tolerance
+    (the default elements per loop); the same supports and damping. The mesh's own warnings
+    were given when ``like`` was built."""
+    lengths = np.asarray(like.element_lengths)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TruncationWarning)
+        if np.ptp(lengths) == 0.0:
+            return LineModel(span, like.n_elements, like.bc, damping=like.damping)
+        return LineModel(span, None, like.bc, damping=like.damping,
+                         max_frequency=like.max_frequency,
+                         frequency_tolerance=like.frequency_tolerance)
+
+
+def believe(span_or_model: Span | LineModel, *, like: LineModel, robot: MDR,
+            n_modes: int | np.ndarray | None, dt: float, sensor_positions: Sequence[float],
+            frequencies: Sequence[float] = ()) -> Belief:
+    """The Belief the policy predicts with, from the span it believes.
+
+    Parameters
+    ----------
+    span_or_model : Span or LineModel
+        The believed span (meshed like ``like``), or its model (used as it is, without robot).
+    like : LineModel
+        The mesh rule, supports and damping a Span is given (:func:`meshed_like`).
+    robot : MDR
+        The robot (the policy's receptances include it).
+    n_modes : int, ndarray or None
+        Bare modes kept (a count, or indices of a band); None: the plant's rule for
+        ``frequencies`` (:func:`~powerline_control.simulation.plant.default_modes`) on the
+        believed line.
+    dt : float
+        Sample interval, s.
+    sensor_positions : sequence of float
+        Where the sensors measure, m (on the believed span: its mesh need have no node there).
+    frequencies : sequence of float
+        The frequencies (Hz) the band must cover when ``n_modes`` is None.
+
+    Returns
+    -------
+    Belief
+
+    Raises
+    ------
+    InputError
+        When ``n_modes`` exceeds the believed line's degrees of freedom, or a sensor lies off
+        the believed span (named as 'nominal').
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> model = plc.LineModel(plc.Span.paper_lab(), 20)
+    >>> belief = believe(model, like=model, robot=plc.MDR(1.2, 0.02), n_modes=None, dt=1e-3,
+    ...                  sensor_positions=[0.732, 1.83], frequencies=[24.0])
+    >>> belief.bare is model, belief.plant.r, round(belief.loop_length(24.0), 3)
+    (True, 12, 1.239)
+    """
+    if isinstance(span_or_model, LineModel):
+        bare = span_or_model if span_or_model.mdr is None else span_or_model.with_robot(None)
+    elif isinstance(span_or_model, Span):
+        bare = meshed_like(span_or_model, like)
+    else:
+        raise InputError(
+            "The 'span_or_model' parameter must be a Span or a LineModel. "
+            f"Got {type(span_or_model).__name__}."
+        )
+    span = bare.span
+    positions = np.asarray(sensor_positions, dtype=float).ravel()
+    off = positions[(positions < 0.0) | (positions > span.length)]
+    if off.size:
+        raise InputError(
+            f"The 'nominal' span ({span.length:g} m) does not reach the sensor(s) at "
+            f"{off.tolist()} m: a sensor must lie on the span the controller believes."
+        )
+    if n_modes is None:
+        n_modes = default_modes(span, bare, list(frequencies), dt)
+    elif np.ndim(n_modes) == 0:
+        n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
+    plant = ModalPlant(bare, robot, n_modes, dt)
+    rows = np.vstack([plant.coupling(x) for x in positions])
+    return Belief(
+        span=span, bare=bare, plant=plant, rows=read_only(rows),
+        weights=bare.span_weights, node_positions=bare.node_positions,
+        mode_frequencies=read_only(np.sort(np.sqrt(plant.omega2)) / (2 * np.pi)),
+        sensor_positions=read_only(positions),
+    )
