@@ -8,6 +8,7 @@ closed loop -> report / CLI.  See ``docs/`` and the README.
 # ``powerline-control --help`` command never pays for numpy, SciPy, python-control, cvxpy or
 # CasADi. Add a new export as a line of this table (module -> names), not as an eager import.
 from .errors import (
+    CalibrationWarning,
     EstimationError,
     EstimatorInconsistentWarning,
     ExcitationWarning,
@@ -49,7 +50,7 @@ _LAZY_EXPORTS = {
     ),
     "identify": (
         "AlphaCurve", "DampingReport", "DMDModel", "OnlineDMD", "OscillatorModel",
-        "StabilityReport", "fit_dmd", "select_alpha",
+        "StabilityReport", "fit_dmd", "select_alpha", "SpanCalibration", "calibrate_span",
     ),
     "output.io": (
         "load_model", "save_model",
@@ -183,6 +184,8 @@ __all__ = [
     "AtAntinode",
     "Baseline",
     "catenary_check",
+    "calibrate_span",
+    "CalibrationWarning",
     "CatenaryCheck",
     "ClampStrainEstimate",
     "Choice",
@@ -250,6 +253,7 @@ __all__ = [
     "RayleighDamping",
     "ReachWarning",
     "SaturationWarning",
+    "SpanCalibration",
     "ModelErrorRecordsWarning",
     "robot_value",
     "RobotLimits",

@@ -109,5 +109,11 @@ class ModelErrorRecordsWarning(UserWarning):
     unlike the training record's, or no model error above that noise."""
 
 
-__all__ += ["UndetectableModeWarning", "ExcitationWarning", "ReachWarning",
+class CalibrationWarning(UserWarning):
+    """A record cannot tell the line's parameters well (one spectral line, sensors within one
+    loop, several tensions explain it): the calibration's uncertainty covers what it cannot
+    tell."""
+
+
+__all__ += ["CalibrationWarning", "UndetectableModeWarning", "ExcitationWarning", "ReachWarning",
             "EstimatorInconsistentWarning", "SaturationWarning", "ModelErrorRecordsWarning"]

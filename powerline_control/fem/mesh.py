@@ -554,17 +554,53 @@ class _Mesh:
         return full[self._free]
 
     # ------------------------------------------------------------------ assembly
+    def _assembled(self, element_matrices: np.ndarray) -> sp.csr_array:
+        """The line's global matrix (every DOF, supports included) from per-element 4x4 ones."""
+        dofs = 2 * np.arange(self.n_elements)[:, None] + np.arange(4)[None, :]  # (n_el, 4)
+        rows = np.repeat(dofs, 4, axis=1).ravel()
+        cols = np.tile(dofs, (1, 4)).ravel()
+        n_total = self._n_total
+        return sp.coo_array((element_matrices.ravel(), (rows, cols)),
+                            shape=(n_total, n_total)).tocsr()
+
+    def stiffness_parts(self) -> tuple[sp.csr_array, sp.csr_array]:
+        """The line's stiffness per unit tension and per unit bending stiffness, over the free
+        DOFs: ``K = T K_T + EI K_B`` (plus the robot's spring, which neither holds).
+
+        The stiffness is linear in both on a fixed mesh, so a calibration can scale a model's
+        modes to another tension or EI without assembling it again.
+
+        Returns
+        -------
+        K_T, K_B : scipy.sparse.csr_array
+            Per newton of tension, per N m^2 of EI.
+
+        Examples
+        --------
+        >>> from powerline_control import LineModel, Span
+        >>> model = LineModel(Span.paper_lab(), n_elements=10)
+        >>> k_t, k_b = model.stiffness_parts()
+        >>> span = model.span
+        >>> bool(abs(span.tension * k_t + span.conductor.ei * k_b
+        ...          - model.stiffness_matrix).max() < 1e-9)
+        True
+        """
+        h, mass = self.element_lengths, self.span.conductor.mass_per_length
+        free = self._free
+        parts = []
+        for ei, tension in ((0.0, 1.0), (1.0, 0.0)):
+            k_e, _ = _element_matrices(h, ei, tension, mass)
+            parts.append(self._assembled(k_e)[free][:, free].tocsr())
+        return parts[0], parts[1]
+
     def _assemble(self) -> tuple[sp.csr_array, sp.csr_array, sp.csr_array]:
         cond = self.span.conductor
         k_e, m_e = _element_matrices(
             self.element_lengths, cond.ei, self.span.tension, cond.mass_per_length
         )
-        dofs = 2 * np.arange(self.n_elements)[:, None] + np.arange(4)[None, :]  # (n_el, 4)
-        rows = np.repeat(dofs, 4, axis=1).ravel()
-        cols = np.tile(dofs, (1, 4)).ravel()
         n_total = self._n_total
-        stiffness = sp.coo_array((k_e.ravel(), (rows, cols)), shape=(n_total, n_total)).tocsr()
-        mass = sp.coo_array((m_e.ravel(), (rows, cols)), shape=(n_total, n_total)).tocsr()
+        stiffness = self._assembled(k_e)
+        mass = self._assembled(m_e)
         damper = sp.csr_array((n_total, n_total))
         if self.mdr is not None:
             mass, stiffness, damper = self._attach_mdr(mass, stiffness, damper, n_total)

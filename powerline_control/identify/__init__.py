@@ -26,10 +26,13 @@ displacements, and exports itself as a discrete :class:`control.StateSpace`.
 
 Modules: :mod:`.model` (DMDModel), :mod:`.stability` (StabilityReport, DampingReport),
 :mod:`.fit` (fit_dmd), :mod:`._ridge` (the ridge solve), :mod:`.alpha` (select_alpha,
-AlphaCurve), :mod:`.online` (OnlineDMD), :mod:`.oscillator` (OscillatorModel).
+AlphaCurve), :mod:`.online` (OnlineDMD), :mod:`.oscillator` (OscillatorModel),
+:mod:`.calibration` (calibrate_span, SpanCalibration: the physics model's tension and EI from a
+record).
 """
 
 from .alpha import AlphaCurve, select_alpha
+from .calibration import SpanCalibration, calibrate_span
 from .fit import fit_dmd
 from .model import DMDModel
 from .online import OnlineDMD
@@ -45,4 +48,6 @@ __all__ = [
     "OnlineDMD",
     "fit_dmd",
     "select_alpha",
+    "SpanCalibration",
+    "calibrate_span",
 ]
