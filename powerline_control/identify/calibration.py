@@ -159,16 +159,13 @@ class SpanCalibration:
         ei = (f"{self.ei:.4g} +- {self.ei_std:.2g} N m^2" if self.ei_identified
               else f"{self.ei:.4g} N m^2 (not identified by this record; nominal "
                    f"{self.nominal.conductor.ei:.4g})")
-        lines = ", ".join(f"{f:.4g}" for f in self.line_frequencies[:8])
-        more = f" ... ({self.line_frequencies.size} in all)" if self.line_frequencies.size > 8 \
-            else ""
         text = [
             f"Calibrated span ({self.span.length:g} m, {bc}) from a {self.duration:.3g} s record",
             f"  tension   {self.tension:.6g} +- {self.tension_std:.2g} N "
             f"({100 * self.tension_change:+.2f} % from the nominal {self.nominal.tension:.6g} N)",
             f"  EI        {ei}",
             f"  sag       {self.sag:.4g} +- {self.sag_std:.2g} m",
-            f"  lines     {lines}{more} Hz, explained by modes "
+            f"  lines     {_hz(self.line_frequencies)} Hz, explained by modes "
             + ", ".join(str(int(n)) for n in self.mode_numbers[:8])
             + " at " + ", ".join(f"{f:.4g}" for f in self.model_frequencies[:8]) + " Hz",
         ]
@@ -531,7 +528,7 @@ def calibrate_span(
         eta = np.ones(1)
         log_post = log_posterior(eta)
     return _summarise(log_post, tau, eta, span0, model, modes, lines, positions, duration,
-                      (t_lo, t_hi))
+                      (t_lo, t_hi), np.array([item[3] for item in evidence]))
 
 
 def _check_range(name: str, value: object) -> tuple[float, float]:
@@ -560,6 +557,12 @@ def _check_band(band: object, default_lo: float, default_hi: float) -> tuple[flo
     return lo, hi
 
 
+def _hz(frequencies: np.ndarray) -> str:
+    """Up to six frequencies as text."""
+    text = ", ".join(f"{f:.4g}" for f in frequencies[:6])
+    return text + (f", ... ({frequencies.size} in all)" if frequencies.size > 6 else "")
+
+
 def _other_peaks(density: np.ndarray, grid: np.ndarray, main: slice) -> str:
     """The strongest local maxima of ``density`` outside ``main``, as text."""
     inner = np.arange(1, density.size - 1)
@@ -570,7 +573,7 @@ def _other_peaks(density: np.ndarray, grid: np.ndarray, main: slice) -> str:
 
 
 def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _ScaledModes,
-               lines, positions, duration, tension_range) -> SpanCalibration:
+               lines, positions, duration, tension_range, frequency_std) -> SpanCalibration:
     """The posterior's marginals, its peak, and the warnings the record earns."""
     post = np.exp(log_post - log_post.max())
     post /= post.sum()
@@ -642,6 +645,17 @@ def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _Scaled
     model_f = np.sqrt(np.maximum(omega2, 0.0)) / (2 * np.pi)
     order = np.argsort(model_f)
     nearest = np.array([int(np.argmin(np.abs(model_f[order] - f))) for f in lines])
+    explained = np.abs(model_f[order][nearest] - lines) <= 3 * frequency_std
+    if lines.size >= 3 and explained.sum() < lines.size / 2:
+        # a forced tone may sit between modes, but most lines of a record are the line's own
+        raise IdentificationError(
+            f"The nominal span explains only {int(explained.sum())} of the record's "
+            f"{lines.size} spectral lines ({_hz(lines)} Hz) at any tension within "
+            f"'tension_range' ({tension_range[0]:g} to {tension_range[1]:g} x "
+            f"{span0.tension:.6g} N): the nominal conductor (its mass per length), the "
+            "stringing tension or the span length is far off, or the record is of another span. "
+            "Check them, or widen tension_range."
+        )
     for note in notes:
         warnings.warn(note[0].upper() + note[1:], CalibrationWarning, stacklevel=3)
     return SpanCalibration(
