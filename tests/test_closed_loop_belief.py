@@ -26,8 +26,8 @@ TOLD = plc.Span(LAB.length, LAB.tension / 1.03, LAB.conductor)
 
 def test_no_nominal_is_the_model_itself_to_the_last_digit():
     plain = plc.run_closed_loop(TRUTH, FORCE, ROBOT, **RUN)
-    same_model = plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=TRUTH, **RUN)
-    same_span = plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=LAB, **RUN)
+    same_model = plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=TRUTH, calibrate=False, **RUN)
+    same_span = plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=LAB, calibrate=False, **RUN)
     for other in (same_model, same_span):
         assert np.array_equal(plain.robot_position, other.robot_position)
         assert plain.decisions == other.decisions
@@ -38,7 +38,7 @@ def test_no_nominal_is_the_model_itself_to_the_last_digit():
 def test_with_the_tension_3_percent_off_the_belief_is_the_nominal_and_the_span_the_truth():
     truth = plc.LineModel(plc.Span(LAB.length, 1.03 * TOLD.tension, LAB.conductor), 40,
                           damping=DAMPING)
-    result = plc.run_closed_loop(truth, FORCE, ROBOT, nominal=TOLD, **RUN)
+    result = plc.run_closed_loop(truth, FORCE, ROBOT, nominal=TOLD, calibrate=False, **RUN)
     assert result.belief == result.nominal == TOLD
     assert result.span == truth.span and result.span.tension == pytest.approx(LAB.tension)
     assert result.calibrations == ()
@@ -72,7 +72,7 @@ def test_the_policy_predicts_with_the_nominal_only(monkeypatch):
         return accept(self, choice, here, loop, frequency, retarget, excitation)
 
     monkeypatch.setattr(closed_loop_run.Targeting, "accept", accept_spy)
-    result = plc.run_closed_loop(truth, FORCE, ROBOT, nominal=told, **RUN)
+    result = plc.run_closed_loop(truth, FORCE, ROBOT, nominal=told, calibrate=False, **RUN)
     assert seen["believe"]
     for model in seen["believe"]:   # the nominal as told, without its robot; never the truth
         assert model is not truth and model.span == TOLD and model.mdr is None
@@ -96,7 +96,7 @@ def test_a_nominal_on_another_mesh_reads_the_sensors_between_its_nodes():
     # 0.73, 1.65 and 2.75 m are no nodes of a 17-element mesh (0.215 m elements): the belief
     # reads its modes there through the shape functions.
     told = plc.LineModel(TOLD, 17, damping=DAMPING)
-    result = plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=told, **RUN)
+    result = plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=told, calibrate=False, **RUN)
     assert result.predictions and result.predictions[0][3].shape == (18,)
     assert result.belief == TOLD
 
@@ -113,3 +113,38 @@ def test_a_nominal_of_another_length_is_refused_by_name(length):
 def test_a_nominal_of_the_wrong_type_is_refused_by_name(nominal):
     with pytest.raises(plc.InputError, match=r"'nominal' parameter must be a Span, a LineModel"):
         plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=nominal, **RUN)
+
+
+def test_calibration_moves_the_belief_toward_the_truth_by_the_rule():
+    # Told 10 % below the truth (359 N against 395 N): the controller calibrates after the
+    # calibration window and at each decision, on the sensors' whole record so far, and
+    # predicts with the calibrated span once its tension moves by more than its std. A wind
+    # change (mode 3, then mode 4 at 6 s) makes decisions on records that show more lines.
+    told = plc.Span(LAB.length, LAB.tension / 1.10, LAB.conductor)
+    mode4 = float(TRUTH.natural_frequencies(4)[3])
+    force = [(0.0, plc.HarmonicForce(1.0, 1.02 * MODE3, 0.5)),
+             (6.0, plc.HarmonicForce(1.0, 0.99 * mode4, 0.5))]
+    result = plc.run_closed_loop(TRUTH, force, ROBOT, nominal=told, **dict(RUN, duration=14.0))
+    times = [time for time, _ in result.calibrations]
+    assert times[0] == result.calibration_time
+    decided = {time for time, _ in result.decisions}
+    assert set(times[1:]) <= decided
+    for time, calibration in result.calibrations:    # the record from the start up to then
+        assert calibration.duration == pytest.approx(time, abs=1.5 * 1e-3)
+        assert calibration.nominal == told
+    # the rule, replayed on the history: a calibration replaces the belief when its tension
+    # differs from the believed one by more than max(std, 1e-4 T)
+    believed = told.tension
+    for _, calibration in result.calibrations:
+        if abs(calibration.tension - believed) > max(calibration.tension_std, 1e-4 * believed):
+            believed = calibration.tension
+    assert result.belief.tension == believed != told.tension
+    assert any(text.startswith("believe tension") for _, text in result.decisions)
+    # ... and toward the truth (the simulated line's tension, which the controller never read)
+    assert abs(result.belief.tension - LAB.tension) < 0.5 * abs(told.tension - LAB.tension)
+    assert f"truth {LAB.tension:.5g} N" in result.summary().splitlines()[0]
+
+
+def test_calibrate_must_be_a_bool():
+    with pytest.raises(plc.InputError, match="'calibrate' parameter must be True or False"):
+        plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=TOLD, calibrate="yes", **RUN)

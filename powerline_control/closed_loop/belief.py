@@ -1,23 +1,26 @@
-"""The controller's belief: the span it is told, and the model of the line it predicts with.
+"""The controller's belief: the span it is told, calibrated from the records, and the model of
+the line it predicts with.
 
 The simulated line is the truth (:mod:`.simulated`); a real robot is told only the nominal span
 (catalogue conductor, length, supports, stringing tension), which can be several per cent off,
 and sees only what its sensors record (design.md 4.7). Everything the policy predicts with comes
-from one :class:`Belief`, built by :func:`believe` from the nominal span meshed as the line is;
-never from the simulated line's own model.
+from one :class:`Belief`, built by :func:`believe` from the nominal span meshed as the line is,
+never from the simulated line's own model; :class:`BeliefTracker` rebuilds it during the run from
+the span :func:`~powerline_control.identify.calibrate_span` reads in the sensors' records.
 """
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .._validation import check_int, read_only
-from ..errors import InputError, TruncationWarning
+from ..errors import CalibrationWarning, IdentificationError, InputError, TruncationWarning
 from ..fem import MDR, LineModel
+from ..identify import calibrate_span
 from ..line import Span
 from ..simulation.plant import ModalPlant, default_modes
 
@@ -197,3 +200,67 @@ def believe(span_or_model: Span | LineModel, *, like: LineModel, robot: MDR,
         mode_frequencies=read_only(np.sort(np.sqrt(plant.omega2)) / (2 * np.pi)),
         sensor_positions=read_only(positions),
     )
+
+
+@dataclass(frozen=True)
+class SensorRecord:
+    """The sensors' record so far, as :func:`~powerline_control.identify.calibrate_span` reads
+    a :class:`~powerline_control.Record` (rows: sensors; NaN: a missing sample)."""
+
+    t: np.ndarray               # (n_t,) sample times, s
+    positions: np.ndarray       # (p,) where the sensors measure, m
+    values: np.ndarray          # (p, n_t) displacements, m
+    dt: float                   # sample interval, s
+
+
+class BeliefTracker:
+    """The controller's belief over a run (a class with evolving state).
+
+    It starts from the nominal span's :class:`Belief`; at each :meth:`update` (after the
+    calibration window, then at each decision of the policy) it calibrates the span on the
+    sensors' whole record so far (:func:`~powerline_control.identify.calibrate_span`, the
+    nominal model as prior, the robot parked where it spent most of the record) and rebuilds the
+    Belief from the calibrated span when its tension differs from the believed one by more than
+    the calibration's standard deviation (and 1e-4 of it): a rebuild costs a modal plant, and a
+    change within the uncertainty is no news.
+    """
+
+    def __init__(self, nominal: Belief, *, robot: MDR, n_modes, dt: float,
+                 frequencies: Sequence[float], calibrate: bool):
+        self.nominal = nominal
+        self.belief = nominal
+        self.calibrate = calibrate
+        self.calibrations: list = []       # (time, SpanCalibration)
+        self._robot, self._n_modes, self._dt = robot, n_modes, dt
+        self._frequencies = tuple(frequencies)
+        self._last = -1                    # the sample the last update read up to
+
+    def update(self, seen, k: int) -> str | None:
+        """Calibrate on the measurements ``seen`` up to sample ``k`` (once per sample) and
+        rebuild the belief if the tension moved; returns what changed, in words (None: the
+        belief stands)."""
+        if not self.calibrate or k <= self._last:
+            return None
+        self._last = k
+        now = float(seen.t[k])
+        record = SensorRecord(t=seen.t[: k + 1], positions=seen.sensor_positions,
+                              values=seen.sensors[:, : k + 1], dt=self._dt)
+        parked = replace(self._robot, position=self.nominal.inside(
+            float(np.median(seen.position[: k + 1]))))
+        try:
+            with warnings.catch_warnings():
+                # what the record cannot tell is kept on the calibration (its ``warnings``)
+                warnings.simplefilter("ignore", CalibrationWarning)
+                calibration = calibrate_span(record, self.nominal.bare, robot=parked)
+        except (InputError, IdentificationError) as error:
+            return f"belief kept at tension {self.belief.span.tension:.5g} N: {error}"
+        self.calibrations.append((now, calibration))
+        believed = self.belief.span.tension
+        if abs(calibration.tension - believed) <= max(calibration.tension_std, 1e-4 * believed):
+            return None
+        self.belief = believe(calibration.span, like=self.nominal.bare, robot=self._robot,
+                              n_modes=self._n_modes, dt=self._dt,
+                              sensor_positions=self.nominal.sensor_positions,
+                              frequencies=self._frequencies)
+        return (f"believe tension {calibration.tension:.5g} +- {calibration.tension_std:.2g} N "
+                f"(was {believed:.5g} N), calibrated on {calibration.duration:.3g} s of record")

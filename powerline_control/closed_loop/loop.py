@@ -11,12 +11,12 @@ import numpy as np
 from .._spectral import dominant_frequency, fit_phasors
 from .._threads import on_one_blas_thread
 from .._validation import check_rng, read_only
-from ..errors import ReachWarning
+from ..errors import InputError, ReachWarning
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
 from ..simulation.plant import damper_power, load_segments, nodal_field
-from .belief import Belief, believe, checked_nominal
+from .belief import Belief, BeliefTracker, believe, checked_nominal
 from .evaluation import all_comparisons, settling_of
 from .motion import Motion
 from .policy import (
@@ -38,7 +38,8 @@ from .policy import (
 )
 from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
-from .simulated import Calibration, Measurements, Records, advance_plant, build_line, calibrate
+from .simulated import Calibration, Measurements, Records, advance_plant, build_line
+from .simulated import calibrate as calibrate_estimator   # 'calibrate' is the span's option
 
 # ------------------------------------------------------------------------------------ the run
 # run_closed_loop tells the story of the run; these are its decision stages (the simulated line's
@@ -110,16 +111,26 @@ def _decision_tone(seen: Measurements, settings: Settings, targeting: Targeting,
     return _sensor_tone(seen, lo, k, dt), max(k + 1 - shape_from, settings.window)
 
 
+def _recalibrate(beliefs: BeliefTracker, records: Records, seen: Measurements, k: int) -> Belief:
+    """The belief after calibrating on the record up to sample k (logged when it changes)."""
+    note = beliefs.update(seen, k)
+    if note is not None:
+        records.decisions.append((float(seen.t[k]), note))
+    return beliefs.belief
+
+
 def _update_target(targeting: Targeting, motion: Motion, records: Records, seen: Measurements,
-                   belief: Belief, robot: MDR, settings: Settings, k: int,
+                   beliefs: BeliefTracker, robot: MDR, settings: Settings, k: int,
                    watched: float) -> None:
     """The policy at control step k: choose a first target, confirm it once the robot has
     settled, or choose anew after a wind change (module doc). It decides only with the robot at
     rest, so that every move is one rest-to-rest plan. ``watched``: the dominant frequency of the
     last change-detection window (what a wind change is detected on); a decision is made at the
     tone of the excitation's record (:func:`_decision_tone`). It reads the measurements
-    (``seen``) and predicts with the ``belief``; ``records`` only logs what it decided."""
+    (``seen``) and predicts with the belief, calibrated again before each decision
+    (``beliefs``); ``records`` only logs what it decided."""
     t = seen.t
+    belief = beliefs.belief
     if t[k] >= quiet_from(t[0], t[-1]):
         return
     robot_still = motion.at_rest
@@ -140,6 +151,10 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
         records.decisions.append((float(t[k]), ended))
     if not (retarget or confirm):
         return
+    if _recalibrate(beliefs, records, seen, k) is not belief:   # the record moved the belief
+        belief = beliefs.belief
+        shape, unsteady = _excited_shape(seen, belief, robot, motion.position, k, tone,
+                                         settings.window, shape_window)
     low, high = motion.bounds()
     reach = reach_within(settings.limits, travel_budget(t[k], t[0], t[-1]))
     choice = choose_target(shape, belief.plant, robot, 2 * np.pi * tone, belief.weights,
@@ -262,6 +277,7 @@ def run_closed_loop(
     planner_time_budget: float | None = None,
     seed: int | np.random.Generator | None = 0,
     nominal: Span | LineModel | None = None,
+    calibrate: bool = True,
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
 
@@ -356,7 +372,14 @@ def run_closed_loop(
         toward clamps), with its supports and damping; a LineModel brings its own mesh,
         supports and damping (a robot it carries is ignored: the robot is ``robot``). Its
         length must be the simulated span's within 1 %. None (default): the simulated line's
-        own span, mesh and damping (the controller told the truth).
+        own span, mesh and damping (the controller told the truth, and nothing to calibrate).
+    calibrate : bool
+        With a ``nominal``: after the calibration window and again at each decision of the
+        policy, calibrate the span from the sensors' whole record so far
+        (:func:`~powerline_control.identify.calibrate_span`, the nominal as prior) and predict
+        with the calibrated span once its tension moves from the believed one by more than the
+        calibration's standard deviation (``ClosedLoopResult.calibrations``). False: the
+        controller predicts with the nominal as told.
 
     Returns
     -------
@@ -408,6 +431,8 @@ def run_closed_loop(
     robot, limits = settings.robot, settings.limits
     span = settings.bare.span
     told = checked_nominal(nominal, settings.bare)
+    if not isinstance(calibrate, bool):
+        raise InputError(f"The 'calibrate' parameter must be True or False. Got {calibrate!r}.")
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
 
@@ -415,7 +440,7 @@ def run_closed_loop(
     setup_start, setup_cpu = time.perf_counter(), time.process_time()
     line = build_line(robot, segments, settings, sensors, n_modes=n_modes,
                       clamp_distance=clamp_distance)
-    calibrated = calibrate(line, robot, settings, rng)
+    calibrated = calibrate_estimator(line, robot, settings, rng)
     n_cal, t = settings.n_cal, line.t
     records = Records.after_calibration(line, calibrated, robot, n_cal)
     # What the controller is told (the nominal span, meshed as the line is) and all it sees
@@ -424,6 +449,9 @@ def run_closed_loop(
     belief = believe(settings.bare if told is None else told, like=settings.bare, robot=robot,
                      n_modes=n_modes, dt=settings.dt, sensor_positions=seen.sensor_positions,
                      frequencies=line.load_frequencies)
+    beliefs = BeliefTracker(belief, robot=robot, n_modes=n_modes, dt=settings.dt,
+                            frequencies=line.load_frequencies,
+                            calibrate=calibrate and told is not None)
 
     # ---- the loop: every control period, estimate, choose a target, move (and simulate)
     plant_state = calibrated.start_states[n_cal - 1].copy()
@@ -439,7 +467,9 @@ def run_closed_loop(
     while k < t.size - 1:
         end = min(k + settings.steps_per_period, t.size - 1)
         frequency = _observe(records, seen, calibrated, settings, k)
-        _update_target(targeting, motion_state, records, seen, belief, robot, settings, k,
+        if k == n_cal - 1:   # the calibration window's record: the first calibration
+            _recalibrate(beliefs, records, seen, k)
+        _update_target(targeting, motion_state, records, seen, beliefs, robot, settings, k,
                        frequency)
         _move_robot(motion_state, records, t, k, end)
         plant_state = advance_plant(plant_state, records, line, calibrated, rng, timings, k,
@@ -502,5 +532,6 @@ def run_closed_loop(
         estimator_consistency=calibrated.kf.consistency,
         span=span,
         nominal=span if told is None else belief.span,
-        belief=belief.span,
+        belief=beliefs.belief.span,
+        calibrations=tuple(beliefs.calibrations),
     )

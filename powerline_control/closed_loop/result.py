@@ -129,7 +129,9 @@ class ClosedLoopResult:
     decisions : tuple of (float, str)
         Every decision of the policy, in words: the time (s) and what it chose ("target ...",
         "confirm ...", "another loop ...", "final ...") or why it held still ("hold ...: the
-        best predicted position is only 2 % lower").
+        best predicted position is only 2 % lower"); with calibration, when the span calibrated
+        from the records moved its belief ("believe tension ...") or could not be calibrated
+        ("belief kept ...: why").
     span : Span or None
         The line simulated (the truth).
     nominal : Span or None
@@ -273,11 +275,13 @@ class ClosedLoopResult:
         return "\n".join(lines)
 
     def _belief_line(self) -> str:
-        """The tension the controller believed (with its calibration's standard deviation, when
-        it calibrated), what it was told and the truth's."""
+        """The tension the controller believed at the end (with the last calibration's, and
+        its standard deviation, when it calibrated), what it was told and the truth's."""
         believed = f"belief: tension {self.belief.tension:.5g} N"
         if self.calibrations:
-            believed += f" +- {self.calibrations[-1][1].tension_std:.2g} N (calibrated)"
+            time, last = self.calibrations[-1]
+            believed += (f" (last calibration {last.tension:.5g} +- {last.tension_std:.2g} N "
+                         f"at {time:.3g} s)")
         told = "" if self.nominal is None else f", told {self.nominal.tension:.5g} N"
         truth = "" if self.span is None else f"; truth {self.span.tension:.5g} N"
         return believed + told + truth
