@@ -115,5 +115,10 @@ class CalibrationWarning(UserWarning):
     tell."""
 
 
-__all__ += ["CalibrationWarning", "UndetectableModeWarning", "ExcitationWarning", "ReachWarning",
+class ShortfallWarning(UserWarning):
+    """The closed loop falls short and says so: it ended worse than where the robot started or
+    than a fixed damper parked near the clamp."""
+
+
+__all__ += ["CalibrationWarning", "ShortfallWarning", "UndetectableModeWarning", "ExcitationWarning", "ReachWarning",
             "EstimatorInconsistentWarning", "SaturationWarning", "ModelErrorRecordsWarning"]

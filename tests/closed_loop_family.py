@@ -108,6 +108,7 @@ class Scenario:
     sensor_layout: str         # "toolbox" or "random"
     description: str = ""
     nominal: plc.Span | None = None   # what the controller is told (None: the span itself)
+    calibrate: bool = True            # the controller calibrates the nominal from its records
 
     @property
     def final_load(self):
@@ -123,7 +124,8 @@ class Scenario:
         """Keyword arguments of ``plc.run_closed_loop`` (the documented ones only)."""
         force = [tuple(item) for item in self.force] if isinstance(self.force, tuple) \
             else self.force
-        told = {} if self.nominal is None else {"nominal": self.nominal}
+        told = {} if self.nominal is None else {"nominal": self.nominal,
+                                                 "calibrate": self.calibrate}
         return dict(span=self.span, force=force, robot=self.robot, limits=self.limits,
                     sensors=list(self.sensors), n_elements=self.n_elements, bc=self.bc,
                     damping=self.damping, duration=self.duration,
@@ -678,14 +680,17 @@ def pin_threads() -> None:
     _THREAD_LIMIT.append(threadpool_limits(limits=1))
 
 
-def run_seed(seed: int, truth_off_nominal: bool = False) -> Outcome:
-    """Build scenario ``seed`` (:func:`off_nominal` with ``truth_off_nominal``) and run it (for
+def run_seed(seed: int, truth_off_nominal: bool = False, calibrate: bool = True) -> Outcome:
+    """Build scenario ``seed`` (:func:`off_nominal` with ``truth_off_nominal``, the controller
+    calibrating its span from the records unless ``calibrate`` is False) and run it (for
     process pools: only an int crosses over)."""
     from threadpoolctl import threadpool_limits
 
     try:
         with threadpool_limits(limits=1):
             sc = off_nominal(seed) if truth_off_nominal else scenario(seed)
+            if not calibrate:
+                sc = dataclasses.replace(sc, calibrate=False)
     except Exception as exc:  # noqa: BLE001
         nan = float("nan")
         return Outcome(seed=seed, split=split_of(seed),

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import powerline_control as plc
+from powerline_control.closed_loop import belief as closed_loop_belief
 from powerline_control.closed_loop import loop as closed_loop_run
 
 LAB = plc.Span.paper_lab()
@@ -24,13 +25,27 @@ RUN = dict(sensors=SENSORS, duration=6.0, calibration=1.0, seed=2)
 TOLD = plc.Span(LAB.length, LAB.tension / 1.03, LAB.conductor)
 
 
-def test_no_nominal_is_the_model_itself_to_the_last_digit():
+def test_no_nominal_is_the_model_itself_to_the_last_digit_and_a_span_assumes_its_damping():
     plain = plc.run_closed_loop(TRUTH, FORCE, ROBOT, **RUN)
     same_model = plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=TRUTH, calibrate=False, **RUN)
-    same_span = plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=LAB, calibrate=False, **RUN)
+    # the span alone, with the damping it would assume, meshed as the line is
+    same_span = plc.run_closed_loop(
+        TRUTH, FORCE, ROBOT, calibrate=False, **RUN,
+        nominal=plc.LineModel(LAB, 40, damping=closed_loop_belief.ASSUMED_DAMPING))
+    spy = []
+    monkey = pytest.MonkeyPatch()
+    monkey.setattr(closed_loop_run, "believe", lambda told, **kw: spy.append(told) or
+                   closed_loop_belief.believe(told, **kw))
+    try:
+        told_span = plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=LAB, calibrate=False, **RUN)
+    finally:
+        monkey.undo()
     for other in (same_model, same_span):
-        assert np.array_equal(plain.robot_position, other.robot_position)
-        assert plain.decisions == other.decisions
+        assert np.array_equal(plain.robot_position, other.robot_position) == (other is same_model)
+        assert (plain.decisions == other.decisions) == (other is same_model)
+    # a Span says nothing of the line's damping: the controller assumes one, never the truth's
+    assert spy[0].damping == closed_loop_belief.ASSUMED_DAMPING != TRUTH.damping
+    assert np.array_equal(same_span.robot_position, told_span.robot_position)
     assert plain.belief == plain.nominal == plain.span == LAB
     assert plain.calibrations == ()          # told the truth, nothing to calibrate
 
@@ -148,3 +163,26 @@ def test_calibration_moves_the_belief_toward_the_truth_by_the_rule():
 def test_calibrate_must_be_a_bool():
     with pytest.raises(plc.InputError, match="'calibrate' parameter must be True or False"):
         plc.run_closed_loop(TRUTH, FORCE, ROBOT, nominal=TOLD, calibrate="yes", **RUN)
+
+
+def test_a_run_that_ends_worse_than_its_start_or_a_clamp_damper_says_so():
+    import dataclasses
+    import warnings
+
+    result = plc.run_closed_loop(TRUTH, FORCE, ROBOT, **RUN)
+    assert result.shortfalls == ()            # this run ends far below both
+    closed = result.comparison("closed_loop")
+    # the same run, had it ended at 1.2x the start's RMS and above the clamp damper's
+    worse = tuple(dataclasses.replace(c, rms=1.2 * result.comparison("start").rms)
+                  if c.name == "closed_loop" else c for c in result.comparisons)
+    shortfalls = dataclasses.replace(result, comparisons=worse).shortfalls
+    start, clamp = result.comparison("start"), result.comparison("near_clamp")
+    expected = [name for name, other, tol in (("started", start, 1.05),
+                                              ("near the clamp", clamp, 1.0))
+                if 1.2 * start.rms > tol * other.rms]
+    assert len(shortfalls) == len(expected) >= 1
+    assert "where the robot started" in shortfalls[0] and "1.20x" in shortfalls[0]
+    assert closed.rms < start.rms
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", plc.ShortfallWarning)
+        plc.run_closed_loop(TRUTH, FORCE, ROBOT, **RUN)   # no warning for a run that did well

@@ -19,7 +19,7 @@ import numpy as np
 
 from .._validation import check_int, read_only
 from ..errors import CalibrationWarning, IdentificationError, InputError, TruncationWarning
-from ..fem import MDR, LineModel
+from ..fem import MDR, LineModel, ModalDamping
 from ..identify import calibrate_span
 from ..line import Span
 from ..simulation.plant import ModalPlant, default_modes
@@ -27,6 +27,9 @@ from ..simulation.plant import ModalPlant, default_modes
 # A nominal span must have the simulated span's length within this fraction: a record or a model
 # of another span is no belief about this one (lengths are surveyed; tensions drift).
 LENGTH_TOLERANCE = 0.01
+#: The line damping a controller told only a Span assumes: a conductor's self-damping at aeolian
+#: amplitudes is 0.05-0.5 % of critical; this is the middle of that range on a log scale.
+ASSUMED_DAMPING = ModalDamping(0.0015)
 
 
 @dataclass(frozen=True)
@@ -90,7 +93,8 @@ class Belief:
 def checked_nominal(nominal: Span | LineModel | None, truth: LineModel) -> Span | LineModel | None:
     """``nominal`` checked against the line simulated (``truth``, its bare model): a Span or a
     bare LineModel (a robot it carries is dropped: the robot is run_closed_loop's) of the
-    simulated span's length within LENGTH_TOLERANCE; None stays None (the model's own span)."""
+    simulated span's length within LENGTH_TOLERANCE; None stays None (the model's own span). A
+    Span becomes its LineModel: meshed as the line is, with ASSUMED_DAMPING."""
     if nominal is None:
         return None
     if not isinstance(nominal, Span | LineModel):
@@ -108,22 +112,28 @@ def checked_nominal(nominal: Span | LineModel | None, truth: LineModel) -> Span 
             f"within {100 * LENGTH_TOLERANCE:g} % ({low:.6g} to {high:.6g} m). A span or record "
             "of another line is no nominal for this one."
         )
-    if isinstance(nominal, LineModel) and nominal.mdr is not None:
+    if isinstance(nominal, Span):
+        # A span says nothing of the line's damping: the controller assumes a typical one (the
+        # records do not tell it: docs/validation/calibration.md); the mesh is a numerical
+        # choice, the line's own.
+        return meshed_like(nominal, truth, damping=ASSUMED_DAMPING)
+    if nominal.mdr is not None:
         return nominal.with_robot(None)
     return nominal
 
 
-def meshed_like(span: Span, like: LineModel) -> LineModel:
+def meshed_like(span: Span, like: LineModel, damping: object = None) -> LineModel:
     """``span`` meshed as ``like`` is: the same number of equal elements when its mesh is
     uniform, else the physics mesh of ``span`` for the same band top and frequency tolerance
-    (the default elements per loop); the same supports and damping. The mesh's own warnings
-    were given when ``like`` was built."""
+    (the default elements per loop); the same supports, and ``like``'s damping unless
+    ``damping`` is given. The mesh's own warnings were given when ``like`` was built."""
     lengths = np.asarray(like.element_lengths)
+    damping = like.damping if damping is None else damping
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", TruncationWarning)
         if np.ptp(lengths) == 0.0:
-            return LineModel(span, like.n_elements, like.bc, damping=like.damping)
-        return LineModel(span, None, like.bc, damping=like.damping,
+            return LineModel(span, like.n_elements, like.bc, damping=damping)
+        return LineModel(span, None, like.bc, damping=damping,
                          max_frequency=like.max_frequency,
                          frequency_tolerance=like.frequency_tolerance)
 

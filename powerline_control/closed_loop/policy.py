@@ -106,19 +106,38 @@ def predicted_rms(bare_shape, plant, robot, omega, positions, weights):
     out = np.empty(positions.size)
     if not positions.size:
         return out
-    reaction = robot_dynamic_stiffness(robot, omega)
-    x = plant.model.node_positions
-    w_bare = np.interp(positions, x, bare_shape.real) + 1j * np.interp(positions, x,
-                                                                        bare_shape.imag)
     # blocks of 256 positions keep the (n_nodes, block) complex fields small on long spans
     for block in np.array_split(np.arange(positions.size), -(-positions.size // 256)):
-        couplings = np.stack([plant.coupling(p) for p in positions[block]], axis=1)  # (r, b)
-        response = plant.modal_response(couplings, omega)
-        at_robot = np.einsum("ij,ij->j", couplings, response)
-        gain = reaction * w_bare[block] / (1 - at_robot * reaction)
+        response, gain = _parked_reaction(bare_shape, plant, robot, omega, positions[block])
         fields = bare_shape[:, None] + (plant.nodal @ response) * gain
         out[block] = np.sqrt(0.5 * weights @ np.abs(fields) ** 2)
     return out
+
+
+def _interpolated(shape: np.ndarray, x: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """A complex nodal shape at ``positions`` (linear between the nodes ``x``)."""
+    return np.interp(positions, x, shape.real) + 1j * np.interp(positions, x, shape.imag)
+
+
+def _parked_reaction(bare_shape, plant, robot, omega, positions):
+    """(modal response to a unit force at each position (r, b), the robot's force there (b,)):
+    the parked field is ``W_bare + nodal @ response * gain`` (:func:`predicted_rms`)."""
+    reaction = robot_dynamic_stiffness(robot, omega)
+    w_bare = _interpolated(bare_shape, plant.model.node_positions, positions)
+    couplings = np.stack([plant.coupling(p) for p in positions], axis=1)  # (r, b)
+    response = plant.modal_response(couplings, omega)
+    at_robot = np.einsum("ij,ij->j", couplings, response)
+    return response, reaction * w_bare / (1 - at_robot * reaction)
+
+
+def predicted_sensors(bare_shape, plant, robot, omega, position, sensor_positions, sensor_rows):
+    """The sensors' phasors predicted with the robot parked at ``position`` (the parked field of
+    :func:`predicted_rms` at the sensors): what the robot checks a move against once the line
+    has settled there."""
+    response, gain = _parked_reaction(bare_shape, plant, robot, omega, np.array([position]))
+    at_sensors = _interpolated(bare_shape, plant.model.node_positions,
+                               np.asarray(sensor_positions, dtype=float))
+    return at_sensors + (sensor_rows @ response)[:, 0] * gain[0]
 
 
 @dataclass(frozen=True)

@@ -144,6 +144,10 @@ class ClosedLoopResult:
         Every calibration of the span from the sensors' records during the run: the time (s)
         and the :class:`~powerline_control.identify.SpanCalibration` (empty without
         calibration).
+    misfits : tuple of (float, float, float)
+        Each check of the belief against the measurements: the time (s), where the robot had
+        settled (m) and the misfit of shapes (sqrt(1 - MAC)) between the sensors' phasors
+        measured there and those the belief predicted at the decision that sent it.
     estimator_consistency : Consistency or None
         The windowed NIS test (:class:`~powerline_control.estimate.Consistency`) of the
         estimator's filter over the calibration record and the loop (None when no window
@@ -206,6 +210,7 @@ class ClosedLoopResult:
     nominal: object = field(default=None, repr=False)
     belief: object = field(default=None, repr=False)
     calibrations: tuple = field(default=(), repr=False)
+    misfits: tuple = field(default=(), repr=False)
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""
@@ -261,8 +266,40 @@ class ClosedLoopResult:
         busy = self.timings.get("loop cpu", self.wall_time)
         return (self.t[-1] - self.calibration_time) / max(busy, 1e-12)
 
+    @property
+    def shortfalls(self) -> tuple:
+        """What the run fell short of, in words: ending (in the settled window) more than 5 %
+        worse than the robot parked at its start, or worse than a fixed damper parked near the
+        clamp; empty when it did neither (or lacks those comparisons).
+
+        Examples
+        --------
+        >>> import powerline_control as plc
+        >>> robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
+        >>> result = plc.run_closed_loop(plc.Span.paper_lab(), plc.HarmonicForce(1.0, 24.0, 0.5),
+        ...                              robot, n_elements=20, sensors=[4, 9, 15], duration=5.0,
+        ...                              calibration=1.0)
+        >>> result.shortfalls
+        ()
+        """
+        names = {c.name for c in self.comparisons}
+        if not {"closed_loop", "start", "near_clamp"} <= names:
+            return ()
+        closed = self.comparison("closed_loop")
+        out = []
+        for name, tolerance, what in (("start", 1.05, "where the robot started"),
+                                      ("near_clamp", 1.0, "a fixed damper parked near the "
+                                                          "clamp")):
+            other = self.comparison(name)
+            if closed.rms > tolerance * other.rms:
+                out.append(f"the line ends {closed.rms / other.rms:.2f}x as high (RMS "
+                           f"{1e3 * closed.rms:.4g} mm) as with the robot parked at "
+                           f"{other.position:.4g} m, {what} ({1e3 * other.rms:.4g} mm)")
+        return tuple(out)
+
     def summary(self) -> str:
-        """A few lines: what the controller believed, the settled window and every comparison."""
+        """A few lines: what the controller believed, the settled window, every comparison and
+        what the run fell short of."""
         lines = [] if self.belief is None else [self._belief_line()]
         lines.append(
             f"settled window {self.settled_window[0]:.2f}-{self.settled_window[1]:.2f} s"
@@ -272,6 +309,7 @@ class ClosedLoopResult:
                 f"{c.name:12s} x = {c.position:7.3f} m  rms {1e3 * c.rms:8.4f} mm  "
                 f"peak {1e3 * c.peak:8.4f} mm  damper {1e3 * c.damper_power:8.4f} mW"
             )
+        lines += [f"shortfall: {text}" for text in self.shortfalls]
         return "\n".join(lines)
 
     def _belief_line(self) -> str:

@@ -213,6 +213,8 @@ class Records:
     target_starts: list = field(default_factory=list)   # sample index of each new target
     predictions: list = field(default_factory=list)
     decisions: list = field(default_factory=list)       # (time, what the policy decided)
+    misfits: list = field(default_factory=list)   # (time, position, measured vs predicted)
+    expected: tuple | None = None   # (goal, tone, the sensors' phasors predicted there)
 
     @classmethod
     def after_calibration(cls, line: SimulatedLine, calibration: Calibration, robot: MDR,
