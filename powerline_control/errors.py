@@ -120,5 +120,6 @@ class ShortfallWarning(UserWarning):
     than a fixed damper parked near the clamp."""
 
 
-__all__ += ["CalibrationWarning", "ShortfallWarning", "UndetectableModeWarning", "ExcitationWarning", "ReachWarning",
-            "EstimatorInconsistentWarning", "SaturationWarning", "ModelErrorRecordsWarning"]
+__all__ += ["CalibrationWarning", "ShortfallWarning", "UndetectableModeWarning",
+            "ExcitationWarning", "ReachWarning", "EstimatorInconsistentWarning",
+            "SaturationWarning", "ModelErrorRecordsWarning"]

@@ -6,13 +6,12 @@ from __future__ import annotations
 import dataclasses
 import warnings
 
+import calibration_family as family
 import numpy as np
 import pytest
 
 import powerline_control as plc
 from powerline_control.errors import CalibrationWarning, IdentificationError, InputError
-
-import calibration_family as family
 
 
 def _pinned_frequencies(span: plc.Span, n: np.ndarray) -> np.ndarray:

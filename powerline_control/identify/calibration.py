@@ -111,8 +111,8 @@ class SpanCalibration:
     >>> nominal = plc.Span.paper_lab()
     >>> truth = plc.LineModel(plc.Span(nominal.length, 1.04 * nominal.tension,
     ...                                nominal.conductor), 40, damping=plc.ModalDamping(0.005))
-    >>> snap = plc.simulate(truth, plc.RandomForce(0.5, 1.1, bandwidth=150.0, seed=1), duration=10.0, dt=1e-3,
-    ...                     noise_fraction=0.01, seed=2)
+    >>> snap = plc.simulate(truth, plc.RandomForce(0.5, 1.1, bandwidth=150.0, seed=1),
+    ...                     duration=10.0, dt=1e-3, noise_fraction=0.01, seed=2)
     >>> rec = plc.Record(snap.t, snap.x[[7, 16, 29]], snap.displacement[[7, 16, 29]])
     >>> cal = plc.calibrate_span(rec, nominal)
     >>> bool(abs(cal.tension - 1.04 * nominal.tension) < 3 * cal.tension_std)
@@ -149,8 +149,8 @@ class SpanCalibration:
         >>> import powerline_control as plc
         >>> nominal = plc.Span.paper_lab()
         >>> snap = plc.simulate(plc.LineModel(nominal, 40, damping=plc.ModalDamping(0.005)),
-        ...                     plc.RandomForce(0.5, 1.1, bandwidth=150.0, seed=1), duration=10.0, dt=1e-3,
-        ...                     noise_fraction=0.01, seed=2)
+        ...                     plc.RandomForce(0.5, 1.1, bandwidth=150.0, seed=1),
+        ...                     duration=10.0, dt=1e-3, noise_fraction=0.01, seed=2)
         >>> rec = plc.Record(snap.t, snap.x[[7, 16, 29]], snap.displacement[[7, 16, 29]])
         >>> print(plc.calibrate_span(rec, nominal).summary().splitlines()[0][:30])
         Calibrated span (3.66 m, pinne
