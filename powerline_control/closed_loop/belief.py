@@ -11,6 +11,7 @@ the span :func:`~powerline_control.identify.calibrate_span` reads in the sensors
 
 from __future__ import annotations
 
+import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -241,6 +242,7 @@ class BeliefTracker:
         self.belief = nominal
         self.calibrate = calibrate
         self.calibrations: list = []       # (time, SpanCalibration)
+        self.cpu = 0.0                     # process time spent calibrating and rebuilding, s
         self._robot, self._n_modes, self._dt = robot, n_modes, dt
         self._frequencies = tuple(frequencies)
         self._last = -1                    # the sample the last update read up to
@@ -252,6 +254,14 @@ class BeliefTracker:
         if not self.calibrate or k <= self._last:
             return None
         self._last = k
+        started = time.process_time()
+        try:
+            return self._update(seen, k)
+        finally:
+            self.cpu += time.process_time() - started
+
+    def _update(self, seen, k: int) -> str | None:
+        """:meth:`update`'s calibration and rebuild (timed by it)."""
         now = float(seen.t[k])
         record = SensorRecord(t=seen.t[: k + 1], positions=seen.sensor_positions,
                               values=seen.sensors[:, : k + 1], dt=self._dt)

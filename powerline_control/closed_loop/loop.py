@@ -40,7 +40,7 @@ from .policy import (
 from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
 from .simulated import Calibration, Measurements, Records, advance_plant, build_line
-from .simulated import calibrate as calibrate_estimator   # 'calibrate' is the span's option
+from .simulated import calibrate as calibrate_estimator  # 'calibrate' is the span's option
 
 # ------------------------------------------------------------------------------------ the run
 # run_closed_loop tells the story of the run; these are its decision stages (the simulated line's
@@ -534,6 +534,7 @@ def run_closed_loop(
     estimated = calibrated.field_map @ records.filter_states.T
     timings["comparisons"] = time.perf_counter() - after_start
     timings["comparisons cpu"] = time.process_time() - after_cpu
+    timings["calibration cpu"] = beliefs.cpu
     timings["call cpu"] = time.process_time() - call_cpu
     result = ClosedLoopResult(
         t=read_only(t),

@@ -159,8 +159,9 @@ class ClosedLoopResult:
         stepping and sensing), plant update (re-discretising after a move), filter (Kalman
         steps), policy and motion, comparisons (parked runs and the steady-state scan); the
         process times (less sensitive to the machine's load) "setup cpu", "loop cpu",
-        "comparisons cpu" and "call cpu" (the whole call); and "modes", the number of bare-line
-        modes the plant kept.
+        "comparisons cpu", "calibration cpu" (the span's calibrations and the belief's
+        rebuilds, within the loop's) and "call cpu" (the whole call); and "modes", the number
+        of bare-line modes the plant kept.
 
     Examples
     --------
