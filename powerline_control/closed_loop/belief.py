@@ -229,8 +229,9 @@ class BeliefTracker:
 
     It starts from the nominal span's :class:`Belief`; at each :meth:`update` (after the
     calibration window, then at each decision of the policy) it calibrates the span on the
-    sensors' whole record so far (:func:`~powerline_control.identify.calibrate_span`, the
-    nominal model as prior, the robot parked where it spent most of the record) and rebuilds the
+    sensors' whole record so far, and the robot's own while it has not moved
+    (:func:`~powerline_control.identify.calibrate_span`, the nominal model as prior, the robot
+    parked where it spent most of the record) and rebuilds the
     Belief from the calibrated span when its tension differs from the believed one by more than
     the calibration's standard deviation (and 1e-4 of it): a rebuild costs a modal plant, and a
     change within the uncertainty is no news.
@@ -263,10 +264,15 @@ class BeliefTracker:
     def _update(self, seen, k: int) -> str | None:
         """:meth:`update`'s calibration and rebuild (timed by it)."""
         now = float(seen.t[k])
-        record = SensorRecord(t=seen.t[: k + 1], positions=seen.sensor_positions,
-                              values=seen.sensors[:, : k + 1], dt=self._dt)
-        parked = replace(self._robot, position=self.nominal.inside(
-            float(np.median(seen.position[: k + 1]))))
+        positions, values = seen.sensor_positions, seen.sensors[:, : k + 1]
+        path = seen.position[: k + 1]
+        parked = replace(self._robot, position=self.nominal.inside(float(np.median(path))))
+        if np.ptp(path) == 0.0 and not np.any(np.isclose(positions, parked.position)):
+            # parked all along: the robot's own measurement of the line is one more channel
+            positions = np.append(positions, parked.position)
+            values = np.vstack([values, seen.robot[None, : k + 1]])
+        record = SensorRecord(t=seen.t[: k + 1], positions=positions, values=values,
+                              dt=self._dt)
         try:
             with warnings.catch_warnings():
                 # what the record cannot tell is kept on the calibration (its ``warnings``)
