@@ -29,6 +29,7 @@ from .scenario.files import (  # noqa: F401  (re-exported)
     shipped_scenarios,
 )
 from .scenario.template import scenario_reference, scenario_to_toml  # noqa: F401
+from .scenario.truth import TruthConfig, true_model, true_span  # noqa: F401  (re-exported)
 
 __all__ = [
     "Scenario",

@@ -155,9 +155,37 @@ def scenarios(draw, numeric_alpha: bool = False) -> config.Scenario:
         start=draw(on_span), body_mass=draw(reals(1e-3, 1e3)),
         suspended_mass=draw(reals(1e-3, 1e3)), damping_ratio=draw(st.floats(0.01, 0.99)),
         v_max=draw(reals(1e-3, 20.0)), a_max=draw(reals(1e-3, 100.0)),
-        closed_loop=draw(st.floats(0.0, min(600.0, 10 * simulation.duration))))
-    return config.Scenario(span=span, model=model, forcing=forcing, simulation=simulation,
-                           identification=identification, estimation=estimation, robot=robot)
+        closed_loop=_closed_loop(draw(st.floats(0.0, min(600.0, 10 * simulation.duration))),
+                                 dt))
+    return config.Scenario(span=span, model=model, truth=draw(truths(preset)), forcing=forcing,
+                           simulation=simulation, identification=identification,
+                           estimation=estimation, robot=robot)
+
+
+def _closed_loop(seconds: float, dt: float) -> float:
+    """``seconds``, or 0 (no closed loop) when its calibration (a third of it, at most 2 s, in
+    whole 50 ms control periods) would hold too few samples for the estimator's recipe: the
+    schema refuses such a closed loop (a 1.2x margin and one period keep clear of rounding)."""
+    from powerline_control.recipe.defaults import shortest_record
+
+    return seconds if min(2.0, seconds / 3) >= 1.2 * shortest_record() * dt + 0.05 else 0.0
+
+
+@st.composite
+def truths(draw, preset: str) -> config.TruthConfig:
+    """A scenario's [truth]: a temperature (conductor presets only: the lab conductor has no
+    change of state) or a tension factor or neither, and the conductor's factors and damping."""
+    tension = draw(st.sampled_from(["none", "factor"] + (["temperature"]
+                                                          if preset == "conductor" else [])))
+    keys = {"ei_factor": draw(reals(0.2, 5.0)), "mass_factor": draw(reals(0.8, 1.2)),
+            "damping_ratio": draw(st.one_of(st.none(), st.floats(0.0, 0.9)))}
+    if tension == "factor":
+        keys["tension_factor"] = draw(reals(0.5, 1.5))
+    elif tension == "temperature":   # within 30 degC of the stringing: far from the rated strength
+        stringing = draw(reals(-10.0, 30.0))
+        keys.update(stringing_temperature=stringing,
+                    temperature=draw(reals(stringing - 30.0, stringing + 30.0)))
+    return config.TruthConfig(**keys)
 
 
 # ------------------------------------------------------------------------- sensor constraints

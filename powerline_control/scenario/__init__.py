@@ -1,4 +1,4 @@
-"""Scenarios: the TOML schema and its files (config, files, template), and the one pipeline that
+"""Scenarios: the TOML schema and its files (config, truth, files, template), and the pipeline that
 runs a scenario stage by stage (stages, pipeline) into a frozen ScenarioResult (result, summary)."""
 
 from .config import (
@@ -17,6 +17,7 @@ from .config import (
 )
 from .files import load_scenario, override_scenario_text, read_scenario_text, shipped_scenarios
 from .template import scenario_reference, scenario_to_toml
+from .truth import TruthConfig, true_model, true_span
 
 __all__ = [
     "EstimationConfig",
@@ -29,6 +30,7 @@ __all__ = [
     "SeverityConfig",
     "SimulationConfig",
     "SpanConfig",
+    "TruthConfig",
     "check_severity_inputs",
     "default_scenario",
     "load_scenario",
@@ -37,4 +39,6 @@ __all__ = [
     "scenario_reference",
     "scenario_to_toml",
     "shipped_scenarios",
+    "true_model",
+    "true_span",
 ]

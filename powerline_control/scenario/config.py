@@ -1,4 +1,5 @@
-"""Scenario files: a TOML description of one study (span, model, load, data, estimation, robot).
+"""Scenario files: a TOML description of one study (span, model, the line's truth, load, data,
+estimation, robot).
 
 A scenario is a frozen :class:`Scenario` of small frozen sections. Every key has a default, so a
 file names only what differs from the built-in default (the paper's lab span forced near its
@@ -27,6 +28,8 @@ import numbers
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ._schema import _key
+from .truth import TruthConfig, check_truth
 
 __all__ = ["Scenario", "default_scenario", "check_severity_inputs"]
 
@@ -35,23 +38,6 @@ __all__ = ["Scenario", "default_scenario", "check_severity_inputs"]
 MAX_SAMPLES = 2_000_000
 #: Largest element count a scenario may ask for (dense sensor and estimator work is O(n^2)).
 MAX_ELEMENTS = 20_000
-
-
-def _key(default, unit: str, doc: str, *, kind: str | None = None, low=None, high=None,
-         low_inclusive: bool = False, high_inclusive: bool = True, choices=None, when=None,
-         allowed: str | None = None):
-    """A schema entry: the field's default plus metadata for validation and documentation.
-
-    ``kind`` is one of "real", "int", "str", "bool", "int_list", "real_list", "alpha",
-    "n_elements" (inferred from the default when None). ``when`` = (other key, values) says the
-    key applies only when that key of the same section has one of those values (setting it
-    otherwise is a conflict). ``allowed`` overrides the generated description of allowed values.
-    """
-    if kind is None:
-        kind = {bool: "bool", str: "str", int: "int", float: "real"}[type(default)]
-    meta = dict(unit=unit, doc=doc, kind=kind, low=low, high=high, low_inclusive=low_inclusive,
-                high_inclusive=high_inclusive, choices=choices, when=when, allowed=allowed)
-    return field(default=default, metadata=meta)
 
 
 @dataclass(frozen=True)
@@ -66,7 +52,8 @@ class ScenarioInfo:
 
 @dataclass(frozen=True)
 class SpanConfig:
-    """Which span: `preset = "paper_lab"` or a conductor preset with length and tension."""
+    """The nominal span, what the engineer knows: `preset = "paper_lab"` or a conductor preset
+    with length and tension ([truth] says how the line simulated differs)."""
 
     preset: str = _key(
         "paper_lab", "", "The paper's lab span (Table 1: 3.66 m, 395 N) or a conductor preset.",
@@ -108,11 +95,18 @@ class ModelConfig:
     damping_ratio: float = _key(0.0, "", "Modal damping ratio of the line (every mode).",
                                 low=0.0, high=1.0, low_inclusive=True, high_inclusive=False)
 
+    def damping(self, ratio: float | None = None):
+        """The line's damping: ModalDamping of ``ratio`` (default ``damping_ratio``), None at 0."""
+        from ..fem import ModalDamping
+
+        ratio = self.damping_ratio if ratio is None else ratio
+        return ModalDamping(ratio) if ratio > 0 else None
+
     def build(self, span):
         """The :class:`~powerline_control.fem.LineModel` of ``span``."""
-        from ..fem import LineModel, ModalDamping
+        from ..fem import LineModel
 
-        damping = ModalDamping(self.damping_ratio) if self.damping_ratio > 0 else None
+        damping = self.damping()
         if self.n_elements == "auto":
             return LineModel(span, n_elements=None, bc=self.bc, damping=damping)
         return LineModel(span, n_elements=self.n_elements, bc=self.bc, damping=damping)
@@ -300,8 +294,10 @@ class Scenario:
 
     Attributes
     ----------
-    scenario, span, model, forcing, simulation, identification, estimation, robot, severity
-        The sections of the file, each a frozen dataclass with defaults.
+    scenario, span, model, truth, forcing, simulation, identification, estimation, robot, severity
+        The sections of the file, each a frozen dataclass with defaults (``span`` and ``model``
+        are the nominal line, what the engineer knows; ``truth`` how the line simulated differs
+        from it, :mod:`~powerline_control.scenario.truth`).
 
     Examples
     --------
@@ -313,6 +309,7 @@ class Scenario:
     scenario: ScenarioInfo = field(default_factory=ScenarioInfo)
     span: SpanConfig = field(default_factory=SpanConfig)
     model: ModelConfig = field(default_factory=ModelConfig)
+    truth: TruthConfig = field(default_factory=TruthConfig)
     forcing: ForcingConfig = field(default_factory=ForcingConfig)
     simulation: SimulationConfig = field(default_factory=SimulationConfig)
     identification: IdentificationConfig = field(default_factory=IdentificationConfig)
@@ -513,8 +510,15 @@ def _read_section(check: _Checker, cls, name: str, table: object):
             values[key] = check.value(f"{name}.{key}", raw, fields[key].metadata)
         except _Invalid:
             continue
-    # Keys that apply only to some values of another key (e.g. span.length with a preset).
+    # Keys that apply only to some values of another key (e.g. span.length with a preset), or
+    # only when another key is set (truth.stringing_temperature needs truth.temperature).
     for key in list(values):
+        needs = fields[key].metadata["needs"]
+        if needs is not None and values.get(needs, fields[needs].default) is None:
+            check.note(f"{name}.{key} applies only when {name}.{needs} is set. Remove "
+                       f"{name}.{key} or set {name}.{needs}.")
+            del values[key]
+            continue
         when = fields[key].metadata["when"]
         if when is None:
             continue
@@ -617,6 +621,7 @@ def _check_scenario(check: _Checker, scenario: Scenario, given: dict) -> None:
                      f"at most {n_el - 1}, the interior nodes of model.n_elements = {n_el} "
                      "(the two end nodes sit on the supports)")
     _check_severity(check, scenario, given)
+    check_truth(check, scenario, given)
 
 
 def _check_calibration_record(check: _Checker, scenario: Scenario) -> None:

@@ -45,13 +45,17 @@ def _applies(section_obj, meta: dict, section: str = "", key: str = "") -> bool:
     others, _ = _SUPERSEDED.get((section, key), ((), ""))
     if any(getattr(section_obj, other) is not None for other in others):
         return False
+    if meta["needs"] is not None and getattr(section_obj, meta["needs"]) is None:
+        return False
     if meta["when"] is None:
         return True
     other, allowed_values = meta["when"]
     return getattr(section_obj, other) in allowed_values
 
 
-def _when_text(meta: dict) -> str:
+def _when_text(meta: dict, section: str = "") -> str:
+    if meta["needs"] is not None:
+        return f"{section}.{meta['needs']} set" if section else f"{meta['needs']} set"
     other, allowed_values = meta["when"]
     return f"{other} = " + " or ".join(toml_value(v) for v in allowed_values)
 
@@ -87,6 +91,9 @@ def scenario_to_toml(scenario: Scenario, *, comments: bool = True) -> str:
     for name in _SECTIONS:
         section = getattr(scenario, name)
         lines.append(f"\n[{name}]")
+        if comments:   # what the section is, from its schema's docstring
+            lines += textwrap.wrap(_section_doc(type(section)), width=98, initial_indent="# ",
+                                   subsequent_indent="# ") + ["#"]
         for f in dataclasses.fields(section):
             meta = f.metadata
             value = getattr(section, f.name)
@@ -106,7 +113,7 @@ def scenario_to_toml(scenario: Scenario, *, comments: bool = True) -> str:
                 others, reason = _SUPERSEDED.get((name, f.name), ((), ""))
                 superseded = any(getattr(section, other) is not None for other in others)
                 why = (f"unset because {reason}" if superseded
-                       else f"used only with {_when_text(meta)}")
+                       else f"used only with {_when_text(meta, name)}")
                 lines.append(f"# {f.name} = {toml_value(value)}    # {why}")
             else:
                 unset = [o for o in _ALTERNATIVES_OF.get((name, f.name), ())
@@ -117,19 +124,31 @@ def scenario_to_toml(scenario: Scenario, *, comments: bool = True) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _section_doc(cls) -> str:
+    """The first paragraph of a section's docstring, on one line."""
+    return " ".join((cls.__doc__ or "").strip().split("\n\n")[0].split())
+
+
 # Keys that replace another (alternatives: a file sets one of them): key -> what it replaces.
 _ALTERNATIVES = {
     ("span", "tension"): ("rts_fraction",),
     ("estimation", "sensors"): ("n_sensors", "sensor_positions"),
     ("estimation", "sensor_positions"): ("n_sensors", "sensors"),
+    ("truth", "temperature"): ("tension_factor",),
+    ("truth", "tension_factor"): ("temperature",),
 }
 _ALTERNATIVES_OF = {("span", "rts_fraction"): ("tension",),
-                    ("estimation", "n_sensors"): ("sensors", "sensor_positions")}
+                    ("estimation", "n_sensors"): ("sensors", "sensor_positions"),
+                    ("truth", "temperature"): ("tension_factor",),
+                    ("truth", "tension_factor"): ("temperature",)}
 
 
 def _example(scenario: Scenario, section: str, key: str) -> object:
     """A valid example value of an unset alternative key, for the template."""
     est = scenario.estimation
+    if section == "truth":
+        # a warm afternoon (the tension several per cent low), or a tension 3 % low
+        return {"temperature": 35.0, "tension_factor": 0.97}[key]
     if key == "tension":
         from ..line import conductors
 
@@ -173,7 +192,8 @@ def scenario_reference() -> str:
         "computed, and every problem of it is reported at once, each naming the dotted key, "
         "the value and what is allowed. Keys that are alternatives (`span.tension` or "
         "`span.rts_fraction`; `estimation.sensors`, `estimation.sensor_positions` or "
-        "`estimation.n_sensors`) are set one at a time. "
+        "`estimation.n_sensors`; `truth.temperature` or `truth.tension_factor`) are set one at a "
+        "time. "
         "Units are SI; positions are in metres from the left support.",
         "",
         "Shipped scenarios:",
@@ -182,13 +202,15 @@ def scenario_reference() -> str:
     out += [f"- `{name}`: {text}" for name, text in shipped_scenarios().items()]
     for name, factory in _SECTIONS.items():
         cls = type(factory())
-        out += ["", f"## [{name}]", "", (cls.__doc__ or "").strip().splitlines()[0], "",
+        out += ["", f"## [{name}]", "", _section_doc(cls), "",
                 "| key | default | unit | allowed | meaning |", "|---|---|---|---|---|"]
         for f in dataclasses.fields(cls):
             meta = f.metadata
             default = "(not set)" if f.default is None else f"`{toml_value(f.default)}`"
             doc = meta["doc"]
-            if meta["when"] is not None:
+            if meta["needs"] is not None:
+                doc += f" Only with `{name}.{meta['needs']}` set."
+            elif meta["when"] is not None:
                 doc += f" Only with `{_when_text(meta)}`."
             out.append(f"| `{name}.{f.name}` | {default} | {meta['unit'] or '-'} | "
                        f"{_range_text(meta)} | {doc.replace('|', '/')} |")
@@ -198,5 +220,12 @@ def scenario_reference() -> str:
             "the supports, which never move) and need a numeric `model.n_elements`; "
             "`simulation.duration / simulation.dt` must give 50 to "
             f"{MAX_SAMPLES:.0e} samples; a harmonic `forcing.frequency` must lie below the "
-            "Nyquist frequency 1 / (2 dt).", ""]
+            "Nyquist frequency 1 / (2 dt). `truth.temperature` and `truth.tension_factor` are "
+            "alternatives; the change of state of `truth.temperature` needs a conductor preset "
+            "(the lab conductor of Table 1 carries no area, elastic modulus or thermal "
+            "expansion), and the true tension must stay below the conductor's rated strength. "
+            "The `[span]` and `[model]` sections are the nominal line (what the engineer knows: "
+            "the model's natural frequencies, the robot's tuning, the plan, the severity study "
+            "and the closed loop's controller use it); `[truth]` is the line simulated (the "
+            "records, the identification and the closed loop's plant run on it).", ""]
     return "\n".join(out)
