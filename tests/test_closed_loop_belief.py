@@ -175,7 +175,10 @@ def test_a_run_that_ends_worse_than_its_start_or_a_clamp_damper_says_so():
     # the same run, had it ended at 1.2x the start's RMS and above the clamp damper's
     worse = tuple(dataclasses.replace(c, rms=1.2 * result.comparison("start").rms)
                   if c.name == "closed_loop" else c for c in result.comparisons)
+    assert result.settled
     shortfalls = dataclasses.replace(result, comparisons=worse).shortfalls
+    # a robot still moving at the end is no verdict
+    assert dataclasses.replace(result, comparisons=worse, settled=False).shortfalls == ()
     start, clamp = result.comparison("start"), result.comparison("near_clamp")
     expected = [name for name, other, tol in (("started", start, 1.05),
                                               ("near the clamp", clamp, 1.0))

@@ -271,7 +271,8 @@ class ClosedLoopResult:
     def shortfalls(self) -> tuple:
         """What the run fell short of, in words: ending (in the settled window) more than 5 %
         worse than the robot parked at its start, or worse than a fixed damper parked near the
-        clamp; empty when it did neither (or lacks those comparisons).
+        clamp; empty when it did neither, or when the robot had not settled (a run that ends
+        with the robot still moving is no verdict) or the run lacks those comparisons.
 
         Examples
         --------
@@ -284,7 +285,7 @@ class ClosedLoopResult:
         ()
         """
         names = {c.name for c in self.comparisons}
-        if not {"closed_loop", "start", "near_clamp"} <= names:
+        if not self.settled or not {"closed_loop", "start", "near_clamp"} <= names:
             return ()
         closed = self.comparison("closed_loop")
         out = []
