@@ -2,14 +2,16 @@
 
 Stages (each calls the package's own stage; none re-derives another's result)::
 
-    model           Span, LineModel, the load
-    records         the simulated record (and the identification run with its shaker), or a
-                    measured record given by the user
+    model           the nominal Span and LineModel (what the engineer knows), the true ones
+                    (the line simulated: :mod:`.truth`), the load
+    records         the simulated record (and the identification run with its shaker) of the
+                    true line (the scenario's [truth]), or a measured record given by the user
     identification  design_estimator: the identified model, the sensors, the filter
     sensors         (the sensor choice is part of the recipe; this stage marks that it chooses)
     estimation      the design's filter on held-out data, against fair baseline layouts
     plan            antinodes of the estimated field, the closed loop's target, the move
-    closed_loop     run_closed_loop: the robot driven by its sensors, against it parked
+    closed_loop     run_closed_loop on the true line, its controller told the nominal span
+                    (which it calibrates from its records): the robot against it parked
     severity        aeolian_severity without and with the robot
     fatigue         fatigue_over_record over a wind record (only when one is given): no damper,
                     a fixed damper and the scenario's robot on the severity study's span
@@ -282,7 +284,8 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
     if stage == "model":
         state.update(_model(scenario))
     elif stage == "records":
-        state["records"] = _records(scenario, _need(state, "model", stage), state["force"],
+        # the data are the true line's (the nominal's own model without a [truth] section)
+        state["records"] = _records(scenario, _need(state, "true_model", stage), state["force"],
                                     record)
     elif stage == "identification":
         state["identification"] = _identification(
@@ -290,7 +293,7 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
             choose_sensors="sensors" in state["stages"])
     elif stage == "sensors":
         state["sensor_count"] = _sensor_count(_need(state, "identification", stage),
-                                              state["model"])
+                                              state["true_model"])   # the records' mesh
     elif stage == "estimation":
         state["layouts"] = _layouts(scenario, _need(state, "records", stage),
                                     _need(state, "identification", stage), state["model"])
@@ -303,8 +306,10 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
     elif stage == "closed_loop":
         sensors = ([int(i) for i in state["identification"].design.sensors]
                    if state.get("identification") is not None else None)
-        state["closed_loop"] = _closed_loop(scenario, _need(state, "model", stage),
-                                            state["force"], _tuning(state, scenario), sensors)
+        # the plant is the true line; the controller is told the nominal model and calibrates
+        state["closed_loop"] = _closed_loop(scenario, _need(state, "true_model", stage),
+                                            state["force"], _tuning(state, scenario), sensors,
+                                            nominal=state["model"])
     elif stage == "severity":
         _need(state, "model", stage)
         state["severity"] = _severity(scenario, state["span"], _tuning(state, scenario))
@@ -316,7 +321,7 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
 
 
 def _tuning(state: dict, scenario: Scenario) -> Tuning:
-    """The tuned robot, computed once per run."""
+    """The tuned robot, computed once per run, on the nominal model (what the engineer knows)."""
     if state.get("_tuning") is None:
         state["_tuning"] = tune_robot(scenario, state["model"])
     return state["_tuning"]
@@ -324,7 +329,8 @@ def _tuning(state: dict, scenario: Scenario) -> Tuning:
 
 _STAGE_WORDS = {
     "model": lambda s: "building the finite-element model",
-    "records": lambda s: (f"simulating {s.simulation.duration:g} s of motion at dt = "
+    "records": lambda s: (f"simulating {s.simulation.duration:g} s of motion"
+                          + (" of the true line" if s.truth.differs else "") + " at dt = "
                           f"{s.simulation.dt:g} s"
                           + (" and the identification run" if s.identification.shaker > 0
                              else "")),

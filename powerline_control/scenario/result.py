@@ -285,7 +285,12 @@ class ScenarioResult:
     stages : tuple of str
         The stages asked for.
     span, model, force
-        The Span, the LineModel and the load.
+        The nominal Span and LineModel (the ``[span]`` and ``[model]`` sections: what the
+        engineer knows) and the load.
+    true_span, true_model
+        The line simulated (the scenario's ``[truth]``,
+        :func:`~powerline_control.scenario.truth.true_model`): the records and the closed
+        loop's plant are its; the nominal's own objects when the scenario has no ``[truth]``.
     records : Records or None
         The data.
     identification : Identification or None
@@ -327,6 +332,8 @@ class ScenarioResult:
     span: Any = None
     model: Any = None
     force: Any = None
+    true_span: Any = None
+    true_model: Any = None
     records: Records | None = None
     identification: Identification | None = None
     sensor_count: Any = None

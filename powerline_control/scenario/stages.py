@@ -15,6 +15,7 @@ import warnings
 from ..errors import InputError, SaturationWarning
 from .config import Scenario
 from .files import load_scenario  # noqa: F401 (doctests)
+from .truth import on_nodes
 from .result import (
     ClosedLoop,
     Fatigue,
@@ -31,7 +32,7 @@ __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATI
            "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing",
            "driven_mode", "evenly_spaced_nodes", "given_sensors", "layout_filter",
            "longest_complete_run", "read_wind_record", "severity_inputs", "severity_span",
-           "support_intervals", "tune_robot"]
+           "scenario_sensors", "support_intervals", "tune_robot"]
 
 #: Share of the simulated record that trains the estimator; the rest tests it (held out).
 TRAIN_FRACTION = 0.6
@@ -47,9 +48,16 @@ ANTINODE_WINDOW = 500
 
 
 def _model(scenario: Scenario) -> dict:
+    """The nominal span and model (what the engineer knows), the true ones (the line simulated:
+    :func:`~powerline_control.scenario.truth.true_model`, the nominal's own objects when the
+    scenario has no ``[truth]``) and the load."""
+    from .truth import true_model
+
     span = scenario.span.build()
     model = scenario.model.build(span)
-    return {"span": span, "model": model, "force": scenario.forcing.build()}
+    truth = true_model(scenario, model)
+    return {"span": span, "model": model, "true_span": truth.span, "true_model": truth,
+            "force": scenario.forcing.build()}
 
 
 def _records(scenario: Scenario, model, force, record=None) -> Records:
@@ -130,6 +138,36 @@ def given_sensors(scenario: Scenario, x) -> tuple[list | None, str]:
         return _nearest_distinct_nodes(est.sensor_positions, x), \
             "from the scenario (positions, nearest nodes)"
     return None, ""
+
+
+def scenario_sensors(scenario: Scenario, x) -> list:
+    """The scenario's own sensors as node indices, or evenly spaced ones
+    (``estimation.n_sensors`` of them) when it lists none: the closed loop's and the
+    calibration's sensors when no sensor choice ran.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``estimation`` section.
+    x : array_like
+        Node positions, m.
+
+    Returns
+    -------
+    list of int
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> scenario_sensors(load_scenario(text="[estimation]\\nn_sensors = 2"),
+    ...                  np.linspace(0.0, 3.0, 31))
+    [10, 20]
+    """
+    import numpy as np
+
+    x = np.asarray(x, dtype=float)
+    given, _ = given_sensors(scenario, x)
+    return given if given is not None else evenly_spaced_nodes(x, scenario.estimation.n_sensors)
 
 
 def _nearest_distinct_nodes(positions, x) -> list:
@@ -380,8 +418,9 @@ def _layouts(scenario: Scenario, records: Records, ident: Identification, model)
     design = ident.design
     chosen = [int(i) for i in design.sensors]
     k = len(chosen)
+    # the baselines are placed as an engineer would: off the nodes of the nominal model's mode
     mode = driven_mode(model, scenario.forcing.load_frequency(model.span))
-    shape = model.mode_shapes(mode)[:, mode - 1]
+    shape = on_nodes(model.mode_shapes(mode)[:, mode - 1], model.node_positions, x)
     candidates = {"chosen": (chosen, ident.sensors_how)}
     plain_even = evenly_spaced_nodes(x, k)
     fair_even = evenly_spaced_nodes(x, k, shape)
@@ -526,7 +565,9 @@ def _plan(scenario: Scenario, records: Records, layouts: dict, model, tuning: Tu
         travel = travel_budget(closed_loop_timing(scenario)[1], 0.0, robot.closed_loop)
     # The closed loop's own targeting rule on the whole held-out estimate (its resolution,
     # 1 / length, must tell the load's line from a natural frequency's ringing next to it).
-    choice = choose_parked_position(model, estimate.field, snap.dt, tuning.robot, robot.start,
+    # predicted with the nominal model (what the engineer knows), from the estimated field
+    field = on_nodes(estimate.field, snap.x, model.node_positions)
+    choice = choose_parked_position(model, field, snap.dt, tuning.robot, robot.start,
                                     limits, travel_time=travel)
     target = nearest_antinode(estimated, choice.position)
     truth = nearest_antinode(true, choice.position)
@@ -535,23 +576,22 @@ def _plan(scenario: Scenario, records: Records, layouts: dict, model, tuning: Tu
                 truth=truth, trajectory=trajectory, envelope=np.abs(held_truth).max(axis=1))
 
 
-def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, sensors) -> ClosedLoop:
+def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, sensors,
+                 nominal=None) -> ClosedLoop:
+    """The closed loop on the true line (``model``, the plant), its controller told the nominal
+    model (``nominal``; None: ``model``), which it calibrates from its records."""
     from ..closed_loop import run_closed_loop
     from ..plan import RobotLimits
 
     cfg = scenario.robot
     if not sensors:
-        import numpy as np
-
-        x = np.asarray(model.node_positions)
-        given, _ = given_sensors(scenario, x)
-        sensors = given if given is not None else evenly_spaced_nodes(
-            x, scenario.estimation.n_sensors)
+        sensors = scenario_sensors(scenario, model.node_positions)
     dt, calibration = closed_loop_timing(scenario)
     result = run_closed_loop(
         model, force, tuning.robot, RobotLimits(cfg.v_max, cfg.a_max), sensors=list(sensors),
         duration=cfg.closed_loop, calibration=calibration, dt=dt,
-        noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed)
+        noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed,
+        nominal=model if nominal is None else nominal, calibrate=True)
     return ClosedLoop(tuning=tuning, sensors=tuple(int(i) for i in sensors), result=result,
                       calibration=calibration)
 

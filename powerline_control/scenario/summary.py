@@ -21,6 +21,8 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from .summary_truth import calibration_rows, truth_rows
+
 __all__ = ["result_sections", "write_result_report"]
 
 
@@ -78,7 +80,7 @@ def _model_section(r) -> dict:
             "long (graded toward the supports)")
     frequencies = model.natural_frequencies(min(5, model.n_dofs))
     rows = [
-        ("span", f"{span.length:g} m between supports, tension {span.tension:.4g} N",
+        ("span (nominal)", f"{span.length:g} m between supports, tension {span.tension:.4g} N",
          "The paper's laboratory span (Table 1)" if sc.span.preset == "paper_lab" else
          f"{sc.span.rts_fraction:.0%} of the conductor's rated tensile strength"
          if sc.span.tension is None else "tension from the scenario"),
@@ -89,7 +91,9 @@ def _model_section(r) -> dict:
          f"{model.bc[0]} / {model.bc[1]} supports",
          "A Galerkin model of the taut Euler-Bernoulli line: bending stiffness EI plus the "
          "tension's geometric stiffness."),
-        ("first natural frequencies", ", ".join(f"{f:.4g}" for f in frequencies) + " Hz"),
+        ("first natural frequencies (nominal)", ", ".join(f"{f:.4g}" for f in frequencies)
+         + " Hz"),
+        *truth_rows(r),
         ("load", sc.forcing.describe(span)),
     ]
     return {"title": "Span and model", "rows": rows}
@@ -508,6 +512,7 @@ def _closed_loop_section(r) -> dict:
          f"the mode nearest the load's {tuning.load_frequency:.4g} Hz, for its antinode at "
          f"{tuning.antinode:.4g} m; starts at {robot.position:g} m"),
         ("sensors", positions_text([x[i] for i in cl.sensors], cl.sensors)),
+        *calibration_rows(result),
         ("where it ended", f"{final:.4g} m", _where_it_ended(result, final)),
         ("plan and closed loop", _plan_agreement(r.plan, result, final),
          "The plan stage applies the closed loop's own targeting rule to the estimated field; "

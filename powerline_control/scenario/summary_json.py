@@ -6,6 +6,7 @@ Test seam: ``_model_kind``: the JSON's model kind, tested against the model's ty
 from __future__ import annotations
 
 from .summary import _least_damped, alpha_at_sweep_cap, consistency_by_phase
+from .summary_truth import calibration_json, truth_json
 
 __all__ = ["result_json", "UNITS"]
 
@@ -15,6 +16,7 @@ UNITS = {
     "_m_s": "metres per second", "_m_s2": "metres per second squared",
     "_percent": "per cent (of the RMS displacement over the span, for errors)",
     "_microstrain": "1e-6 (peak-to-peak strain)", "_n": "newtons", "_kg": "kilograms",
+    "_n_m2": "newton square metres (bending stiffness EI)", "_kg_m": "kilograms per metre",
     "_per_year": "per year (Miner damage accumulated in a year)", "_years": "years",
     "(no suffix)": "dimensionless (counts, ratios, indices, spectral radius, alpha)",
 }
@@ -66,7 +68,8 @@ def result_json(result) -> dict:
                    span_length_m=_f(r.span.length), tension_n=_f(r.span.tension),
                    frequencies_hz=[_f(f) for f in model.natural_frequencies(
                        min(5, model.n_dofs))],
-                   load_frequency_hz=_f(r.scenario.forcing.load_frequency(r.span)))
+                   load_frequency_hz=_f(r.scenario.forcing.load_frequency(r.span)),
+                   **truth_json(r))
     if r.records is not None:
         snap = r.records.test
         out.update(n_samples=int(snap.t.size), dt_s=_f(snap.dt), n_train=int(r.records.n_train),
@@ -119,6 +122,7 @@ def result_json(result) -> dict:
                    rms_closed_loop_m=_f(res.rms_closed_loop), rms_baseline_m=_f(res.rms_baseline),
                    real_time_factor=_f(res.real_time_factor),
                    closed_loop_sensor_nodes=list(r.closed_loop.sensors),
+                   **calibration_json(res),
                    estimator_consistent=None if res.estimator_consistency is None
                    else bool(res.estimator_consistency.consistent),
                    estimator_windows_rejected={
