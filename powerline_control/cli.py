@@ -11,6 +11,7 @@ Verbs (``powerline-control VERB --help`` for each)::
     plan         ... + antinodes and the robot's minimum-time move
     closed-loop  the robot driven to the antinode in closed loop, against it parked
     severity     aeolian severity by the energy balance (amplitude, clamp strain)
+    calibrate    the span's tension and EI with their uncertainty, from a record (--record)
     study        a grid of scenario variants (--vary KEY=V1,V2 ...), a table of results
     report       run a scenario and write only its HTML report
     scenario     list the shipped scenarios, or print one as a commented TOML template
@@ -434,6 +435,32 @@ def _verb_scenario(args, console: _Console) -> int:
     return EXIT_OK
 
 
+def _verb_calibrate(args, console: _Console) -> int:
+    """The scenario's span calibrated from --record, or from its true line simulated."""
+    from .errors import CalibrationWarning
+    from .scenario import load_scenario
+    from .scenario.calibrate import calibrate_scenario
+
+    scenario = load_scenario(args.scenario)
+    record = None
+    if args.record is not None:
+        from .output.records import load_record
+
+        record = load_record(args.record)
+    with _numerics(), warnings.catch_warnings():
+        # what the record cannot tell is in the summary's and the JSON's warnings
+        warnings.simplefilter("ignore", CalibrationWarning)
+        result = calibrate_scenario(scenario, record, progress=console.note)
+    cal = result.calibration
+    if console.as_json:
+        print(json.dumps(result.to_json(), indent=2))
+    elif console.quiet:
+        print(f"Done. tension = {cal.tension:.6g} +- {cal.tension_std:.2g} N")
+    else:
+        console.out(result.summary())
+    return EXIT_OK
+
+
 def _parse_value(text: str):
     import tomllib
 
@@ -633,6 +660,13 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="a scenario key and its values (repeat for a grid)")
     study.add_argument("--workers", type=_workers, default=1,
                        help="processes to run the variants on (default 1: serial)")
+    calibrate = verb("calibrate", "the span's tension and EI with their uncertainty from a "
+                     "record, against the scenario's nominal span", out=False)
+    calibrate.add_argument("--record", type=Path, default=None, metavar="FILE",
+                           help="a measured record (.csv with time_s and x_<position>_m "
+                           "columns, or .npz from simulate --out); without it, the scenario's "
+                           "true line ([truth]) is simulated with its load and noise and read "
+                           "at its sensors (or evenly spaced ones)")
     verb("report", "run a scenario and write only its self-contained report.html",
          out_required=True)
     scen = verb("scenario", "list the shipped scenarios, or print one (or a file) as a "
@@ -643,7 +677,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
 
 _VERBS = {"demo": _verb_demo, "report": _verb_report, "scenario": _verb_scenario,
-          "study": _verb_study}
+          "study": _verb_study, "calibrate": _verb_calibrate}
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
