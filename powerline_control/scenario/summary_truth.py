@@ -85,7 +85,10 @@ def truth_rows(result) -> list:
     frequencies = r.true_model.natural_frequencies(min(5, r.true_model.n_dofs))
     return [("line simulated (truth)", truth_text(r.scenario, r.span, r.true_span), WHICH_LINE),
             ("first natural frequencies (truth)", ", ".join(f"{f:.4g}" for f in frequencies)
-             + " Hz", "What the records show; the engineer does not know them.")]
+             + " Hz", "What the records show; the engineer does not know them."),
+            ("which line each stage uses", "truth: the records, the identification, the closed "
+             "loop's plant; nominal: the frequencies above, the robot's tuning, the plan, the "
+             "severity study, the closed loop's controller (which calibrates it)", WHICH_LINE)]
 
 
 def _last_calibration(cl_result):
