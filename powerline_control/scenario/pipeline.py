@@ -299,7 +299,7 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
                                     _need(state, "identification", stage), state["model"])
         if record is not None:
             state["measured"] = _measured(record, state["identification"],
-                                          state["model"].node_positions)
+                                          state["true_model"].node_positions)   # its mesh
     elif stage == "plan":
         state["plan"] = _plan(scenario, state["records"], _need(state, "layouts", stage),
                               state["model"], _tuning(state, scenario))

@@ -121,7 +121,7 @@ def _records_section(r) -> dict:
                      f"{rec.shaker_position:.4g} m, {rec.n_train} samples: it trains the "
                      "estimator"))
     rows += [
-        ("modes kept", f"{snap.n_modes} of {r.model.n_dofs}"),
+        ("modes kept", f"{snap.n_modes} of {r.true_model.n_dofs}"),
         ("RMS / peak displacement (last quarter)",
          f"{mm(np.sqrt(np.mean(tail**2)))} / {mm(np.abs(tail).max())}"),
         ("sensor noise std", f"{mm(snap.noise_std)} "
@@ -307,7 +307,7 @@ def _measured_section(r) -> dict:
 
     m = r.measured
     rec = m.record
-    x = np.asarray(r.model.node_positions)
+    x = np.asarray(r.true_model.node_positions)   # the records' mesh (the line simulated)
     consistency = getattr(m.estimate, "consistency", None)
     verdict = ("no complete window" if consistency is None else
                "consistent" if consistency.consistent else "INCONSISTENT")
