@@ -28,6 +28,12 @@ from ..simulation.plant import ModalPlant, default_modes
 # A nominal span must have the simulated span's length within this fraction: a record or a model
 # of another span is no belief about this one (lengths are surveyed; tensions drift).
 LENGTH_TOLERANCE = 0.01
+#: The closed loop calibrates on records of at least this many cycles of the nominal
+#: fundamental: the modes beside the tone are a fundamental apart, and a record resolves lines
+#: about 2 / duration apart (a shorter one's lines are too wide to tell neighbouring modes).
+MIN_CYCLES = 2.0
+#: A record must grow by this much (s) before it is calibrated again.
+MIN_NEW_RECORD = 1.0
 #: The line damping a controller told only a Span assumes: a conductor's self-damping at aeolian
 #: amplitudes is 0.05-0.5 % of critical; this is the middle of that range on a log scale.
 ASSUMED_DAMPING = ModalDamping(0.0015)
@@ -213,6 +219,13 @@ def believe(span_or_model: Span | LineModel, *, like: LineModel, robot: MDR,
     )
 
 
+def _within_nyquist(band, dt: float):
+    """``band`` cut to what calibrate_span accepts (0.4 / dt); None stays None."""
+    if band is None:
+        return None
+    return band[0], min(band[1], 0.4 / dt)
+
+
 @dataclass(frozen=True)
 class SensorRecord:
     """The sensors' record so far, as :func:`~powerline_control.identify.calibrate_span` reads
@@ -234,36 +247,56 @@ class BeliefTracker:
     parked where it spent most of the record) and rebuilds the
     Belief from the calibrated span when its tension differs from the believed one by more than
     the calibration's standard deviation (and 1e-4 of it): a rebuild costs a modal plant, and a
-    change within the uncertainty is no news.
+    change within the uncertainty is no news. An ambiguous calibration (several tensions explain
+    the record) moves nothing: its highest peak may be a neighbouring mode's.
     """
 
     def __init__(self, nominal: Belief, *, robot: MDR, n_modes, dt: float,
-                 frequencies: Sequence[float], calibrate: bool):
+                 frequencies: Sequence[float], calibrate: bool, wait_until: float = 0.0):
         self.nominal = nominal
         self.belief = nominal
         self.calibrate = calibrate
         self.calibrations: list = []       # (time, SpanCalibration)
+        self.trusted = False               # an unambiguous calibration has been made
+        self.wait_until = wait_until       # s: a first target waits for one until then
         self.cpu = 0.0                     # process time spent calibrating and rebuilding, s
         self._robot, self._n_modes, self._dt = robot, n_modes, dt
         self._frequencies = tuple(frequencies)
         self._last = -1                    # the sample the last update read up to
 
-    def update(self, seen, k: int) -> str | None:
-        """Calibrate on the measurements ``seen`` up to sample ``k`` (once per sample) and
-        rebuild the belief if the tension moved; returns what changed, in words (None: the
-        belief stands)."""
-        if not self.calibrate or k <= self._last:
+    def waiting(self, now: float) -> bool:
+        """Whether a first target should wait for the span's calibration: calibrating, none
+        unambiguous yet, and time left before ``wait_until`` (a target chosen on a nominal
+        tension several per cent off lands loops away on a long span)."""
+        return self.calibrate and not self.trusted and now < self.wait_until
+
+    def update(self, seen, k: int, band: tuple[float, float] | None = None) -> str | None:
+        """Calibrate on the measurements ``seen`` up to sample ``k`` and rebuild the belief if
+        the tension moved (on the lines within ``band``, Hz: all by default); returns what
+        changed, in words (None: the belief stands). A record
+        grown by less than MIN_NEW_RECORD s and a quarter since the last calibration is not
+        calibrated again (a calibration costs a fraction of a second on a long span)."""
+        grown = k - self._last
+        if not self.calibrate or grown <= 0 or (
+                self._last >= 0 and grown * self._dt < max(MIN_NEW_RECORD,
+                                                           0.25 * self._last * self._dt)):
             return None
         self._last = k
         started = time.process_time()
         try:
-            return self._update(seen, k)
+            return self._update(seen, k, band)
         finally:
             self.cpu += time.process_time() - started
 
-    def _update(self, seen, k: int) -> str | None:
+    def _update(self, seen, k: int, band) -> str | None:
         """:meth:`update`'s calibration and rebuild (timed by it)."""
         now = float(seen.t[k])
+        fundamental = float(self.nominal.span.pinned_frequencies(1)[0])
+        if (now - float(seen.t[0])) * fundamental < MIN_CYCLES:
+            return (f"belief kept at tension {self.belief.span.tension:.5g} N: the record "
+                    f"({now - float(seen.t[0]):.3g} s) is shorter than {MIN_CYCLES:g} cycles of "
+                    f"the fundamental ({fundamental:.3g} Hz), too short to separate the modes "
+                    "beside the tone")
         positions, values = seen.sensor_positions, seen.sensors[:, : k + 1]
         path = seen.position[: k + 1]
         parked = replace(self._robot, position=self.nominal.inside(float(np.median(path))))
@@ -277,11 +310,18 @@ class BeliefTracker:
             with warnings.catch_warnings():
                 # what the record cannot tell is kept on the calibration (its ``warnings``)
                 warnings.simplefilter("ignore", CalibrationWarning)
-                calibration = calibrate_span(record, self.nominal.bare, robot=parked)
+                calibration = calibrate_span(record, self.nominal.bare, robot=parked,
+                                             band=_within_nyquist(band, self._dt))
         except (InputError, IdentificationError) as error:
             return f"belief kept at tension {self.belief.span.tension:.5g} N: {error}"
         self.calibrations.append((now, calibration))
         believed = self.belief.span.tension
+        if calibration.ambiguous:
+            # several tensions explain the record: its highest peak may be a neighbouring mode's
+            return (f"belief kept at tension {believed:.5g} N: the record (its "
+                    f"{calibration.duration:.3g} s) cannot tell between tensions "
+                    f"{calibration.tension:.5g} +- {calibration.tension_std:.2g} N")
+        self.trusted = True
         if abs(calibration.tension - believed) <= max(calibration.tension_std, 1e-4 * believed):
             return None
         self.belief = believe(calibration.span, like=self.nominal.bare, robot=self._robot,

@@ -27,6 +27,7 @@ from .policy import (
     Targeting,
     choose_target,
     kernel_shape,
+    mode_spacing,
     obstacle_ends,
     pick_target,
     predicted_rms,
@@ -41,6 +42,13 @@ from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
 from .simulated import Calibration, Measurements, Records, advance_plant, build_line
 from .simulated import calibrate as calibrate_estimator  # 'calibrate' is the span's option
+
+#: Relative half-width of the band of lines around the tone the span is calibrated on.
+CALIBRATION_BAND = 0.2
+#: Share of the run a first target may wait for an unambiguous calibration of the span (after it,
+#: the robot acts on the best belief it has: the rest of the run must leave time to move and
+#: settle).
+CALIBRATION_WAIT = 0.4
 
 # ------------------------------------------------------------------------------------ the run
 # run_closed_loop tells the story of the run; these are its decision stages (the simulated line's
@@ -112,9 +120,16 @@ def _decision_tone(seen: Measurements, settings: Settings, targeting: Targeting,
     return _sensor_tone(seen, lo, k, dt), max(k + 1 - shape_from, settings.window)
 
 
-def _recalibrate(beliefs: BeliefTracker, records: Records, seen: Measurements, k: int) -> Belief:
-    """The belief after calibrating on the record up to sample k (logged when it changes)."""
-    note = beliefs.update(seen, k)
+def _recalibrate(beliefs: BeliefTracker, records: Records, seen: Measurements, k: int,
+                 tone: float) -> Belief:
+    """The belief after calibrating on the record up to sample k (logged when it changes), on
+    the lines around the ``tone`` (Hz): within CALIBRATION_BAND of it, or eight mode spacings
+    where the modes lie further apart. The policy needs the wavelength at the tone; far lines
+    add the modal band's edges (a long span's plant keeps 0.6-1.4x the tone) and the scaled
+    model's largest errors."""
+    spacing = mode_spacing(beliefs.belief.mode_frequencies, tone)
+    width = max(CALIBRATION_BAND, 8 * spacing / tone)
+    note = beliefs.update(seen, k, band=(max(tone * (1 - width), 0.0), tone * (1 + width)))
     if note is not None:
         records.decisions.append((float(seen.t[k]), note))
     return beliefs.belief
@@ -152,10 +167,16 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
         records.decisions.append((float(t[k]), ended))
     if not (retarget or confirm):
         return
-    if _recalibrate(beliefs, records, seen, k) is not belief:   # the record moved the belief
+    if _recalibrate(beliefs, records, seen, k, tone) is not belief:   # the record moved it
         belief = beliefs.belief
         shape, unsteady = _excited_shape(seen, belief, robot, motion.position, k, tone,
                                          settings.window, shape_window)
+    if retarget and beliefs.waiting(float(t[k])):
+        if not records.decisions or not records.decisions[-1][1].startswith("wait"):
+            records.decisions.append((float(t[k]), (
+                "wait for the span's calibration before a first target (the record cannot tell "
+                f"the tension yet; at most until {beliefs.wait_until:.3g} s)")))
+        return
     _check_prediction(records, seen, motion.position, k, tone, shape_window)
     low, high = motion.bounds()
     reach = reach_within(settings.limits, travel_budget(t[k], t[0], t[-1]))
@@ -486,7 +507,8 @@ def run_closed_loop(
                      n_modes=n_modes, dt=settings.dt, sensor_positions=seen.sensor_positions,
                      frequencies=band)
     beliefs = BeliefTracker(belief, robot=robot, n_modes=n_modes, dt=settings.dt,
-                            frequencies=band, calibrate=calibrate and told is not None)
+                            frequencies=band, calibrate=calibrate and told is not None,
+                            wait_until=t[0] + CALIBRATION_WAIT * (t[-1] - t[0]))
 
     # ---- the loop: every control period, estimate, choose a target, move (and simulate)
     plant_state = calibrated.start_states[n_cal - 1].copy()
@@ -503,7 +525,7 @@ def run_closed_loop(
         end = min(k + settings.steps_per_period, t.size - 1)
         frequency = _observe(records, seen, calibrated, settings, k)
         if k == n_cal - 1:   # the calibration window's record: the first calibration
-            _recalibrate(beliefs, records, seen, k)
+            _recalibrate(beliefs, records, seen, k, band[0])
         _update_target(targeting, motion_state, records, seen, beliefs, robot, settings, k,
                        frequency)
         _move_robot(motion_state, records, t, k, end)

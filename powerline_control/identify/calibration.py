@@ -102,6 +102,10 @@ class SpanCalibration:
         The tension grid (N) and its marginal posterior density (per N), for plots.
     duration : float
         Length of the record, s.
+    ambiguous : bool
+        Whether several tensions explain the record (more than AMBIGUOUS_MASS of the posterior
+        lies away from its main peak): ``tension`` is then the highest peak and
+        ``tension_std`` covers the others, but the record does not say which is the line's.
     warnings : tuple of str
         What the record could not tell (also raised as :class:`CalibrationWarning`).
 
@@ -134,6 +138,7 @@ class SpanCalibration:
     mode_numbers: np.ndarray
     posterior_tension: np.ndarray
     duration: float
+    ambiguous: bool = False
     warnings: tuple = ()
 
     @property
@@ -667,5 +672,6 @@ def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _Scaled
         mode_numbers=read_only(nearest + 1),
         posterior_tension=read_only(np.column_stack([tension_grid,
                                                      p_tau / np.gradient(tension_grid)])),
-        duration=float(duration), warnings=tuple(notes),
+        duration=float(duration), ambiguous=bool(outside > AMBIGUOUS_MASS),
+        warnings=tuple(notes),
     )
