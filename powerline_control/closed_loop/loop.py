@@ -45,11 +45,6 @@ from .simulated import calibrate as calibrate_estimator  # 'calibrate' is the sp
 
 #: Relative half-width of the band of lines around the tone the span is calibrated on.
 CALIBRATION_BAND = 0.2
-#: Share of the run a first target may wait for an unambiguous calibration of the span (after it,
-#: the robot acts on the best belief it has: the rest of the run must leave time to move and
-#: settle).
-CALIBRATION_WAIT = 0.4
-
 # ------------------------------------------------------------------------------------ the run
 # run_closed_loop tells the story of the run; these are its decision stages (the simulated line's
 # are simulated.py's), in the order it calls them.
@@ -171,11 +166,11 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
         belief = beliefs.belief
         shape, unsteady = _excited_shape(seen, belief, robot, motion.position, k, tone,
                                          settings.window, shape_window)
-    if retarget and beliefs.waiting(float(t[k])):
-        if not records.decisions or not records.decisions[-1][1].startswith("wait"):
+    if retarget and beliefs.waiting:
+        if not records.decisions or not records.decisions[-1][1].startswith("hold"):
             records.decisions.append((float(t[k]), (
-                "wait for the span's calibration before a first target (the record cannot tell "
-                f"the tension yet; at most until {beliefs.wait_until:.3g} s)")))
+                "hold until the records tell the span's tension: a target predicted with the "
+                "nominal span may lie loops from the best position")))
         return
     _check_prediction(records, seen, motion.position, k, tone, shape_window)
     low, high = motion.bounds()
@@ -507,8 +502,7 @@ def run_closed_loop(
                      n_modes=n_modes, dt=settings.dt, sensor_positions=seen.sensor_positions,
                      frequencies=band)
     beliefs = BeliefTracker(belief, robot=robot, n_modes=n_modes, dt=settings.dt,
-                            frequencies=band, calibrate=calibrate and told is not None,
-                            wait_until=t[0] + CALIBRATION_WAIT * (t[-1] - t[0]))
+                            frequencies=band, calibrate=calibrate and told is not None)
 
     # ---- the loop: every control period, estimate, choose a target, move (and simulate)
     plant_state = calibrated.start_states[n_cal - 1].copy()
