@@ -371,6 +371,8 @@ def test_bad_arguments(kwargs, name):
     ],
     ids=["slow-limits", "obstacles-everywhere", "coarse-model"],
 )
+# A robot kept from every loop ends above a damper parked near the clamp, and says that too.
+@pytest.mark.filterwarnings("ignore::powerline_control.ShortfallWarning")
 def test_what_keeps_the_robot_from_the_loops_is_named(kwargs, warning, words):
     args = dict(sensors=[7, 16, 28], n_elements=40, duration=4.0, calibration=1.0, seed=1)
     args.update(kwargs)
