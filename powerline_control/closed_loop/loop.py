@@ -124,7 +124,8 @@ def _recalibrate(beliefs: BeliefTracker, records: Records, seen: Measurements, k
     model's largest errors."""
     spacing = mode_spacing(beliefs.belief.mode_frequencies, tone)
     width = max(CALIBRATION_BAND, 8 * spacing / tone)
-    note = beliefs.update(seen, k, band=(max(tone * (1 - width), 0.0), tone * (1 + width)))
+    note = beliefs.update(seen, k, band=(max(tone * (1 - width), 0.0), tone * (1 + width)),
+                          tone=tone)
     if note is not None:
         records.decisions.append((float(seen.t[k]), note))
     return beliefs.belief
@@ -496,8 +497,8 @@ def run_closed_loop(
     seen = records.measurements(line)
     # the band the belief keeps: a controller told the truth knows its loads; one told a
     # nominal knows the tone its sensors measure in the calibration window
-    band = (line.load_frequencies if told is None
-            else [_sensor_tone(seen, 0, n_cal - 1, settings.dt)])
+    measured_tone = _sensor_tone(seen, 0, n_cal - 1, settings.dt)
+    band = line.load_frequencies if told is None else [measured_tone]
     belief = believe(settings.bare if told is None else told, like=settings.bare, robot=robot,
                      n_modes=n_modes, dt=settings.dt, sensor_positions=seen.sensor_positions,
                      frequencies=band)
@@ -519,7 +520,7 @@ def run_closed_loop(
         end = min(k + settings.steps_per_period, t.size - 1)
         frequency = _observe(records, seen, calibrated, settings, k)
         if k == n_cal - 1:   # the calibration window's record: the first calibration
-            _recalibrate(beliefs, records, seen, k, band[0])
+            _recalibrate(beliefs, records, seen, k, measured_tone)
         _update_target(targeting, motion_state, records, seen, beliefs, robot, settings, k,
                        frequency)
         _move_robot(motion_state, records, t, k, end)
