@@ -32,9 +32,6 @@ LENGTH_TOLERANCE = 0.01
 #: fundamental: the modes beside the tone are a fundamental apart, and a record resolves lines
 #: about 2 / duration apart (a shorter one's lines are too wide to tell neighbouring modes).
 MIN_CYCLES = 2.0
-#: A calibration is precise enough to act on when its relative tension std is at most this over
-#: the tone's mode number n (f_n ~ n sqrt(T): a quarter mode at 0.5 / n).
-PRECISE_MODES = 0.5
 #: A record must grow by this much (s) before it is calibrated again.
 MIN_NEW_RECORD = 1.0
 #: The line damping a controller told only a Span assumes: a conductor's self-damping at aeolian
@@ -260,7 +257,7 @@ class BeliefTracker:
         self.belief = nominal
         self.calibrate = calibrate
         self.calibrations: list = []       # (time, SpanCalibration)
-        self.trusted = False               # an unambiguous, precise calibration has been made
+        self.trusted = False               # an unambiguous calibration has been made
         self.cpu = 0.0                     # process time spent calibrating and rebuilding, s
         self._robot, self._n_modes, self._dt = robot, n_modes, dt
         self._frequencies = tuple(frequencies)
@@ -268,20 +265,15 @@ class BeliefTracker:
 
     @property
     def waiting(self) -> bool:
-        """Whether a first target waits for the span's calibration: calibrating and none yet
-        unambiguous and precise (its tension std within PRECISE_MODES / n of the tension, n the
-        tone's mode number: a quarter mode, since f_n ~ n sqrt(T)). A target chosen on a
-        nominal tension several per cent off lands loops away on a long span (a 330 m span told
-        1 % low: 2.9x worse than where the robot started), so the robot holds until its records
-        tell the tension."""
+        """Whether a first target waits for the span's calibration: calibrating and none
+        unambiguous yet. A target chosen on a nominal tension several per cent off lands loops
+        away on a long span (a 330 m span told 1 % low: 2.9x worse than where the robot
+        started), so the robot holds until its records tell the tension."""
         return self.calibrate and not self.trusted
 
-    def update(self, seen, k: int, band: tuple[float, float] | None = None,
-               tone: float | None = None) -> str | None:
+    def update(self, seen, k: int, band: tuple[float, float] | None = None) -> str | None:
         """Calibrate on the measurements ``seen`` up to sample ``k`` and rebuild the belief if
-        the tension moved (on the lines within ``band``, Hz: all by default; ``tone``: the
-        frequency the policy predicts at, which sets how precise a calibration must be to be
-        trusted); returns what
+        the tension moved (on the lines within ``band``, Hz: all by default); returns what
         changed, in words (None: the belief stands). A record
         grown by less than MIN_NEW_RECORD s and a quarter since the last calibration is not
         calibrated again (a calibration costs a fraction of a second on a long span)."""
@@ -293,11 +285,11 @@ class BeliefTracker:
         self._last = k
         started = time.process_time()
         try:
-            return self._update(seen, k, band, tone)
+            return self._update(seen, k, band)
         finally:
             self.cpu += time.process_time() - started
 
-    def _update(self, seen, k: int, band, tone) -> str | None:
+    def _update(self, seen, k: int, band) -> str | None:
         """:meth:`update`'s calibration and rebuild (timed by it)."""
         now = float(seen.t[k])
         fundamental = float(self.nominal.span.pinned_frequencies(1)[0])
@@ -330,12 +322,7 @@ class BeliefTracker:
             return (f"belief kept at tension {believed:.5g} N: the record (its "
                     f"{calibration.duration:.3g} s) cannot tell between tensions "
                     f"{calibration.tension:.5g} +- {calibration.tension_std:.2g} N")
-        mode_number = max(tone / float(self.belief.span.pinned_frequencies(1)[0]), 1.0) \
-            if tone else 1.0
-        # trusted once the tension places the tone's mode within a quarter mode: the wavelength
-        # the policy predicts with is then right to a quarter loop over the span
-        if calibration.tension_std / calibration.tension <= PRECISE_MODES / mode_number:
-            self.trusted = True
+        self.trusted = True
         if abs(calibration.tension - believed) <= max(calibration.tension_std, 1e-4 * believed):
             return None
         self.belief = believe(calibration.span, like=self.nominal.bare, robot=self._robot,

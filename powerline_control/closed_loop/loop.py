@@ -124,8 +124,7 @@ def _recalibrate(beliefs: BeliefTracker, records: Records, seen: Measurements, k
     model's largest errors."""
     spacing = mode_spacing(beliefs.belief.mode_frequencies, tone)
     width = max(CALIBRATION_BAND, 8 * spacing / tone)
-    note = beliefs.update(seen, k, band=(max(tone * (1 - width), 0.0), tone * (1 + width)),
-                          tone=tone)
+    note = beliefs.update(seen, k, band=(max(tone * (1 - width), 0.0), tone * (1 + width)))
     if note is not None:
         records.decisions.append((float(seen.t[k]), note))
     return beliefs.belief
