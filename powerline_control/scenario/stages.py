@@ -15,7 +15,6 @@ import warnings
 from ..errors import InputError, SaturationWarning
 from .config import Scenario
 from .files import load_scenario  # noqa: F401 (doctests)
-from .truth import on_nodes
 from .result import (
     ClosedLoop,
     Fatigue,
@@ -27,6 +26,7 @@ from .result import (
     Severity,
     Tuning,
 )
+from .truth import on_nodes
 
 __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
            "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing",
