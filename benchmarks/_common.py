@@ -100,3 +100,21 @@ def slope(t_small: float, t_large: float, small: int, large: int) -> float:
     import numpy as np
 
     return float(np.log(t_large / t_small) / np.log(large / small))
+
+
+def code_version() -> str:
+    """HEAD and a hash of the uncommitted changes to the package: two runs compare only on the
+    same version (the package may be edited while a long benchmark runs)."""
+    import hashlib
+    import subprocess
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, text=True,
+                              capture_output=True, check=True).stdout.strip()
+        diff = subprocess.run(["git", "diff", "HEAD", "--", "powerline_control"], cwd=root,
+                              capture_output=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + (f"+dirty:{hashlib.sha1(diff).hexdigest()[:10]}" if diff else "")

@@ -63,23 +63,6 @@ WARNING_KINDS = (("several tensions", "ambiguous"), ("the record shows one spect
                  ("every channel lies within one loop", "one loop"))
 
 
-def code_version() -> str:
-    """HEAD and a hash of the uncommitted changes to the package (two runs compare only on the
-    same version)."""
-    import hashlib
-    import subprocess
-
-    root = Path(__file__).resolve().parents[1]
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, text=True,
-                              capture_output=True, check=True).stdout.strip()
-        diff = subprocess.run(["git", "diff", "HEAD", "--", "powerline_control"], cwd=root,
-                              capture_output=True, check=True).stdout
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return head + (f"+dirty:{hashlib.sha1(diff).hexdigest()[:10]}" if diff else "")
-
-
 def _cpu(func):
     """(process seconds, result) of one call."""
     start = time.process_time()
@@ -327,7 +310,7 @@ def main() -> None:
     with threadpool_limits(limits=1):
         print(_common.PINNED + "; and threadpoolctl threadpool_limits(limits=1) around the run")
         print(f"numpy {np.__version__}, powerline_control {plc.__version__}, code "
-              f"{code_version()}; started {time.strftime('%Y-%m-%d %H:%M:%S')}"
+              f"{_common.code_version()}; started {time.strftime('%Y-%m-%d %H:%M:%S')}"
               + (f"; every record under a {options.load} load" if options.load else ""),
               flush=True)
         accuracy = [] if options.no_accuracy else accuracy_table(seeds)

@@ -36,24 +36,6 @@ import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import closed_loop_family as fam  # noqa: E402
 
 
-def code_version() -> str:
-    """HEAD and a hash of the uncommitted changes to the package (the closed loop is edited
-    concurrently: two runs are comparable only on the same version)."""
-    import hashlib
-    import subprocess
-
-    root = Path(__file__).resolve().parents[1]
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, text=True,
-                              capture_output=True, check=True).stdout.strip()
-        diff = subprocess.run(["git", "diff", "HEAD", "--", "powerline_control"], cwd=root,
-                              capture_output=True, check=True).stdout
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    dirty = f"+dirty:{hashlib.sha1(diff).hexdigest()[:10]}" if diff else ""
-    return head + dirty
-
-
 def _seeds(options) -> list[int]:
     if options.seeds:
         return [int(s) for s in options.seeds.split(",") if s.strip()]
@@ -81,7 +63,7 @@ def main() -> None:
                         help="with --off-nominal: the controller predicts with the nominal")
     options = parser.parse_args()
     print(_common.PINNED)
-    options.version = code_version()
+    options.version = _common.code_version()
     print(f"code: {options.version} (started {time.strftime('%H:%M:%S')})")
     seeds = _seeds(options)
     mode = ("truth off the nominal, " + ("nominal as told" if options.no_calibration
