@@ -274,9 +274,9 @@ class BeliefTracker:
     def update(self, seen, k: int, band: tuple[float, float] | None = None) -> str | None:
         """Calibrate on the measurements ``seen`` up to sample ``k`` and rebuild the belief if
         the tension moved (on the lines within ``band``, Hz: all by default); returns what
-        changed, in words (None: the belief stands). A record
-        grown by less than MIN_NEW_RECORD s and a quarter since the last calibration is not
-        calibrated again (a calibration costs a fraction of a second on a long span)."""
+        changed, in words (None: the belief stands). A record grown by less than MIN_NEW_RECORD
+        s and a quarter since the last calibration is not calibrated again (a calibration costs
+        a fraction of a second on a long span)."""
         grown = k - self._last
         if not self.calibrate or grown <= 0 or (
                 self._last >= 0 and grown * self._dt < max(MIN_NEW_RECORD,

@@ -10,8 +10,8 @@ import numpy as np
 
 from .._spectral import dominant_frequency, fit_phasors
 from .._threads import on_one_blas_thread
-from .._validation import check_rng, read_only
-from ..errors import InputError, ReachWarning, ShortfallWarning
+from .._validation import check_bool, check_rng, read_only
+from ..errors import ReachWarning, ShortfallWarning
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
@@ -414,8 +414,9 @@ def run_closed_loop(
         length and receptances, at the sensors' positions in metres); everything it sees of the
         truth is the sensors' and its own records. A Span is meshed as the simulated line is
         (the same number of equal elements, or the physics mesh for the same band, graded
-        toward clamps), with its supports and damping; a LineModel brings its own mesh,
-        supports and damping (a robot it carries is ignored: the robot is ``robot``). Its
+        toward clamps), with its supports and ``belief.ASSUMED_DAMPING`` (a span says nothing
+        of the line's damping); a LineModel brings its own mesh, supports and damping (a robot
+        it carries is ignored: the robot is ``robot``). Its
         length must be the simulated span's within 1 %. None (default): the simulated line's
         own span, mesh and damping (the controller told the truth, and nothing to calibrate).
     calibrate : bool
@@ -423,7 +424,9 @@ def run_closed_loop(
         policy, calibrate the span from the sensors' whole record so far
         (:func:`~powerline_control.identify.calibrate_span`, the nominal as prior) and predict
         with the calibrated span once its tension moves from the believed one by more than the
-        calibration's standard deviation (``ClosedLoopResult.calibrations``). False: the
+        calibration's standard deviation (``ClosedLoopResult.calibrations``). The robot holds
+        at its start until a calibration is unambiguous (records shorter than two cycles of
+        the fundamental, or explained by several tensions, move nothing). False: the
         controller predicts with the nominal as told.
 
     Returns
@@ -479,8 +482,7 @@ def run_closed_loop(
     robot, limits = settings.robot, settings.limits
     span = settings.bare.span
     told = checked_nominal(nominal, settings.bare)
-    if not isinstance(calibrate, bool):
-        raise InputError(f"The 'calibrate' parameter must be True or False. Got {calibrate!r}.")
+    calibrate = check_bool("calibrate", calibrate)
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
 

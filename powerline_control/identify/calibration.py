@@ -533,7 +533,7 @@ def calibrate_span(
         eta = np.ones(1)
         log_post = log_posterior(eta)
     return _summarise(log_post, tau, eta, span0, model, modes, lines, positions, duration,
-                      (t_lo, t_hi), np.array([item[3] for item in evidence]))
+                      (t_lo, t_hi), np.array([item[3] for item in evidence]), ei_prior)
 
 
 def _check_range(name: str, value: object) -> tuple[float, float]:
@@ -578,7 +578,8 @@ def _other_peaks(density: np.ndarray, grid: np.ndarray, main: slice) -> str:
 
 
 def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _ScaledModes,
-               lines, positions, duration, tension_range, frequency_std) -> SpanCalibration:
+               lines, positions, duration, tension_range, frequency_std,
+               ei_prior: float) -> SpanCalibration:
     """The posterior's marginals, its peak, and the warnings the record earns."""
     post = np.exp(log_post - log_post.max())
     post /= post.sum()
@@ -627,7 +628,7 @@ def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _Scaled
     ei_std = float(np.sqrt(np.sum(p_eta * (ei_grid - ei) ** 2)))
     log_spread = float(np.sqrt(np.sum(p_eta * np.log(eta / (ei / max(ei0, 1e-300))) ** 2))) \
         if ei0 > 0 else 0.0
-    ei_identified = ei0 > 0 and log_spread < 0.5 * 0.7
+    ei_identified = ei0 > 0 and log_spread < 0.5 * ei_prior
     if lines.size == 1:
         notes.append(
             f"the record shows one spectral line only ({lines[0]:.4g} Hz): the tension rests on "
