@@ -1,8 +1,11 @@
 """Sphinx configuration of the powerline_control documentation.
 
-Build (warnings are errors, as in CI; under a minute, nothing long is executed):
+Build (warnings are errors, as in CI; the README's command):
 
     python -m sphinx -W --keep-going -b html docs docs/_build/html
+
+It runs every example for the gallery's figures: 4 min 22 s on 2 shared cores (load average about
+4); ``PLC_DOCS_EXECUTE=none`` runs none of them (34 s).
 
 The Markdown pages are read by myst-parser; the API reference (``api/``) and the example gallery
 (``gallery/``) are generated from the package and ``examples/`` by ``_ext/plc_pages.py``.
@@ -41,7 +44,8 @@ root_doc = "index"
 exclude_patterns = ["_build", "_templates", "_ext", "gallery/_figures", "**/.ipynb_checkpoints"]
 
 # Examples run during the build, so that each gallery page shows the figures its script draws
-# (about 1.5 min for all of them on 2 cores). PLC_DOCS_EXECUTE=none (or all) overrides this.
+# (most of the build's 4 min 22 s on 2 shared cores). PLC_DOCS_EXECUTE=none (or all) overrides
+# this.
 plc_gallery_execute = "all"
 templates_path = ["_templates"]
 

@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from cli_support import SMALL, TINY, run_cli
+from cli_support import TINY, run_cli
 
 import powerline_control as plc
 from powerline_control.output.records import Record, load_record, save_record
@@ -175,25 +175,11 @@ def test_a_refused_record_keeps_the_users_own_empty_folder(tiny, tmp_path, outsi
 
 # ------------------------------------------------------------------ 2. captions
 
-# A lab span with every stage the report draws (sensor count, closed loop, severity). Its 1.5 s
-# closed loop is too short for the robot to reach the best position, which the closed loop says
-# (ReachWarning): right, and not what these tests are about.
-SMALL_ALL = SMALL + "[severity]\nenabled = true\n"
-
-
+# A lab span with every stage the report draws (sensor count, closed loop, severity): the
+# session's ``lab_result`` (tests/conftest.py), shared with the report summary's tests.
 @pytest.fixture(scope="module")
-def lab():
-    import warnings
-
-    from powerline_control.errors import ReachWarning
-    from powerline_control.scenario import load_scenario
-    from powerline_control.scenario.pipeline import run_scenario
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ReachWarning)
-        result = run_scenario(load_scenario(text=SMALL_ALL, source="small"))
-    assert result.ok
-    return result
+def lab(lab_result):
+    return lab_result
 
 
 @pytest.fixture(scope="module")
