@@ -250,6 +250,14 @@ def test_closed_loop(tmp_path):
     assert abs(numbers["final_robot_position_m"] - 3.66 / 6) < 0.05
     assert numbers["vibration_reduction"] > 3.5
     assert numbers["rms_closed_loop_m"] < numbers["rms_baseline_m"] / 3.5
+    # Whether the headline is steady, for a script: the RMS are the exact steady state of a
+    # harmonic load, the best parked position is the scan's, and the robot's settling is said.
+    assert numbers["steady_state"] is True and isinstance(numbers["settled"], bool)
+    assert isinstance(numbers["still_ringing"], bool)
+    assert abs(numbers["best_position_m"] - 0.59) < 0.01
+    # Which sensors and why: this verb runs no sensor choice, so evenly spaced ones (L/3, 2L/3).
+    assert numbers["closed_loop_sensor_positions_m"] == pytest.approx([1.22, 2.44])
+    assert numbers["closed_loop_sensors_how"].startswith("evenly spaced: this verb runs no")
 
 
 def test_severity_verb(tmp_path):

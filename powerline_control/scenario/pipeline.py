@@ -304,12 +304,10 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
         state["plan"] = _plan(scenario, state["records"], _need(state, "layouts", stage),
                               state["model"], _tuning(state, scenario))
     elif stage == "closed_loop":
-        sensors = ([int(i) for i in state["identification"].design.sensors]
-                   if state.get("identification") is not None else None)
         # the plant is the true line; the controller is told the nominal model and calibrates
         state["closed_loop"] = _closed_loop(scenario, _need(state, "true_model", stage),
-                                            state["force"], _tuning(state, scenario), sensors,
-                                            nominal=state["model"])
+                                            state["force"], _tuning(state, scenario),
+                                            state.get("identification"), nominal=state["model"])
     elif stage == "severity":
         _need(state, "model", stage)
         state["severity"] = _severity(scenario, state["span"], _tuning(state, scenario))

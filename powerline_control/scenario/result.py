@@ -204,12 +204,15 @@ class ClosedLoop:
         The run.
     calibration : float
         Calibration time, s.
+    sensors_how : str
+        Where the sensors came from, in words (:func:`~.stages.closed_loop_sensors`).
     """
 
     tuning: Tuning
     sensors: tuple
     result: Any = field(repr=False)
     calibration: float = 0.0
+    sensors_how: str = ""
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from .result import (
 from .truth import on_nodes
 
 __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
-           "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing",
+           "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_sensors", "closed_loop_timing",
            "driven_mode", "evenly_spaced_nodes", "given_sensors", "layout_filter",
            "longest_complete_run", "read_wind_record", "severity_inputs", "severity_span",
            "scenario_sensors", "support_intervals", "tune_robot"]
@@ -168,6 +168,45 @@ def scenario_sensors(scenario: Scenario, x) -> list:
     x = np.asarray(x, dtype=float)
     given, _ = given_sensors(scenario, x)
     return given if given is not None else evenly_spaced_nodes(x, scenario.estimation.n_sensors)
+
+
+def closed_loop_sensors(scenario: Scenario, x, identification=None) -> tuple[list, str]:
+    """The closed loop's sensors as node indices, and where they came from, in words.
+
+    The estimator's sensors when the identification stage ran (optimised, or the scenario's
+    own); else the scenario's own, or evenly spaced ones: the ``closed-loop`` verb runs no
+    identification, so it has no optimised layout to read (``run`` has).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``estimation`` section.
+    x : array_like
+        Node positions, m.
+    identification : Identification or None
+        The identification stage's result, when it ran.
+
+    Returns
+    -------
+    (list of int, str)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> nodes, how = closed_loop_sensors(load_scenario(text="[estimation]\\nn_sensors = 2"),
+    ...                                  np.linspace(0.0, 3.0, 31))
+    >>> nodes, how.split(":")[0]
+    ([10, 20], 'evenly spaced')
+    """
+    if identification is not None:
+        return ([int(i) for i in identification.design.sensors],
+                f"the estimator's sensors, {identification.sensors_how}")
+    given, how = given_sensors(scenario, x)
+    if given is not None:
+        return given, how
+    return (scenario_sensors(scenario, x),
+            "evenly spaced: this verb runs no sensor choice (the run verb gives the closed loop "
+            "the optimised sensors)")
 
 
 def _nearest_distinct_nodes(positions, x) -> list:
@@ -576,16 +615,16 @@ def _plan(scenario: Scenario, records: Records, layouts: dict, model, tuning: Tu
                 truth=truth, trajectory=trajectory, envelope=np.abs(held_truth).max(axis=1))
 
 
-def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, sensors,
+def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, identification=None,
                  nominal=None) -> ClosedLoop:
     """The closed loop on the true line (``model``, the plant), its controller told the nominal
-    model (``nominal``; None: ``model``), which it calibrates from its records."""
+    model (``nominal``; None: ``model``), which it calibrates from its records; its sensors
+    from :func:`closed_loop_sensors`."""
     from ..closed_loop import run_closed_loop
     from ..plan import RobotLimits
 
     cfg = scenario.robot
-    if not sensors:
-        sensors = scenario_sensors(scenario, model.node_positions)
+    sensors, how = closed_loop_sensors(scenario, model.node_positions, identification)
     dt, calibration = closed_loop_timing(scenario)
     result = run_closed_loop(
         model, force, tuning.robot, RobotLimits(cfg.v_max, cfg.a_max), sensors=list(sensors),
@@ -593,7 +632,7 @@ def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, sensors,
         noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed,
         nominal=model if nominal is None else nominal, calibrate=True)
     return ClosedLoop(tuning=tuning, sensors=tuple(int(i) for i in sensors), result=result,
-                      calibration=calibration)
+                      calibration=calibration, sensors_how=how)
 
 
 def severity_inputs(scenario: Scenario, span) -> tuple[dict, str]:

@@ -511,7 +511,9 @@ def _closed_loop_section(r) -> dict:
          f"absorber tuned ({tuning.how}) to mode {tuning.mode} ({tuning.mode_frequency:.4g} Hz), "
          f"the mode nearest the load's {tuning.load_frequency:.4g} Hz, for its antinode at "
          f"{tuning.antinode:.4g} m; starts at {robot.position:g} m"),
-        ("sensors", positions_text([x[i] for i in cl.sensors], cl.sensors)),
+        ("sensors", positions_text([x[i] for i in cl.sensors], cl.sensors) + "; "
+         + cl.sensors_how, "The sensors the controller and its estimator read; the robot's own "
+         "accelerometer adds where it stands."),
         *calibration_rows(result),
         ("where it ended", f"{final:.4g} m", _where_it_ended(result, final)),
         ("plan and closed loop", _plan_agreement(r.plan, result, final),

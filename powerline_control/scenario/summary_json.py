@@ -26,6 +26,12 @@ def _f(value) -> float:
     return float(value)
 
 
+def _finite(value) -> float | None:
+    """A float, or None (JSON null) where it is NaN: NaN is not JSON."""
+    value = float(value)
+    return value if value == value else None
+
+
 def _model_kind(model) -> dict:
     """The JSON keys that say which model was built: its kind, and an oscillator's lines."""
     from ..identify import OscillatorModel
@@ -117,11 +123,20 @@ def result_json(result) -> dict:
                    move_duration_s=_f(p.trajectory.duration))
     if r.closed_loop is not None:
         res = r.closed_loop.result
+        closed = res.comparison("closed_loop")
+        x = res.x
         out.update(vibration_reduction=_f(res.vibration_reduction),
+                   # whether the headline is steady: the robot settled, the RMS are the exact
+                   # steady state (not a window), and the settled window no longer rings
+                   settled=bool(res.settled), steady_state=bool(closed.steady),
+                   still_ringing=bool(closed.transient),
+                   best_position_m=_finite(res.best_position),
                    final_robot_position_m=_f(res.robot_position[-1]),
                    rms_closed_loop_m=_f(res.rms_closed_loop), rms_baseline_m=_f(res.rms_baseline),
                    real_time_factor=_f(res.real_time_factor),
                    closed_loop_sensor_nodes=list(r.closed_loop.sensors),
+                   closed_loop_sensor_positions_m=[_f(x[i]) for i in r.closed_loop.sensors],
+                   closed_loop_sensors_how=r.closed_loop.sensors_how,
                    **calibration_json(res),
                    estimator_consistent=None if res.estimator_consistency is None
                    else bool(res.estimator_consistency.consistent),
