@@ -11,6 +11,7 @@ import numbers
 import os
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -33,6 +34,7 @@ __all__ = [
     "WORK_BUDGET",
     "check_budget",
     "check_budget_value",
+    "check_write_path",
 ]
 
 # Default budgets for what one public call may commit before it starts (documented in
@@ -352,6 +354,72 @@ def check_indices(name: str, value: object, n: int, *, allow_empty: bool = False
     if np.unique(index).size != index.size:
         raise InputError(f"The {name!r} parameter must not repeat an index. Got {index.tolist()}.")
     return index
+
+
+def check_write_path(value: object, *, name: str = "path",
+                     written: Sequence[str | os.PathLike] = ()) -> Path:
+    """The one check of a file a public function is about to write: refuse, before writing,
+    anything the operating system would answer with a bare ``OSError``.
+
+    ``value`` must be a non-empty ``str``, ``bytes`` or ``os.PathLike``; neither it nor any of
+    the files actually ``written`` (when the writer adds a suffix: ``np.savez`` appends
+    ``.npz``) may be a folder, FIFO or device; their folder must exist and be writable, and an
+    existing file must be writable. The message names the parameter ``name``.
+
+    Parameters
+    ----------
+    value : str, bytes or os.PathLike
+        The path given.
+    name : str
+        The parameter's name, for messages.
+    written : sequence of path-like
+        The files written, when they differ from ``value``.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> folder = tempfile.mkdtemp()
+    >>> check_write_path(os.path.join(folder, "r.html")).name
+    'r.html'
+    >>> check_write_path(folder)
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: The 'path' parameter must name a file to write; ...
+    >>> check_write_path(5)
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: The 'path' parameter must be a file path (str or \
+os.PathLike). Got 5 of type int instead.
+    """
+    if isinstance(value, bytes):
+        value = os.fsdecode(value)
+    if not isinstance(value, str | os.PathLike):
+        raise InputError(f"The {name!r} parameter must be a file path (str or os.PathLike). Got "
+                         f"{_describe(value)} of type {type(value).__name__} instead.")
+    path = Path(value)
+    if not os.fspath(value):
+        raise InputError(f"The {name!r} parameter must not be empty ('' would be the working "
+                         "folder): give a file name.")
+    for candidate in dict.fromkeys([os.fspath(value), *map(os.fspath, written)]):
+        if os.path.exists(candidate) and not os.path.isfile(candidate):
+            kind = "a folder" if os.path.isdir(candidate) else "not a regular file (a FIFO?)"
+            raise InputError(f"The {name!r} parameter must name a file to write; {candidate!r} "
+                             f"is {kind}. Give a file name, e.g. os.path.join(folder, "
+                             f"{'report.html' if kind == 'a folder' else 'out.csv'!r}).")
+        parent = os.path.dirname(os.path.abspath(candidate))
+        if not os.path.isdir(parent):
+            raise InputError(f"The {name!r} parameter {os.fspath(value)!r} is in the folder "
+                             f"{parent!r}, which does not exist; create it first.")
+        target, what = ((candidate, "file") if os.path.exists(candidate)
+                        else (parent, "folder"))
+        if not os.access(target, os.W_OK):
+            raise InputError(f"The {name!r} parameter {os.fspath(value)!r} cannot be written: "
+                             f"the {what} {target!r} is not writable.")
+    return path
 
 
 def read_only(array: np.ndarray) -> np.ndarray:

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validation import check_budget, check_int, check_real
+from ._validation import check_budget, check_int, check_real, check_write_path
 from .errors import FileFormatError, InputError
 
 __all__ = ["parameter_grid", "point_seed", "run_study", "StudyResult"]
@@ -368,6 +368,8 @@ def _study_path(path: object, *, reading: bool) -> Path:
     A FIFO would block the call until another process opens it, a folder cannot be a file, and
     ``''`` would mean the working folder: all refused by name, before anything is opened.
     """
+    if not reading:
+        return check_write_path(path)
     if isinstance(path, bytes):
         path = os.fsdecode(path)
     if not isinstance(path, str | os.PathLike) or not os.fspath(path):
@@ -379,13 +381,8 @@ def _study_path(path: object, *, reading: bool) -> Path:
     if path.exists() and not path.is_file():
         kind = "a folder" if path.is_dir() else "not a regular file (a FIFO or a device)"
         raise InputError(f"The 'path' parameter {str(path)!r} is {kind}; give a file.")
-    if reading and not path.exists():
+    if not path.exists():
         raise InputError(f"The 'path' parameter {str(path)!r} names no file.")
-    if not reading and not path.parent.is_dir():
-        raise InputError(
-            f"The 'path' parameter {str(path)!r} is in the folder {str(path.parent)!r}, which "
-            "does not exist; create it first."
-        )
     return path
 
 

@@ -198,3 +198,36 @@ def test_template_of_a_scenario_with_listed_sensors_and_a_tension_loads_back():
     assert "# n_sensors = 3    # unset because the sensors are listed" in text
     assert load_scenario(text=text) == scenario
     assert scenario.span.build().tension == 25000.0
+
+
+# ------------------------------------------------------------------------ issue 41: escaping
+@pytest.mark.parametrize(("name", "written"), [
+    ('the "B" line', r'"the \"B\" line"'),
+    (r"C:\new\tests", r'"C:\\new\\tests"'),
+    (r"C:\runs\b", r'"C:\\runs\\b"'),           # reloaded as 'C:\runs\x08' before
+    ("tab\there\nnew line\x00\x7f", r'"tab\there\nnew line\u0000\u007F"'),
+    ("é ü 😀", '"é ü 😀"'),                     # Unicode is written as is
+])
+def test_scenario_to_toml_escapes_every_string_and_reloads_it(tmp_path, name, written):
+    scenario = dataclasses.replace(default_scenario(), scenario=dataclasses.replace(
+        default_scenario().scenario, name=name))
+    text = scenario_to_toml(scenario)
+    assert f"name = {written}\n" in text
+    assert load_scenario(text=text).name == name
+    path = tmp_path / "s.toml"
+    path.write_text(text, encoding="utf-8")
+    assert load_scenario(path) == scenario
+
+
+def test_a_string_no_file_can_hold_is_refused_by_the_writer():
+    scenario = dataclasses.replace(default_scenario(), scenario=dataclasses.replace(
+        default_scenario().scenario, description="lone \ud800"))
+    with pytest.raises(InputError, match="lone surrogate"):
+        scenario_to_toml(scenario)
+
+
+def test_a_scenario_file_with_a_byte_order_mark_and_crlf_loads(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_bytes(b"\xef\xbb\xbf[model]\r\nn_elements = 20\r\n")   # Notepad's "UTF-8"
+    assert load_scenario(path).model.n_elements == 20
+    assert load_scenario(text="\ufeff[model]\nn_elements = 21").model.n_elements == 21

@@ -420,3 +420,58 @@ def test_a_record_too_short_for_its_own_model_says_why(result, gap, advice):
     with pytest.raises(plc.InputError, match=f"field: .*samples, too few .*{advice}"):
         run_scenario(load_scenario(text=SMALL), record=record,
                      stages=pipeline.VERB_STAGES["estimate"])
+
+
+# ------------------------------------------------------------------------ issue 41: files
+@pytest.fixture(scope="module")
+def model_only():
+    return run_scenario(load_scenario(text="[model]\nn_elements = 12"), stages=("model",))
+
+
+@pytest.mark.parametrize(("target", "words"), [
+    (5, "'path' parameter must be a file path"),          # a builtin TypeError before
+    ("", "'path' parameter must not be empty"),
+    ("{tmp}", "'path' parameter must name a file to write; .* is a folder"),
+    ("{tmp}/missing/r.html", "'path' parameter .* does not exist; create it first"),
+])
+def test_report_refuses_a_path_it_cannot_write_naming_path(tmp_path, model_only, target, words):
+    if isinstance(target, str):
+        target = target.format(tmp=tmp_path)
+    with pytest.raises(InputError, match=words):
+        model_only.report(target)
+
+
+def test_report_checks_its_version(tmp_path, model_only):
+    with pytest.raises(InputError, match="'version' parameter must be a str"):
+        model_only.report(tmp_path / "r.html", version=5)
+    assert "v9.9" in model_only.report(tmp_path / "r.html", version="v9.9").read_text()
+
+
+def test_a_saved_record_keeps_its_exact_positions(tmp_path):
+    record = Record([0.0, 0.001, 0.002], [1.0979999999999999, 1 / 3], [[0.0, 1e-3, 2e-3],
+                                                                        [1e-3, 0.0, -1e-3]])
+    npz, csv = save_record(tmp_path / "r", record)
+    assert csv.read_text().splitlines()[1] == "time_s,x_1.0979999999999999_m," \
+                                              "x_0.3333333333333333_m"
+    assert load_record(csv).positions.tolist() == [1.0979999999999999, 1 / 3]
+
+
+def test_a_spreadsheets_record_csv_is_read(tmp_path):
+    """Excel's "CSV UTF-8": a byte-order mark, every cell quoted, CRLF line ends."""
+    path = tmp_path / "field.csv"
+    text = '"time_s","x_1_m"\r\n"0","0.1"\r\n"0.001",""\r\n"0.002","0.3"\r\n'
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    record = load_record(path)
+    assert record.positions.tolist() == [1.0] and record.n_missing == 1
+    assert record.values[0, 2] == 0.3
+    path.write_text('time_s,x_1_m\n0,0.1\n0.001,"0.2\n')
+    with pytest.raises(InputError, match="line 3"):
+        load_record(path)
+
+
+def test_an_npz_whose_metadata_is_a_json_list_is_refused(tmp_path):
+    path = tmp_path / "r.npz"
+    np.savez(path, t=np.arange(3.0), positions=np.ones(1), values=np.ones((1, 3)),
+             __metadata__=np.array("[1, 2]"))
+    with pytest.raises(InputError, match="metadata is a JSON list"):
+        load_record(path)

@@ -178,3 +178,68 @@ def test_start_and_source_are_strings_and_start_a_time_stamp():
     assert plc.WindRecord(*args, start="2024-01-01T00:00:00").start == "2024-01-01T00:00:00"
     with pytest.raises(plc.InputError, match="'time'"):
         plc.WindRecord(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))
+
+
+# ------------------------------------------------------------------------ issue 41
+def test_to_csv_keeps_every_bit_and_the_start_time_stamp(tmp_path):
+    path = tmp_path / "wind.csv"
+    rows = ["time,wind_speed,direction,temperature,turbulence_intensity",
+            "2024-03-01T00:00:00,0.3333333333333333,1.0979999999999999,12.1,0.1",
+            "2024-03-01T00:10:00,2.0,265.0,11.6,0.2"]
+    path.write_text("\n".join(rows) + "\n")
+    record = plc.WindRecord.from_csv(path)
+    assert record.start == "2024-03-01T00:00:00"
+    out = tmp_path / "out.csv"
+    record.to_csv(out)
+    back = plc.WindRecord.from_csv(out)
+    assert back.start == "2024-03-01T00:00:00"
+    assert back.wind_speed.tolist() == [1 / 3, 2.0]           # not 0.3333333333
+    assert back.direction.tolist() == [1.0979999999999999, 265.0]
+    assert back.turbulence_intensity.tolist() == [0.1, 0.2]
+    assert back.time.tolist() == [0.0, 600.0]
+
+
+def test_a_spreadsheets_csv_is_read(tmp_path):
+    """Excel's "CSV UTF-8": a byte-order mark, every cell quoted, CRLF line ends."""
+    path = tmp_path / "wind.csv"
+    text = '"time","wind_speed","direction","temperature"\r\n"0","3.1","270","12"\r\n' \
+           '"600","2.8","265","11.6"\r\n'
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    record = plc.WindRecord.from_csv(path)
+    assert record.wind_speed.tolist() == [3.1, 2.8] and record.step == 600.0
+
+
+def test_a_one_row_record_needs_its_interval_and_keeps_it_through_csv(tmp_path):
+    with pytest.raises(plc.InputError, match="'interval' parameter is required for a one-row"):
+        plc.WindRecord(np.array([0.0]), np.array([3.0]), np.array([90.0]), np.array([10.0]))
+    one = plc.WindRecord(np.array([0.0]), np.array([3.0]), np.array([90.0]), np.array([10.0]),
+                         interval=600.0)
+    assert (one.step, one.duration) == (600.0, 600.0)
+    one.to_csv(tmp_path / "one.csv")
+    assert plc.WindRecord.from_csv(tmp_path / "one.csv").step == 600.0
+    _write(tmp_path, [(0, 3.0, 90, 10.0)], name="bare.csv")
+    with pytest.raises(plc.InputError, match="'interval'"):
+        plc.WindRecord.from_csv(tmp_path / "bare.csv")
+    with pytest.raises(plc.InputError, match=r"'interval' parameter must be the spacing"):
+        plc.WindRecord(np.array([0.0, 600.0]), np.array([3.0, 3.0]), np.array([90.0, 90.0]),
+                       np.array([10.0, 10.0]), interval=60.0)
+
+
+@pytest.mark.parametrize(("target", "words"), [
+    (5, "'path' parameter must be a file path"),
+    ("", "'path' parameter must not be empty"),
+    ("{tmp}", "is a folder"),
+    ("{tmp}/missing/w.csv", "does not exist; create it first"),
+])
+def test_to_csv_refuses_a_path_it_cannot_write_naming_path(tmp_path, target, words):
+    if isinstance(target, str):
+        target = target.format(tmp=tmp_path)
+    with pytest.raises(plc.InputError, match=words):
+        plc.WindRecord.constant(3.0, n_records=2).to_csv(target)
+
+
+def test_an_unclosed_quote_is_refused_naming_the_line(tmp_path):
+    path = tmp_path / "wind.csv"
+    path.write_text(f'{HEADER}\n0,3.1,270,12\n600,"2.8,265,11.6\n')
+    with pytest.raises(plc.InputError, match="not CSV at line 3"):
+        plc.WindRecord.from_csv(path)

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from numpy.lib import format as npy_format
 
-from .._validation import MEMORY_BUDGET_BYTES, check_budget_value, read_only
+from .._validation import MEMORY_BUDGET_BYTES, check_budget_value, check_write_path, read_only
 from ..errors import FileFormatError, InputError
 from ..identify import DMDModel, OscillatorModel
 
@@ -135,35 +135,12 @@ def save_model(path: str | os.PathLike[str], model: DMDModel) -> None:
             f"{type(model).__name__} instead."
         )
     if isinstance(path, str | bytes | os.PathLike):
-        _check_writable_target(os.fsdecode(path))
+        name = os.fsdecode(path)   # np.savez writes name + ".npz" unless it ends so already
+        check_write_path(path, written=[name if name.endswith(".npz") else name + ".npz"])
     arrays, metadata = _dmd_to_arrays(model)
     kind = _OSC_FORMAT if isinstance(model, OscillatorModel) else _DMD_FORMAT
     header = {"format": kind, "version": _VERSIONS[kind], "fields": metadata}
     np.savez(path, **arrays, **{_METADATA_KEY: np.array(json.dumps(header))})
-
-
-def _check_writable_target(name: str, target: str | None = None) -> None:
-    """Refuse, before writing, a target that is not a (new or existing) regular file.
-
-    ``name`` is the path given, ``target`` the file written (default: what ``np.savez`` writes).
-    ``np.savez`` onto a folder would write ``folder.npz`` beside it, and onto a FIFO would block
-    until a reader comes; a missing folder would surface as a bare ``FileNotFoundError``.
-    """
-    if target is None:
-        target = name if name.endswith(".npz") else name + ".npz"
-    for candidate in dict.fromkeys((name, target)):
-        if os.path.exists(candidate) and not os.path.isfile(candidate):
-            kind = "a folder" if os.path.isdir(candidate) else "not a regular file (a FIFO?)"
-            raise InputError(
-                f"The 'path' parameter must name a file to write; {candidate!r} is {kind}. Give "
-                "a file name, e.g. os.path.join(folder, 'model.npz')."
-            )
-    parent = os.path.dirname(os.path.abspath(target))
-    if not os.path.isdir(parent):
-        raise InputError(
-            f"The 'path' parameter {name!r} is in the folder {parent!r}, which does not exist; "
-            "create it first."
-        )
 
 
 # ------------------------------------------------------------------------------------ reading

@@ -8,6 +8,7 @@ per position, a header naming the positions and the unit).
 from __future__ import annotations
 
 import copy
+import csv
 import json
 import math
 import os
@@ -16,9 +17,15 @@ import zipfile
 
 import numpy as np
 
-from .._validation import check_array, check_real, read_only, warn_if_saturated
+from .._validation import (
+    check_array,
+    check_real,
+    check_write_path,
+    read_only,
+    warn_if_saturated,
+)
 from ..errors import FileFormatError, InputError
-from .io import _METADATA_KEY, _check_writable_target
+from .io import _METADATA_KEY
 
 __all__ = ["Record", "save_record", "load_record"]
 
@@ -156,8 +163,8 @@ span (0 < x < 3.66 m).
                                  "information about the span. Drop the column.")
 
     def _on_support(self, length: float) -> np.ndarray:
-        # "On a support" to round-off of the written position (a CSV column name keeps 10
-        # significant digits, so 1e-9 of the span is far below any sensor's size).
+        # "On a support" to round-off of the written position (a logger's CSV column name may
+        # keep a few significant digits; 1e-9 of the span is far below any sensor's size).
         tol = 1e-9 * float(length)
         x = np.asarray(self.positions)
         return (np.abs(x) <= tol) | (np.abs(x - float(length)) <= tol)
@@ -211,8 +218,15 @@ span (0 < x < 3.66 m).
         return kept
 
 
+def _number(x: float) -> str:
+    """``x`` as the shortest text that reads back bit-exact (``repr``), ``5`` for ``5.0``."""
+    text = repr(float(x))
+    return text[:-2] if text.endswith(".0") else text
+
+
 def _column(x: float) -> str:
-    return f"x_{x:.10g}_m"
+    """A channel's CSV column name: its exact position, so that a saved record reloads equal."""
+    return f"x_{_number(x)}_m"
 
 
 def _infinite(positions, values) -> str | None:
@@ -266,17 +280,14 @@ def save_record(path: str | os.PathLike[str], record: Record) -> list:
     """
     from pathlib import Path
 
-    if not isinstance(path, str | os.PathLike) or not os.fspath(path):
-        raise InputError(f"The 'path' parameter must be a file name (str or os.PathLike), "
-                         f"without or with .npz / .csv. Got {path!r:.60}.")
+    check_write_path(path)   # its type first: the targets below are built from it
     if not isinstance(record, Record):
         raise InputError(f"The 'record' parameter must be a Record. Got "
                          f"{type(record).__name__}.")
     base = Path(path)
     base = base.with_suffix("") if base.suffix in (".npz", ".csv") else base
-    npz, csv = base.with_name(base.name + ".npz"), base.with_name(base.name + ".csv")
-    for written in (npz, csv):   # nothing is written unless both targets are writable files
-        _check_writable_target(os.fsdecode(path), os.fsdecode(written))
+    npz, csv_path = base.with_name(base.name + ".npz"), base.with_name(base.name + ".csv")
+    check_write_path(path, written=[npz, csv_path])   # nothing is written unless both can be
     header = {"format": _RECORD_FORMAT, "version": _RECORD_VERSION, "units": "m",
               "source": record.source}
     arrays = {"t": np.asarray(record.t), "positions": np.asarray(record.positions),
@@ -285,16 +296,17 @@ def save_record(path: str | os.PathLike[str], record: Record) -> list:
         arrays["truth"] = np.asarray(record.truth)
     np.savez(npz, **arrays, **{_METADATA_KEY: np.array(json.dumps(header))})
     columns = ["time_s", *(_column(x) for x in record.positions)]
-    with open(csv, "w", encoding="utf-8") as handle:
+    with open(csv_path, "w", newline="", encoding="utf-8") as handle:
         # 10 significant digits: 1 / dt carries the round-off of the time column's steps
         # (999.9999999999991 for dt = 1e-3); the reader checks the rate to 1e-6 anyway.
         handle.write(f"# sample_rate_hz = {1.0 / record.dt:.10g}\n")
-        handle.write(",".join(columns) + "\n")
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(columns)
+        # repr: the shortest text that reads back bit-exact; an empty cell is a missing sample
         for k in range(record.t.size):
-            cells = [repr(float(record.t[k]))] + [
-                "" if np.isnan(v) else repr(float(v)) for v in record.values[:, k]]
-            handle.write(",".join(cells) + "\n")
-    return [npz, csv]
+            writer.writerow([_number(record.t[k])] + [
+                "" if np.isnan(v) else _number(v) for v in record.values[:, k]])
+    return [npz, csv_path]
 
 
 def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = None,
@@ -384,6 +396,9 @@ def _load_record_npz(name: str) -> Record:
     try:
         with np.load(name, allow_pickle=False) as data:
             header = json.loads(str(data[_METADATA_KEY]))
+            if not isinstance(header, dict):   # JSON, but not the object save_record writes
+                raise InputError(f"{name}: its metadata is a JSON {type(header).__name__}, not "
+                                 "the object save_record writes; not a record.")
             if header.get("format") != _RECORD_FORMAT:
                 raise InputError(f"{name}: holds {header.get('format')!r}, not a record.")
             if header.get("version") != _RECORD_VERSION:
@@ -399,6 +414,15 @@ def _load_record_npz(name: str) -> Record:
         if value.dtype.kind not in "fi":
             raise InputError(f"{name}: array {key!r} is not numeric ({value.dtype}).")
     return Record(arrays["t"], arrays["positions"], arrays["values"], name, truth)
+
+
+def _cells(name: str, number: int, line: str) -> list[str]:
+    """The cells of one CSV line, as the csv module reads them (quoted cells, as spreadsheets
+    export, included)."""
+    try:
+        return next(csv.reader([line], strict=True))
+    except csv.Error as exc:
+        raise InputError(f"{name}: line {number} is not CSV ({exc}).") from None
 
 
 def _load_record_csv(name: str, units: str | None) -> Record:
@@ -426,7 +450,7 @@ def _load_record_csv(name: str, units: str | None) -> Record:
              if line.strip() and not line.lstrip().startswith("#")]
     if len(lines) < 3:
         raise InputError(f"{name}: a record needs a header row and at least 2 samples.")
-    header = [c.strip() for c in lines[0][1].split(",")]
+    header = [c.strip() for c in _cells(name, *lines[0])]
     if header[0].lower() not in ("time_s", "t", "time", "t_s"):
         raise InputError(f"{name}: the first column must be the time, s (named time_s); got "
                          f"{header[0]!r}.")
@@ -453,7 +477,7 @@ def _load_record_csv(name: str, units: str | None) -> Record:
     n = len(header)
     table = np.full((len(lines) - 1, n), np.nan)
     for row, (number, line) in enumerate(lines[1:]):
-        cells = line.split(",")
+        cells = _cells(name, number, line)
         if len(cells) != n:
             raise InputError(f"{name}: line {number} has {len(cells)} cells; the header has "
                              f"{n}.")

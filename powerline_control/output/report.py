@@ -13,6 +13,8 @@ import io
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from .._validation import check_write_path
+
 __all__ = ["write_report", "figure_data_uri"]
 
 _TEMPLATE = """<!DOCTYPE html>
@@ -143,6 +145,7 @@ def write_report(
     """
     import jinja2
 
+    path = check_write_path(path)   # before the figures are rendered
     environment = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
     number = 0
     rendered = []
@@ -165,6 +168,5 @@ def write_report(
     text = environment.from_string(_TEMPLATE).render(
         title=title, version=version, sections=rendered, date=date,
         scenario_name=scenario_name, scenario_description=scenario_description)
-    path = Path(path)
     path.write_text(text, encoding="utf-8")
     return path

@@ -61,7 +61,8 @@ def _resolve(path: str | Path) -> tuple[str, str]:
             raw = candidate.read_bytes()
             if b"\x00" in raw:
                 raise UnicodeDecodeError("utf-8", raw[:1], 0, 1, "a NUL byte")
-            return raw.decode("utf-8"), str(candidate)
+            # "utf-8-sig": a byte-order mark (Notepad, Excel's "UTF-8") is no part of the TOML
+            return raw.decode("utf-8-sig"), str(candidate)
         except UnicodeDecodeError:
             raise InputError(f"The scenario file {str(candidate)!r} is not text (it is not "
                              "UTF-8, or holds NUL bytes): give a TOML scenario file.") from None
@@ -206,6 +207,7 @@ must be on the span. Allowed: 0 < x < 3.66 m (the span length).
     else:
         name = "<text>"
     check = _Checker(source or name)
+    text = text.removeprefix("\ufeff")   # a byte-order mark read as text is no part of the TOML
     if len(text) > _MAX_SCENARIO_BYTES:
         raise InputError(f"{check.source}: {len(text)} characters, over the "
                          f"{_MAX_SCENARIO_BYTES} a scenario may have. Give a TOML scenario.")

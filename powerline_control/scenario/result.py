@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .._validation import check_write_path
+from ..errors import InputError
 from .config import Scenario
 
 __all__ = ["ClosedLoop", "Fatigue", "Identification", "Layout", "MeasuredEstimate", "Plan",
@@ -412,6 +414,12 @@ class ScenarioResult:
         -------
         Path
 
+        Raises
+        ------
+        InputError
+            ``path`` is not a file path, is a folder, or its folder does not exist;
+            ``version`` is not a string.
+
         Examples
         --------
         >>> import tempfile, pathlib
@@ -425,4 +433,9 @@ class ScenarioResult:
         """
         from .summary import write_result_report
 
-        return write_result_report(self, Path(path), version=version)
+        # checked before the report's figures are drawn (seconds of work)
+        path = check_write_path(path)
+        if version is not None and not isinstance(version, str):
+            raise InputError(f"The 'version' parameter must be a str (the version shown) or "
+                             f"None. Got {version!r:.60} of type {type(version).__name__}.")
+        return write_result_report(self, path, version=version)

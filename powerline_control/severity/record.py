@@ -16,7 +16,7 @@ from datetime import datetime
 
 import numpy as np
 
-from .._validation import check_int, check_real, check_rng, read_only
+from .._validation import check_int, check_real, check_rng, check_write_path, read_only
 from ..errors import InputError
 
 __all__ = ["WindRecord"]
@@ -62,6 +62,23 @@ def _check_column(name: str, values: object, n: int | None, line_of_row=None) ->
                 f"The '{name}' column must lie in [{low:g}, {high:g}] {UNITS[name]}: "
                 f"{_where(int(bad[0]), line_of_row)} holds {array[bad[0]]:g}.")
     return array
+
+
+def _interval(median: float, interval: object) -> float:
+    """The record's step: ``interval`` when given (it must match the median spacing of a record
+    of several rows), else that median; a one-row record has no spacing and needs ``interval``.
+    """
+    if interval is None:
+        if math.isnan(median):
+            raise InputError("The 'interval' parameter is required for a one-row record: its "
+                             "time column gives no spacing, and the interval each row stands "
+                             "for (e.g. 600 s) weighs every result. Got None.")
+        return median
+    interval = check_real("interval", interval, low=0.0)
+    if not math.isnan(median) and not math.isclose(interval, median, rel_tol=1e-9):
+        raise InputError(f"The 'interval' parameter must be the spacing of the 'time' column "
+                         f"({median!r} s) or None. Got {interval!r} s.")
+    return interval
 
 
 def _check_time(time: np.ndarray, line_of_row=None) -> float:
@@ -115,12 +132,16 @@ class WindRecord:
         The first row's time stamp when the file gave time stamps ("" otherwise).
     source : str
         Where the record came from (a path, or a description).
+    interval : float or None
+        The interval each row stands for, s: required for a one-row record (whose time column
+        gives no spacing); for more rows None (the median spacing of ``time``) or that spacing.
 
     Raises
     ------
     InputError
         For a value outside its range, a missing or non-finite value, time stamps that do not
-        increase, or a gap; the message names the column and the row.
+        increase, a gap, or one row without ``interval``; the message names the column and the
+        row.
 
     Examples
     --------
@@ -139,6 +160,7 @@ class WindRecord:
     turbulence_intensity: np.ndarray | None = None
     start: str = ""
     source: str = ""
+    interval: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("start", "source"):
@@ -154,7 +176,7 @@ class WindRecord:
         lines = _LINE_OF_ROW.get()
         time = _check_column("time", self.time, None, lines)
         n = time.size
-        step = _check_time(time, lines)
+        median = _check_time(time, lines)
         object.__setattr__(self, "time", read_only(time))
         for name in ("wind_speed", "direction", "temperature"):
             object.__setattr__(self, name, read_only(_check_column(name, getattr(self, name), n,
@@ -162,7 +184,8 @@ class WindRecord:
         if self.turbulence_intensity is not None:
             object.__setattr__(self, "turbulence_intensity", read_only(_check_column(
                 "turbulence_intensity", self.turbulence_intensity, n, lines)))
-        object.__setattr__(self, "_step", step)
+        # last: a bad value names its column and row before a one-row record asks for more
+        object.__setattr__(self, "_step", _interval(median, self.interval))
 
     @property
     def n_records(self) -> int:
@@ -240,11 +263,9 @@ class WindRecord:
         full = np.full(n_records, 1.0)
         ti = (None if turbulence_intensity is None
               else full * check_real("turbulence_intensity", turbulence_intensity))
-        rec = cls(np.arange(n_records) * step, full * wind_speed, full * direction,
-                  full * temperature, ti, source=f"constant {wind_speed:g} m/s")
-        if n_records == 1:
-            object.__setattr__(rec, "_step", step)
-        return rec
+        return cls(np.arange(n_records) * step, full * wind_speed, full * direction,
+                   full * temperature, ti, source=f"constant {wind_speed:g} m/s",
+                   interval=step if n_records == 1 else None)
 
     @classmethod
     def synthetic(cls, days: float = 28.0, *, step: float = 600.0, seed=0, shape: float = 2.0,
@@ -341,11 +362,9 @@ class WindRecord:
         rounded = dict(wind_speed=np.round(speed, 2), direction=np.round(direction) % 360.0,
                        temperature=np.round(np.clip(temperature, -50.0, 80.0), 1),
                        turbulence_intensity=np.round(iv, 3))
-        rec = cls(t, **rounded, source=f"WindRecord.synthetic(days={days:g}, step={step:g}, "
-                  f"seed={seed!r}, shape={shape:g}, scale={scale:g}, diurnal={diurnal:g})")
-        if n == 1:
-            object.__setattr__(rec, "_step", float(step))
-        return rec
+        return cls(t, **rounded, source=f"WindRecord.synthetic(days={days:g}, step={step:g}, "
+                   f"seed={seed!r}, shape={shape:g}, scale={scale:g}, diurnal={diurnal:g})",
+                   interval=float(step) if n == 1 else None)
 
     @classmethod
     def from_csv(cls, path: str | os.PathLike) -> WindRecord:
@@ -354,7 +373,11 @@ class WindRecord:
         Columns (header names, case-insensitive, any order; others are ignored): ``time``
         (seconds, or ISO 8601 time stamps such as ``2024-01-01T00:10:00``), ``wind_speed``
         (m/s), ``direction`` (degrees from north), ``temperature`` (degC) and, optionally,
-        ``turbulence_intensity``.
+        ``turbulence_intensity``. What spreadsheets write is read: a UTF-8 byte-order mark
+        (Excel's "CSV UTF-8"), quoted cells, CRLF line ends. Lines starting with ``#`` are
+        comments, except ``# start = <ISO time stamp>`` (the first row's time stamp, when the
+        time column is in seconds) and ``# interval_s = <s>`` (the interval of a one-row
+        record), which :meth:`to_csv` writes.
 
         Parameters
         ----------
@@ -391,26 +414,36 @@ class WindRecord:
             raise InputError(f"The 'path' parameter must name a CSV file. Got {path!r}, which "
                              f"{what}.")
         try:
-            with open(path, newline="", encoding="utf-8") as handle:
-                rows = list(csv.reader(handle))
+            # "utf-8-sig": Excel's "CSV UTF-8" starts with a byte-order mark
+            with open(path, newline="", encoding="utf-8-sig") as handle:
+                reader = csv.reader(handle, strict=True)
+                rows = list(reader)
         except OSError as exc:
             raise InputError(f"The 'path' parameter {path!r} cannot be read: {exc}.") from None
-        except (UnicodeDecodeError, csv.Error) as exc:
+        except UnicodeDecodeError as exc:
             raise InputError(f"The 'path' parameter {path!r} is not a UTF-8 CSV text file "
                              f"({exc}).") from None
-        if not rows:
+        except csv.Error as exc:
+            raise InputError(f"The 'path' parameter {path!r} is not CSV at line "
+                             f"{reader.line_num} ({exc}).") from None
+        # (line number, cells) of the rows that are neither blank nor comments
+        numbered = [(i + 1, row) for i, row in enumerate(rows) if any(c.strip() for c in row)]
+        notes = _comments(path, [(n, r) for n, r in numbered if r[0].lstrip().startswith("#")])
+        numbered = [(n, r) for n, r in numbered if not r[0].lstrip().startswith("#")]
+        if not numbered:
             raise InputError(f"The wind record {path!r} is empty: it needs a header row with "
                              f"the columns {', '.join(REQUIRED_COLUMNS)}.")
-        header = [name.strip().lower() for name in rows[0]]
+        header_row = numbered[0][1]
+        header = [name.strip().lower() for name in header_row]
         missing = [name for name in REQUIRED_COLUMNS if name not in header]
         if missing:
             raise InputError(f"The wind record {path!r} has no column {missing[0]!r}: it needs "
                              f"{', '.join(REQUIRED_COLUMNS)} (and optionally "
-                             f"{', '.join(OPTIONAL_COLUMNS)}). Its header is {rows[0]}.")
+                             f"{', '.join(OPTIONAL_COLUMNS)}). Its header is {header_row}.")
         columns = [name for name in (*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS) if name in header]
         index = {name: header.index(name) for name in columns}
-        data = [row for row in rows[1:] if any(cell.strip() for cell in row)]
-        lines = [i + 1 for i, row in enumerate(rows) if i > 0 and any(c.strip() for c in row)]
+        data = [row for _, row in numbered[1:]]
+        lines = [number for number, _ in numbered[1:]]
         values = {name: np.empty(len(data)) for name in columns}
         first_stamp = ""
         origin = None
@@ -440,34 +473,77 @@ class WindRecord:
                 except TypeError:
                     raise InputError(f"The 'time' column of {path!r} mixes time stamps with and "
                                      f"without a time zone: {where} holds {cell!r}.") from None
+        start = notes.get("start", "")
+        if first_stamp and start and datetime.fromisoformat(start) != origin:
+            raise InputError(f"The wind record {path!r} says '# start = {start}' but its first "
+                             f"time stamp is {first_stamp!r}; remove the comment or correct it.")
         token = _LINE_OF_ROW.set(lambda row: lines[row])
         try:
             return cls(values["time"], values["wind_speed"], values["direction"],
                        values["temperature"], values.get("turbulence_intensity"),
-                       start=first_stamp, source=path)
+                       start=first_stamp or start, source=path, interval=notes.get("interval_s"))
         finally:
             _LINE_OF_ROW.reset(token)
 
     def to_csv(self, path: str | os.PathLike) -> None:
         """Write the record as CSV (the columns :meth:`from_csv` reads; time in seconds).
 
+        Every number is written with ``repr`` (the shortest text that reads back bit-exact), the
+        start time stamp as a ``# start = ...`` comment line and a one-row record's interval as
+        ``# interval_s = ...``: :meth:`from_csv` reads back the same record.
+
         Parameters
         ----------
         path : str or path-like
-            Where to write.
+            Where to write (its folder must exist).
+
+        Raises
+        ------
+        InputError
+            ``path`` is not a file path, is a folder, or its folder does not exist.
 
         Examples
         --------
         >>> import pathlib, tempfile
         >>> path = pathlib.Path(tempfile.mkdtemp()) / "wind.csv"
-        >>> WindRecord.constant(3.0, n_records=3).to_csv(path)
-        >>> WindRecord.from_csv(path).n_records
-        3
+        >>> WindRecord.constant(1 / 3, n_records=3).to_csv(path)
+        >>> WindRecord.from_csv(path).wind_speed.tolist()
+        [0.3333333333333333, 0.3333333333333333, 0.3333333333333333]
         """
+        path = check_write_path(path)
         names = [*REQUIRED_COLUMNS] + (["turbulence_intensity"]
                                        if self.turbulence_intensity is not None else [])
-        with open(os.fspath(path), "w", newline="", encoding="utf-8") as handle:
-            writer = csv.writer(handle)
+        with open(path, "w", newline="", encoding="utf-8") as handle:
+            if self.start:
+                handle.write(f"# start = {self.start}\n")
+            if self.n_records == 1:
+                handle.write(f"# interval_s = {self.step!r}\n")
+            writer = csv.writer(handle, lineterminator="\n")
             writer.writerow(names)
             for i in range(self.n_records):
-                writer.writerow([f"{getattr(self, name)[i]:.10g}" for name in names])
+                writer.writerow([repr(float(getattr(self, name)[i])) for name in names])
+
+
+def _comments(path: str, rows: list) -> dict:
+    """The settings of a wind CSV's ``# key = value`` comment lines (``start``, ``interval_s``);
+    any other comment is ignored."""
+    notes: dict = {}
+    for number, row in rows:
+        key, sep, value = ",".join(row).lstrip().lstrip("#").partition("=")
+        key, value = key.strip().lower(), value.strip()
+        if not sep or key not in ("start", "interval_s"):
+            continue
+        if key == "start":
+            try:
+                datetime.fromisoformat(value)
+            except ValueError:
+                raise InputError(f"The wind record {path!r}, line {number}: '# start' must be "
+                                 f"an ISO 8601 time stamp. Got {value!r:.60}.") from None
+            notes[key] = value
+        else:
+            try:
+                notes[key] = float(value)
+            except ValueError:
+                raise InputError(f"The wind record {path!r}, line {number}: '# interval_s' "
+                                 f"must be a number of seconds. Got {value!r:.60}.") from None
+    return notes
