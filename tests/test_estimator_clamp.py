@@ -85,3 +85,20 @@ def test_clamp_strain_bad_input():
         plc.estimate_clamp_strain(design, y, span, model.node_positions, side="middle")
     with pytest.raises(plc.InputError, match="'x_b'"):
         plc.estimate_clamp_strain(design, y, span, model.node_positions, x_b=-1.0)
+    # issue 41: the documented preconditions, checked before the filter runs
+    pinned = plc.LineModel(span, n_elements=60, bc="pinned")
+    with pytest.raises(plc.InputError, match="'positions'.*the left one is pinned"):
+        plc.estimate_clamp_strain(design, y, span, pinned)
+    with pytest.raises(plc.InputError, match=r"from 0 to its length 300 m.*Got 0 to 3000 m"):
+        plc.estimate_clamp_strain(design, y, span, 10 * model.node_positions)
+    # A conductor without a rated strength (the lab's) converts by Poffenberger-Swart too; the
+    # old error advised a keyword (self_damping_k=) this function does not take. Truth: the
+    # severity stage's strain per Y_b, which no self-damping constant changes (linear map).
+    lab = plc.Span(length=span.length, tension=span.tension,
+                   conductor=plc.Span.paper_lab().conductor)
+    est = plc.estimate_clamp_strain(design, y, lab, model, discard=100)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sev = plc.aeolian_severity(lab, wind_speeds=[3.0], bc="clamped", self_damping_k=7.0)
+    assert est.strain_pp / est.bending_amplitude == pytest.approx(
+        sev.strain_pp[0] / sev.bending_amplitude[0], rel=1e-9)

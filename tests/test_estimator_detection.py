@@ -221,3 +221,7 @@ def test_coverage_band_and_check_on_the_lab_span():
         assert cov.check(high.displacement[design.sensors]) > 0.5
     with pytest.raises(plc.InputError, match="'warn'"):
         cov.check(same.displacement[design.sensors], warn="yes")
+    # issue 41: 7 rows for a 4-sensor design (all nodes, or a transposed record) is refused
+    assert cov.n_sensors == 4
+    with pytest.raises(plc.InputError, match=r"one row per sensor of the design \(4.*Got 7"):
+        cov.outside_share(same.displacement[:7])

@@ -475,3 +475,22 @@ def test_an_npz_whose_metadata_is_a_json_list_is_refused(tmp_path):
              __metadata__=np.array("[1, 2]"))
     with pytest.raises(InputError, match="metadata is a JSON list"):
         load_record(path)
+
+
+# ------------------------------------------------------------------------ issue 41: preconditions
+def test_check_span_and_without_supports_check_the_length_and_a_channel_of_nan():
+    record = Record([0.0, 1.0, 2.0], [1.0, 2.0], [[np.nan] * 3, [0.0, 1e-3, 2e-3]], "f.csv")
+    with pytest.raises(InputError, match=r"f.csv: channel x_1_m at 1 m is missing \(NaN\) in "
+                                         "all its 3 samples"):
+        record.check_span(3.66)        # a constant channel was refused, an all-NaN one passed
+    for call in (record.check_span, record.without_supports):
+        with pytest.raises(InputError, match="'length' parameter must be finite. Got nan"):
+            call(float("nan"))         # blamed the channel / kept a support channel
+        with pytest.raises(InputError, match="'length' parameter must be a real number. Got "
+                                             "'3.66'"):
+            call("3.66")               # numpy's UFuncTypeError
+
+
+def test_run_scenario_refuses_an_empty_stage_list():
+    with pytest.raises(InputError, match="'stages' parameter must name at least one stage"):
+        run_scenario(load_scenario(text="[model]\nn_elements = 12"), stages=())

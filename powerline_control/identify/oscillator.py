@@ -29,6 +29,8 @@ from .stability import DampingReport, StabilityReport
 DEFAULT_RADIUS = 1.0 - 1e-6
 #: How many line frequencies a text lists before it says "... (N in all)".
 _LISTED_LINES = 6
+#: Tolerance of the unseen directions' orthonormality (round-off of an SVD or QR is ~1e-15).
+_ORTHO_TOL = 1e-8
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -145,7 +147,8 @@ class OscillatorModel(DMDModel):
         Raises
         ------
         InputError
-            Wrong shapes, non-finite values, dependent shapes, values out of range.
+            Wrong shapes, non-finite values, no line, dependent shapes, unseen directions that
+            are not orthonormal and orthogonal to the shapes, values out of range.
 
         Examples
         --------
@@ -158,6 +161,9 @@ class OscillatorModel(DMDModel):
         dt = check_real("dt", dt, low=0.0, low_inclusive=False)
         f = check_array("frequencies", frequencies, ndim=1)
         phi = check_array("shapes", shapes, ndim=2)
+        if f.size == 0:
+            raise InputError("The 'frequencies' parameter must name at least one line: a model "
+                             "of no line tracks nothing. Got none.")
         if phi.shape[1] != f.size:
             raise InputError(f"The 'shapes' parameter must have one column per line ({f.size});"
                              f" it has shape {phi.shape}.")
@@ -191,6 +197,15 @@ class OscillatorModel(DMDModel):
             raise InputError("The 'shapes' parameter must have linearly independent columns: "
                              "two lines with one shape make the filter's Riccati equation "
                              "singular. Keep one of them.")
+        if u:   # the field map [Q, 0, U] is a projection only for orthonormal [Q, U]
+            gram_error = np.abs(unseen.T @ unseen - np.eye(u)).max()
+            overlap = np.abs(q.T @ unseen).max() if r else 0.0
+            if gram_error > _ORTHO_TOL or overlap > _ORTHO_TOL:
+                raise InputError(
+                    "The 'unseen' parameter must hold orthonormal directions orthogonal to the "
+                    f"shapes' span (U^T U = I, Q^T U = 0 to {_ORTHO_TOL:g}). Got |U^T U - I| = "
+                    f"{gram_error:.3g} and |Q^T U| = {overlap:.3g}; orthonormalise them against "
+                    "the shapes first (e.g. scipy.linalg.null_space(shapes.T)).")
         # Each line's recursion acts on its own amplitude; in the orthonormal coordinates
         # b = Q^T x the amplitudes are R^-1 b, hence R diag(c1) R^-1 (a triangular solve).
         c1 = 2 * radius * np.cos(2 * np.pi * frequencies * dt)

@@ -129,7 +129,8 @@ class Record:
 
     def check_span(self, length: float) -> None:
         """Refuse channels on a support (x = 0 or length), outside the span (0 < x < length),
-        or constant (one value in every sample: a dead sensor, where the line moves).
+        constant (one value in every sample: a dead sensor, where the line moves) or missing
+        in every sample; and a ``length`` that is not a finite number > 0.
 
         Parameters
         ----------
@@ -144,7 +145,7 @@ class Record:
         powerline_control.errors.InputError: f.csv: channel x_5_m at 5 m lies outside the \
 span (0 < x < 3.66 m).
         """
-        on_support = self._on_support(length)
+        on_support = self._on_support(length)   # checks the length
         for x, support in zip(self.positions, on_support, strict=True):
             if support:
                 raise InputError(f"{self.source}: channel {_column(x)} at {x:g} m sits on a "
@@ -156,6 +157,11 @@ span (0 < x < 3.66 m).
                                  f"the span (0 < x < {length:g} m).")
         for x, row in zip(self.positions, self.values, strict=True):
             seen = row[~np.isnan(row)]
+            if seen.size == 0:   # as dead as a constant channel, and nothing to estimate from
+                raise InputError(f"{self.source}: channel {_column(x)} at {x:g} m is missing "
+                                 f"(NaN) in all its {row.size} samples: a dead or disconnected "
+                                 "sensor, which carries no information about the span. Drop "
+                                 "the column.")
             if seen.size >= 2 and np.all(seen == seen[0]):  # inside the span the line moves
                 raise InputError(f"{self.source}: channel {_column(x)} at {x:g} m holds one "
                                  f"value ({float(seen[0]):g} m) in all its {seen.size} samples: "
@@ -165,7 +171,8 @@ span (0 < x < 3.66 m).
     def _on_support(self, length: float) -> np.ndarray:
         # "On a support" to round-off of the written position (a logger's CSV column name may
         # keep a few significant digits; 1e-9 of the span is far below any sensor's size).
-        tol = 1e-9 * float(length)
+        length = check_real("length", length, low=0.0)   # a NaN length would match no support
+        tol = 1e-9 * length
         x = np.asarray(self.positions)
         return (np.abs(x) <= tol) | (np.abs(x - float(length)) <= tol)
 
@@ -190,7 +197,7 @@ span (0 < x < 3.66 m).
         Raises
         ------
         InputError
-            Every channel sits on a support.
+            Every channel sits on a support, or ``length`` is not a finite number > 0.
 
         Examples
         --------

@@ -81,6 +81,8 @@ class Coverage:
         Riccati part and, with ``field_relative_variance``, the share of the field, as an RMS
         over the training record (after the first consistency window): what it reports on a
         record like that one.
+    n_sensors : int or None
+        The design's sensor count: a record to judge has one row per sensor (None: unchecked).
 
     Examples
     --------
@@ -110,6 +112,7 @@ class Coverage:
     mode_frequencies: np.ndarray
     mode_observability: np.ndarray
     node_sigma: np.ndarray
+    n_sensors: int | None = None
 
     def outside_share(self, measurements: object) -> float:
         """Share of a record's power above the sensor noise that lies outside the band.
@@ -129,13 +132,18 @@ class Coverage:
         Raises
         ------
         InputError
-            Not a 2-D real array, or infinite values.
+            Not a 2-D real array, infinite values, or not one row per sensor.
 
         Examples
         --------
         See :class:`Coverage`.
         """
         y = check_array("measurements", measurements, ndim=2, allow_nan=True)
+        if self.n_sensors is not None and y.shape[0] != self.n_sensors:
+            raise InputError(
+                f"The 'measurements' parameter must hold one row per sensor of the design "
+                f"({self.n_sensors}, in its order: y[design.sensors]). Got {y.shape[0]} rows "
+                f"(shape {y.shape}); a (n_t, n_sensors) record needs transposing (.T).")
         power = sensor_psd(y, 2 * (self.frequencies.size - 1))
         if not np.all(np.isfinite(power)):
             return float("nan")
@@ -226,4 +234,5 @@ def build_coverage(train_sensors: np.ndarray, dt: float, noise_std: float, model
     return Coverage(band=band, frequencies=read_only(freqs), training_power=read_only(power),
                     noise_power=noise_power, covered=read_only(covered),
                     mode_frequencies=read_only(mode_f[order]),
-                    mode_observability=read_only(seen[order]), node_sigma=read_only(sigma))
+                    mode_observability=read_only(seen[order]), node_sigma=read_only(sigma),
+                    n_sensors=int(len(sensors)))

@@ -105,6 +105,9 @@ def _check_stages(stages) -> tuple:
     if isinstance(stages, str) or not isinstance(stages, Sequence):
         raise InputError(f"The 'stages' parameter must be a sequence of stage names from "
                          f"{list(STAGES)}. Got {stages!r:.60}.")
+    if len(stages) == 0:   # would return an "ok" result in which every stage is None
+        raise InputError(f"The 'stages' parameter must name at least one stage from "
+                         f"{list(STAGES)}, or be None for all. Got {stages!r:.60}.")
     unknown = [s for s in stages if s not in STAGES]
     if unknown:
         raise InputError(f"The 'stages' parameter names unknown stages {unknown}; the stages "

@@ -89,6 +89,22 @@ def _at(values: np.ndarray, positions: np.ndarray, x: float, p: float) -> np.nda
     return (1 - w) * values[j - 1] + w * values[j]
 
 
+def _clamped_nodes(positions: object, side: str) -> object:
+    """The node positions of ``positions``; a LineModel's ``side`` support must be clamped."""
+    from ..fem import LineModel
+
+    if not isinstance(positions, LineModel):
+        return positions
+    bc = positions.bc[0 if side == "left" else 1]
+    if bc != "clamped":
+        raise InputError(
+            f"The 'positions' parameter is a model with supports {positions.bc}: the {side} "
+            f"one is {bc}, but a clamp's bending amplitude needs a clamped support (a pinned "
+            "end has no bending at it). Train the design on LineModel(span, bc='clamped'), or "
+            "give the clamped side.")
+    return positions.node_positions
+
+
 def estimate_clamp_strain(design, measurements: object, span: Span, positions: object, *,
                           side: str = "left", x_b: float = POFFENBERGER_SWART_DISTANCE,
                           discard: int = 0, outer_strand_diameter: float | None = None
@@ -105,8 +121,10 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
         the filter's prediction averaged into ``Y_b``; cut the record around gaps).
     span : Span
         The span (tension and conductor for Poffenberger-Swart); its supports must be clamped.
-    positions : array_like, shape (n_nodes,)
-        Node positions of the design's field, m (``model.node_positions``).
+    positions : LineModel or array_like, shape (n_nodes,)
+        The line model the design was trained on (its supports are then checked: the
+        ``side`` must be clamped), or its node positions, m (``model.node_positions``: from 0
+        to the span's length).
     side : {"left", "right"}
         The clamp: x = 0 or x = L.
     x_b : float
@@ -124,9 +142,9 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
     ------
     InputError
         Bad arguments, named: a ``design`` that is not an EstimatorDesign, a ``span`` that is
-        not a Span, NaN or infinite measurements, positions of the wrong shape or not ascending,
-        ``x_b`` outside
-        the first half of the span, ``discard`` leaving no samples.
+        not a Span, NaN or infinite measurements, positions of the wrong shape, not ascending
+        or not from 0 to the span's length, a model whose ``side`` is not clamped, ``x_b``
+        outside the first half of the span, ``discard`` leaving no samples.
 
     Examples
     --------
@@ -158,13 +176,19 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
             f"0.2)). Got {span!r:.60} of type {type(span).__name__} instead."
         )
     side = check_choice("side", side, ("left", "right"))
-    x = check_array("positions", positions, ndim=1)
+    x = check_array("positions", _clamped_nodes(positions, side), ndim=1)
     if x.size != design.n_nodes or np.any(np.diff(x) <= 0):
         raise InputError(
             f"The 'positions' parameter must hold the design's {design.n_nodes} node positions "
             f"in ascending order (model.node_positions). Got {x.size} values"
             f"{'' if x.size < 2 or np.all(np.diff(x) > 0) else ', not ascending'}."
         )
+    tol = 1e-9 * span.length   # round-off of a mesh's summed element lengths
+    if abs(x[0]) > tol or abs(x[-1] - span.length) > tol:
+        raise InputError(
+            f"The 'positions' parameter must hold the span's node positions, from 0 to its "
+            f"length {span.length:g} m (model.node_positions of the model the design was "
+            f"trained on). Got {x[0]:g} to {x[-1]:g} m.")
     x_b = check_real("x_b", x_b, low=0.0, high=float(x[-1] - x[0]) / 2)
     # Every sample is a measurement: a NaN (a dropout) would be filled by the filter's
     # prediction and averaged into Y_b as if measured.
@@ -184,6 +208,11 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
         warnings.simplefilter("ignore")  # only the conversion factors are read
         kwargs = {} if outer_strand_diameter is None else {
             "outer_strand_diameter": outer_strand_diameter}
+        if span.conductor.rated_strength is None:
+            # Only the ratio stress / Y_b (Poffenberger-Swart: linear) is read; the self-damping
+            # law sets the amplitude only, so any k serves where the conductor has no rated
+            # strength to normalise one (the paper's lab conductor).
+            kwargs["self_damping_k"] = 1.0
         sev = aeolian_severity(span, wind_speeds=[3.0], x_b=x_b, bc="clamped", **kwargs)
     yb_ref = float(sev.bending_amplitude[0])
     if not yb_ref > 0:
