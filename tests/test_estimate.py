@@ -1316,3 +1316,11 @@ def test_filter_consistency_checks_field_map_whatever_the_truth(field_map):
     est = plc.KalmanFilter(sys, Q=1.0, R=0.25).filter(np.ones((1, 50)))
     with pytest.raises(plc.InputError, match="'field_map'"):
         plc.filter_consistency(est, field_map=field_map)
+
+
+def test_an_empty_record_is_refused_by_name():
+    # issue 41: numpy's "zero-size array to reduction" escaped from the filter
+    kf = plc.KalmanFilter(ct.ss([[0.5]], [[1.0]], [[1.0]], 0, dt=1.0), Q=1.0, R=1.0)
+    with pytest.raises(plc.InputError, match=r"'measurements' parameter must hold at least one "
+                                             r"sample.*\(1, 0\)"):
+        kf.filter(np.zeros((1, 0)))

@@ -616,3 +616,13 @@ def test_to_statespace_names_outputs_and_natural_frequencies_wants_an_int():
         model.natural_frequencies(None)
     with pytest.raises(InputError, match="'n_modes'"):
         model.mode_shapes(None)
+
+
+@pytest.mark.parametrize("frequencies", [(3.0,), 3.0, (1.0, 2.0, 3.0), "ab"])
+def test_rayleigh_damping_needs_two_frequencies(frequencies):
+    # issue 41: one frequency unpacked raw (ValueError / TypeError)
+    with pytest.raises(plc.InputError, match="'frequencies' parameter must be two frequencies"):
+        plc.RayleighDamping.from_ratios(frequencies, 0.01)
+    # an array of two works as the tuple does (the closed form: beta = 2 zeta / (w1 + w2))
+    d = plc.RayleighDamping.from_ratios(np.array([10.0, 30.0]), 0.01)
+    assert d.stiffness_coefficient == pytest.approx(0.02 / (2 * np.pi * 40.0), rel=1e-12)

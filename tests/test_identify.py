@@ -1034,3 +1034,9 @@ def test_select_alpha_refuses_more_windows_than_samples():
     # Old code allocated 10**15 window starts (a MemoryError of 7 PiB).
     with pytest.raises(plc.InputError, match="'n_windows' parameter must be <= 200"):
         plc.select_alpha(X, 0.01, alphas=[1e-3], horizon=10, n_windows=10**15)
+
+
+def test_select_alpha_refuses_all_zero_data_as_fit_dmd_does():
+    # issue 41: every alpha "fitted" data without dynamics
+    with pytest.raises(plc.IdentificationError, match="'X' parameter is all zeros"):
+        plc.select_alpha(np.zeros((3, 500)), dt=0.01)

@@ -686,6 +686,10 @@ class KalmanFilter(_FilterInternals):
                 f"({self._p}, n_t) (one row per model output, time along columns) but found "
                 f"{y_all.shape}."
             )
+        if y_all.shape[1] == 0:   # numpy's "zero-size array" error otherwise, from deep inside
+            raise InputError(
+                f"The 'measurements' parameter must hold at least one sample (column). Got "
+                f"shape {y_all.shape}: an empty record.")
         warn_if_saturated("The 'measurements' parameter", y_all, stacklevel=2)
         n_t = y_all.shape[1]
         u_all = self._check_input_block(inputs, n_t)

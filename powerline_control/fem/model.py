@@ -124,7 +124,33 @@ class RayleighDamping:
 
     @classmethod
     def from_ratios(cls, frequencies: tuple[float, float], ratio: float) -> RayleighDamping:
-        """Coefficients giving damping ratio ``ratio`` at two frequencies (Hz)."""
+        """Coefficients giving damping ratio ``ratio`` at two frequencies (Hz).
+
+        Parameters
+        ----------
+        frequencies : (float, float)
+            The two frequencies, Hz (> 0): Rayleigh damping has two coefficients, so one
+            frequency does not fix them.
+        ratio : float
+            Damping ratio at both (>= 0).
+
+        Returns
+        -------
+        RayleighDamping
+
+        Examples
+        --------
+        >>> d = RayleighDamping.from_ratios((10.0, 30.0), 0.01)
+        >>> round(d.stiffness_coefficient * 1e5, 4)
+        7.9577
+        """
+        if (isinstance(frequencies, str | bytes)
+                or not isinstance(frequencies, Sequence | np.ndarray)
+                or np.ndim(frequencies) != 1 or len(frequencies) != 2):
+            raise InputError(
+                "The 'frequencies' parameter must be two frequencies (f1, f2), Hz: Rayleigh "
+                "damping has two coefficients, fixed by the ratio at two frequencies. Got "
+                f"{frequencies!r:.60}.")
         f1, f2 = (check_real("frequencies", f, low=0.0) for f in frequencies)
         zeta = check_real("ratio", ratio, low=0.0, low_inclusive=True)
         w1, w2 = 2 * np.pi * f1, 2 * np.pi * f2

@@ -18,7 +18,14 @@ import numpy as np
 from .._validation import check_array, check_choice, check_int, check_real, read_only
 from ..errors import InputError
 from ._ridge import _ridge_svd
-from .fit import _absolute_alpha, _check_common, _fit_problem, _hankel, _prepare
+from .fit import (
+    _absolute_alpha,
+    _check_common,
+    _fit_problem,
+    _hankel,
+    _prepare,
+    _refuse_all_zero,
+)
 from .model import DMDModel
 
 
@@ -180,6 +187,8 @@ def select_alpha(
     ------
     InputError
         Bad arguments, or too few held-out samples for ``horizon`` (say how many are needed).
+    IdentificationError
+        ``X`` is all zeros (as :func:`fit_dmd`).
 
     Examples
     --------
@@ -192,6 +201,7 @@ def select_alpha(
     (1e-09, 0.001)
     """
     X, dt, delays, rank, u = _check_common(X, dt, delays, rank, inputs)
+    _refuse_all_zero(X)   # as fit_dmd does: every alpha would "fit" data without dynamics
     alpha_mode = check_choice("alpha_mode", alpha_mode, ("absolute", "relative"))
     margin = check_real("margin", margin, low=0.0, high=1.0, low_inclusive=True,
                         high_inclusive=False)
