@@ -4,9 +4,9 @@ estimation, robot).
 A scenario is a frozen :class:`Scenario` of small frozen sections. Every key has a default, so a
 file names only what differs from the defaults (the paper's lab span forced near its third
 resonance, the line exactly as the file names it; the built-in scenario, :func:`default_scenario`,
-adds a line 3 % slacker than Table 1). One schema (the metadata on each section's fields: unit, meaning, allowed
-values, and when a key applies) drives three things: validation, the commented TOML template of
-``powerline-control scenario`` and the reference page ``docs/scenarios.md``
+adds a line 3 % slacker than Table 1). One schema (the metadata on each section's fields: unit,
+meaning, allowed values, and when a key applies) drives three things: validation, the commented
+TOML template of ``powerline-control scenario`` and the reference page ``docs/scenarios.md``
 (:func:`~powerline_control.scenario.template.scenario_reference`; both writers live in
 ``template.py``).
 
