@@ -154,7 +154,7 @@ def calibrate_scenario(scenario: Scenario, record=None, *, progress=None) -> Sce
     from ..identify import calibrate_span
     from ..output.records import Record
     from .pipeline import run_scenario
-    from .stages import scenario_sensors
+    from .sensing import scenario_sensors
     from .summary import positions_text
 
     if not isinstance(scenario, Scenario):

@@ -38,6 +38,7 @@ from ..errors import InputError
 from .config import Scenario
 from .files import load_scenario
 from .result import ScenarioResult, StageFailure, Tuning
+from .sensing import evenly_spaced_nodes, given_sensors  # noqa: F401  (re-exported)
 from .sensor_count import (  # noqa: F401  (re-exported, as before it had its own module)
     SENSOR_COUNT_MAX_NODES,
     _sensor_count,
@@ -62,8 +63,6 @@ from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     _with_record_sensors,
     closed_loop_timing,
     driven_mode,
-    evenly_spaced_nodes,
-    given_sensors,
     layout_filter,
     longest_complete_run,
     read_wind_record,

@@ -207,7 +207,7 @@ class ClosedLoop:
     calibration : float
         Calibration time, s.
     sensors_how : str
-        Where the sensors came from, in words (:func:`~.stages.closed_loop_sensors`).
+        Where the sensors came from, in words (:func:`~.sensing.closed_loop_sensors`).
     """
 
     tuning: Tuning
