@@ -300,6 +300,14 @@ def _print_pdf(browser: str, html: Path, pdf: Path) -> None:
 
 
 def _print_sections(console: _Console, result) -> None:
+    # The verdict first, as on the report's first screen; then every section's rows.
+    verdict = result.verdict()
+    if verdict.headlines or verdict.caveats:
+        console.out("Summary")
+        for line in verdict.headlines:
+            console.out(f"  {line.label:<42} {line.text} {line.verdict}")
+        for caveat in verdict.caveats:
+            console.out(f"  caveat: {caveat.text}")
     for section in result.sections():
         console.out(section["title"])
         for row in section["rows"]:

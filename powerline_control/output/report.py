@@ -33,6 +33,11 @@ figure { margin: 1.2em 0; }
 figure img { max-width: 100%; border: 1px solid #ddd; }
 figcaption { font-size: 0.92em; color: #333; margin-top: 0.3em; }
 .note { font-size: 0.9em; color: #444; }
+#summary { border: 2px solid #445; padding: 0.2em 1em 0.6em; margin: 1em 0; }
+#summary p { margin: 0.3em 0; }
+#summary th { width: 26%; }
+#summary td.number { white-space: nowrap; font-weight: 600; width: 10%; }
+#summary ul.caveats li { margin: 0.2em 0; }
 </style></head><body>
 <header>
 <h1>{{ title }}</h1>
@@ -42,10 +47,25 @@ figcaption { font-size: 0.92em; color: #333; margin-top: 0.3em; }
 <p class="note">Units: SI; positions in metres from the left support, frequencies in Hz, times in
 seconds, displacements in millimetres unless stated.</p>
 </header>
-<nav><ol>{% for section in sections %}<li><a href="#s{{ loop.index }}">{{ section.title }}</a></li>
+{% if summary %}<section id="summary">
+<h2>Summary</h2>
+<p><strong>Span:</strong> {{ summary.span }}</p>
+<p><strong>Asked:</strong> {{ summary.asked }}</p>
+{% if summary.rows %}<table>{% for label, value, verdict, target in summary.rows %}
+<tr><th>{{ label }}</th><td class="number">{{ value }}</td><td>{{ verdict }}
+<a href="#{{ target }}">&rarr;&nbsp;{{ titles[target].split(" (")[0] }}</a></td></tr>
+{%- endfor %}
+</table>{% endif %}
+{% if summary.caveats %}<p><strong>Caveats that change a decision:</strong></p>
+<ul class="caveats">{% for text, target in summary.caveats %}<li>{{ text }}
+<a href="#{{ target }}">&rarr;&nbsp;{{ titles[target].split(" (")[0] }}</a></li>{% endfor %}</ul>
+{% else %}<p class="note">No caveat: no baseline beats the chosen layout, no estimator was
+flagged inconsistent, and no window still rings.</p>{% endif %}
+</section>{% endif %}
+<nav><ol>{% for section in sections %}<li><a href="#{{ section.id }}">{{ section.title }}</a></li>
 {% endfor %}</ol></nav>
 {% for section in sections %}
-<section id="s{{ loop.index }}">
+<section id="{{ section.id }}">
 <h2>{{ section.title }}</h2>
 {% if section.intro %}<p>{{ section.intro }}</p>{% endif %}
 {% if section.rows %}<table>{% for label, value, explain in section.rows %}
@@ -99,6 +119,20 @@ def _row(row) -> tuple[str, str, str]:
     return (row + ("", "", ""))[:3]
 
 
+def _summary(summary: Mapping | None, titles: Mapping) -> dict | None:
+    """The summary with every key the template reads; refused when it links to no section."""
+    if summary is None:
+        return None
+    out = {"span": str(summary.get("span", "")), "asked": str(summary.get("asked", "")),
+           "rows": [tuple(str(v) for v in row) for row in summary.get("rows", ())],
+           "caveats": [tuple(str(v) for v in row) for row in summary.get("caveats", ())]}
+    targets = {row[3] for row in out["rows"]} | {target for _, target in out["caveats"]}
+    missing = sorted(targets - set(titles))
+    if missing:
+        raise ValueError(f"The summary links to sections the report lacks: {missing}.")
+    return out
+
+
 def write_report(
     path: str | Path,
     title: str,
@@ -108,6 +142,7 @@ def write_report(
     scenario_name: str = "",
     scenario_description: str = "",
     date: str | None = None,
+    summary: Mapping | None = None,
 ) -> Path:
     """Write a self-contained HTML report: per section, a table of rows and captioned figures.
 
@@ -119,19 +154,29 @@ def write_report(
         Page title.
     sections : sequence of mapping
         Each with "title", "rows" (sequence of (label, value) or (label, value, explanation)),
-        and optionally "intro" (a paragraph), "notes" (sentences) and "figures": mappings with
-        "name", "caption" and either "figure" (a matplotlib Figure) or "uri" (a data URI).
+        and optionally "id" (its link target; default ``s1``, ``s2``, ...), "intro" (a
+        paragraph), "notes" (sentences) and "figures": mappings with "name", "caption" and
+        either "figure" (a matplotlib Figure) or "uri" (a data URI).
     version : str
         Package version for the header.
     scenario_name, scenario_description : str
         Shown in the header.
     date : str or None
         Date shown (default: now, UTC).
+    summary : mapping or None
+        The page's first screen: "span" and "asked" (sentences), "rows" ((label, value,
+        verdict, section id) tuples) and "caveats" ((sentence, section id) tuples); each row
+        and caveat links to its section.
 
     Returns
     -------
     Path
         The file written.
+
+    Raises
+    ------
+    ValueError
+        A figure that is not embedded, or a summary link to no section.
 
     Examples
     --------
@@ -147,9 +192,12 @@ def write_report(
 
     path = check_write_path(path)   # before the figures are rendered
     environment = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
+    ids = [section.get("id", f"s{index}") for index, section in enumerate(sections, start=1)]
+    titles = {key: section["title"] for key, section in zip(ids, sections, strict=True)}
+    summary = _summary(summary, titles)   # checked before the figures are rendered
     number = 0
     rendered = []
-    for section in sections:
+    for key, section in zip(ids, sections, strict=True):
         figures = []
         for figure in section.get("figures", ()):
             number += 1
@@ -160,13 +208,14 @@ def write_report(
             figures.append({"name": figure.get("name", f"figure-{number}"), "uri": uri,
                             "caption": caption, "alt": caption.split(".")[0],
                             "number": number})
-        rendered.append({"title": section["title"], "intro": section.get("intro", ""),
+        rendered.append({"title": section["title"], "id": key, "intro": section.get("intro", ""),
                          "rows": [_row(r) for r in section.get("rows", ())],
                          "notes": list(section.get("notes", ())), "figures": figures})
     if date is None:
         date = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
     text = environment.from_string(_TEMPLATE).render(
         title=title, version=version, sections=rendered, date=date,
-        scenario_name=scenario_name, scenario_description=scenario_description)
+        scenario_name=scenario_name, scenario_description=scenario_description,
+        summary=summary, titles=titles)
     path.write_text(text, encoding="utf-8")
     return path

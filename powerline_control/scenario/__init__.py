@@ -1,5 +1,5 @@
-"""Scenarios: the TOML schema and its files (config, truth, files, template), and the pipeline that
-runs a scenario stage by stage (stages, pipeline) into a frozen ScenarioResult (result, summary)."""
+"""Scenarios: the TOML schema and files (config, truth, files, template), and the pipeline that runs
+one stage by stage (stages, sensing, pipeline) into a frozen ScenarioResult (result, summary*)."""
 
 from .config import (
     EstimationConfig,

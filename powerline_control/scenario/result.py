@@ -400,8 +400,30 @@ class ScenarioResult:
 
         return result_sections(self)
 
+    def verdict(self):
+        """The report's first screen: the span, what was asked, the headline numbers with their
+        one-line verdicts and sections, and the caveats that change a decision.
+
+        Returns
+        -------
+        Verdict
+            See :func:`~.summary_verdict.result_verdict`.
+
+        Examples
+        --------
+        >>> from powerline_control.scenario import load_scenario
+        >>> from powerline_control.scenario.pipeline import run_scenario
+        >>> run_scenario(load_scenario(text="[model]\\nn_elements = 12"),
+        ...              stages=("model",)).verdict().span
+        '3.66 m paper lab (Table 1) span, tension 395 N, pinned / pinned supports'
+        """
+        from .summary_verdict import result_verdict
+
+        return result_verdict(self)
+
     def report(self, path: str | Path, *, version: str | None = None) -> Path:
-        """Write the self-contained HTML report of this result.
+        """Write the self-contained HTML report of this result: its verdict first
+        (:meth:`verdict`), then a section per stage.
 
         Parameters
         ----------

@@ -79,24 +79,55 @@ def _model_section(r) -> dict:
             f"{model.n_elements} Hermite cubic beam elements, {h.min():.3g}-{h.max():.3g} m "
             "long (graded toward the supports)")
     frequencies = model.natural_frequencies(min(5, model.n_dofs))
+    speed = math.sqrt(span.tension / cond.mass_per_length)
+    load = sc.forcing.load_frequency(span)
     rows = [
         ("span (nominal)", f"{span.length:g} m between supports, tension {span.tension:.4g} N",
          "The paper's laboratory span (Table 1)" if sc.span.preset == "paper_lab" else
          f"{sc.span.rts_fraction:.0%} of the conductor's rated tensile strength"
          if sc.span.tension is None else "tension from the scenario"),
         ("conductor", f"{cond.name}: {cond.mass_per_length:.4g} kg/m, EI {cond.ei:g} N m^2, "
-         f"diameter {1e3 * cond.diameter:g} mm"),
-        ("wave speed sqrt(T/m)", f"{math.sqrt(span.tension / cond.mass_per_length):.4g} m/s"),
+         f"diameter {1e3 * cond.diameter:g} mm", _conductor_note(cond)),
+        ("wave speed sqrt(T/m)", f"{speed:.4g} m/s",
+         f"Sets the loop length: at the load's {load:.4g} Hz a standing wave's loops are "
+         f"{speed / (2 * load):.3g} m long (c / 2f), {span.length * 2 * load / speed:.3g} loops "
+         "over the span." if load > 0 else "Sets the loop length of a standing wave (c / 2f)."),
         ("model", f"{mesh}; {model.n_nodes} nodes, {model.n_dofs} degrees of freedom; "
          f"{model.bc[0]} / {model.bc[1]} supports",
          "A Galerkin model of the taut Euler-Bernoulli line: bending stiffness EI plus the "
          "tension's geometric stiffness."),
         ("first natural frequencies (nominal)", ", ".join(f"{f:.4g}" for f in frequencies)
-         + " Hz"),
+         + " Hz", _nearest_mode_note(frequencies, load, model.n_dofs)),
         *truth_rows(r),
-        ("load", sc.forcing.describe(span)),
+        ("load", sc.forcing.describe(span),
+         "It drives the true line in every simulated run: the records, the closed loop and its "
+         "parked comparisons."),
     ]
     return {"title": "Span and model", "rows": rows}
+
+
+def _conductor_note(cond) -> str:
+    """Why the conductor's numbers matter, from them: the wind's Strouhal band on it."""
+    from .._constants import STROUHAL
+
+    low, high = (STROUHAL * v / cond.diameter for v in (1.0, 7.0))
+    return (f"Mass and tension set the wave speed, EI the bending stiffness near the clamps; a "
+            f"1-7 m/s wind sheds vortices from this {1e3 * cond.diameter:g} mm conductor at "
+            f"{low:.3g}-{high:.3g} Hz (f = St V / d, St = {STROUHAL:g}).")
+
+
+def _nearest_mode_note(frequencies, load: float, n_dofs: int) -> str:
+    """Which listed mode the load's frequency is nearest, and how far, in words."""
+    import numpy as np
+
+    if load <= 0 or not len(frequencies):
+        return f"The lowest of the model's {n_dofs} modes."
+    i = int(np.argmin(np.abs(np.asarray(frequencies) - load)))
+    off = 100.0 * (load / frequencies[i] - 1.0)
+    where = ("above the last one listed" if load > frequencies[-1] * 1.1 else
+             f"nearest mode {i + 1} ({off:+.2g} %)")
+    return (f"The load's {load:.4g} Hz is {where}: the nearer a mode, the more the line "
+            "responds in that mode's shape.")
 
 
 def _records_section(r) -> dict:
@@ -106,11 +137,16 @@ def _records_section(r) -> dict:
     snap = rec.test
     tail = snap.true_displacement[:, -snap.t.size // 4:]
     rms = float(np.sqrt(np.mean(snap.true_displacement**2)))
+    crest = float(np.abs(tail).max() / max(np.sqrt(np.mean(tail**2)), 1e-300))
     use = ("the first {:.0%} identify the model, the rest test it" if rec.shaker is None else
            "the last {:.0%} test the estimator (trained on the identification run below)")
     share = rec.n_train / snap.t.size if rec.shaker is None else 1 - rec.n_train / snap.t.size
+    held = snap.t.size - rec.n_train if rec.shaker is None else \
+        int(round(share * snap.t.size))
     rows = [("record", f"{snap.t.size} samples at dt = {snap.dt:g} s ({sim.duration:g} s); "
-             + use.format(share))]
+             + use.format(share),
+             f"Every estimation error below is measured on the {held} held-out samples "
+             f"({held * snap.dt:.3g} s) the model never saw.")]
     if rec.shaker is not None:
         rows.append(("identification run",
                      f"the scenario's load plus a broadband shaker ({rec.shaker.std:g} N std, "
@@ -119,14 +155,26 @@ def _records_section(r) -> dict:
                      if hasattr(rec.shaker, "std") else
                      f"the scenario's load plus a broadband shaker at "
                      f"{rec.shaker_position:.4g} m, {rec.n_train} samples: it trains the "
-                     "estimator"))
+                     "estimator",
+                     "The shaker excites the modes the scenario's load barely shows, so that the "
+                     "model knows them when a load drives them."))
     rows += [
-        ("modes kept", f"{snap.n_modes} of {r.true_model.n_dofs}"),
+        ("modes kept", f"{snap.n_modes} of {r.true_model.n_dofs}",
+         "Every mode of the model: nothing truncated." if snap.n_modes >= r.true_model.n_dofs
+         else f"The simulation keeps the {snap.n_modes} lowest modes and the quasi-static part "
+         "of the rest, which the loads here barely drive."),
         ("RMS / peak displacement (last quarter)",
-         f"{mm(np.sqrt(np.mean(tail**2)))} / {mm(np.abs(tail).max())}"),
+         f"{mm(np.sqrt(np.mean(tail**2)))} / {mm(np.abs(tail).max())}",
+         f"Over the whole span and the last quarter of the record; the peak is {crest:.3g} x "
+         "the RMS (one standing wave's is 2 x: half its mean square is in space, half in "
+         "time)."),
         ("sensor noise std", f"{mm(snap.noise_std)} "
-         f"({percent(snap.noise_std / rms) if rms > 0 else '0 %'} of the RMS displacement)"),
-        ("simulation time", f"{rec.simulation_s:.2f} s"),
+         f"({percent(snap.noise_std / rms) if rms > 0 else '0 %'} of the RMS displacement)",
+         f"Added to every measured sample (simulation.noise_fraction = {sim.noise_fraction:g}): "
+         "the estimator never sees the true displacement."),
+        ("simulation time", f"{rec.simulation_s:.2f} s",
+         "Wall-clock time of the simulations above; every stage's time is in the JSON "
+         "summary's elapsed_s."),
     ]
     if rec.measured is not None:
         m = rec.measured
@@ -147,6 +195,22 @@ def _recipe_text(design) -> str:
     return (f"time-delay DMD, {m.delays} delays ({m.delays * m.dt * 1e3:.3g} ms of history), "
             f"{m.n_states} states, Tikhonov alpha {m.alpha_relative:.3g} relative "
             f"({alpha_choice(design)}), trained on {design.n_train} samples")
+
+
+def _recipe_note(design) -> str:
+    """Why the identified model has the shape it has, from its own sizes."""
+    from ..identify import OscillatorModel
+
+    m = design.model
+    if isinstance(m, OscillatorModel):
+        return (f"The record is narrowband: its {len(m.line_frequencies)} spectral lines explain "
+                "it, so one oscillator per line is the model; a load that drives other modes is "
+                "beyond what it learnt.")
+    if m.delays > 1:
+        return (f"A line is second order: displacements alone are not a state; {m.delays} "
+                f"delayed snapshots carry its velocity too, in {m.n_states} states.")
+    return (f"One snapshot per state ({m.n_states} states): the displacements alone, as in the "
+            "paper; a line is second order, so delays usually fit it better.")
 
 
 def _given_alpha_text(given, design) -> str:
@@ -187,7 +251,7 @@ def _identification_section(r) -> dict:
     radius, plain_radius = float(d.model.spectral_radius), float(plain.spectral_radius)
     rows = [
         ("recipe", "the package's recipe (design_estimator): " + _recipe_text(d)
-         + _given_alpha_text(r.scenario.identification.alpha, d)),
+         + _given_alpha_text(r.scenario.identification.alpha, d), _recipe_note(d)),
         ("spectral radius / unstable eigenvalues",
          f"{radius:.6f} / {int(report.n_unstable)}",
          "Largest |eigenvalue| of the identified one-step map. Below 1 the model is stable: "
@@ -254,11 +318,9 @@ def _estimation_section(r) -> dict:
                      "RMS over the nodes without a sensor of (estimate - truth), divided by the "
                      "RMS displacement over the span, on data the model never saw."
                      if name == "chosen" else layout.note))
-    others = {n: lay for n, lay in layouts.items() if n != "chosen"}
-    if others:
-        best_name = min(others, key=lambda n: others[n].error_unmeasured_percent)
-        ratio = others[best_name].error_unmeasured_percent / max(
-            chosen.error_unmeasured_percent, 1e-300)
+    best = best_baseline(layouts)
+    if best is not None:
+        best_name, ratio = best
         verdict = (f"the chosen layout's error is {ratio:.3g} x lower than the best "
                    f"baseline's ({best_name})" if ratio >= 1 else
                    f"the best baseline ({best_name}) beats the chosen layout: its error is "
@@ -302,6 +364,35 @@ def _estimation_section(r) -> dict:
             "model and noise model; only the measured nodes differ.", "figures": figures}
 
 
+def best_baseline(layouts) -> tuple[str, float] | None:
+    """The baseline layout with the lowest held-out error, and that error over the chosen
+    layout's (> 1: the chosen layout is better); None without a baseline.
+
+    Parameters
+    ----------
+    layouts : mapping of str to Layout
+        A result's layouts, "chosen" among them.
+
+    Returns
+    -------
+    (str, float) or None
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as L
+    >>> best_baseline({"chosen": L(error_unmeasured_percent=2.0),
+    ...                "even": L(error_unmeasured_percent=5.0),
+    ...                "first": L(error_unmeasured_percent=9.0)})
+    ('even', 2.5)
+    """
+    chosen = layouts["chosen"].error_unmeasured_percent
+    others = {n: lay.error_unmeasured_percent for n, lay in layouts.items() if n != "chosen"}
+    if not others:
+        return None
+    name = min(others, key=others.get)
+    return name, others[name] / max(chosen, 1e-300)
+
+
 def _measured_section(r) -> dict:
     import numpy as np
 
@@ -315,12 +406,15 @@ def _measured_section(r) -> dict:
     envelope = np.nanmax(np.abs(field[:, field.shape[1] // 2:]), axis=1)
     rows = [
         ("record", f"{rec.values.shape[1]} samples at {1 / rec.dt:.6g} Hz from {rec.source}; "
-         f"{rec.n_missing} missing samples (the filter predicts through them)"),
+         f"{rec.n_missing} missing samples (the filter predicts through them)",
+         f"{rec.values.shape[1] * rec.dt:.3g} s of record; "
+         f"{100 * rec.n_missing / max(rec.values.size, 1):.2g} % of its samples are missing."),
         ("channels", positions_text(rec.positions) + "; measured at "
          + positions_text([x[i] for i in m.nodes], m.nodes)
          + (("; not used: the channels on a support at " + positions_text(
              rec.support_positions) + " (the line does not move there)")
-            if getattr(rec, "support_positions", ()) else "")),
+            if getattr(rec, "support_positions", ()) else ""),
+         "Each channel feeds the filter at the model node nearest its position."),
         ("filter consistency", verdict + " (windowed NIS)",
          "Without the true field, the innovations tell whether the model explains the record: "
          "an inconsistent filter's error bars are not to be trusted."),
@@ -334,42 +428,6 @@ def _measured_section(r) -> dict:
                                 "Amplitude along the span estimated from the measured record "
                                 "(largest |y| over its second half), with the sensors.",
                                 "where the estimated loops peak")]}
-
-
-def _plan_section(r) -> dict:
-    p, robot = r.plan, r.scenario.robot
-    snap = r.records.test
-    loop = p.truth.loop_length
-    rows = [
-        ("antinodes (estimated field)", positions_text([a.position for a in p.antinodes])),
-        ("target", f"{p.choice.position:.4g} m (predicted "
-         f"{100 * p.choice.gain:.0f} % less vibration than at the start)",
-         "The closed loop's rule: the predicted best parked position within reach (the "
-         "nearest of those within 3 % of the best), from the estimated field."),
-        ("nearest antinode", f"{p.target.position:.4g} m (true field: {p.truth.position:.4g} m, "
-         f"{100 * abs(p.target.position - p.truth.position) / loop:.2g} % of a loop length "
-         "apart)", "The estimated antinode nearest the target, checked against the true field."),
-        ("minimum-time move", f"{robot.start:g} m -> {p.choice.position:.4g} m in "
-         f"{p.trajectory.duration:.3g} s (v_max {robot.v_max:g} m/s, a_max "
-         f"{robot.a_max:g} m/s^2)"),
-    ]
-    sensors = [float(snap.x[i]) for i in r.sensors]
-    envelope_draw = functools.partial(
-        _plotting().plot_envelope, snap.x, {"true amplitude": p.envelope},
-        {"estimated antinodes": [a.position for a in p.antinodes], "sensors": sensors})
-    path_draw = functools.partial(_plotting().plot_plan_path, snap.x, p.envelope,
-                                  p.trajectory.t, p.trajectory.position,
-                                  target=p.target.position, target_series=None)
-    figures = [
-        _figure("envelope", envelope_draw,
-                "Vibration amplitude along the span (largest |y| over the held-out record) "
-                "with the estimated antinodes and the sensors.",
-                "the antinode marks on the envelope's peaks"),
-        _figure("robot_path", path_draw,
-                "The robot's planned move under the amplitude envelope, zoomed to where it "
-                "travels.", "the path ending under an envelope peak"),
-    ]
-    return {"title": "Antinodes and motion plan", "rows": rows, "figures": figures}
 
 
 _COMPARISON_WORDS = {
@@ -510,7 +568,11 @@ def _closed_loop_section(r) -> dict:
         ("robot", f"body {robot.body_mass:g} kg + absorber {robot.suspended_mass:g} kg, "
          f"absorber tuned ({tuning.how}) to mode {tuning.mode} ({tuning.mode_frequency:.4g} Hz), "
          f"the mode nearest the load's {tuning.load_frequency:.4g} Hz, for its antinode at "
-         f"{tuning.antinode:.4g} m; starts at {robot.position:g} m"),
+         f"{tuning.antinode:.4g} m; starts at {robot.position:g} m",
+         f"A tuned absorber takes the most power from the line near its tuning: the load's "
+         f"{tuning.load_frequency:.4g} Hz is "
+         f"{100 * (tuning.load_frequency / tuning.mode_frequency - 1):+.2g} % from mode "
+         f"{tuning.mode}'s {tuning.mode_frequency:.4g} Hz."),
         ("sensors", positions_text([x[i] for i in cl.sensors], cl.sensors) + "; "
          + cl.sensors_how, "The sensors the controller and its estimator read; the robot's own "
          "accelerometer adds where it stands."),
@@ -535,7 +597,7 @@ def _closed_loop_section(r) -> dict:
          "may also say that it changed the line (it damps it differently at every position), "
          "and are expected while it moves. The robot's targeting does not use that estimate."),
         ("planner steps", f"{len(result.statuses)} ({result.statuses.count('safe_stop')} "
-         "safe stops)"),
+         "safe stops)", _steps_note(result)),
         ("real-time factor", f"{float(result.real_time_factor):.2f}",
          "Simulated seconds per CPU second of the loop (process time, whatever else the "
          "machine runs): above 1 the loop runs faster than the line moves, as a controller on "
@@ -570,80 +632,18 @@ def _closed_loop_section(r) -> dict:
             "figures": figures}
 
 
+def _steps_note(result) -> str:
+    """How often the motion planner ran, and what a safe stop is, from the run."""
+    steps = len(result.statuses)
+    if not steps:
+        return "The loop took no control step."
+    every = (float(result.t[-1]) - result.calibration_time) / steps
+    return (f"One motion decision every {every:.3g} s after the calibration; a safe stop is a "
+            "step whose plan failed or ran out of time, so the robot braked at a_max.")
+
+
 def _closed_loop_path(result):
     return _plotting().plot_closed_loop_path(result)
-
-
-def _severity_section(r) -> dict:
-    sev = r.severity
-    bare, robot = sev.bare, sev.robot
-    rows = [("outer strand diameter", f"{1e3 * sev.outer_strand_diameter:.3g} mm",
-             f"from {sev.strand_source}"),
-            ("rated strength (self-damping)", f"{_rated(r) / 1e3:.4g} kN",
-             "Normalises the self-damping law (Lilien k = D / sqrt(m RTS))."),
-            ("Poffenberger-Swart distance", f"{1e3 * r.scenario.severity.clamp_distance:g} mm",
-             "Y_b is taken this far from the last point of contact at the clamp.")]
-    for i, speed in enumerate(bare.wind_speed):
-        rows.append((f"wind {speed:g} m/s",
-                     f"{bare.frequency[i]:.3g} Hz, loops {bare.loop_length[i]:.3g} m; antinode "
-                     f"amplitude {mm(bare.amplitude[i])}, clamp strain "
-                     f"{1e6 * bare.strain_pp[i]:.3g} µε peak-to-peak; with the robot "
-                     f"{mm(robot.amplitude[i])}, {1e6 * robot.strain_pp[i]:.3g} µε"))
-    draw = functools.partial(_plotting().plot_severity, [bare, robot])
-    return {"title": "Aeolian severity (energy balance)", "rows": rows,
-            "intro": "For each wind speed the steady antinode amplitude is where the wind's "
-            "power input equals the power the conductor's self-damping (and any damper) "
-            "dissipates; the clamp strain follows from it (Poffenberger-Swart). With the robot: "
-            "its absorber parked at the antinode of each wind speed.",
-            "notes": ["150 µε peak-to-peak is the endurance limit commonly used for ACSR "
-                      "conductors (CIGRE / EPRI)."],
-            "figures": [_figure("severity", draw,
-                                "Antinode amplitude (zero to peak) and peak-to-peak bending "
-                                "strain at the clamp (µε) against wind speed, from the energy "
-                                "balance, without dampers and with the robot.",
-                                "strains above the endurance line: those winds fatigue the "
-                                "conductor")]}
-
-
-#: The fatigue figure shows the robot's positions over this many days of the record's start.
-FATIGUE_DAYS = 7.0
-
-
-def _fatigue_section(r) -> dict:
-    f = r.fatigue
-    life, record = f.life, f.record
-    robot = r.scenario.robot
-    lines = life.summary().splitlines()
-    rows = [("wind record", lines[0].rstrip(":") + f"; {record.n_records} records of "
-             f"{record.step:g} s from {f.source}"),
-            ("robot", f"the scenario's tuned robot ({robot.body_mass:g} kg body, "
-             f"{robot.suspended_mass:g} kg absorber), v_max {robot.v_max:g} m/s, a_max "
-             f"{robot.a_max:g} m/s^2; fixed damper at {life.fixed_position:.4g} m")]
-    for row in life.table():
-        rows.append((row["configuration"].replace("_", " "),
-                     f"damage/year {row['damage_per_year']:.3g}, life {row['life_years']:.3g} "
-                     f"years, over endurance {100 * row['fraction_over_endurance']:.1f} % of the "
-                     "time", "Miner damage on the safe border line, summed over the record."))
-    rows.append(("assumptions", "; ".join(life.assumptions)))
-    draw = functools.partial(_plotting().plot_fatigue_record, life, days=FATIGUE_DAYS)
-    shown = min(FATIGUE_DAYS, life.years * 365.25)
-    return {"title": "Fatigue over the wind record",
-            "rows": rows,
-            "intro": "For each record the tension from the change of state at its "
-            "air temperature, the wind normal to the line, the energy balance and Miner damage; "
-            "the robot moves to the nearest antinode when the loop pattern changes.",
-            "figures": [_figure("fatigue_record", draw,
-                                "Miner damage per year by wind-speed bin for no damper, a fixed "
-                                "damper and the robot over the wind record, and the robot's "
-                                f"parking position over the record's first {shown:.3g} days.",
-                                "how much lower the robot's bars are than the fixed damper's, "
-                                "and how often the robot moves")]}
-
-
-def _rated(r) -> float:
-    from .pipeline import severity_span
-
-    return float(severity_span(r.scenario, r.span).conductor.rated_strength or float("nan"))
 
 
 def _failure_section(r) -> dict:
@@ -652,6 +652,14 @@ def _failure_section(r) -> dict:
             "rows": [("error", f"{f.kind}: {f.message}",
                       "The stages above finished; their results are kept. The stages after "
                       "this one did not run.")]}
+
+
+#: Each section's id in the report (its link target), by the stage it shows: the summary at the
+#: top of the report links to these.
+SECTION_IDS = {"model": "span", "records": "data", "identification": "identification",
+               "sensors": "sensor-placement", "layouts": "estimation",
+               "measured": "measured-record", "plan": "plan", "closed_loop": "closed-loop",
+               "severity": "severity", "fatigue": "fatigue", "failure": "failure"}
 
 
 def result_sections(result) -> list:
@@ -665,8 +673,9 @@ def result_sections(result) -> list:
     Returns
     -------
     list of dict
-        Each with "title", "rows" ((label, value, explanation) tuples), optionally "intro",
-        "notes" and "figures" (mappings with "name", "draw", "purpose", "look_for").
+        Each with "title", "id" (:data:`SECTION_IDS`), "rows" ((label, value, explanation)
+        tuples), optionally "intro", "notes" and "figures" (mappings with "name", "draw",
+        "purpose", "look_for").
 
     Examples
     --------
@@ -675,22 +684,25 @@ def result_sections(result) -> list:
     ['Span and model']
     """
     from .sensor_count import sensors_section
+    from .summary_plan import plan_section
+    from .summary_severity import fatigue_section, severity_section
 
     builders = [("model", _model_section), ("records", _records_section),
                 ("identification", _identification_section),
                 ("identification", sensors_section), ("layouts", _estimation_section),
                 ("measured", _measured_section),
-                ("plan", _plan_section), ("closed_loop", _closed_loop_section),
-                ("severity", _severity_section), ("fatigue", _fatigue_section)]
+                ("plan", plan_section), ("closed_loop", _closed_loop_section),
+                ("severity", severity_section), ("fatigue", fatigue_section)]
     sections = []
     for attribute, build in builders:
         if getattr(result, attribute, None) is not None:
             if build is sensors_section and "sensors" not in result.stages \
                     and not result.identification.sensors_given:
                 continue
-            sections.append(build(result))
+            key = "sensors" if build is sensors_section else attribute
+            sections.append({**build(result), "id": SECTION_IDS[key]})
     if result.failure is not None:
-        sections.append(_failure_section(result))
+        sections.append({**_failure_section(result), "id": SECTION_IDS["failure"]})
     return sections
 
 
@@ -728,7 +740,8 @@ def draw_sections(sections: list) -> list:
 
 
 def write_result_report(result, path: Path, *, version: str | None = None) -> Path:
-    """Write the HTML report of a :class:`ScenarioResult` (one self-contained file).
+    """Write the HTML report of a :class:`ScenarioResult` (one self-contained file): its
+    verdict first (:meth:`ScenarioResult.verdict`), then a section per stage.
 
     Parameters
     ----------
@@ -749,10 +762,10 @@ def write_result_report(result, path: Path, *, version: str | None = None) -> Pa
     """
     from .. import __version__
     from ..output.report import write_report
-
     sections = draw_sections(result_sections(result))
     scenario = result.scenario
     return write_report(path, f"powerline_control: {scenario.name}", sections,
                         __version__ if version is None else version,
                         scenario_name=scenario.name,
-                        scenario_description=scenario.scenario.description)
+                        scenario_description=scenario.scenario.description,
+                        summary=result.verdict().to_report())

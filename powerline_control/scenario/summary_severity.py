@@ -1,0 +1,162 @@
+"""The report's severity and fatigue sections: the energy balance's verdict per wind speed, and
+damage over a wind record, every row with its explanation from the numbers.
+
+Used by :func:`~.summary.result_sections`; the summary at the top of the report reads the same
+results (:mod:`.summary_verdict`).
+"""
+
+from __future__ import annotations
+
+import functools
+
+from .summary import _figure, _plotting, mm
+
+__all__ = ["severity_section", "fatigue_section", "wind_speed_note", "FATIGUE_DAYS"]
+
+#: The fatigue figure shows the robot's positions over this many days of the record's start.
+FATIGUE_DAYS = 7.0
+
+
+def wind_speed_note(bare, robot, i: int) -> str:
+    """One wind speed's row explained: what the balance found, what the robot does, and the
+    clamp strain against the endurance strain the balance used.
+
+    Parameters
+    ----------
+    bare, robot : SeverityResult
+        Without dampers, and with the robot at the antinode.
+    i : int
+        Index of the wind speed.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
+    >>> bare = plc.aeolian_severity(span, [1.0])
+    >>> head, robot, strain = wind_speed_note(bare, bare, 0).split("; ")
+    >>> head
+    'Mode 30 locks in at 1 m/s (f = St V / d)'
+    >>> strain
+    '947 µε is above the 150 µε endurance strain: this wind fatigues the bare conductor.'
+    """
+    endurance = 1e6 * float(bare.parameters.get("endurance_strain_pp", float("nan")))
+    status = bare.status[i]
+    head = f"Mode {int(bare.mode[i])} locks in at {bare.wind_speed[i]:g} m/s (f = St V / d)"
+    if status == "no vibration":
+        return head + "; the conductor's self-damping exceeds the wind's power: no vibration."
+    ratio = float(bare.amplitude[i] / robot.amplitude[i]) if robot.amplitude[i] > 0 \
+        else float("inf")
+    robot_text = ("the robot at the antinode stops it" if ratio == float("inf") else
+                  f"the robot at the antinode cuts the amplitude {ratio:.3g}x")
+    strain = 1e6 * float(bare.strain_pp[i])
+    verdict = (f"{strain:.3g} µε is below the {endurance:g} µε endurance strain "
+               f"({float(bare.endurance_margin[i]):.3g}x margin)"
+               if bare.endurance_margin[i] >= 1 else
+               f"{strain:.3g} µε is above the {endurance:g} µε endurance strain: this wind "
+               "fatigues the bare conductor")
+    bound = ("; the wind still outpowers the damping at the power curve's end, so the "
+             "amplitude is a lower bound" if status == "above curve range" else "")
+    return f"{head}; {robot_text}; {verdict}{bound}."
+
+
+def severity_section(r) -> dict:
+    """The severity section of a :class:`ScenarioResult` (see :func:`.summary.result_sections`).
+
+    Parameters
+    ----------
+    r : ScenarioResult
+        A result with its severity stage.
+
+    Returns
+    -------
+    dict
+    """
+    sev = r.severity
+    bare, robot = sev.bare, sev.robot
+    rated = _rated(r)
+    rows = [("outer strand diameter", f"{1e3 * sev.outer_strand_diameter:.3g} mm",
+             f"from {sev.strand_source}; the clamp strain scales with it "
+             "(Poffenberger-Swart)"),
+            ("rated strength (self-damping)", f"{rated / 1e3:.4g} kN",
+             f"Normalises the self-damping law (Lilien k = D / sqrt(m RTS)); the tension is "
+             f"{100 * r.span.tension / rated:.3g} % of it."),
+            ("Poffenberger-Swart distance", f"{1e3 * r.scenario.severity.clamp_distance:g} mm",
+             "Y_b is taken this far from the last point of contact at the clamp.")]
+    for i, speed in enumerate(bare.wind_speed):
+        rows.append((f"wind {speed:g} m/s",
+                     f"{bare.frequency[i]:.3g} Hz, loops {bare.loop_length[i]:.3g} m; antinode "
+                     f"amplitude {mm(bare.amplitude[i])}, clamp strain "
+                     f"{1e6 * bare.strain_pp[i]:.3g} µε peak-to-peak; with the robot "
+                     f"{mm(robot.amplitude[i])}, {1e6 * robot.strain_pp[i]:.3g} µε",
+                     wind_speed_note(bare, robot, i)))
+    draw = functools.partial(_plotting().plot_severity, [bare, robot])
+    return {"title": "Aeolian severity (energy balance)", "rows": rows,
+            "intro": "For each wind speed the steady antinode amplitude is where the wind's "
+            "power input equals the power the conductor's self-damping (and any damper) "
+            "dissipates; the clamp strain follows from it (Poffenberger-Swart). With the robot: "
+            "its absorber parked at the antinode of each wind speed.",
+            "notes": ["150 µε peak-to-peak is the endurance limit commonly used for ACSR "
+                      "conductors (CIGRE / EPRI)."],
+            "figures": [_figure("severity", draw,
+                                "Antinode amplitude (zero to peak) and peak-to-peak bending "
+                                "strain at the clamp (µε) against wind speed, from the energy "
+                                "balance, without dampers and with the robot.",
+                                "strains above the endurance line: those winds fatigue the "
+                                "conductor")]}
+
+
+def fatigue_section(r) -> dict:
+    """The fatigue section of a :class:`ScenarioResult` (see :func:`.summary.result_sections`).
+
+    Parameters
+    ----------
+    r : ScenarioResult
+        A result with its fatigue stage.
+
+    Returns
+    -------
+    dict
+    """
+    f = r.fatigue
+    life, record = f.life, f.record
+    robot = r.scenario.robot
+    lines = life.summary().splitlines()
+    rows = [("wind record", lines[0].rstrip(":") + f"; {record.n_records} records of "
+             f"{record.step:g} s from {f.source}",
+             f"{life.years:.3g} years of wind: each configuration's damage over it, divided by "
+             "that, is its damage per year."),
+            ("robot", f"the scenario's tuned robot ({robot.body_mass:g} kg body, "
+             f"{robot.suspended_mass:g} kg absorber), v_max {robot.v_max:g} m/s, a_max "
+             f"{robot.a_max:g} m/s^2; fixed damper at {life.fixed_position:.4g} m",
+             f"The fixed damper is the same absorber held at {life.fixed_position:.4g} m for the "
+             "whole record: what the robot's moving is compared with.")]
+    for row in life.table():
+        rows.append((row["configuration"].replace("_", " "),
+                     f"damage/year {row['damage_per_year']:.3g}, life {row['life_years']:.3g} "
+                     f"years, over endurance {100 * row['fraction_over_endurance']:.1f} % of the "
+                     "time", "Miner damage on the safe border line, summed over the record."))
+    rows.append(("assumptions", "; ".join(life.assumptions),
+                 "What the damage numbers rest on; each is a setting of the fatigue study."))
+    draw = functools.partial(_plotting().plot_fatigue_record, life, days=FATIGUE_DAYS)
+    shown = min(FATIGUE_DAYS, life.years * 365.25)
+    return {"title": "Fatigue over the wind record",
+            "rows": rows,
+            "intro": "For each record the tension from the change of state at its "
+            "air temperature, the wind normal to the line, the energy balance and Miner damage; "
+            "the robot moves to the nearest antinode when the loop pattern changes.",
+            "figures": [_figure("fatigue_record", draw,
+                                "Miner damage per year by wind-speed bin for no damper, a fixed "
+                                "damper and the robot over the wind record, and the robot's "
+                                f"parking position over the record's first {shown:.3g} days.",
+                                "how much lower the robot's bars are than the fixed damper's, "
+                                "and how often the robot moves")]}
+
+
+def _rated(r) -> float:
+    from .pipeline import severity_span
+
+    return float(severity_span(r.scenario, r.span).conductor.rated_strength or float("nan"))

@@ -1,0 +1,153 @@
+"""The report's first screen (issue 40): the summary's numbers are the result's own fields, its
+links reach the sections they name, its caveats appear exactly when the result has them; every
+row of every section is explained; the JSON says whether the closed loop's headline is steady.
+
+All on the session's small lab result (tests/conftest.py); no figure is drawn.
+"""
+
+import html.parser
+import json
+
+import numpy as np
+import pytest
+
+from powerline_control.output.report import write_report
+from powerline_control.scenario.summary import SECTION_IDS, result_sections
+from powerline_control.scenario.summary_verdict import result_verdict
+
+
+@pytest.fixture(scope="module")
+def verdict(lab_result):
+    return result_verdict(lab_result)
+
+
+@pytest.fixture(scope="module")
+def headlines(verdict):
+    return {h.label: h for h in verdict.headlines}
+
+
+def test_the_estimation_numbers_are_the_layouts_own(lab_result, headlines):
+    errors = {n: lay.error_unmeasured_percent for n, lay in lab_result.layouts.items()}
+    chosen = headlines["estimation error, chosen sensors"]
+    assert chosen.value == errors["chosen"] and chosen.section == "estimation"
+    # The best baseline by hand: the lowest error of the other layouts, over the chosen one's.
+    best = min(errors[n] for n in errors if n != "chosen")
+    assert headlines["against the best baseline"].value == pytest.approx(
+        best / errors["chosen"], rel=1e-15)
+
+
+def test_the_robot_numbers_are_its_comparisons_ratios(lab_result, headlines):
+    res = lab_result.closed_loop.result
+    rms = {c.name: c.rms for c in res.comparisons}
+    for name, label in (("no_robot", "robot against no robot"),
+                        ("start", "robot against its start"),
+                        ("near_clamp", "robot against a damper near the clamp")):
+        line = headlines[label]
+        assert line.value == pytest.approx(rms[name] / rms["closed_loop"], rel=1e-15)
+        assert line.section == "closed-loop"
+        assert f"{line.value:.2f}x" in line.text or f"{1 / line.value:.2f}x" in line.text
+    # Against its start is the result's own headline number.
+    assert headlines["robot against its start"].value == pytest.approx(
+        res.vibration_reduction, rel=1e-15)
+
+
+def test_the_severity_number_is_the_worst_bare_strain(lab_result, headlines):
+    bare = lab_result.severity.bare
+    line = headlines["severity: worst clamp strain, no damper"]
+    assert line.value == pytest.approx(1e6 * float(np.max(bare.strain_pp)), rel=1e-15)
+    above = bool(np.any(bare.endurance_margin < 1))
+    assert ("ABOVE" in line.verdict) == above
+
+
+def test_caveats_appear_exactly_when_the_result_has_them(lab_result, verdict):
+    res = lab_result.closed_loop.result
+    errors = {n: lay.error_unmeasured_percent for n, lay in lab_result.layouts.items()}
+    texts = " | ".join(c.text for c in verdict.caveats)
+    expected = {
+        "A baseline beats the optimised layout": min(
+            errors[n] for n in errors if n != "chosen") < errors["chosen"],
+        "had not settled": not res.settled,
+        "still rings": any(c.transient for c in res.comparisons),
+        "estimator was flagged INCONSISTENT": not res.estimator_consistency.consistent,
+    }
+    for phrase, present in expected.items():
+        assert (phrase in texts) == present, (phrase, texts)
+
+
+class _Links(html.parser.HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.ids, self.links, self.summary_links = set(), [], []
+        self._in_summary = 0
+        self.summary_text = ""
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if "id" in attrs:
+            self.ids.add(attrs["id"])
+        if tag == "section":
+            self._in_summary = 1 if attrs.get("id") == "summary" else 0
+        if tag == "a" and attrs.get("href", "").startswith("#"):
+            (self.summary_links if self._in_summary else self.links).append(attrs["href"][1:])
+
+    def handle_endtag(self, tag):
+        if tag == "section":
+            self._in_summary = 0
+
+    def handle_data(self, data):
+        if self._in_summary:
+            self.summary_text += data
+
+
+def test_the_summary_opens_the_page_and_its_links_reach_their_sections(lab_result, verdict,
+                                                                         tmp_path):
+    sections = [{**s, "figures": []} for s in result_sections(lab_result)]   # no drawing
+    path = write_report(tmp_path / "r.html", "T", sections, summary=verdict.to_report())
+    text = path.read_text()
+    page = _Links()
+    page.feed(text)
+    # First after the header, before the table of contents and the sections.
+    assert text.index('id="summary"') < text.index("<nav>") < text.index('id="span"')
+    assert page.summary_links and set(page.summary_links) <= page.ids
+    assert set(page.links) <= page.ids                        # the table of contents too
+    expected = {h.section for h in verdict.headlines} | {c.section for c in verdict.caveats}
+    assert set(page.summary_links) == expected
+    # Every number and caveat of the verdict is on the page, as the verdict words it.
+    flat = " ".join(page.summary_text.split())
+    for line in verdict.headlines:
+        assert line.text in flat and " ".join(line.verdict.split()) in flat
+    for caveat in verdict.caveats:
+        assert " ".join(caveat.text.split()) in flat
+
+
+def test_a_summary_link_to_no_section_is_refused(tmp_path):
+    summary = {"span": "s", "asked": "a", "rows": [("x", "1", "v", "nowhere")], "caveats": []}
+    with pytest.raises(ValueError, match="nowhere"):
+        write_report(tmp_path / "r.html", "T", [{"title": "A", "id": "a", "rows": []}],
+                     summary=summary)
+    assert not (tmp_path / "r.html").exists()
+
+
+def test_section_ids_are_the_ones_the_summary_links_to(lab_result):
+    ids = [s["id"] for s in result_sections(lab_result)]
+    assert len(ids) == len(set(ids)) and set(ids) <= set(SECTION_IDS.values())
+
+
+def test_every_row_of_every_section_is_explained(lab_result):
+    for section in result_sections(lab_result):
+        for row in section["rows"]:
+            assert len(row) == 3 and str(row[2]).strip(), (section["title"], row[0])
+
+
+def test_the_json_says_whether_the_headline_is_steady(lab_result):
+    data = lab_result.to_json()
+    json.dumps(data, allow_nan=False)                        # strict JSON: no NaN
+    res = lab_result.closed_loop.result
+    closed = res.comparison("closed_loop")
+    assert data["settled"] is bool(res.settled)
+    assert data["steady_state"] is bool(closed.steady)
+    assert data["still_ringing"] is bool(closed.transient)
+    assert data["best_position_m"] == res.best_position
+    # run gives the closed loop the optimised sensors, and says so.
+    assert data["closed_loop_sensor_nodes"] == data["sensor_nodes"]
+    assert data["closed_loop_sensors_how"].startswith("the estimator's sensors, optimised")
