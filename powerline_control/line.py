@@ -50,6 +50,10 @@ class Conductor:
     outer_strand_diameter : float or None
         Diameter of the wires of the outer layer, m (> 0, below ``diameter``), where known: the
         bending strain at the clamp is read on them (severity, clamp strain).
+    family : str or None
+        The conductor family ("ACSR", "AAAC", "AAC", ...), where known: endurance strains are
+        published per family, so the severity study compares clamp strain with the ACSR
+        endurance strain only on an ACSR conductor.
 
     Examples
     --------
@@ -69,11 +73,15 @@ class Conductor:
     elastic_modulus: float | None = None
     thermal_expansion: float | None = None
     outer_strand_diameter: float | None = None
+    family: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
             raise InputError(f"The 'name' parameter must be a string (a label). Got "
                              f"{self.name!r:.60} of type {type(self.name).__name__}.")
+        if self.family is not None and not isinstance(self.family, str):
+            raise InputError(f"The 'family' parameter must be a string (e.g. 'ACSR') or None. "
+                             f"Got {self.family!r:.60} of type {type(self.family).__name__}.")
         object.__setattr__(
             self, "mass_per_length", check_real("mass_per_length", self.mass_per_length, low=0.0)
         )
@@ -207,11 +215,12 @@ class Span:
                 "The 'mass_reading' parameter must be 'total' or 'per_metre'. "
                 f"Got {mass_reading!r} instead."
             )
-        # Table 1's 10.5 mm conductor is AAC 2/0 "Oxlip", 7 strands of 3.50 mm
-        # (data/conductors.toml): its outer strands are 3.50 mm.
+        # Table 1's 10.5 mm conductor matches AAC 2/0 "Oxlip", 7 strands of 3.50 mm
+        # (data/conductors.toml); the paper names neither stranding nor material, so both are
+        # that match, assumed (the severity study says so).
         conductor = Conductor(mass_per_length=mass, diameter=0.0105, ei=40.8,
                               rated_strength=None, name="paper lab (Table 1)",
-                              outer_strand_diameter=3.50e-3)
+                              outer_strand_diameter=3.50e-3, family="AAC")
         return cls(length=3.66, tension=395.0, conductor=conductor)
 
     @classmethod
@@ -510,6 +519,7 @@ class _ConductorCatalogue(Mapping[str, Conductor]):
                 area=entry.get("area"), elastic_modulus=entry.get("elastic_modulus"),
                 thermal_expansion=entry.get("thermal_expansion"),
                 outer_strand_diameter=entry.get("outer_strand_diameter"),
+                family=entry.get("family"),
             )
             for name, entry in self._raw.items()
         }

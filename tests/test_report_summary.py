@@ -55,8 +55,33 @@ def test_the_severity_number_is_the_worst_bare_strain(lab_result, headlines):
     bare = lab_result.severity.bare
     line = headlines["severity: worst clamp strain, no damper"]
     assert line.value == pytest.approx(1e6 * float(np.max(bare.strain_pp)), rel=1e-15)
-    above = bool(np.any(bare.endurance_margin < 1))
-    assert ("ABOVE" in line.verdict) == above
+    # The lab conductor is AAC (assumed: the catalogue conductor Table 1 matches), so its strain
+    # is not judged against ACSR's endurance strain, and the verdict says why.
+    assert lab_result.severity.endurance_applies is False
+    assert "ABOVE" not in line.verdict and "below the" not in line.verdict
+    assert "not judged" in line.verdict and "ACSR's (this conductor is AAC)" in line.verdict
+
+
+def test_the_endurance_line_is_drawn_only_for_its_family(lab_result):
+    import powerline_control as plc
+    from powerline_control.severity import ENDURANCE_FAMILY
+
+    assert ENDURANCE_FAMILY == "ACSR"
+    assert {n: c.family for n, c in plc.conductors.items()} == {
+        "drake": "ACSR", "condor": "ACSR", "cardinal": "ACSR", "aster570": "AAAC",
+        "oxlip": "AAC"}
+    assert plc.Span.paper_lab().conductor.family == "AAC"
+    section = next(s for s in result_sections(lab_result) if s["id"] == "severity")
+    figure = section["figures"][0]["draw"]()
+    labels = [line.get_label() for ax in figure.axes for line in ax.get_lines()]
+    assert "endurance limit" not in labels                      # AAC: no ACSR line drawn
+    assert section["notes"][0].startswith("No endurance line is drawn")
+    rows = {row[0]: row for row in section["rows"]}
+    # What it assumed, said where the numbers are.
+    assert rows["outer strand diameter"][2].startswith("from assumed: the stranding of 'oxlip'")
+    assert rows["assumed"][1] == "; ".join(lab_result.severity.assumptions)
+    assert all("not judged" in row[2] for label, row in rows.items()
+               if label.startswith("wind ") and "no vibration" not in row[2])
 
 
 def test_caveats_appear_exactly_when_the_result_has_them(lab_result, verdict):
@@ -69,6 +94,7 @@ def test_caveats_appear_exactly_when_the_result_has_them(lab_result, verdict):
         "had not settled": not res.settled,
         "still rings": any(c.transient for c in res.comparisons),
         "estimator was flagged INCONSISTENT": not res.estimator_consistency.consistent,
+        "rest on assumed conductor data": bool(lab_result.severity.assumptions),
     }
     for phrase, present in expected.items():
         assert (phrase in texts) == present, (phrase, texts)

@@ -366,8 +366,10 @@ def test_template_shows_alternatives_that_load_when_uncommented():
 def test_severity_inputs_are_settable_and_the_lab_preset_has_them():
     lab = load_scenario(text="[severity]\nenabled = true")
     kwargs, source = pipeline.severity_inputs(lab, lab.span.build())
-    # the lab conductor carries its 7 x 3.50 mm stranding, as every preset does its own
-    assert "outer_strand_diameter" not in kwargs and "stranding (paper lab" in source
+    # the lab conductor carries Oxlip's 7 x 3.50 mm stranding, an assumption it names (the
+    # paper gives none); every preset carries its own
+    assert "outer_strand_diameter" not in kwargs
+    assert source.startswith("assumed: the stranding of 'oxlip'")
     assert lab.span.build().conductor.outer_strand_diameter == 3.5e-3
     assert {name: plc.conductors[name].outer_strand_diameter for name in plc.conductors} == {
         "drake": 4.44e-3, "condor": 3.08e-3, "cardinal": 3.38e-3, "aster570": 3.45e-3,

@@ -229,12 +229,20 @@ class Severity:
         The outer-strand diameter used, m.
     strand_source : str
         Where it came from.
+    endurance_applies : bool
+        True when the conductor's family is the one the endurance strain belongs to
+        (``severity.ENDURANCE_FAMILY``, ACSR): only then is its strain compared with it.
+    assumptions : tuple of str
+        What the study assumed where the span gives no data (the lab span's stranding, family
+        and rated strength), in words.
     """
 
     bare: Any
     robot: Any
     outer_strand_diameter: float
     strand_source: str
+    endurance_applies: bool = True
+    assumptions: tuple = ()
 
 
 @dataclass(frozen=True)

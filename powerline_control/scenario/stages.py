@@ -31,8 +31,9 @@ from .truth import on_nodes
 
 __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
            "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing", "driven_mode",
-           "layout_filter", "longest_complete_run", "read_wind_record", "severity_inputs",
-           "severity_span", "support_intervals", "tune_robot"]
+           "layout_filter", "longest_complete_run", "read_wind_record",
+           "severity_assumptions", "severity_inputs", "severity_span", "support_intervals",
+           "tune_robot"]
 
 #: Share of the simulated record that trains the estimator; the rest tests it (held out).
 TRAIN_FRACTION = 0.6
@@ -462,17 +463,61 @@ def severity_inputs(scenario: Scenario, span) -> tuple[dict, str]:
     --------
     >>> import powerline_control as plc
     >>> kwargs, source = severity_inputs(load_scenario(), plc.Span.paper_lab())
-    >>> "outer_strand_diameter" in kwargs, source  # the lab conductor carries its own 3.5 mm
-    (False, "the conductor's stranding (paper lab (Table 1))")
+    >>> "outer_strand_diameter" in kwargs, source  # the lab conductor carries Oxlip's 3.5 mm
+    (False, "assumed: the stranding of 'oxlip', the catalogue conductor Table 1 matches (the \
+paper gives none)")
     """
     sev = scenario.severity
     kwargs = {"outer_strand_modulus": sev.outer_strand_modulus, "x_b": sev.clamp_distance}
     if sev.outer_strand_diameter is not None:
         kwargs["outer_strand_diameter"] = sev.outer_strand_diameter
         source = "severity.outer_strand_diameter"
+    elif scenario.span.preset == "paper_lab":
+        source = (f"assumed: the stranding of {LAB_CONDUCTOR!r}, the catalogue conductor "
+                  "Table 1 matches (the paper gives none)")
     else:
         source = f"the conductor's stranding ({span.conductor.name})"
     return kwargs, source
+
+
+def severity_assumptions(scenario: Scenario, span) -> tuple:
+    """What the severity study assumes where the span gives no data, in words.
+
+    Only the lab span (Table 1) lacks data: it takes the family, the outer strands and the rated
+    strength of the catalogue conductor it matches (:data:`LAB_CONDUCTOR`), unless the
+    scenario's ``[severity]`` section gives them.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``span`` and ``severity`` sections.
+    span : Span
+        The span as the scenario builds it (before :func:`severity_span`).
+
+    Returns
+    -------
+    tuple of str
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> severity_assumptions(load_scenario(), plc.Span.paper_lab())[0]
+    "family AAC: Table 1's 10.5 mm conductor matches the catalogue's 'oxlip' (AAC)"
+    """
+    from ..line import conductors
+
+    if scenario.span.preset != "paper_lab":
+        return ()
+    sev, match, cond = scenario.severity, conductors[LAB_CONDUCTOR], span.conductor
+    out = [f"family {cond.family}: Table 1's {1e3 * cond.diameter:g} mm conductor matches the "
+           f"catalogue's {LAB_CONDUCTOR!r} ({match.family})"]
+    if sev.outer_strand_diameter is None:
+        out.append(f"outer strands of {1e3 * cond.outer_strand_diameter:g} mm, those of "
+                   f"{LAB_CONDUCTOR!r} (the paper gives no stranding)")
+    if sev.rated_strength is None and cond.rated_strength is None:
+        out.append(f"rated strength {match.rated_strength / 1e3:.3g} kN, the approximate "
+                   f"catalogue value of {LAB_CONDUCTOR!r} (the paper gives none)")
+    return tuple(out)
 
 
 def severity_span(scenario: Scenario, span):
@@ -521,8 +566,9 @@ LAB_CONDUCTOR = "oxlip"
 def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
     import numpy as np
 
-    from ..severity import AtAntinode, aeolian_severity
+    from ..severity import ENDURANCE_FAMILY, AtAntinode, aeolian_severity
 
+    assumptions = severity_assumptions(scenario, span)
     span = severity_span(scenario, span)
     sev = scenario.severity
     kwargs, source = severity_inputs(scenario, span)
@@ -533,7 +579,8 @@ def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
                                   **kwargs)
     strand = kwargs.get("outer_strand_diameter", span.conductor.outer_strand_diameter)
     return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
-                    strand_source=source)
+                    strand_source=source, assumptions=assumptions,
+                    endurance_applies=span.conductor.family == ENDURANCE_FAMILY)
 
 
 def read_wind_record(wind_record) -> tuple:

@@ -147,6 +147,8 @@ def result_json(result) -> dict:
     if r.severity is not None:
         bare, robot = r.severity.bare, r.severity.robot
         out["outer_strand_diameter_m"] = _f(r.severity.outer_strand_diameter)
+        out["severity_endurance_applies"] = bool(r.severity.endurance_applies)
+        out["severity_assumptions"] = list(r.severity.assumptions)
         out["severity"] = [
             {"wind_speed_m_s": _f(bare.wind_speed[i]), "frequency_hz": _f(bare.frequency[i]),
              "loop_length_m": _f(bare.loop_length[i]), "amplitude_m": _f(bare.amplitude[i]),

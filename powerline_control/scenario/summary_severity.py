@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 
+from ..severity import ENDURANCE_FAMILY, ENDURANCE_STRAIN_PP
 from .summary import _figure, _plotting, mm
 
 __all__ = ["severity_section", "fatigue_section", "wind_speed_note", "FATIGUE_DAYS"]
@@ -17,9 +18,9 @@ __all__ = ["severity_section", "fatigue_section", "wind_speed_note", "FATIGUE_DA
 FATIGUE_DAYS = 7.0
 
 
-def wind_speed_note(bare, robot, i: int) -> str:
+def wind_speed_note(bare, robot, i: int, endurance_applies: bool = True) -> str:
     """One wind speed's row explained: what the balance found, what the robot does, and the
-    clamp strain against the endurance strain the balance used.
+    clamp strain against the endurance strain the balance used (when it applies).
 
     Parameters
     ----------
@@ -27,6 +28,9 @@ def wind_speed_note(bare, robot, i: int) -> str:
         Without dampers, and with the robot at the antinode.
     i : int
         Index of the wind speed.
+    endurance_applies : bool
+        Whether the endurance strain belongs to the conductor's family (``Severity``'s): if
+        not, the strain is not judged against it.
 
     Returns
     -------
@@ -43,7 +47,7 @@ def wind_speed_note(bare, robot, i: int) -> str:
     >>> strain
     '947 µε is above the 150 µε endurance strain: this wind fatigues the bare conductor.'
     """
-    endurance = 1e6 * float(bare.parameters.get("endurance_strain_pp", float("nan")))
+    endurance = _endurance(bare)
     status = bare.status[i]
     head = f"Mode {int(bare.mode[i])} locks in at {bare.wind_speed[i]:g} m/s (f = St V / d)"
     if status == "no vibration":
@@ -53,6 +57,9 @@ def wind_speed_note(bare, robot, i: int) -> str:
     robot_text = ("the robot at the antinode stops it" if ratio == float("inf") else
                   f"the robot at the antinode cuts the amplitude {ratio:.3g}x")
     strain = 1e6 * float(bare.strain_pp[i])
+    if not endurance_applies:
+        return (f"{head}; {robot_text}; {strain:.3g} µε is not judged: the {endurance:g} µε "
+                f"endurance strain is {ENDURANCE_FAMILY}'s, not this conductor family's.")
     verdict = (f"{strain:.3g} µε is below the {endurance:g} µε endurance strain "
                f"({float(bare.endurance_margin[i]):.3g}x margin)"
                if bare.endurance_margin[i] >= 1 else
@@ -92,21 +99,39 @@ def severity_section(r) -> dict:
                      f"amplitude {mm(bare.amplitude[i])}, clamp strain "
                      f"{1e6 * bare.strain_pp[i]:.3g} µε peak-to-peak; with the robot "
                      f"{mm(robot.amplitude[i])}, {1e6 * robot.strain_pp[i]:.3g} µε",
-                     wind_speed_note(bare, robot, i)))
-    draw = functools.partial(_plotting().plot_severity, [bare, robot])
+                     wind_speed_note(bare, robot, i, sev.endurance_applies)))
+    if sev.assumptions:
+        rows.append(("assumed", "; ".join(sev.assumptions),
+                     "The span gives no such data: the study takes the catalogue conductor it "
+                     "matches; set them in the scenario's [severity] section to replace them."))
+    draw = functools.partial(_plotting().plot_severity, [bare, robot],
+                             endurance=sev.endurance_applies)
+    family = r.span.conductor.family
+    note = (f"The dotted line, {_endurance(bare):g} µε peak-to-peak, is the endurance limit "
+            f"commonly used for {ENDURANCE_FAMILY} conductors (CIGRE / EPRI)."
+            if sev.endurance_applies else
+            f"No endurance line is drawn: the {_endurance(bare):g} µε endurance limit in common "
+            f"use is that of {ENDURANCE_FAMILY} conductors (CIGRE / EPRI), and this conductor is "
+            + (f"{family}." if family else "of no stated family.")
+            + " Its strains compare wind speeds and the robot, not a fatigue limit.")
     return {"title": "Aeolian severity (energy balance)", "rows": rows,
             "intro": "For each wind speed the steady antinode amplitude is where the wind's "
             "power input equals the power the conductor's self-damping (and any damper) "
             "dissipates; the clamp strain follows from it (Poffenberger-Swart). With the robot: "
             "its absorber parked at the antinode of each wind speed.",
-            "notes": ["150 µε peak-to-peak is the endurance limit commonly used for ACSR "
-                      "conductors (CIGRE / EPRI)."],
+            "notes": [note],
             "figures": [_figure("severity", draw,
                                 "Antinode amplitude (zero to peak) and peak-to-peak bending "
                                 "strain at the clamp (µε) against wind speed, from the energy "
                                 "balance, without dampers and with the robot.",
                                 "strains above the endurance line: those winds fatigue the "
-                                "conductor")]}
+                                "conductor" if sev.endurance_applies else
+                                "how far the robot lowers the strain at each wind speed")]}
+
+
+def _endurance(result) -> float:
+    """The endurance strain the balance used, µε peak-to-peak."""
+    return 1e6 * float(result.parameters.get("endurance_strain_pp", ENDURANCE_STRAIN_PP))
 
 
 def fatigue_section(r) -> dict:

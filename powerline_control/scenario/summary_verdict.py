@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..severity import ENDURANCE_FAMILY
 from .summary import SECTION_IDS, best_baseline, mm
 
 __all__ = ["Headline", "Caveat", "Verdict", "result_verdict"]
@@ -107,7 +108,8 @@ def result_verdict(result) -> Verdict:
     ((), ())
     """
     headlines = (*_estimation(result), *_robot(result), *_severity(result))
-    caveats = (*_estimation_caveats(result), *_robot_caveats(result))
+    caveats = (*_estimation_caveats(result), *_robot_caveats(result),
+               *_severity_caveats(result))
     if result.failure is not None:
         caveats += (Caveat(f"The {result.failure.stage} stage failed ({result.failure.kind}: "
                            f"{result.failure.message}); the stages after it did not run.",
@@ -208,13 +210,25 @@ def _severity(r) -> tuple:
     over = [float(v) for v, m in zip(bare.wind_speed, bare.endurance_margin, strict=True)
             if m < 1]
     with_robot = 1e6 * float(robot.strain_pp.max())
-    verdict = (f"peak-to-peak at {bare.wind_speed[worst]:g} m/s: ABOVE the {endurance:g} µε "
+    family = r.span.conductor.family or "of no stated family"
+    verdict = (f"peak-to-peak at {bare.wind_speed[worst]:g} m/s, {with_robot:.3g} µε at worst "
+               f"with the robot; not judged against the {endurance:g} µε endurance strain, "
+               f"which is {ENDURANCE_FAMILY}'s (this conductor is {family})."
+               if not r.severity.endurance_applies else
+               f"peak-to-peak at {bare.wind_speed[worst]:g} m/s: ABOVE the {endurance:g} µε "
                f"endurance strain at {', '.join(f'{v:g}' for v in over)} m/s, so the bare span "
                f"needs damping; with the robot the worst is {with_robot:.3g} µε." if over else
                f"peak-to-peak at {bare.wind_speed[worst]:g} m/s: below the {endurance:g} µε "
                "endurance strain at every wind speed studied, without any damper.")
     return (Headline("severity: worst clamp strain, no damper", strain, f"{strain:.3g} µε",
                      verdict, SECTION_IDS["severity"]),)
+
+
+def _severity_caveats(r) -> tuple:
+    if r.severity is None or not r.severity.assumptions:
+        return ()
+    return (Caveat("The severity numbers rest on assumed conductor data: "
+                   + "; ".join(r.severity.assumptions) + ".", SECTION_IDS["severity"]),)
 
 
 def _estimation_caveats(r) -> tuple:

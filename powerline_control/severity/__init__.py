@@ -9,6 +9,7 @@ clamp_estimate (clamp strain from an estimator's field, with its sigma).
 from ._common import (  # noqa: F401 (constants other modules and users import from here)
     AIR_DENSITY,
     ALUMINIUM_MODULUS,
+    ENDURANCE_FAMILY,
     ENDURANCE_STRAIN_PP,
     GRAVITY,
     MAX_FREQUENCY,

@@ -28,6 +28,9 @@ ALUMINIUM_MODULUS = 68.9e9
 POFFENBERGER_SWART_DISTANCE = 0.089
 #: Usual laboratory endurance strain, peak-to-peak (Diana et al., IEEE TPWRD 18(4), 2003).
 ENDURANCE_STRAIN_PP = 150e-6
+#: The conductor family that endurance strain belongs to (CIGRE / EPRI, for ACSR): on another
+#: family (AAC, AAAC) or an unknown one the severity report draws no endurance line.
+ENDURANCE_FAMILY = "ACSR"
 #: Outer-strand diameters of the presets, m: a view of ``Conductor.outer_strand_diameter``
 #: (stranding in domain.md 2.6 and data/conductors.toml, where the numbers live).
 OUTER_STRAND_DIAMETER = {name: cond.outer_strand_diameter for name, cond in conductors.items()
