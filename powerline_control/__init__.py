@@ -72,6 +72,9 @@ _LAZY_EXPORTS = {
         "Accuracy", "Consistency", "Estimate", "KalmanFilter", "estimation_accuracy",
         "filter_consistency",
     ),
+    "estimate.recovery": (
+        "Recovery", "recovery_time",
+    ),
     "estimate.observability": (
         "ObservabilityReport", "SensorSetComparison", "analyze_observability",
         "compare_sensor_sets", "observability_gramian", "observability_rank",
@@ -223,6 +226,8 @@ __all__ = [
     "ImpedanceDamper",
     "InputError",
     "KalmanFilter",
+    "Recovery",
+    "recovery_time",
     "largest_antinode",
     "LineModel",
     "load_model",

@@ -29,6 +29,8 @@ from .observability import compare_sensor_sets as compare_sensor_sets
 from .observability import observability_gramian as observability_gramian
 from .observability import observability_rank as observability_rank
 from .observability import steady_state_covariance as steady_state_covariance
+from .recovery import Recovery as Recovery
+from .recovery import recovery_time as recovery_time
 from .result import Accuracy as Accuracy
 from .result import Estimate as Estimate
 from .result import estimation_accuracy as estimation_accuracy
@@ -40,5 +42,7 @@ __all__ = [
     "estimation_accuracy",
     "Consistency",
     "filter_consistency",
+    "Recovery",
+    "recovery_time",
     *_observability_all,
 ]

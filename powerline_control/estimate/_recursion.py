@@ -32,6 +32,7 @@ from .._validation import (
 from ..errors import (
     EstimationError,
 )
+from ._adaptive import _Adaptation
 from ._spectrum import (
     NIS_FIELD_SPAN,
     following_reference,
@@ -100,6 +101,8 @@ class _Recursion:
         self.recent_count = 0
         # Running mean square of the estimate at the sensors (KalmanFilter's innovation_growth).
         self.mean_square = 0.0
+        # Scalar covariance matching of Q (KalmanFilter's adapt_horizon), None when off.
+        self.adapt = _Adaptation(kf) if kf._adapt_horizon is not None else None
         if kf.steady_state:
             gain, posterior, predicted = kf._steady_solution()
             self.freeze(gain, posterior, predicted)
@@ -237,10 +240,15 @@ class _Recursion:
             self.P = self.posterior_ss
             innovation[:] = e
             return innovation, float(self.nis_frozen(e[:, None])[0]), kf._p
+        propagated = None
         if p_pred is None:
             # From the current covariance: after a frozen full sample P is the stationary
             # posterior and this is the stationary prior; during a dropout it grows as it must.
-            p_pred = kf._A @ self.P @ kf._A.T + kf._q_eff
+            if self.adapt is None:
+                p_pred = kf._A @ self.P @ kf._A.T + kf._q_eff
+            else:  # Q scaled by the matched q (estimate._adaptive)
+                propagated = kf._A @ self.P @ kf._A.T
+                p_pred = propagated + self.adapt.q * kf._Q + kf._epsilon * np.eye(kf._n)
         if not mask.any():
             self.x, self.P = x_pred, (p_pred + p_pred.T) / 2
             self.last_full_gain = None if not kf.steady_state else self.last_full_gain
@@ -261,6 +269,11 @@ class _Recursion:
         if not full:
             self.converged, self.settled = False, 0
             self.last_full_gain = self.last_posterior = None
+            return innovation, nis, index.size
+        if self.adapt is not None:  # q changes every sample: the gain is never frozen
+            if propagated is not None:
+                self.adapt.update(e, propagated)
+            self.last_full_gain = gain
             return innovation, nis, index.size
         self._track_convergence(gain)
         return innovation, nis, index.size

@@ -55,10 +55,11 @@ from ..errors import (
     InputError,
     UndetectableModeWarning,
 )
+from ._adaptive import DEFAULT_ADAPT_RANGE, check_adaptation
 from ._model_error import (
+    _ModelErrorTerms,
     check_innovation_growth,
     growth_factor,
-    innovation_inflation,
     next_mean_square,
     running_mean_square,
 )
@@ -80,7 +81,7 @@ __all__ = ["KalmanFilter"]
 _MIN_BATCH = 256
 
 
-class KalmanFilter(_FilterInternals):
+class KalmanFilter(_FilterInternals, _ModelErrorTerms):
     """Kalman filter on a discrete ``control.StateSpace`` (time-varying or steady-state gain).
 
     Model ``x[k+1] = A x[k] + B u[k] + w[k]``, ``y[k] = C x[k] + D u[k] + v[k]`` with
@@ -174,6 +175,18 @@ class KalmanFilter(_FilterInternals):
         ``estimate._model_error.innovation_inflation``). ``Estimate.nis`` and the spectral test
         use ``S_k``; the gain and the states are unchanged. Needs ``steady_state=True``.
         Unused with a ``spectral_field_reference``. Default ``None`` (``S_k = S``).
+    adapt_horizon : int, optional
+        Process noise that follows the record: ``Q`` becomes ``q_k Q``, the scalar ``q_k``
+        matched to the innovations over a fading horizon of this many samples (time constant
+        ``>= 2``; covariance matching after Myers and Tapley, ``estimate._adaptive``), so the
+        gain, ``P``, the NIS (with the predicted ``S_k``) and the reported variances follow the
+        excitation; ``Estimate.process_noise_scale`` holds ``q_k``. Needs
+        ``steady_state=False`` (start from the stationary covariance with ``P0``); the spectral
+        test and the field-following factor need a frozen gain and are not run. A change
+        faster than the horizon still lifts the windowed NIS until ``q`` catches up
+        (:func:`~powerline_control.estimate.recovery_time`). Default ``None``: ``Q`` as given.
+    adapt_range : tuple of float
+        ``(low, high)`` bounds of ``q_k``, ``0 < low <= 1 <= high`` (default ``(1e-3, 1e3)``).
 
     Attributes
     ----------
@@ -262,8 +275,12 @@ class KalmanFilter(_FilterInternals):
         field_variance_scale: float = 1.0,
         field_relative_variance: float = 0.0,
         innovation_growth: tuple[float, float] | None = None,
+        adapt_horizon: int | None = None,
+        adapt_range: tuple[float, float] = DEFAULT_ADAPT_RANGE,
     ) -> None:
         sys = check_discrete_system("sys", sys)
+        self._adapt_horizon, self._adapt_range = check_adaptation(adapt_horizon, adapt_range,
+                                                                  steady_state)
         if not isinstance(warn_inconsistent, bool):
             raise InputError("The 'warn_inconsistent' parameter must be True or False. Got "
                              f"{warn_inconsistent!r}.")
@@ -480,32 +497,6 @@ class KalmanFilter(_FilterInternals):
         return self._spectral_ref
 
     @property
-    def field_variance_scale(self) -> float:
-        """Factor on the reported field variances (as given)."""
-        return self._fv_scale
-
-    @property
-    def field_relative_variance(self) -> float:
-        """Factor on the running mean square of the field added to its variances (as given)."""
-        return self._fv_relative
-
-    @property
-    def innovation_growth(self) -> tuple[float, float] | None:
-        """``(reference, share)`` of the innovation covariance's growth (as given)."""
-        return (self._innov_ref, self._innov_rel) if self._innov_rel > 0 else None
-
-    def _inflation(self, states: np.ndarray, start: float) -> tuple[np.ndarray, float]:
-        """(factor on ``S`` per sample, running mean square after them) for ``states``."""
-        return innovation_inflation(self._measure(states), self._mean_square_window,
-                                    self._innov_rel, self._innov_ref, start)
-
-    @property
-    def _mean_square_window(self) -> int:
-        """Time constant (samples) of the running mean squares of the model-error terms: the
-        consistency window, so that S and the variances follow the field as the test does."""
-        return self._window or DEFAULT_CONSISTENCY_WINDOW
-
-    @property
     def spectral_reference_count(self) -> int:
         """Segments times channels averaged in :attr:`spectral_reference` (as given)."""
         return self._spectral_count
@@ -718,6 +709,7 @@ class KalmanFilter(_FilterInternals):
             return last_field_var
 
         run = _Recursion(self)
+        scales = None if run.adapt is None else np.empty(n_t)
         k = 0
         while k < n_t:
             if run.converged and not run.first and not missing_rows[k]:
@@ -740,6 +732,8 @@ class KalmanFilter(_FilterInternals):
                 variances[:, k] = np.diag(run.P)
             if field_variances is not None:
                 field_variances[:, k] = field_variance_of(run.P)
+            if scales is not None:
+                scales[k] = run.adapt.q
             k += 1
         if variance_constant:
             variances = np.broadcast_to(np.diag(run.P)[:, None], (n, n_t))
@@ -782,6 +776,7 @@ class KalmanFilter(_FilterInternals):
             field_variances=field_variances,
             field_growth=field_growth,
             undetectable_modes=tuple(complex(v) for v in self._undetectable),
+            process_noise_scale=scales,
         )
         if update_state and self._window is not None:
             run.resume(nis, raw_nis, n_used, y_all)  # the real-time monitor continues from here

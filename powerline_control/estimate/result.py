@@ -24,8 +24,9 @@ from ..errors import (
     InputError,
 )
 
-if TYPE_CHECKING:  # an annotation only: consistency.py imports this module
+if TYPE_CHECKING:  # annotations only: consistency.py and recovery.py import this module
     from .consistency import Consistency
+    from .recovery import Recovery
 
 __all__ = ["Estimate", "Accuracy", "estimation_accuracy"]
 
@@ -75,6 +76,9 @@ class Estimate:
     undetectable_modes : tuple of complex
         Eigenvalues on or outside the unit circle that the sensors cannot see (empty when the
         model is detectable). Their variance grows without bound and is reported as it grows.
+    process_noise_scale : numpy.ndarray or None
+        With a filter's ``adapt_horizon``: the scale ``q_k`` on ``Q`` after each sample
+        ``(n_t,)`` (the covariance matching of ``estimate._adaptive``), else ``None``.
     consistency : Consistency or None
         The windowed NIS test of this run (:func:`filter_consistency` with the filter's
         ``consistency_window`` and ``nis_dof_fraction``); ``None`` when the filter's window is
@@ -107,9 +111,28 @@ class Estimate:
     field_growth: np.ndarray | None = None
     undetectable_modes: tuple[complex, ...] = ()
     consistency: Consistency | None = None
+    process_noise_scale: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         _freeze_arrays(self)
+
+    def recovery(self, change_at: int, truth: object = None, rows: object = None,
+                 **options: object) -> Recovery:
+        """Time to recover after a sudden change at sample ``change_at``:
+        :func:`~powerline_control.estimate.recovery_time` of this estimate (same arguments).
+
+        Examples
+        --------
+        >>> import control as ct
+        >>> from powerline_control.estimate import KalmanFilter
+        >>> sys = ct.ss([[0.9]], [[0.0]], [[1.0]], 0, dt=0.01)
+        >>> y = np.random.default_rng(0).normal(size=(1, 2000))
+        >>> KalmanFilter(sys, Q=0.01, R=1.0).filter(y).recovery(1000).nis_samples
+        0
+        """
+        from .recovery import recovery_time  # recovery.py imports this module
+
+        return recovery_time(self, change_at, truth, rows, **options)
 
     @property
     def t(self) -> np.ndarray:

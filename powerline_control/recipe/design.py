@@ -98,6 +98,7 @@ def design_estimator(
     process_noise: float = DEFAULT_PROCESS_NOISE,
     warn_inconsistent: bool = False,
     model_error_records: object = None,
+    adapt_horizon: int | None = None,
 ) -> EstimatorDesign:
     """Identify a reduced model, select sensors and build the Kalman filter, in one call.
 
@@ -174,6 +175,14 @@ def design_estimator(
         :class:`~powerline_control.errors.ModelErrorRecordsWarning` (the records are then not
         used).
 
+    adapt_horizon : int, optional
+        Build the filter with process noise that follows the record
+        (:class:`~powerline_control.estimate.KalmanFilter`'s ``adapt_horizon``, samples): a
+        time-varying filter from the stationary covariance whose scale on ``Q`` is matched to
+        the innovations over this horizon, ``R`` the sensor noise; the model-error terms are
+        fitted with it. Default ``None``: the steady filter with ``Q`` and ``R`` matched once
+        on the held-out part (``docs/validation/adaptive_noise.md`` compares the two).
+
     Returns
     -------
     EstimatorDesign
@@ -228,7 +237,7 @@ def design_estimator(
                    positions=positions, forbidden=forbidden, criterion=criterion,
                    train_fraction=train_fraction, seed=seed, method=method,
                    process_noise=process_noise, warn_inconsistent=warn_inconsistent,
-                   model_error_records=model_error_records)
+                   model_error_records=model_error_records, adapt_horizon=adapt_horizon)
     # A narrowband record gets one oscillator per spectral line, unless ("auto") its lines
     # leave more than noise unexplained; every other record gets a time-delay DMD model.
     # A clipped node was named above: the held-out filter runs on its rows do not repeat it.
@@ -270,7 +279,7 @@ def _warn_noise_mismatch(others_noise, data_noise: float, source: str) -> None:
 
 def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std, sensors,
              positions, forbidden, criterion, train_fraction, seed, method, process_noise,
-             warn_inconsistent, model_error_records) -> _Record:
+             warn_inconsistent, model_error_records, adapt_horizon=None) -> _Record:
     """Check the arguments and read the record: steps 1-3 of the recipe, shared by both
     families (spatial POD, noise level, candidates and provisional layout, line basis)."""
     X, dt, snap_noise, snap_positions = _snapshot_matrix(snapshots, dt)
@@ -293,6 +302,8 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
         )
     method = check_choice("method", method, ("auto", "dmd", "modal"))
     process_noise = check_real("process_noise", process_noise, low=0.0, high=1e6)
+    if adapt_horizon is not None:   # the filter's own check, before the alpha sweep
+        adapt_horizon = check_int("adapt_horizon", adapt_horizon, low=2)
     if not isinstance(warn_inconsistent, bool):
         raise InputError("The 'warn_inconsistent' parameter must be True or False. Got "
                          f"{warn_inconsistent!r}.")
@@ -419,4 +430,4 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
         data_noise=data_noise, q_floor=q_floor, candidates=candidates, given=given,
         provisional=provisional, node_x=node_x, moving=moving, line_basis=line_basis,
         line_coords=line_coords, excitation=excitation, others=tuple(others),
-        others_noise=tuple(others_noise))
+        others_noise=tuple(others_noise), adapt_horizon=adapt_horizon)

@@ -462,16 +462,18 @@ def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
     field_scale, field_relative, level_records = 1.0, 0.0, 0
     try:
         partial = None if partial_model is None else _steady_filter(
-            partial_model, chosen, noise, q_floor, scale, reference=reference)
+            partial_model, chosen, noise, q_floor, scale, reference=reference,
+            adapt_horizon=rec.adapt_horizon)
     except _MODEL_FAILURES:
         partial = None
     if partial is not None or rec.others:  # the records' level needs no partial filter
         field_scale, field_relative, level_records = _field_error_model(
-            X, _steady_filter(model, chosen, noise, q_floor, scale, reference=reference),
+            X, _steady_filter(model, chosen, noise, q_floor, scale, reference=reference,
+                              adapt_horizon=rec.adapt_horizon),
             partial, n_fit, rec.candidates, chosen, rec.data_noise, rec.others,
             rec.others_noise)
     kf = _steady_filter(model, chosen, noise, q_floor, scale, fraction, rec.warn_inconsistent,
-                        reference, field_scale, field_relative, growth)
+                        reference, field_scale, field_relative, growth, rec.adapt_horizon)
     return EstimatorDesign(
         model=model,
         sensors=read_only(chosen),

@@ -165,7 +165,8 @@ def _modal_design(rec: _Record) -> EstimatorDesign | None:
                                                       fields.shape[1] + _UNSEEN_COUNT))
     model = _modal_model(freqs, fields, dt, n_samples - 2, process,
                          unseen, _UNSEEN_NOISE * noise**2)
-    kf = _steady_filter(model, chosen, noise, rec.q_floor, warn=rec.warn_inconsistent)
+    kf = _steady_filter(model, chosen, noise, rec.q_floor, warn=rec.warn_inconsistent,
+                        adapt_horizon=rec.adapt_horizon)
     return EstimatorDesign(
         model=model, sensors=read_only(chosen),
         filter=kf,

@@ -243,6 +243,8 @@ class _Record:
     #: records of every node under other load histories, and their sensor noise std
     others: tuple = ()
     others_noise: tuple = ()
+    #: the filter's adapt_horizon (None: Q as matched on the held-out part)
+    adapt_horizon: int | None = None
 
     @property
     def n_samples(self) -> int:

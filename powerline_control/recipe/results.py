@@ -276,7 +276,8 @@ class EstimatorDesign:
                               self.nis_dof_fraction, self.filter.warn_inconsistent,
                               field_scale=self.field_variance_scale,
                               field_relative=self.field_relative_variance,
-                              innovation_growth=self.innovation_growth)
+                              innovation_growth=self.innovation_growth,
+                              adapt_horizon=self.filter.adapt_horizon)
 
     def _sigma_line(self) -> str:
         """The summary's line on the sigma the filter reports: what it is and its RMS."""

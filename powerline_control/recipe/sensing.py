@@ -38,7 +38,8 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
                    warn: bool = False,
                    reference: tuple[np.ndarray, int, np.ndarray, float] | None = None,
                    field_scale: float = 1.0, field_relative: float = 0.0,
-                   innovation_growth: tuple[float, float] | None = None) -> KalmanFilter:
+                   innovation_growth: tuple[float, float] | None = None,
+                   adapt_horizon: int | None = None) -> KalmanFilter:
     """Steady-state filter on the measured rows, Q = residual covariance + floor, R = noise^2,
     both times ``scale`` (the covariance matching of :func:`_calibration`).
 
@@ -52,9 +53,25 @@ def _steady_filter(model: DMDModel, sensors: np.ndarray, noise_std: float,
     ``innovation_growth`` its ``innovation_growth`` (the model error at the sensors that grows
     with the field, measured by ``dmd._calibration``). ``reference`` is the spectral test's
     ``(innovation power, count, measurement power, noise power)`` from ``dmd._calibration``.
+
+    With ``adapt_horizon`` the filter adapts ``Q`` (the filter's ``adapt_horizon``): it starts
+    from the steady filter's stationary covariance with ``Q = scale (residual + floor)`` and
+    ``R = noise^2`` unscaled (the sensor noise is known; the covariance matching moves the
+    model error, ``Q``, alone); the spectral reference and ``innovation_growth``, which need a
+    frozen gain, are left out.
     """
     q = np.array(model.residual_covariance)
     q[np.diag_indices_from(q)] += q_floor
+    if adapt_horizon is not None:
+        sys = model.to_statespace(measured=sensors.tolist())
+        start = KalmanFilter(sys, Q=scale * q, R=noise_std**2, steady_state=True,
+                             consistency_window=None)
+        return KalmanFilter(
+            sys, Q=scale * q, R=noise_std**2, P0=start._steady_solution()[2],
+            field_map=model.field_map, nis_dof_fraction=dof_fraction, warn_inconsistent=warn,
+            field_variance_scale=field_scale, field_relative_variance=field_relative,
+            adapt_horizon=adapt_horizon,
+        )
     return KalmanFilter(
         model.to_statespace(measured=sensors.tolist()),
         Q=scale * q,
