@@ -121,7 +121,7 @@ def result_verdict(result) -> Verdict:
 def _span_text(r) -> str:
     span, model = r.span, r.model
     supports = "" if model is None else f", {model.bc[0]} / {model.bc[1]} supports"
-    return (f"{span.length:g} m {span.conductor.name} span, tension {span.tension:.4g} N"
+    return (f"{span.length:g} m {span.conductor.name} span, tension {span.tension:.5g} N"
             + supports)
 
 
@@ -189,7 +189,8 @@ def _robot(r) -> tuple:
         if name not in names:
             continue
         other = res.comparison(name)
-        ratio = float(other.rms / closed.rms)
+        # a line at rest with the robot (no load) has no finite ratio
+        ratio = float(other.rms) / float(closed.rms) if closed.rms > 0 else math.inf
         where = "" if not math.isfinite(other.position) else f" at {other.position:.4g} m"
         verdict = (f"{'less' if ratio >= 1 else 'MORE'} vibration than {words}{where}: RMS "
                    f"{mm(other.rms)} -> {mm(closed.rms)} ({how}).{ended}")
@@ -211,16 +212,17 @@ def _severity(r) -> tuple:
             if m < 1]
     with_robot = 1e6 * float(robot.strain_pp.max())
     family = r.span.conductor.family or "of no stated family"
-    verdict = (f"peak-to-peak at {bare.wind_speed[worst]:g} m/s, {with_robot:.3g} µε at worst "
+    verdict = (f"peak-to-peak at {bare.wind_speed[worst]:g} m/s, {with_robot:.4g} µε at worst "
                f"with the robot; not judged against the {endurance:g} µε endurance strain, "
                f"which is {ENDURANCE_FAMILY}'s (this conductor is {family})."
                if not r.severity.endurance_applies else
                f"peak-to-peak at {bare.wind_speed[worst]:g} m/s: ABOVE the {endurance:g} µε "
                f"endurance strain at {', '.join(f'{v:g}' for v in over)} m/s, so the bare span "
-               f"needs damping; with the robot the worst is {with_robot:.3g} µε." if over else
+               f"needs damping; with the robot the worst is {with_robot:.4g} µε ("
+               + ("still above" if with_robot > endurance else "below") + " it)." if over else
                f"peak-to-peak at {bare.wind_speed[worst]:g} m/s: below the {endurance:g} µε "
                "endurance strain at every wind speed studied, without any damper.")
-    return (Headline("severity: worst clamp strain, no damper", strain, f"{strain:.3g} µε",
+    return (Headline("severity: worst clamp strain, no damper", strain, f"{strain:.4g} µε",
                      verdict, SECTION_IDS["severity"]),)
 
 
