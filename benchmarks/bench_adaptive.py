@@ -129,7 +129,8 @@ def sigma_part(name: str, seed: int, case: Case) -> list[dict]:
                                           phase=case.rng.uniform(0, 6)),
                         plc.RandomForce(1.0, case.p_random, case.band, seed=s)]
             else:
-                load = [plc.HarmonicForce(1.0, _new_sine(case), length * case.rng.uniform(0.1, 0.9)),
+                load = [plc.HarmonicForce(1.0, _new_sine(case),
+                                          length * case.rng.uniform(0.1, 0.9)),
                         plc.RandomForce(1.0, length * case.rng.uniform(0.1, 0.9), case.band,
                                         seed=s)]
             record = plc.simulate(case.model, load, duration=case.duration, dt=case.dt,
@@ -147,7 +148,6 @@ def sigma_part(name: str, seed: int, case: Case) -> list[dict]:
 
 
 def recovery_part(name: str, case: Case) -> list[dict]:
-    length = case.model.node_positions[-1]
     s = int(case.rng.integers(10_000))
     before = [plc.HarmonicForce(1.0, case.f_sine, case.p_sine),
               plc.RandomForce(1.0, case.p_random, case.band, seed=s)]
