@@ -272,7 +272,7 @@ class _Recursion:
             return innovation, nis, index.size
         if self.adapt is not None:  # q changes every sample: the gain is never frozen
             if propagated is not None:
-                self.adapt.update(e, propagated)
+                self.adapt.update(nis, propagated)
             self.last_full_gain = gain
             return innovation, nis, index.size
         self._track_convergence(gain)
