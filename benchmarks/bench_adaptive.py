@@ -17,7 +17,8 @@ all after the first 200 samples.
 Part 2, recovery after a sudden change. On two cases, a matched record continues (from the
 simulation's final state) with one change: a *frequency step* (the sine moves to just below the
 second mode above it in the band: a wind step), an *amplitude step* (every load x3: a stronger
-wind at the same lock-in) or a *tension step* (+3 %: the line the model was learned on changes). The table gives
+wind at the same lock-in) or a *tension step* (+3 %: the line the model was learned on
+changes). The table gives
 ``recovery_time``: seconds until the windowed NIS accepts 3 windows in a row and until the field
 error at the unmeasured nodes stays within 1.5x its steady value after the change (``inf``:
 never within the record).
