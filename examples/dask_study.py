@@ -5,9 +5,9 @@ the sensor noise, the number of sensors and the forcing frequency change? Each g
 simulates its own training and test records from its own seed (derived from the point's values
 by ``run_study(..., seed=...)``), so the Dask cluster and the serial run give the same table.
 
-Run: python examples/dask_study.py [out_dir] [--workers N] [--fast]   (default out/; about 20 s,
-10 s with --fast; needs the dask extra: pip install "powerline_control[dask]"; writes
-dask_study.csv, dask_study.json and dask_study.png)
+Run: python examples/dask_study.py [out_dir] [--workers N] [--fast]   (default out/; 30 s on 2
+cores at load average 6, 18 s with --fast; needs the dask extra: pip install
+"powerline_control[dask]"; writes dask_study.csv, dask_study.json and dask_study.png)
 
 On a real cluster, replace the LocalCluster by ``Client("tcp://scheduler-address:8786")``; the
 study function only has to be importable or defined in the script (Dask pickles it).

@@ -11,7 +11,8 @@ Four weeks of 10-minute means, seed 2026 (WindRecord.synthetic documents the mod
 It is an illustration of a record's shape, not a site's climate. The same seed gives the same
 file (tests/test_wind_record.py regenerates it and compares).
 
-Run: python examples/make_wind_record.py OUTPUT_FOLDER   (writes wind_record_28d.csv there)
+Run: python examples/make_wind_record.py OUTPUT_FOLDER   (writes wind_record_28d.csv there; 3 s on
+2 cores at load average 6)
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@
    be solved brakes and says so (status "safe_stop"), and the summary below copes with any mix.
 
 Run: python examples/plan_to_antinode.py [OUT]
-(writes OUT/plan_to_antinode.png, default folder ./out)
+(writes OUT/plan_to_antinode.png, default folder ./out; 5 s on 2 cores at load average 6)
 """
 
 from __future__ import annotations

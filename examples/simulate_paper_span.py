@@ -1,6 +1,7 @@
 """The paper's lab span: modes against the closed form, a simulation, and the robot's effect.
 
-Run: python examples/simulate_paper_span.py [out_dir]     (default out/; writes span_response.png)
+Run: python examples/simulate_paper_span.py [out_dir]     (default out/; writes span_response.png;
+5 s on 2 cores at load average 6)
 """
 
 import argparse

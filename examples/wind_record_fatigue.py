@@ -14,8 +14,8 @@ means, made by examples/make_wind_record.py with seed 2026) and, for a 300 m Dra
 3. the figure (plotting.plot_fatigue_record): damage by wind speed, and the robot's positions
    over the first week.
 
-Run: python examples/wind_record_fatigue.py OUTPUT_FOLDER   (about 30 s; writes
-wind_record_fatigue.png there)
+Run: python examples/wind_record_fatigue.py OUTPUT_FOLDER   (36 s on 2 cores at load average 6;
+writes wind_record_fatigue.png there)
 """
 
 from __future__ import annotations
