@@ -177,3 +177,49 @@ def test_the_json_says_whether_the_headline_is_steady(lab_result):
     # run gives the closed loop the optimised sensors, and says so.
     assert data["closed_loop_sensor_nodes"] == data["sensor_nodes"]
     assert data["closed_loop_sensors_how"].startswith("the estimator's sensors, optimised")
+
+
+# ---------------------------------------------------------------- figures on a long span
+
+def test_the_emphasised_layout_and_eigenvalues_are_drawn_on_top():
+    from powerline_control.output.plotting import plot_eigenvalues, plot_error_along_span
+
+    many = np.exp(1j * np.linspace(0.0, 3.0, 300))
+    fig = plot_eigenvalues({"plain": many, "model": many[::10]}, emphasis="model")
+    lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
+    assert lines["model"].get_zorder() > lines["plain"].get_zorder()
+    assert lines["model"].get_markersize() > lines["plain"].get_markersize()
+    x = np.linspace(0.0, 300.0, 301)
+    errors = {name: np.full(301, 0.01) for name in ("chosen", "evenly spaced (5)", "first 13")}
+    lines = {ln.get_label(): ln for ln in
+             plot_error_along_span(x, errors, [10.0], chosen="chosen").axes[0].get_lines()}
+    assert lines["chosen"].get_zorder() > max(lines[n].get_zorder() for n in errors
+                                               if n != "chosen")
+    assert lines["chosen"].get_linewidth() > lines["first 13"].get_linewidth()
+
+
+def test_the_layout_bars_say_the_tables_numbers(lab_result):
+    from powerline_control.output.plotting import plot_layouts
+
+    errors = {n: lay.error_unmeasured_percent for n, lay in lab_result.layouts.items()}
+    positions = {n: list(lay.positions) for n, lay in lab_result.layouts.items()}
+    fig = plot_layouts(errors, positions, 3.66)
+    shown = [text.get_text() for text in fig.axes[0].texts]
+    # the estimation table's own wording of each error (summary.py: ":.3g} % of the RMS")
+    assert shown == [f"{v:.3g} %" for v in errors.values()]
+    low, high = fig.axes[1].get_xlim()
+    assert low < 0.0 and high > 3.66          # a sensor at a support is inside the frame
+
+
+def test_the_closed_loop_legend_names_the_target_for_what_it_is():
+    from types import SimpleNamespace
+
+    from powerline_control.output.plotting import plot_closed_loop
+
+    t = np.linspace(0.0, 1.0, 101)
+    fake = SimpleNamespace(t=t, robot_position=t, target=t, calibration_time=0.2,
+                           displacement=np.ones((3, 101)), baseline_displacement=np.ones((3, 101)))
+    labels = [tx.get_text() for tx in plot_closed_loop(fake).axes[0].get_legend().get_texts()]
+    # the policy's target is the predicted best parked position, not an antinode
+    assert "target (best parked position predicted)" in labels
+    assert not any("antinode" in label for label in labels)

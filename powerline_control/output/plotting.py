@@ -30,13 +30,17 @@ def _legend_off_the_curves(ax, fontsize: float = 8) -> None:
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=fontsize)
 
 
-def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray]) -> Figure:
+def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray], emphasis: str | None = None
+                     ) -> Figure:
     """DMD eigenvalues in the complex plane with the unit circle (the paper's Figs. 4-5).
 
     Parameters
     ----------
     eigenvalue_sets : dict of str to ndarray
         Label -> complex eigenvalues.
+    emphasis : str or None
+        The label of the set drawn on top, larger and opaque; the others small and light, so
+        that a few dozen eigenvalues stay visible among hundreds.
 
     Returns
     -------
@@ -55,7 +59,11 @@ def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray]) -> Figure:
     ax.plot(np.cos(theta), np.sin(theta), "k-", lw=0.8, label="unit circle")
     for (label, values), marker in zip(eigenvalue_sets.items(), "ox+s^", strict=False):
         values = np.asarray(values)
-        ax.plot(values.real, values.imag, marker, ms=4, mfc="none", label=label)
+        shown = {} if emphasis is None else (
+            {"ms": 7, "mew": 1.8, "zorder": 4} if label == emphasis else
+            {"ms": 3, "alpha": 0.45, "zorder": 2})
+        ax.plot(values.real, values.imag, marker, **{"ms": 4, **shown}, mfc="none",
+                label=label)
     ax.set(xlabel="Re λ", ylabel="Im λ", aspect="equal")
     _legend_off_the_curves(ax)
     return fig
@@ -149,7 +157,8 @@ def plot_envelope(
 
 
 def plot_error_along_span(
-    x: np.ndarray, errors: dict[str, np.ndarray], sensors: Sequence[float] = ()
+    x: np.ndarray, errors: dict[str, np.ndarray], sensors: Sequence[float] = (),
+    chosen: str | None = None,
 ) -> Figure:
     """RMS estimation error at every node, one curve per layout, with the sensors marked.
 
@@ -161,6 +170,9 @@ def plot_error_along_span(
         Layout name -> RMS error at each node as a fraction of the RMS displacement.
     sensors : sequence of float
         Positions of the chosen sensors, m.
+    chosen : str or None
+        The layout drawn on top, thicker; the others thin (on a long span their curves
+        oscillate over every loop and would hide it).
 
     Returns
     -------
@@ -175,7 +187,9 @@ def plot_error_along_span(
     fig = Figure(figsize=(8, 3.5), layout="constrained")
     ax = fig.add_subplot()
     for label, values in errors.items():
-        ax.plot(x, 100 * np.asarray(values), label=label)
+        style = {} if chosen is None else (
+            {"lw": 1.6, "zorder": 4} if label == chosen else {"lw": 0.7, "zorder": 2})
+        ax.plot(x, 100 * np.asarray(values), label=label, **style)
     for i, position in enumerate(sensors):
         # black: the layouts' curves take the colour cycle (C2 is green), which has no black
         ax.axvline(position, color="k", ls="--", lw=1, label="chosen sensors" if i == 0 else None)
@@ -223,14 +237,15 @@ def plot_layouts(
         left.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     left.set_xlim(right=values.max() * (3.0 if left.get_xscale() == "log" else 1.35))
     for row, value in zip(rows, values, strict=True):
-        left.annotate(f"{value:.2g} %", (value, row), xytext=(3, 0), textcoords="offset points",
+        left.annotate(f"{value:.3g} %", (value, row), xytext=(3, 0), textcoords="offset points",
                       va="center", fontsize=8)
     left.set_xlabel("error at unmeasured nodes (%)")
     for row, name in zip(rows, names, strict=True):
         right.plot(positions[name], np.full(len(positions[name]), row), "|", ms=12, mew=2)
     right.set_yticks(rows, [""] * len(names))
     right.set_ylim(left.get_ylim())
-    right.set_xlim(0, span_length)
+    # a margin, so that a sensor at a support is not drawn on the frame
+    right.set_xlim(-0.02 * span_length, 1.02 * span_length)
     right.set_xlabel("sensor position x (m)")
     return fig
 
@@ -388,7 +403,7 @@ def plot_closed_loop(result) -> Figure:
     fig = Figure(figsize=(8, 5))
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.plot(result.t, result.robot_position, label="robot")
-    top.plot(result.t, result.target, "k:", label="antinode target")
+    top.plot(result.t, result.target, "k:", label="target (best parked position predicted)")
     top.axvline(result.calibration_time, color="grey", lw=0.8, label="end of calibration")
     top.set_ylabel("x (m)")
     _legend_off_the_curves(top)

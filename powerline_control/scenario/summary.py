@@ -280,8 +280,8 @@ def _identification_section(r) -> dict:
             "fit for conditioning; it does not by itself move every eigenvalue inward), or, "
             "for a narrowband record whose spectral lines explain it, one oscillator per line.",
             "figures": [_figure("eigenvalues", draw,
-                                "Eigenvalues of plain DMD and of the recipe's model, with the "
-                                "unit circle. " + compare,
+                                "Eigenvalues of plain DMD and of the recipe's model (drawn "
+                                "larger, on top), with the unit circle. " + compare,
                                 "points outside the circle: those modes grow without bound")]}
 
 
@@ -301,7 +301,8 @@ def _least_damped(model, n: int = 3) -> list:
 
 def _eigenvalue_figure(plain, model):
     return _plotting().plot_eigenvalues({"plain DMD (alpha = 0)": plain,
-                                         "the recipe's model": model})
+                                         "the recipe's model": model},
+                                        emphasis="the recipe's model")
 
 
 def _estimation_section(r) -> dict:
@@ -340,7 +341,7 @@ def _estimation_section(r) -> dict:
                                       [int(i) for i in unmeasured], x)
     along = {n: lay.error_along_span for n, lay in layouts.items()}
     along_draw = functools.partial(_plotting().plot_error_along_span, x, along,
-                                   list(chosen.positions))
+                                   list(chosen.positions), chosen="chosen")
     errors = {n: lay.error_unmeasured_percent for n, lay in layouts.items()}
     positions = {n: list(lay.positions) for n, lay in layouts.items()}
     layout_draw = functools.partial(_plotting().plot_layouts, errors, positions, float(x[-1]))
@@ -351,7 +352,7 @@ def _estimation_section(r) -> dict:
                 "the estimate sitting on the truth after the first few periods"),
         _figure("error_along_span", along_draw,
                 "RMS estimation error at every node, % of the RMS displacement over the span, "
-                "for each layout; the chosen sensors marked.",
+                "for each layout (the chosen one thicker, on top); the chosen sensors marked.",
                 "where each layout loses track of the line"),
         _figure("layouts", layout_draw,
                 "The chosen layout against the baselines: error at the unmeasured nodes (% of "
