@@ -223,3 +223,42 @@ def test_the_closed_loop_legend_names_the_target_for_what_it_is():
     # the policy's target is the predicted best parked position, not an antinode
     assert "target (best parked position predicted)" in labels
     assert not any("antinode" in label for label in labels)
+
+
+def test_a_short_move_on_a_long_span_gets_an_inset_zoomed_on_it():
+    from types import SimpleNamespace
+
+    from powerline_control.output.plotting import plot_closed_loop_path
+
+    t = np.linspace(0.0, 3.0, 301)
+    x = np.linspace(0.0, 300.0, 61)
+    path = 150.5 - 0.7 * np.clip(t - 1.0, 0.0, 1.0)        # a 0.7 m move on a 300 m span
+    fake = SimpleNamespace(t=t, x=x, displacement=np.ones((61, 301)), robot_position=path,
+                           target=np.full(301, 149.8), retarget_times=(1.0,),
+                           calibration_time=0.5, loop_length=3.3)
+    ax = plot_closed_loop_path(fake).axes[0]
+    (inset,) = ax.child_axes
+    low, high = inset.get_xlim()
+    assert low < 149.8 and high > 150.5 and high - low < 0.05 * 300.0
+    # the retarget line is in the legend, in a colour the legend's white face shows
+    assert "new target chosen" in [tx.get_text() for tx in ax.get_legend().get_texts()]
+    # a move a fifth of the span long needs no zoom
+    wide = SimpleNamespace(**{**vars(fake), "robot_position": np.linspace(100.0, 160.0, 301),
+                              "target": np.full(301, 160.0)})
+    assert not plot_closed_loop_path(wide).axes[0].child_axes
+
+
+def test_the_rms_curves_are_over_full_windows_only():
+    from types import SimpleNamespace
+
+    from powerline_control.output.plotting import plot_closed_loop
+
+    t = np.arange(0.0, 1.0, 1e-3)
+    field = np.tile(np.sin(2 * np.pi * 19.7 * t), (3, 1))     # a window end cuts a period
+    fake = SimpleNamespace(t=t, robot_position=t, target=t, calibration_time=0.2,
+                           displacement=field, baseline_displacement=field)
+    for line in plot_closed_loop(fake).axes[1].get_lines():
+        times, rms = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
+        assert times[0] > t[0] and times[-1] < t[-1]          # no window cut short at an end
+        # two periods of 19.7 Hz in a 0.1 s window: within 3 % of 1/sqrt(2) everywhere
+        assert rms == pytest.approx(1e3 / np.sqrt(2), rel=0.03)

@@ -409,15 +409,18 @@ def plot_closed_loop(result) -> Figure:
     _legend_off_the_curves(top)
     window = max(int(0.1 / max(result.t[1] - result.t[0], 1e-12)), 1)
 
-    def moving_rms(field):
-        # Each window's mean over the samples it holds: at the ends a centred window holds
-        # fewer, and dividing by the full window length would pull the RMS down there.
-        power = np.mean(np.asarray(field) ** 2, axis=0)
-        counts = np.convolve(np.ones_like(power), np.ones(window), mode="same")
-        return np.sqrt(np.convolve(power, np.ones(window), mode="same") / counts)
+    t = np.asarray(result.t)
+    window = min(window, t.size)
+    # Only full windows, at their centres: a window cut short at an end holds a fraction of a
+    # period, whose mean square depends on the phase (the curves hooked at the last sample).
+    centres = t[(window - 1) // 2: (window - 1) // 2 + t.size - window + 1]
 
-    bottom.plot(result.t, 1e3 * moving_rms(result.baseline_displacement), label="robot parked")
-    bottom.plot(result.t, 1e3 * moving_rms(result.displacement), label="closed loop")
+    def moving_rms(field):
+        power = np.mean(np.asarray(field) ** 2, axis=0)
+        return np.sqrt(np.convolve(power, np.ones(window) / window, mode="valid"))
+
+    bottom.plot(centres, 1e3 * moving_rms(result.baseline_displacement), label="robot parked")
+    bottom.plot(centres, 1e3 * moving_rms(result.displacement), label="closed loop")
     bottom.set(xlabel="t (s)", ylabel="RMS over span (mm)")
     _legend_off_the_curves(bottom)
     fig.tight_layout()
@@ -663,6 +666,33 @@ def plot_closed_loop_envelope(result, ax=None) -> Figure:
     return fig
 
 
+def _zoom_on_the_path(ax, result, mesh, image) -> None:
+    """An inset zoomed on the robot's path when it spans under 5 % of the span: a 0.7 m move on
+    a 300 m axis is a vertical line with its target hidden under it."""
+    x = np.asarray(result.x, dtype=float)
+    path = np.asarray(result.robot_position, dtype=float)
+    target = np.asarray(result.target, dtype=float)
+    where = np.concatenate([path, target[np.isfinite(target)]])
+    span = float(np.ptp(x))
+    low, high = float(where.min()), float(where.max())
+    if span <= 0 or high - low >= 0.05 * span:
+        return
+    loop = float(getattr(result, "loop_length", float("nan")))
+    pad = max(high - low, loop if np.isfinite(loop) else 0.0, 0.005 * span)
+    inset = ax.inset_axes([0.56, 0.56, 0.4, 0.4])
+    inset.pcolormesh(*mesh, cmap=image.get_cmap(), norm=image.norm, shading="nearest",
+                     rasterized=True)
+    t = np.asarray(result.t)
+    inset.plot(path, t, "c-", lw=1.5)
+    inset.plot(target, t, ":", color="tab:green", lw=1.5)
+    inset.set_xlim(low - pad, high + pad)
+    inset.set_ylim(t[-1], t[0])
+    inset.set_title("zoomed on the robot: x (m)", fontsize=7, color="w", pad=2)
+    # white: the inset sits on the dark colour map
+    inset.tick_params(labelsize=6, colors="w")
+    ax.indicate_inset_zoom(inset, edgecolor="w")
+
+
 def plot_closed_loop_path(result, ax=None) -> Figure:
     """The robot's path over the line's moving envelope (time down, position across).
 
@@ -698,18 +728,21 @@ def plot_closed_loop_path(result, ax=None) -> Figure:
     n_blocks = t.size // block
     field = np.abs(np.asarray(result.displacement)[:, : n_blocks * block])
     envelope = field.reshape(field.shape[0], n_blocks, block).max(axis=2)
-    image = ax.pcolormesh(result.x, t[: n_blocks * block : block] + 0.5 * block * dt,
-                          1e3 * envelope.T, shading="nearest", cmap="magma",
+    mesh = (result.x, t[: n_blocks * block : block] + 0.5 * block * dt, 1e3 * envelope.T)
+    image = ax.pcolormesh(*mesh, shading="nearest", cmap="magma",
                           rasterized=True)  # one image in the SVG: no seams between cells
     fig.colorbar(image, ax=ax, label="envelope (mm)")
     ax.plot(result.robot_position, t, "c-", lw=1.5, label="robot")
     # green: visible on the colour map (magma has none) and in the legend's white box
     ax.plot(result.target, t, ":", color="tab:green", lw=1.5, label="target")
-    for when in result.retarget_times:
-        ax.axhline(when, color="w", lw=0.5, ls="--")
+    for i, when in enumerate(result.retarget_times):
+        # mid grey: visible on the dark colour map and in the legend's white box
+        ax.axhline(when, color="0.6", lw=0.6, ls="--", label="new target chosen" if i == 0
+                   else None)
     ax.axhline(result.calibration_time, color="grey", lw=1.0, label="end of calibration")
     ax.set(xlabel="x (m)", ylabel="t (s)")
     ax.invert_yaxis()
+    _zoom_on_the_path(ax, result, mesh, image)
     # under the axes: the colour bar holds the right-hand side
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=7)
     fig.tight_layout()

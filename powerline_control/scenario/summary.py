@@ -626,7 +626,8 @@ def _closed_loop_section(r) -> dict:
                 "RMS displacement over the span, robot moving against parked.",
                 "the moving curve falling below the parked one once the robot arrives"),
         _figure("closed_loop_path", functools.partial(_closed_loop_path, result),
-                "The robot's path in the closed loop over the line's vibration envelope.",
+                "The robot's path in the closed loop over the line's vibration envelope (an "
+                "inset zooms on the path when it is short against the span).",
                 "the path settling where the envelope is largest near it, and staying there"),
     ]
     return {"title": "Closed loop (robot seeking the best parked position)", "rows": rows,
