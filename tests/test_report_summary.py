@@ -262,3 +262,12 @@ def test_the_rms_curves_are_over_full_windows_only():
         assert times[0] > t[0] and times[-1] < t[-1]          # no window cut short at an end
         # two periods of 19.7 Hz in a 0.1 s window: within 3 % of 1/sqrt(2) everywhere
         assert rms == pytest.approx(1e3 / np.sqrt(2), rel=0.03)
+
+
+def test_a_block_of_sensors_on_a_long_span_is_labelled():
+    from powerline_control.output.plotting import plot_layouts
+
+    first = [0.25 * i for i in range(13)]                    # the paper's 13 nodes of 300 m
+    fig = plot_layouts({"chosen": 2.86, "first 13": 21.6},
+                       {"chosen": [70.0, 120.0, 265.0], "first 13": first}, 300.0)
+    assert [tx.get_text() for tx in fig.axes[1].texts] == ["13 sensors, 0-3 m"]

@@ -52,8 +52,9 @@ def plot_eigenvalues(eigenvalue_sets: dict[str, np.ndarray], emphasis: str | Non
     >>> len(fig.axes)
     1
     """
-    # constrained layout keeps the axis labels inside the canvas (the "Im" label was clipped).
-    fig = Figure(figsize=(5.5, 5), layout="constrained")
+    # constrained layout keeps the axis labels inside the canvas (the "Im" label was clipped);
+    # wide and low: the square axes and the legend beside them leave no empty band above
+    fig = Figure(figsize=(7.0, 4.6), layout="constrained")
     ax = fig.add_subplot()
     theta = np.linspace(0, 2 * np.pi, 400)
     ax.plot(np.cos(theta), np.sin(theta), "k-", lw=0.8, label="unit circle")
@@ -241,7 +242,13 @@ def plot_layouts(
                       va="center", fontsize=8)
     left.set_xlabel("error at unmeasured nodes (%)")
     for row, name in zip(rows, names, strict=True):
-        right.plot(positions[name], np.full(len(positions[name]), row), "|", ms=12, mew=2)
+        spot = np.asarray(positions[name], dtype=float)
+        right.plot(spot, np.full(spot.size, row), "|", ms=12, mew=2)
+        if spot.size > 2 and np.ptp(spot) < 0.03 * span_length:
+            # many sensors in a few per cent of a long span draw one block: say what it holds
+            right.annotate(f"{spot.size} sensors, {spot.min():.3g}-{spot.max():.3g} m",
+                           (spot.max(), row), xytext=(6, 0), textcoords="offset points",
+                           va="center", fontsize=8)
     right.set_yticks(rows, [""] * len(names))
     right.set_ylim(left.get_ylim())
     # a margin, so that a sensor at a support is not drawn on the frame
