@@ -99,7 +99,10 @@ def _unseen_directions(fields: np.ndarray, smooth: np.ndarray) -> np.ndarray:
     rest = smooth - q @ (q.T @ smooth)
     basis, upper = sla.qr(rest, mode="economic")
     new = np.abs(np.diag(upper)) > 0.3     # mostly outside the lines' span
-    return basis[:, new][:, :_UNSEEN_COUNT]
+    # A column of ``rest`` that the lines' span nearly held leaves QR an arbitrary direction,
+    # and the later columns lean on it: project the lines' span out of the kept ones once more.
+    kept = basis[:, new][:, :_UNSEEN_COUNT]
+    return np.linalg.qr(kept - q @ (q.T @ kept))[0]
 
 
 def _independent_lines(frequencies: np.ndarray, shapes: np.ndarray, spatial: np.ndarray,
