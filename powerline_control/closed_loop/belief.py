@@ -34,6 +34,18 @@ LENGTH_TOLERANCE = 0.01
 MIN_CYCLES = 2.0
 #: A record must grow by this much (s) before it is calibrated again.
 MIN_NEW_RECORD = 1.0
+#: The belief is rebuilt on a calibrated tension that differs from the believed one by more than
+#: this fraction of it: the calibration's posterior mean (the nominal is its prior) is the best
+#: guess even when it lies within its own standard deviation of the nominal, and a smaller change
+#: moves an antinode 200 m from a support by less than 5 % of a loop at mode 100.
+BELIEF_TOLERANCE = 1e-3
+#: A calibration this many times less certain than the one believed moves nothing.
+LESS_CERTAIN = 2.0
+#: The belief moves on a calibration whose main peak holds at least this share of its posterior
+#: (an unambiguous one holds 95 %): a robot that waits for certainty holds still at its start,
+#: often near a node, and a move on odds of 4 to 1 is checked by what the sensors measure after it
+#: (the policy undoes a move that made the line vibrate more).
+TRUSTED_SHARE = 0.8
 #: The line damping a controller told only a Span assumes: a conductor's self-damping at aeolian
 #: amplitudes is 0.05-0.5 % of critical; this is the middle of that range on a log scale.
 ASSUMED_DAMPING = ModalDamping(0.0015)
@@ -246,9 +258,10 @@ class BeliefTracker:
     (:func:`~powerline_control.identify.calibrate_span`, the nominal model as prior, the robot
     parked where it spent most of the record) and rebuilds the
     Belief from the calibrated span when its tension differs from the believed one by more than
-    the calibration's standard deviation (and 1e-4 of it): a rebuild costs a modal plant, and a
-    change within the uncertainty is no news. An ambiguous calibration (several tensions explain
-    the record) moves nothing: its highest peak may be a neighbouring mode's.
+    BELIEF_TOLERANCE of it (a rebuild costs a modal plant). A calibration whose main peak holds
+    less than TRUSTED_SHARE of its posterior (several tensions explain the record) moves nothing:
+    its highest peak may be a neighbouring mode's; nor does one LESS_CERTAIN times less certain
+    than the one believed (a record over which the robot moved tells less).
     """
 
     def __init__(self, nominal: Belief, *, robot: MDR, n_modes, dt: float,
@@ -257,17 +270,18 @@ class BeliefTracker:
         self.belief = nominal
         self.calibrate = calibrate
         self.calibrations: list = []       # (time, SpanCalibration)
-        self.trusted = False               # an unambiguous calibration has been made
+        self.trusted = False               # a calibration has told the tension
         self.cpu = 0.0                     # process time spent calibrating and rebuilding, s
         self._robot, self._n_modes, self._dt = robot, n_modes, dt
         self._frequencies = tuple(frequencies)
         self._last = -1                    # the sample the last update read up to
+        self._believed_std = np.inf        # the std of the calibration believed, N
 
     @property
     def waiting(self) -> bool:
         """Whether a first target waits for the span's calibration: calibrating and none
-        unambiguous yet. A target chosen on a nominal tension several per cent off lands loops
-        away on a long span (a 330 m span told 1 % low: 2.9x worse than where the robot
+        trusted yet (TRUSTED_SHARE). A target chosen on a nominal tension several per cent off
+        lands loops away on a long span (a 330 m span told 1 % low: 2.9x worse than where the robot
         started), so the robot holds until its records tell the tension."""
         return self.calibrate and not self.trusted
 
@@ -317,17 +331,28 @@ class BeliefTracker:
             return f"belief kept at tension {self.belief.span.tension:.5g} N: {error}"
         self.calibrations.append((now, calibration))
         believed = self.belief.span.tension
-        if calibration.ambiguous:
+        if calibration.peak_share < TRUSTED_SHARE:
             # several tensions explain the record: its highest peak may be a neighbouring mode's
             return (f"belief kept at tension {believed:.5g} N: the record (its "
                     f"{calibration.duration:.3g} s) cannot tell between tensions "
                     f"{calibration.tension:.5g} +- {calibration.tension_std:.2g} N")
+        if self.trusted and calibration.tension_std > LESS_CERTAIN * self._believed_std:
+            # the record grew but tells much less: the robot moved during it, its field is no
+            # longer one steady state; the calibration believed stands (a new tone's
+            # calibration, after a wind change, is about as certain as the last)
+            return (f"belief kept at tension {believed:.5g} N: the record's calibration "
+                    f"({calibration.tension:.5g} +- {calibration.tension_std:.2g} N) is less "
+                    f"certain than the one believed (+- {self._believed_std:.2g} N)")
         self.trusted = True
-        if abs(calibration.tension - believed) <= max(calibration.tension_std, 1e-4 * believed):
+        self._believed_std = calibration.tension_std
+        if abs(calibration.tension - believed) <= BELIEF_TOLERANCE * believed:
             return None
         self.belief = believe(calibration.span, like=self.nominal.bare, robot=self._robot,
                               n_modes=self._n_modes, dt=self._dt,
                               sensor_positions=self.nominal.sensor_positions,
                               frequencies=self._frequencies)
+        odds = ("" if not calibration.ambiguous else
+                f", its main peak {100 * calibration.peak_share:.0f} % of the posterior")
         return (f"believe tension {calibration.tension:.5g} +- {calibration.tension_std:.2g} N "
-                f"(was {believed:.5g} N), calibrated on {calibration.duration:.3g} s of record")
+                f"(was {believed:.5g} N), calibrated on {calibration.duration:.3g} s of "
+                f"record{odds}")

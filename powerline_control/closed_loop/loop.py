@@ -423,11 +423,12 @@ def run_closed_loop(
         With a ``nominal``: after the calibration window and again at each decision of the
         policy, calibrate the span from the sensors' whole record so far
         (:func:`~powerline_control.identify.calibrate_span`, the nominal as prior) and predict
-        with the calibrated span once its tension moves from the believed one by more than the
-        calibration's standard deviation (``ClosedLoopResult.calibrations``). The robot holds
-        at its start until a calibration is unambiguous (records shorter than two cycles of
-        the fundamental, or explained by several tensions, move nothing). False: the
-        controller predicts with the nominal as told.
+        with the calibrated span once its tension moves from the believed one by more than 0.1 %
+        (``ClosedLoopResult.calibrations``; records of at least two cycles of the
+        fundamental). The robot holds at its start until a calibration tells
+        the tension (one whose main peak holds less than 80 % of its posterior, or twice as
+        uncertain as the one believed, moves nothing). False: the controller predicts with the
+        nominal as told.
 
     Returns
     -------

@@ -12,12 +12,17 @@ candidate (tension, EI) predicts ``u ~ CN(0, s^2 Phi W Phi^T + sigma^2 I)``: ``P
 displacements at the channels, ``W`` their power response at ``f`` (the modes within a few
 bandwidths of ``f`` dominate; a bandwidth is the modal damping or the record's resolution
 ``1 / duration``, whichever is wider), ``s^2`` the unknown load's power (profiled out) and
-``sigma^2`` the share of ``u`` the modal model is not trusted to explain (``shape_error``). A
-tension that puts a mode of the right shape at every line scores high; one whose modes sit
-between the lines, or whose shapes the channels contradict, scores low. The product over lines
-with a log-normal prior around the nominal gives the posterior; its spread is the calibration's
-uncertainty, and a posterior with several peaks (sensors that cannot tell one mode from its
-neighbour, one line only) says so.
+``sigma^2`` the share of ``u`` the modal model is not trusted to explain (``shape_error``). With
+enough channels (two more than the wave has shapes), each line is also explained by the steady
+field's own shape at ``f``, the taut beam's standing wave of wavenumber ``k(T, EI)`` between
+the supports (:func:`_wave_loglik`): where a forced tone sits between two modes, a few modes fit
+its shape at many tensions, the wave at one; its likelihood is the mixture of both, so a load
+between the channels, which breaks the local wave, falls back on the modes. A tension that puts
+a mode of the right shape at every line scores high; one whose modes sit between the lines, or
+whose shapes the channels contradict, scores low. The product over lines with a log-normal prior
+around the nominal gives the posterior; its spread is the calibration's uncertainty, and a
+posterior with several peaks (sensors that cannot tell one mode from its neighbour, one line
+only) says so.
 
 Scaling the model: on a fixed mesh the stiffness is ``K = T K_T + EI K_B`` (+ the robot's spring),
 so the Rayleigh quotient of each nominal mode, ``omega^2 = T g + EI b + r``, gives its frequency at
@@ -62,6 +67,14 @@ MODES_PER_LINE = 4
 EI_POINTS = 25
 #: Most tension grid points (the step follows the narrowest line's bandwidth).
 MAX_TENSION_POINTS = 4000
+#: Wavenumber step of the local-wave shape model, in radians of phase at the far support.
+WAVE_PHASE_STEP = 0.02
+#: Share of a line's phasor power the local wave is not trusted to explain: the wave is exact for
+#: a taut string between loads, up to the line's damping (a decay of a few per cent over a span).
+WAVE_SHAPE_ERROR = 0.01
+#: A line with at least this share of the strongest line's power is a strong one: most strong
+#: lines of a record must be explained by the nominal span's modes.
+STRONG_LINE = 0.01
 #: Share of the posterior allowed outside its main peak before the calibration says it cannot
 #: tell between tensions.
 AMBIGUOUS_MASS = 0.05
@@ -106,6 +119,9 @@ class SpanCalibration:
         Whether several tensions explain the record (more than AMBIGUOUS_MASS of the posterior
         lies away from its main peak): ``tension`` is then the highest peak and
         ``tension_std`` covers the others, but the record does not say which is the line's.
+    peak_share : float
+        The posterior's mass in its main peak (1: one tension explains the record; an ambiguous
+        calibration's odds that ``tension`` is the line's).
     warnings : tuple of str
         What the record could not tell (also raised as :class:`CalibrationWarning`).
 
@@ -139,6 +155,7 @@ class SpanCalibration:
     posterior_tension: np.ndarray
     duration: float
     ambiguous: bool = False
+    peak_share: float = 1.0
     warnings: tuple = ()
 
     @property
@@ -339,11 +356,65 @@ def _scaled_modes(model: LineModel, positions: np.ndarray, top: float) -> _Scale
     return _ScaledModes(g=g, b=b, rest=rest, rows=rows, zeta=zeta)
 
 
+def _wavenumber(tension: np.ndarray, ei: np.ndarray, mass: float, frequency: float
+                ) -> np.ndarray:
+    """The taut beam's wavenumber at ``frequency``: ``m omega^2 = EI k^4 + T k^2``, rad/m."""
+    omega2 = (2 * np.pi * frequency) ** 2
+    if np.all(ei == 0):
+        return np.sqrt(mass * omega2 / tension) * np.ones_like(ei)
+    return np.sqrt((np.sqrt(tension**2 + 4 * ei * mass * omega2) - tension) / (2 * ei))
+
+
+def _wave_loglik(k: np.ndarray, u: np.ndarray, sigma2: float, positions: np.ndarray,
+                 length: float, robot_at: float | None) -> np.ndarray:
+    """Log-likelihood of one line's phasors ``u`` under the steady field's own shape at every
+    wavenumber ``k`` of the grid.
+
+    Between the supports, a steady field at the line's frequency solves ``EI w_xxxx - T w_xx =
+    m omega^2 w`` with the load on the right: unloaded, a wave ``A sin(k x) + B cos(k x)`` (the
+    evanescent part decays within ``sqrt(EI / T)``, a few centimetres, of a support or a load);
+    under a load distributed as the wave itself (wind in lock-in), also ``x sin(k x)`` and
+    ``x cos(k x)``; a parked robot, a point load, adds its kink ``sin(k |x - x_r|)``; the field
+    is zero at both supports. The shape depends on (T, EI) only through ``k``: it is evaluated on
+    a wavenumber grid fine enough to resolve the phase at the far support (WAVE_PHASE_STEP) and
+    interpolated."""
+    k_lo, k_hi = float(k.min()), float(k.max())
+    n_k = int(np.clip(np.ceil(length * (k_hi - k_lo) / WAVE_PHASE_STEP), 2, 20_000))
+    grid = np.linspace(k_lo, k_hi, n_k)
+    x = np.concatenate([positions, [0.0, length]])
+    phase = grid[:, None] * x                                             # (n_k, p + 2)
+    basis = [np.sin(phase), np.cos(phase), x / length * np.sin(phase),
+             x / length * np.cos(phase)]
+    if robot_at is not None:
+        basis.append(np.sin(grid[:, None] * np.abs(x - robot_at)))
+    basis = np.stack(basis, axis=-1)                                      # (n_k, p + 2, q)
+    # the combinations zero at both supports: the null space of the two support rows
+    _, _, vt = np.linalg.svd(basis[:, -2:, :])
+    rows = basis[:, :-2, :] @ np.swapaxes(vt[:, 2:, :], -1, -2)          # (n_k, p, q - 2)
+    return np.interp(k, grid, _profiled_shape_loglik(rows, None, u, sigma2))
+
+
+def _profiled_shape_loglik(rows: np.ndarray, power: np.ndarray | None, u: np.ndarray,
+                           sigma2: float) -> np.ndarray:
+    """Log-likelihood of the phasors ``u`` under ``CN(0, s^2 R W R^T + sigma2 I)`` (``rows`` R:
+    (..., p, m), ``power`` W: (..., m), None: the identity), the load's power ``s^2`` profiled
+    on a log grid around the value that explains ``|u|^2``."""
+    weighted = rows if power is None else rows * power[..., None, :]
+    lam, vec = np.linalg.eigh(np.einsum("...pm,...qm->...pq", weighted, rows))
+    lam = np.maximum(lam, 0.0)
+    proj = np.abs(np.einsum("...pq,p->...q", vec, u.conj())) ** 2   # |v^T u|^2 per direction
+    top = np.maximum(lam.max(axis=-1, keepdims=True), 1e-300)
+    scales = float(np.vdot(u, u).real) / top[..., None] * np.logspace(-3, 1, 41)   # (..., 1, S)
+    var = scales * lam[..., :, None] + sigma2                    # (..., p, S)
+    return np.max(-np.sum(np.log(var) + proj[..., :, None] / var, axis=-2), axis=-1)
+
+
 def _line_loglik(omega2: np.ndarray, modes: _ScaledModes, u: np.ndarray, frequency: float,
-                 zeta_floor: float, shape_error: float, frequency_std: float,
-                 noise: float) -> np.ndarray:
-    """Log-likelihood of one line's phasors ``u`` at every grid point (``omega2``: (..., r)),
-    the load's power profiled out."""
+                 zeta_floor: float, sigma2: float, frequency_std: float,
+                 wave_ll: np.ndarray | None) -> np.ndarray:
+    """Log-likelihood of one line's phasors ``u`` at every grid point (``omega2``: (..., r);
+    ``wave_ll``: :func:`_wave_loglik` on the same grid, or None), the load's power profiled
+    out."""
     omega = 2 * np.pi * frequency
     kept = min(MODES_PER_LINE, omega2.shape[-1])
     nearest = np.argpartition(np.abs(omega2 - omega**2), kept - 1, axis=-1)[..., :kept]
@@ -351,19 +422,15 @@ def _line_loglik(omega2: np.ndarray, modes: _ScaledModes, u: np.ndarray, frequen
     zeta = np.maximum(modes.zeta[nearest], zeta_floor)
     wn = np.sqrt(np.maximum(w2, 0.0))
     power = 1.0 / ((w2 - omega**2) ** 2 + (2 * zeta * wn * omega) ** 2)
-    rows = modes.rows[:, nearest]                             # (p, ..., m)
-    rows = np.moveaxis(rows, 0, -2)                           # (..., p, m)
-    cov = np.einsum("...pm,...m,...qm->...pq", rows, power, rows)
-    lam, vec = np.linalg.eigh(cov)
-    lam = np.maximum(lam, 0.0)
-    proj = np.abs(np.einsum("...pq,p->...q", vec, u.conj())) ** 2   # |v^T u|^2 per direction
-    p = u.size
-    sigma2 = shape_error * float(np.vdot(u, u).real) / p + noise
-    # profile the load's power s^2 on a log grid around the value that explains |u|^2
-    top = np.maximum(lam.max(axis=-1, keepdims=True), 1e-300)
-    scales = float(np.vdot(u, u).real) / top[..., None] * np.logspace(-3, 1, 41)   # (..., 1, S)
-    var = scales * lam[..., :, None] + sigma2                    # (..., p, S)
-    shape_ll = np.max(-np.sum(np.log(var) + proj[..., :, None] / var, axis=-2), axis=-1)
+    rows = np.moveaxis(modes.rows[:, nearest], 0, -2)         # (..., p, m)
+    # The shape: the modes nearest the line, each weighted by its response at f; with enough
+    # channels (``wave_ll`` given), mixed with the steady field's own shape, the local standing
+    # wave at f (sharper where a forced tone sits between two modes, whose shape a few modes fit
+    # at many tensions; a load between the channels breaks the wave and falls back on the
+    # modes).
+    shape_ll = _profiled_shape_loglik(rows, power, u, sigma2)
+    if wave_ll is not None:
+        shape_ll = np.logaddexp(shape_ll, wave_ll) - np.log(2.0)
     # The line's frequency: a free ringing sits at a natural frequency (within the peak's
     # accuracy), a forced tone anywhere between two modes; the mixture of both.
     f_modes = wn / (2 * np.pi)
@@ -498,11 +565,17 @@ def calibrate_span(
     model = _nominal_model(nominal, bc, robot, top)
     modes = _scaled_modes(model, positions, top)
     tension0, ei0 = span0.tension, span0.conductor.ei
+    mass = span0.conductor.mass_per_length
+    robot_at = None if robot is None else float(robot.position)
     zeta_floors = 0.5 / (lines * duration)          # a line of a finite record: width ~ 1 / D
     step = float(min(zeta_floors.min(), 0.01))
     n_t = int(min(MAX_TENSION_POINTS, max(50, math.log(t_hi / t_lo) / step)))
     tau = np.geomspace(t_lo, t_hi, n_t)
     phasors = _phasors(values, dt, lines)
+    # the local wave's shapes span (basis - 2 support conditions) dimensions: it tells the
+    # wavelength only where at least two channels are left over to contradict it
+    wave_dims = (5 if robot is not None else 4) - 2
+    use_wave = positions.size >= wave_dims + 2
     evidence = [(float(f), u, float(zeta_floor),
                  float(np.hypot(PEAK_ACCURACY / duration, 0.5 * width)
                        + FREQUENCY_MODEL_ERROR * f), float(variance))
@@ -514,9 +587,15 @@ def calibrate_span(
                   + modes.rest)
         log_post = (-0.5 * (np.log(tau)[:, None] / tension_prior) ** 2
                     - 0.5 * (np.log(eta)[None, :] / ei_prior) ** 2)
+        tension, ei = tension0 * tau[:, None], ei0 * eta[None, :]
         for f, u, zeta_floor, frequency_std, variance in evidence:
-            log_post = log_post + _line_loglik(omega2, modes, u, f, zeta_floor,
-                                               shape_error, frequency_std, variance)
+            sigma2 = shape_error * float(np.vdot(u, u).real) / u.size + variance
+            wave_ll = None if not use_wave else _wave_loglik(
+                _wavenumber(tension, ei, mass, f), u,
+                WAVE_SHAPE_ERROR * float(np.vdot(u, u).real) / u.size + variance, positions,
+                length, robot_at)
+            log_post = log_post + _line_loglik(omega2, modes, u, f, zeta_floor, sigma2,
+                                               frequency_std, wave_ll)
         return log_post
 
     if ei0 > 0:
@@ -533,7 +612,8 @@ def calibrate_span(
         eta = np.ones(1)
         log_post = log_posterior(eta)
     return _summarise(log_post, tau, eta, span0, model, modes, lines, positions, duration,
-                      (t_lo, t_hi), np.array([item[3] for item in evidence]), ei_prior)
+                      (t_lo, t_hi), np.array([item[3] for item in evidence]), ei_prior,
+                      np.sum(np.abs(phasors) ** 2, axis=1))
 
 
 def _check_range(name: str, value: object) -> tuple[float, float]:
@@ -579,7 +659,7 @@ def _other_peaks(density: np.ndarray, grid: np.ndarray, main: slice) -> str:
 
 def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _ScaledModes,
                lines, positions, duration, tension_range, frequency_std,
-               ei_prior: float) -> SpanCalibration:
+               ei_prior: float, line_power: np.ndarray) -> SpanCalibration:
     """The posterior's marginals, its peak, and the warnings the record earns."""
     post = np.exp(log_post - log_post.max())
     post /= post.sum()
@@ -652,11 +732,15 @@ def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _Scaled
     order = np.argsort(model_f)
     nearest = np.array([int(np.argmin(np.abs(model_f[order] - f))) for f in lines])
     explained = np.abs(model_f[order][nearest] - lines) <= 3 * frequency_std
-    if lines.size >= 3 and explained.sum() < lines.size / 3:
-        # a forced tone may sit between modes, but most lines of a record are the line's own
+    # A forced tone may sit between modes, but most strong lines of a record are the line's own
+    # ringing (a forced tone's wave fits a few channels at many tensions: it cannot vouch for
+    # them); a strong tone's leakage skirt is no line of its own.
+    strong = line_power >= STRONG_LINE * line_power.max()
+    if strong.sum() >= 3 and explained[strong].sum() < strong.sum() / 2:
         raise IdentificationError(
-            f"The nominal span explains only {int(explained.sum())} of the record's "
-            f"{lines.size} spectral lines ({_hz(lines)} Hz) at any tension within "
+            f"The nominal span explains only {int(explained[strong].sum())} of the record's "
+            f"{int(strong.sum())} strong spectral lines ({_hz(lines[strong])} Hz) at any "
+            "tension within "
             f"'tension_range' ({tension_range[0]:g} to {tension_range[1]:g} x "
             f"{span0.tension:.6g} N): the nominal conductor (its mass per length), the "
             "stringing tension or the span length is far off, or the record is of another span. "
@@ -674,5 +758,6 @@ def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _Scaled
         posterior_tension=read_only(np.column_stack([tension_grid,
                                                      p_tau / np.gradient(tension_grid)])),
         duration=float(duration), ambiguous=bool(outside > AMBIGUOUS_MASS),
+        peak_share=float(1.0 - outside),
         warnings=tuple(notes),
     )
