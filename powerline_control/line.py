@@ -24,6 +24,12 @@ __all__ = ["Conductor", "Span", "conductors", "tension_at_temperature",
 PAPER_LAB_MASS_PER_LENGTH = 0.68 / 3.66
 
 
+#: Conductor families by their stranding: all-aluminium, all-aluminium-alloy, aluminium
+#: conductor alloy-reinforced, steel-reinforced (ACSR, ACSS: annealed aluminium; AACSR: alloy),
+#: composite-cored (ACCC, ACCR).
+CONDUCTOR_FAMILIES = ("AAC", "AAAC", "ACAR", "ACSR", "ACSS", "AACSR", "ACCC", "ACCR")
+
+
 @dataclass(frozen=True)
 class Conductor:
     """Mechanical properties of a conductor.
@@ -51,7 +57,7 @@ class Conductor:
         Diameter of the wires of the outer layer, m (> 0, below ``diameter``), where known: the
         bending strain at the clamp is read on them (severity, clamp strain).
     family : str or None
-        The conductor family ("ACSR", "AAAC", "AAC", ...), where known: endurance strains are
+        The conductor family, one of ``CONDUCTOR_FAMILIES``, where known: endurance strains are
         published per family, so the severity study compares clamp strain with the ACSR
         endurance strain only on an ACSR conductor.
 
@@ -79,9 +85,8 @@ class Conductor:
         if not isinstance(self.name, str):
             raise InputError(f"The 'name' parameter must be a string (a label). Got "
                              f"{self.name!r:.60} of type {type(self.name).__name__}.")
-        if self.family is not None and not isinstance(self.family, str):
-            raise InputError(f"The 'family' parameter must be a string (e.g. 'ACSR') or None. "
-                             f"Got {self.family!r:.60} of type {type(self.family).__name__}.")
+        if self.family is not None:
+            check_choice("family", self.family, CONDUCTOR_FAMILIES)
         object.__setattr__(
             self, "mass_per_length", check_real("mass_per_length", self.mass_per_length, low=0.0)
         )

@@ -243,6 +243,9 @@ BASELINES: dict[str, Baseline] = {
     "KalmanFilter.filter": _b(lambda k: (k.kf.filter, dict(measurements=k.X[:2, :20]))),
     "KalmanFilter.step": _b(lambda k: (k.plc.KalmanFilter(k.sys, Q=k.q, R=1e-4).step,
                                        dict(y_k=k.X[:2, 0]))),
+    "recovery_time": _b(lambda k: (k.plc.recovery_time, dict(
+        estimate=k.plc.KalmanFilter(k.sys, Q=k.q, R=1e-4, consistency_window=5).filter(
+            k.X[:2, :60]), change_at=10, truth=k.X[2:, :60], rows=[2, 3]))),
     "estimation_accuracy": _b(lambda k: (k.plc.estimation_accuracy,
                                          dict(estimate=k.est, truth=k.est.states))),
     "filter_consistency": _b(lambda k: (k.plc.filter_consistency,
@@ -435,7 +438,7 @@ RESULTS = {"Accuracy", "AlphaCurve", "Antinode", "Baseline", "ClosedLoopResult",
            "SeverityResult", "TimeDomainCheck", "Choice", "ParkedSteadyState", "ModalBasis",
            "Coverage", "FatigueOverRecord", "RainflowCount", "RecordDamage",
            "ClampStrainEstimate", "ScenarioResult", "EstimatorCountStudy", "StrandedBending",
-           "SpanCalibration"}
+           "SpanCalibration", "Recovery"}
 NOT_CALLABLE = {"conductors", "SELF_DAMPING_LAWS", "WIND_POWER_CURVES"}  # mappings
 
 

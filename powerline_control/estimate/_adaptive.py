@@ -36,6 +36,11 @@ def check_adaptation(horizon: object, bounds: object, steady_state: object
                      ) -> tuple[int | None, tuple[float, float]]:
     """``KalmanFilter``'s ``adapt_horizon`` and ``adapt_range`` checked (``InputError`` naming
     the parameter, the value and what is allowed)."""
+    if not isinstance(bounds, tuple | list) or len(bounds) != 2:
+        raise InputError("The 'adapt_range' parameter must be a pair (low, high) with "
+                         f"0 < low <= 1 <= high. Got {bounds!r}.")
+    low = check_real("adapt_range[0]", bounds[0], low=0.0, high=1.0)
+    high = check_real("adapt_range[1]", bounds[1], low=1.0, low_inclusive=True)
     if horizon is None:
         return None, DEFAULT_ADAPT_RANGE
     if isinstance(horizon, bool) or not isinstance(horizon, int | np.integer) or horizon < 2:
@@ -50,11 +55,6 @@ def check_adaptation(horizon: object, bounds: object, steady_state: object
             f"it: it needs steady_state=False. Got steady_state={steady_state!r}; start the "
             "time-varying filter from the stationary covariance (P0) instead."
         )
-    if not isinstance(bounds, tuple | list) or len(bounds) != 2:
-        raise InputError("The 'adapt_range' parameter must be a pair (low, high) with "
-                         f"0 < low <= 1 <= high. Got {bounds!r}.")
-    low = check_real("adapt_range[0]", bounds[0], low=0.0, high=1.0)
-    high = check_real("adapt_range[1]", bounds[1], low=1.0, low_inclusive=True)
     return horizon, (low, high)
 
 

@@ -72,9 +72,10 @@ WAVE_PHASE_STEP = 0.02
 #: Share of a line's phasor power the local wave is not trusted to explain: the wave is exact for
 #: a taut string between loads, up to the line's damping (a decay of a few per cent over a span).
 WAVE_SHAPE_ERROR = 0.01
-#: A line with at least this share of the strongest line's power is a strong one: most strong
-#: lines of a record must be explained by the nominal span's modes.
-STRONG_LINE = 0.01
+#: A line with at least this share of the strongest line's velocity power is a strong one (a
+#: Hann window's leakage skirt lies 30 dB or more below its line): most strong lines of a record
+#: must be explained by the nominal span's modes.
+STRONG_LINE = 1e-3
 #: Share of the posterior allowed outside its main peak before the calibration says it cannot
 #: tell between tensions.
 AMBIGUOUS_MASS = 0.05
@@ -613,7 +614,7 @@ def calibrate_span(
         log_post = log_posterior(eta)
     return _summarise(log_post, tau, eta, span0, model, modes, lines, positions, duration,
                       (t_lo, t_hi), np.array([item[3] for item in evidence]), ei_prior,
-                      np.sum(np.abs(phasors) ** 2, axis=1))
+                      lines**2 * np.sum(np.abs(phasors) ** 2, axis=1))
 
 
 def _check_range(name: str, value: object) -> tuple[float, float]:
