@@ -13,8 +13,9 @@ displacements at the channels, ``W`` their power response at ``f`` (the modes wi
 bandwidths of ``f`` dominate; a bandwidth is the modal damping or the record's resolution
 ``1 / duration``, whichever is wider), ``s^2`` the unknown load's power (profiled out) and
 ``sigma^2`` the share of ``u`` the modal model is not trusted to explain (``shape_error``). With
-enough channels (two more than the wave has shapes), each line is also explained by the steady
-field's own shape at ``f``, the taut beam's standing wave of wavenumber ``k(T, EI)`` between
+enough channels (two more than the wave has shapes) on a taut line (bending a small part of the
+stiffness at the line's wavenumber), each line is also explained by the steady field's own shape
+at ``f``, the taut beam's standing wave of wavenumber ``k(T, EI)`` between
 the supports (:func:`_wave_loglik`): where a forced tone sits between two modes, a few modes fit
 its shape at many tensions, the wave at one; its likelihood is the mixture of both, so a load
 between the channels, which breaks the local wave, falls back on the modes. A tension that puts
@@ -69,6 +70,10 @@ EI_POINTS = 25
 MAX_TENSION_POINTS = 4000
 #: Wavenumber step of the local-wave shape model, in radians of phase at the far support.
 WAVE_PHASE_STEP = 0.02
+#: The local wave (taut string plus bending in its wavenumber) leaves out the evanescent field
+#: near supports and loads, of length sqrt(EI / T): it reads a line only where bending is at most
+#: this share of its stiffness, EI k^2 / T (a real span's aeolian modes: 1e-4; the lab span: ~1).
+WAVE_BENDING = 0.01
 #: Share of a line's phasor power the local wave is not trusted to explain: the wave is exact for
 #: a taut string between loads, up to the line's damping (a decay of a few per cent over a span).
 WAVE_SHAPE_ERROR = 0.01
@@ -591,7 +596,9 @@ def calibrate_span(
         tension, ei = tension0 * tau[:, None], ei0 * eta[None, :]
         for f, u, zeta_floor, frequency_std, variance in evidence:
             sigma2 = shape_error * float(np.vdot(u, u).real) / u.size + variance
-            wave_ll = None if not use_wave else _wave_loglik(
+            k0 = float(_wavenumber(np.array(tension0), np.array(ei0), mass, f))
+            taut = ei0 * k0**2 < WAVE_BENDING * tension0
+            wave_ll = None if not (use_wave and taut) else _wave_loglik(
                 _wavenumber(tension, ei, mass, f), u,
                 WAVE_SHAPE_ERROR * float(np.vdot(u, u).real) / u.size + variance, positions,
                 length, robot_at)
