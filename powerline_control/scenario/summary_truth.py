@@ -134,7 +134,8 @@ def calibration_rows(cl_result) -> list:
              "The controller is told the nominal span and calibrates it from its sensors' "
              "records (calibrate_span: tension, EI and their uncertainty) after the calibration "
              "window and at each decision; it predicts with the calibrated span once the "
-             "tension moves by more than the calibration's standard deviation.")]
+             "tension moves by more than 0.1 % on a calibration the record is sure of (80 % of "
+             "the posterior on one tension).")]
 
 
 def truth_json(result) -> dict:
