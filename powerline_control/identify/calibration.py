@@ -78,9 +78,10 @@ WAVE_BENDING = 0.01
 #: a taut string between loads, up to the line's damping (a decay of a few per cent over a span).
 WAVE_SHAPE_ERROR = 0.01
 #: A line with at least this share of the strongest line's velocity power is a strong one (a
-#: Hann window's leakage skirt lies 30 dB or more below its line): most strong lines of a record
-#: must be explained by the nominal span's modes.
+#: Hann window's leakage skirt lies 30 dB or more below its line); the local wave reads records
+#: of at most WAVE_MAX_LINES strong lines.
 STRONG_LINE = 1e-3
+WAVE_MAX_LINES = 2
 #: Share of the posterior allowed outside its main peak before the calibration says it cannot
 #: tell between tensions.
 AMBIGUOUS_MASS = 0.05
@@ -578,10 +579,15 @@ def calibrate_span(
     n_t = int(min(MAX_TENSION_POINTS, max(50, math.log(t_hi / t_lo) / step)))
     tau = np.geomspace(t_lo, t_hi, n_t)
     phasors = _phasors(values, dt, lines)
-    # the local wave's shapes span (basis - 2 support conditions) dimensions: it tells the
-    # wavelength only where at least two channels are left over to contradict it
+    # The local wave reads a record of one or two strong lines (a tone, in lock-in or forced
+    # between modes), whose frequencies alone cannot tell the tension; a record of several lines
+    # is told by the modes they sit on, and a wave would explain any of its lines as forced. Its
+    # shapes span (basis - 2 support conditions) dimensions: it tells the wavelength only where
+    # at least two channels are left over to contradict it.
+    velocity_power = lines**2 * np.sum(np.abs(phasors) ** 2, axis=1)
+    strong = int(np.sum(velocity_power >= STRONG_LINE * velocity_power.max()))
     wave_dims = (5 if robot is not None else 4) - 2
-    use_wave = positions.size >= wave_dims + 2
+    use_wave = positions.size >= wave_dims + 2 and strong <= WAVE_MAX_LINES
     evidence = [(float(f), u, float(zeta_floor),
                  float(np.hypot(PEAK_ACCURACY / duration, 0.5 * width)
                        + FREQUENCY_MODEL_ERROR * f), float(variance))
@@ -620,8 +626,7 @@ def calibrate_span(
         eta = np.ones(1)
         log_post = log_posterior(eta)
     return _summarise(log_post, tau, eta, span0, model, modes, lines, positions, duration,
-                      (t_lo, t_hi), np.array([item[3] for item in evidence]), ei_prior,
-                      lines**2 * np.sum(np.abs(phasors) ** 2, axis=1))
+                      (t_lo, t_hi), np.array([item[3] for item in evidence]), ei_prior)
 
 
 def _check_range(name: str, value: object) -> tuple[float, float]:
@@ -667,7 +672,7 @@ def _other_peaks(density: np.ndarray, grid: np.ndarray, main: slice) -> str:
 
 def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _ScaledModes,
                lines, positions, duration, tension_range, frequency_std,
-               ei_prior: float, line_power: np.ndarray) -> SpanCalibration:
+               ei_prior: float) -> SpanCalibration:
     """The posterior's marginals, its peak, and the warnings the record earns."""
     post = np.exp(log_post - log_post.max())
     post /= post.sum()
@@ -740,14 +745,11 @@ def _summarise(log_post, tau, eta, span0: Span, model: LineModel, modes: _Scaled
     order = np.argsort(model_f)
     nearest = np.array([int(np.argmin(np.abs(model_f[order] - f))) for f in lines])
     explained = np.abs(model_f[order][nearest] - lines) <= 3 * frequency_std
-    # A forced tone may sit between modes, but most strong lines of a record are the line's own
-    # ringing (a forced tone's wave fits a few channels at many tensions: it cannot vouch for
-    # them); a strong tone's leakage skirt is no line of its own.
-    strong = line_power >= STRONG_LINE * line_power.max()
-    if strong.sum() >= 3 and explained[strong].sum() < strong.sum() / 2:
+    if lines.size >= 3 and explained.sum() < lines.size / 3:
+        # a forced tone may sit between modes, but most lines of a record are the line's own
         raise IdentificationError(
-            f"The nominal span explains only {int(explained[strong].sum())} of the record's "
-            f"{int(strong.sum())} strong spectral lines ({_hz(lines[strong])} Hz) at any "
+            f"The nominal span explains only {int(explained.sum())} of the record's "
+            f"{lines.size} spectral lines ({_hz(lines)} Hz) at any "
             "tension within "
             f"'tension_range' ({tension_range[0]:g} to {tension_range[1]:g} x "
             f"{span0.tension:.6g} N): the nominal conductor (its mass per length), the "
