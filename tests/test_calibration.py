@@ -190,12 +190,15 @@ def test_a_silent_record_is_refused():
     ({"max_lines": 0}, "max_lines"),
     ({"band": (5.0, 1e4)}, "band"),
     ({"bc": "clamped", "nominal": "model"}, "bc"),
+    ({"bc": "hinged"}, "'bc'"),
+    ({"bc": "hinged", "record": "short"}, "'bc'"),      # named before the record is read
 ])
 def test_invalid_options_are_named(kwargs, match):
     nominal = kwargs.pop("nominal", None)
     nominal = plc.LineModel(NOMINAL, 200) if nominal == "model" else NOMINAL
+    record = _record(duration=0.5) if kwargs.pop("record", None) == "short" else _record()
     with pytest.raises(InputError, match=match):
-        plc.calibrate_span(_record(), nominal, **kwargs)
+        plc.calibrate_span(record, nominal, **kwargs)
 
 
 def test_a_nominal_that_is_not_a_span_is_named():

@@ -543,6 +543,8 @@ def calibrate_span(
     if length is None:
         raise InputError("The 'nominal' parameter must be a Span (with bc=) or a LineModel: the "
                          f"span the engineer was told. Got {type(nominal).__name__}.")
+    if isinstance(nominal, Span) and bc is not None:
+        LineModel(nominal, 2, bc=bc)     # the supports checked (by name) before the record
     positions, values, dt = _record_arrays(record, length)
     t_lo, t_hi = _check_range("tension_range", tension_range)
     e_lo, e_hi = _check_range("ei_range", ei_range)
