@@ -243,7 +243,8 @@ def _element_matrices(h: np.ndarray, ei: float, tension: float, mass: float):
     return k_bend + k_tens, m_cons
 
 
-def _parse_bc(bc: object) -> tuple[str, str]:
+def parse_bc(bc: object) -> tuple[str, str]:
+    """The (left, right) supports of ``bc``: one name for both or a pair; unknown names refused."""
     if isinstance(bc, str):
         check_choice("bc", bc, _BOUNDARY_CONDITIONS)
         return bc, bc

@@ -40,9 +40,9 @@ from .mesh import (
     _ASSEMBLY_BYTES_PER_ELEMENT,
     SAMPLING_ELEMENTS_PER_LOOP,
     _Mesh,
-    _parse_bc,
     accuracy_elements_per_loop,
     clamp_error_estimate,
+    parse_bc,
     physics_mesh,
 )
 
@@ -278,7 +278,7 @@ class LineModel(_Mesh):
         if not isinstance(span, Span):
             raise InputError(f"The 'span' parameter must be a Span. Got {type(span).__name__}.")
         self.span = span
-        self.bc = _parse_bc(bc)
+        self.bc = parse_bc(bc)
         if damping is not None and not isinstance(damping, ModalDamping | RayleighDamping):
             raise InputError(
                 "The 'damping' parameter must be None, ModalDamping or "

@@ -44,6 +44,7 @@ from .._spectral import interpolated_peak
 from .._validation import check_int, check_real, read_only
 from ..errors import CalibrationWarning, IdentificationError, InputError
 from ..fem import MDR, LineModel
+from ..fem.mesh import parse_bc
 from ..line import Span
 
 #: Share of a line's phasors the modal model is not trusted to explain (relative power): a few
@@ -544,7 +545,7 @@ def calibrate_span(
         raise InputError("The 'nominal' parameter must be a Span (with bc=) or a LineModel: the "
                          f"span the engineer was told. Got {type(nominal).__name__}.")
     if isinstance(nominal, Span) and bc is not None:
-        LineModel(nominal, 2, bc=bc)     # the supports checked (by name) before the record
+        parse_bc(bc)     # the supports checked (by name) before the record
     positions, values, dt = _record_arrays(record, length)
     t_lo, t_hi = _check_range("tension_range", tension_range)
     e_lo, e_hi = _check_range("ei_range", ei_range)
