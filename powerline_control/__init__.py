@@ -30,9 +30,6 @@ from .errors import (
     UnstableModelWarning,
 )
 
-import sys as _sys
-from types import ModuleType as _ModuleType
-
 _LAZY_EXPORTS = {
     "excitation": (
         "AeolianForce", "HarmonicForce", "RandomForce", "strouhal_frequency",
@@ -137,45 +134,6 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_MODULE_OF))
-
-
-def _old_simulate_path() -> _ModuleType:
-    """``powerline_control.simulate``, the module path of ``simulate`` before ``simulation/``.
-
-    It warns and forwards for one release, as the other old paths do, but it is no file: a real
-    submodule ``simulate`` would be bound on the package on import (the import system sets it as
-    an attribute of its parent), over the function ``plc.simulate``. Found in ``sys.modules``,
-    this object is returned by ``import`` and never bound on the package. Its names resolve on
-    first use, each with the DeprecationWarning (``from powerline_control.simulate import x``).
-    """
-    name = f"{__name__}.simulate"
-    shim = _ModuleType(name, "Deprecated path: import from powerline_control.simulation.")
-    shim.__all__ = ["Snapshots", "simulate"]
-
-    def __getattr__(attribute: str):
-        import importlib
-        import warnings
-
-        if attribute.startswith("__"):  # import machinery and tools probe dunders: no warning
-            raise AttributeError(f"module {name!r} has no attribute {attribute!r}")
-        home = importlib.import_module(".simulation", __name__)
-        if attribute.startswith("_"):  # the old module's private helpers live in snapshots.py
-            home = importlib.import_module(".simulation.snapshots", __name__)
-        try:
-            value = getattr(home, attribute)
-        except AttributeError:
-            raise AttributeError(f"module {name!r} has no attribute {attribute!r}") from None
-        warnings.warn("powerline_control.simulate is deprecated; import from "
-                      "powerline_control.simulation", DeprecationWarning, stacklevel=2)
-        setattr(shim, attribute, value)  # warn once per name, as an import warns once
-        return value
-
-    shim.__getattr__ = __getattr__
-    shim.__dir__ = lambda: sorted(shim.__all__)
-    return shim
-
-
-_sys.modules.setdefault(f"{__name__}.simulate", _old_simulate_path())
 
 
 __all__ = [

@@ -22,13 +22,6 @@ LEAVES = {"errors", "_validation", "_spectral", "_constants", "_threads"}
 # The output side and the scenario pipeline (design.md: scenario/ runs every stage, then the
 # report) sit below every stage.
 ANYTHING_GOES = {"output", "scenario", "cli", "__init__", "__main__"}
-# Old module paths that moved into a subpackage: each warns and re-exports for one release.
-DEPRECATED_PATHS = {"tuning": "fem", "observability": "estimate", "io": "output.io",
-                    "plotting": "output.plotting", "report": "output.report",
-                    "config": "scenario", "simulate": "simulation"}
-# Old paths that are no file but a module object the package puts in sys.modules: a file would
-# be bound on the package over the public function of the same name (plc.simulate).
-FILELESS_PATHS = {"simulate"}
 MAX_LINES = 800
 
 
@@ -65,7 +58,7 @@ def _module_of(path: pathlib.Path) -> str:
                          ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_imports_flow_one_way(path):
     module = _module_of(path)
-    if module in LEAVES | ANYTHING_GOES | set(DEPRECATED_PATHS):
+    if module in LEAVES | ANYTHING_GOES:
         return
     own = _rank(module)
     assert own is not None, f"{module}.py is not placed in design.md's module order"
@@ -190,25 +183,6 @@ def test_each_subpackage_says_what_it_owns_in_two_lines(init):
     assert len(doc.strip().split("\n\n")[0].splitlines()) <= 2, doc
 
 
-@pytest.mark.parametrize(("old", "new"), sorted(DEPRECATED_PATHS.items()))
-def test_old_module_paths_warn_and_keep_their_names(old, new):
-    import sys
-    import warnings
-
-    if old not in FILELESS_PATHS:  # a file warns when it runs; the others when a name is used
-        sys.modules.pop(f"powerline_control.{old}", None)
-    home = importlib.import_module(f"powerline_control.{new}")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        module = importlib.import_module(f"powerline_control.{old}")
-        same = {name: getattr(module, name) is getattr(home, name)
-                for name in getattr(home, "__all__", [])}
-    messages = [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)]
-    assert f"powerline_control.{old} is deprecated; import from powerline_control.{new}" \
-        in messages
-    assert all(same.values()), same
-
-
 def test_the_package_is_a_plain_module():
     """No class swap guards the public names: no module file carries a public name."""
     import types
@@ -219,33 +193,20 @@ def test_the_package_is_a_plain_module():
     assert not shadowing, f"modules named after public names of the package: {shadowing}"
 
 
-def test_the_old_simulate_path_warns_once_and_never_replaces_the_function():
-    import subprocess
-    import sys
+def test_no_module_only_forwards_to_another():
+    """No deprecation layer before the first release: each module path is a real home."""
+    forwarding = sorted(path.name for path in PACKAGE.rglob("*.py")
+                        if "is deprecated; import from" in path.read_text())
+    assert not forwarding, f"modules that only warn and forward: {forwarding}"
 
-    script = """
-import warnings
-import powerline_control as plc
-function = plc.simulate
-with warnings.catch_warnings(record=True) as caught:
-    warnings.simplefilter("always")
-    from powerline_control.simulate import Snapshots
-    from powerline_control.simulate import Snapshots as again
-    import powerline_control.simulate
+
+def test_simulate_is_the_function_and_no_module():
+    """``plc.simulate`` is the function; the subpackage ``simulation`` never replaces it."""
     import powerline_control.simulation
-    import powerline_control.simulation.snapshots
-assert Snapshots is again is plc.Snapshots is powerline_control.simulation.Snapshots
-assert plc.simulate is function and callable(plc.simulate), plc.simulate
-from powerline_control import simulate
-assert simulate is function
-print(len(caught), caught[0].message)
-"""
-    # a fresh interpreter: this one has imported the package's modules in some order already
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                            timeout=120, check=False)
-    assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == ("1 powerline_control.simulate is deprecated; import from "
-                                     "powerline_control.simulation")
+
+    assert callable(plc.simulate) and plc.simulate is powerline_control.simulation.simulate
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module("powerline_control.simulate")
 
 
 def _public_objects():

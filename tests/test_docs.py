@@ -223,5 +223,4 @@ def test_layout_page_covers_every_part_of_the_package():
     edges = layout.import_edges()
     parts = {p.stem if p.is_file() else p.name for p in (ROOT / "powerline_control").iterdir()
              if (p.suffix == ".py" or (p / "__init__.py").exists())}
-    old = {p.stem for p in (ROOT / "powerline_control").glob("*.py") if layout.is_old_path(p)}
-    assert set(edges) == parts - old - {"__init__", "__main__"}
+    assert set(edges) == parts - {"__init__", "__main__"}

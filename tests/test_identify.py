@@ -1,4 +1,4 @@
-"""Tests of identify.py (DMD, Tikhonov, delays, DMDc, OnlineDMD, alpha selection) and io.py.
+"""Tests of identify.py (DMD, Tikhonov, delays, DMDc, OnlineDMD, alpha selection) and output/io.py.
 
 Independent truths used: eq. (14) evaluated naively in float64, numpy's pseudo-inverse,
 discrete systems with known eigenvalues, the FE modal analysis of the lead's LineModel
@@ -596,7 +596,7 @@ def test_model_methods_reject_bad_input():
 
 
 # ----------------------------------------------------------------------------------------------
-# Persistence (io.py)
+# Persistence (output/io.py)
 # ----------------------------------------------------------------------------------------------
 
 

@@ -87,7 +87,7 @@ MUST_REFUSE: dict[tuple[str, str, str], str] = {
 _OWNERS = {"severity": "severity (fatigue engineer)", "sensors": "sensors.py (estimator engineer)",
            "estimator": "estimate/recipe (estimator engineer)",
            "closed_loop": "closed_loop (lead)", "pipeline": "scenario (pipeline engineer)",
-           "records": "io.py records (pipeline engineer)"}
+           "records": "output/records.py (pipeline engineer)"}
 _XFAIL_TABLE = """
 """
 

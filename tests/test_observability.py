@@ -1,4 +1,4 @@
-"""Tests of observability.py: rank, Gramian, Riccati covariance, reports.
+"""Tests of estimate/observability.py: rank, Gramian, Riccati covariance, reports.
 
 Independent truths: closed forms (string mode shapes vanish at their nodes; scalar Riccati
 equations), brute-force sums, SciPy's Lyapunov solver, python-control's ``dlqe`` and the plain

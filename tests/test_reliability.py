@@ -412,7 +412,7 @@ BAD_INPUT = [
     ("design_estimator.n_sensors=0",
      lambda s: plc.design_estimator(s["X_long"], 0, dt=1e-3, delays=2, rank=4), I, "n_sensors"),
     ("design_estimator.dt missing", lambda s: plc.design_estimator(s["X_long"], 2), I, "dt"),
-    # io.py
+    # output/io.py
     ("save_model.model=str", lambda s: plc.save_model("/tmp/never.npz", "model"), I, "model"),
     ("load_model missing file", lambda s: plc.load_model("/nonexistent/dir/model.npz"),
      FileNotFoundError, "model.npz"),
@@ -437,7 +437,7 @@ BAD_INPUT = [
      lambda s: plc.estimation_accuracy(s["est"], s["est"].states, discard=-1), I, "discard"),
     ("filter_consistency.discard<0", lambda s: plc.filter_consistency(s["est"], discard=-1), I,
      "discard"),
-    # observability.py
+    # estimate/observability.py
     ("observability_rank.sensors", lambda s: plc.observability_rank(s["sys_all"], [99]), I,
      "sensors"),
     ("observability_gramian.horizon=0",
@@ -535,7 +535,7 @@ BAD_INPUT = [
     ("run_study func=str", lambda s: plc.run_study("f", [{"a": 1}]), I, "func"),
     ("run_study executor=str",
      lambda s: plc.run_study(lambda a: {"x": a}, [{"a": 1}], executor="pool"), I, "executor"),
-    # tuning.py
+    # fem/damper.py
     ("tune_damper.mode=0", lambda s: plc.tune_damper(s["model"], 0, 1.0, 0.05), I, "mode"),
     ("tune_damper.position>L", lambda s: plc.tune_damper(s["model"], 2, 9.0, 0.05), I,
      "position"),
@@ -581,7 +581,7 @@ BAD_INPUT = [
     ("AtAntinode.damper=str", lambda s: plc.AtAntinode("robot"), I, "damper"),
     # studies.py
     ("point_seed.seed<0", lambda s: plc.point_seed(-1, {"a": 1}), I, "seed"),
-    # config.py
+    # scenario/config.py
     ("load_scenario unknown section", lambda s: config.load_scenario(text="[bogus]\na = 1"), I,
      "bogus"),
     ("load_scenario n_elements=0",

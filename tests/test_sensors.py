@@ -62,7 +62,7 @@ def brute_force_optimum(sys, k, criterion, **kwargs) -> float:
 
 
 def exact_trace(sys, q, r, layout) -> float:
-    """Independent exact criterion: SciPy's DARE through observability.py."""
+    """Independent exact criterion: SciPy's DARE through estimate/observability.py."""
     return float(np.trace(steady_state_covariance(sys, q, r, list(layout))))
 
 
@@ -331,7 +331,7 @@ def test_exhaustive_search_certifies_the_optimum_with_zero_gap():
     sys, q = random_system(5)  # 10 candidates, k = 3: C(10, 3) = 120 layouts, brute force runs
     r = 0.1
     sel = plc.select_sensors(sys, k=3, Q=q, R=r, n_random=0)
-    # Independent brute force: SciPy's DARE (through observability.py) on every layout.
+    # Independent brute force: SciPy's DARE (through estimate/observability.py) on every layout.
     values = {lay: exact_trace(sys, q, r, lay) for lay in itertools.combinations(range(10), 3)}
     optimum = min(values.values())
     # Two Riccati solvers (batched doubling vs SciPy's QZ): round-off, 1e-8 relative.

@@ -2,8 +2,7 @@
 
 The diagram is read from the source (every ``from .x import`` of every file), so it shows the
 tree as it is, not as it was meant to be: one box per top-level module or subpackage, one arrow
-per "imports from", boxes in rows by how far they sit above the leaves. A module that only
-re-exports a moved one (an old path kept for one release) is left out.
+per "imports from", boxes in rows by how far they sit above the leaves.
 """
 
 from __future__ import annotations
@@ -24,17 +23,12 @@ def concept_of(path: Path, package: Path = PACKAGE) -> str:
     return path.stem if len(parts) == 1 else parts[0]
 
 
-def is_old_path(path: Path) -> bool:
-    """A top-level shim that re-exports a moved module and warns."""
-    return path.parent == PACKAGE and "is deprecated; import from" in path.read_text()
-
-
 def import_edges(package: Path = PACKAGE) -> dict[str, set[str]]:
     """concept -> the concepts it imports from (itself and the package root excluded)."""
     edges: dict[str, set[str]] = {}
     for path in sorted(package.rglob("*.py")):
         source = concept_of(path, package)
-        if source in {"__init__", "__main__"} or is_old_path(path):
+        if source in {"__init__", "__main__"}:
             continue
         where = list(path.relative_to(package).parts[:-1])
         targets = edges.setdefault(source, set())
