@@ -14,7 +14,7 @@ import numpy as np
 
 from .._validation import check_real
 from ..errors import InputError
-from .closed_form import _bang_coast_bang, _s_curve
+from .kernels import _bang_coast_bang, _s_curve
 
 # Relative slack on limits when checking a *given* state (a measured velocity a hair above v_max
 # after round-off is not an error).

@@ -30,7 +30,6 @@ from ..errors import InputError, PlanningError
 from .closed_form import (
     Trajectory,
     _closed_form_trajectory,
-    _extremes,
     _stationary,
     _time_optimal_pieces,
 )
@@ -44,6 +43,7 @@ from .free_space import (
     _check_target_reachable,
     _free_interval,
 )
+from .kernels import _extremes
 from .limits import RobotLimits, _check_limits, _check_velocity_state
 
 _IPOPT_QUIET = {"ipopt.print_level": 0, "print_time": 0, "ipopt.sb": "yes"}
