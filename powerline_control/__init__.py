@@ -44,7 +44,10 @@ _LAZY_EXPORTS = {
         "ParkedSteadyState", "Snapshots", "parked_steady_state", "simulate",
     ),
     "fem.damper": (
-        "AtAntinode", "ImpedanceDamper", "damper_impedance", "den_hartog_optimum", "tune_damper",
+        "AtAntinode", "ImpedanceDamper", "damper_impedance", "den_hartog_optimum",
+    ),
+    "fem.tuning": (
+        "tune_damper",
     ),
     "identify": (
         "AlphaCurve", "DampingReport", "DMDModel", "OnlineDMD", "OscillatorModel",

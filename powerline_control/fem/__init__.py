@@ -1,10 +1,10 @@
 """The line's finite-element model: LineModel and its damping (model.py), meshes and element
-matrices (mesh.py), the robot MDR, its tuning and the dampers' impedance (damper.py).
+matrices (mesh.py), the robot MDR and the dampers' impedance (damper.py), its tuning (tuning.py).
 """
 
 # The names imported "as" themselves are not in __all__ but are imported from
 # powerline_control.fem by the package, tests and docs.
-from .damper import MDR, den_hartog_optimum, tune_damper
+from .damper import MDR, den_hartog_optimum
 from .damper import AtAntinode as AtAntinode  # the dampers' impedance: severity re-exports these
 from .damper import ImpedanceDamper as ImpedanceDamper
 from .damper import damper_impedance as damper_impedance
@@ -24,6 +24,7 @@ from .mesh import (
 from .mesh import clamp_error_estimate as clamp_error_estimate
 from .model import DENSE_EIGEN_LIMIT as DENSE_EIGEN_LIMIT
 from .model import LineModel, ModalBasis, ModalDamping, RayleighDamping
+from .tuning import tune_damper
 
 __all__ = ["LineModel", "MDR", "ModalDamping", "RayleighDamping", "ModalBasis", "physics_mesh",
            "frequency_error_estimate", "accuracy_elements_per_loop", "aeolian_band_top",
