@@ -743,7 +743,8 @@ def summarise(label: str, outcomes) -> Summary:
 
 
 def criteria_failures(summary: Summary) -> list[str]:
-    """What the issue-18 criteria say about a family (empty: all met)."""
+    """The family criteria a summary misses (empty: all met): settled in 95 % of runs, median
+    closed/best <= 1.10, worst closed/best <= 1.5, worst closed/start <= 1.05, no errors."""
     problems = []
     if summary.settled_fraction < 0.95:
         problems.append(f"settled in {100 * summary.settled_fraction:.0f} % of runs (< 95 %)")

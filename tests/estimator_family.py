@@ -20,8 +20,8 @@ design's sensor noise:
   history of the broadband load);
 - *mismatched*, a load that drives modes the training never saw, alternating between
   ``"above"`` (a sine at 1.5-3 x the training band at a new place) and ``"elsewhere"`` (a sine
-  10 % lower at a new place plus a broadband load up to 3 x the band at a new place: the
-  issue's 102 % case).
+  10 % lower at a new place plus a broadband load up to 3 x the band at a new place: a case
+  whose error at the unmeasured nodes reached 102 %).
 - *steady* (only with ``runs_of(..., steady=True)``): a matched load run three times as long,
   judged on its last third, when the line has rung up (an identified model's error grows with
   the field: the calibration must hold there too).

@@ -65,7 +65,8 @@ def line_models(draw, max_elements: int = 12) -> plc.LineModel:
     fewest = 2 if bc in ("clamped", ("clamped", "clamped")) else 1
     with warnings.catch_warnings():
         # A coarse uniform mesh at a clamp is valid but does not resolve the boundary layer:
-        # it warns (issue 21); these strategies test properties that hold on any mesh.
+        # it warns (the clamp's boundary layer unresolved); these strategies test properties that
+        # hold on any mesh.
         warnings.filterwarnings("ignore", "The uniform mesh .* boundary layer",
                                 plc.TruncationWarning)
         return plc.LineModel(span, n_elements=draw(st.integers(fewest, max_elements)),

@@ -1,4 +1,4 @@
-"""The bad-input sweep of issue 21: valid baseline calls, the bad values, and a guarded worker.
+"""The bad-input sweep of every public name: valid baseline calls, the bad values, a guarded worker.
 
 Every public callable of ``powerline_control.__all__`` (and the public methods users call on the
 objects it returns) has one *baseline*: a minimal valid call, written below as a function of a

@@ -219,7 +219,7 @@ def test_antinode_is_frozen():
 
 
 def test_kalman_estimate_of_the_paper_span_near_resonance():
-    # The Must-show: the paper's span (Table 1, 100 elements, pinned, 1 % modal damping)
+    # The paper's span (Table 1, 100 elements, pinned, 1 % modal damping)
     # forced at 24 Hz near mode 3 (24.53 Hz) plus a weak broadband force (so that identification
     # sees more than one frequency), 5 % measurement noise.  A DMD model (delays 2: a line is second
     # order; rank 10; relative Tikhonov 1e-3) is identified from the first 2 s of noisy snapshots;
@@ -342,7 +342,7 @@ def test_closed_form_response_matches_modal_sum():
 @pytest.mark.parametrize("mesh", ["uniform", "graded"])
 @pytest.mark.parametrize("kind", ["window", "snapshot"])
 def test_largest_antinode_of_exact_off_resonance_fields(kind, mesh):
-    # The Must-show.  Exact steady fields of the lab span at frequencies between its
+    # Exact steady fields of the lab span at frequencies between its
     # resonances and several load positions (a loop next to the load is not a sine), sampled on a
     # uniform (101 nodes) or graded (121 nodes, finer near the ends) mesh, as a 0.4 s window
     # y(x) cos(w t + 0.4) sampled at 1 kHz or as one snapshot y(x), plus white noise of 0.3, 1
@@ -383,7 +383,7 @@ def test_largest_antinode_of_exact_off_resonance_fields(kind, mesh):
 
 
 def test_small_loop_between_resonances_keeps_its_own_ends():
-    # The case: 31 Hz, here with the load at 1.1 m, where the exact response has a small
+    # A hard case: 31 Hz, here with the load at 1.1 m, where the exact response has a small
     # loop of 0.13 m between two large ones.  Its ends must be the zeros of the exact response
     # (a node-finding error of less than a sample spacing, 3.7 cm), and the large loops keep
     # theirs (the old code stretched one over the small loop).

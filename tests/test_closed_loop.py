@@ -114,8 +114,8 @@ def test_line_ends_near_the_best_parked_position_and_far_below_the_start(settled
     _, robot, force, result = settled_case
     best_x, best_rms = _fe_best(robot, force)
     closed = _rms_over(result, result.t[-1] - 3.0, result.t[-1])
-    # 25 %: the bar. The time-domain RMS also holds what is left of the start-up
-    # transients of undriven modes (zeta 0.3 %) and the plant's first-order hold (~0.5 %).
+    # 25 %: the bar the closed loop must meet. The time-domain RMS also holds what is left of the
+    # start-up transients of undriven modes (zeta 0.3 %) and the plant's first-order hold (~0.5 %).
     assert closed <= 1.25 * best_rms
     start_rms = _fe_steady_rms(robot, robot.position, force)
     assert start_rms >= 3.0 * closed
@@ -230,7 +230,7 @@ def _jerk(result):
 
 @pytest.mark.parametrize("motion", ["closed_form", "mpc"])
 def test_every_limit_holds_jerk_and_body_length_included(motion):
-    # The case: j_max and length were ignored by the closed-form law (peak jerk
+    # The case: j_max and length were once ignored by the closed-form law (peak jerk
     # 1415 m/s^3) and the MPC stopped with a state-shape error. Bounds: the planner's own
     # (IPOPT meets them to ~1e-8 relative; the closed form exactly, to round-off).
     limits = plc.RobotLimits(v_max=0.3, a_max=0.8, j_max=0.5, length=0.3)

@@ -57,7 +57,7 @@ def long_span():
 def test_band_plant_steady_state_is_within_1_percent_everywhere_on_a_400m_clamped_span(long_span):
     c = long_span
     error = np.abs(c["rms"] / c["exact"].rms - 1)
-    # The bar, 1 % of span RMS at every parked position. Measured: worst 0.11 %,
+    # The bar, 1 % of span RMS at every parked position. Measured: worst 0.11 %,
     # median 0.012 %, 0.05 % at 0.5 m from the clamp, 0.02 % at 0.2 m from the load (before
     # the Ritz vectors and the robot's residual flexibility: 26 %, 2.1 %, 26 %, 21 %). What is
     # left: the residual is undamped and the ModalDamping truth damps modes above 2 f

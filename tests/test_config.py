@@ -37,7 +37,7 @@ def test_shipped_scenarios_are_the_papers_cases_and_a_real_span():
     assert (paper20.model.n_elements, paper100.model.n_elements) == (20, 100)
     drake = load_scenario("drake-300m")
     span = drake.span.build()
-    # Issue 10: Drake, 300 m, 20 % RTS (140.1 kN rated strength -> 28.02 kN), wind 3 m/s.
+    # drake-300m: Drake, 300 m, 20 % RTS (140.1 kN rated strength -> 28.02 kN), wind 3 m/s.
     assert span.length == 300.0
     assert span.tension == pytest.approx(0.20 * 140.1e3, rel=1e-3)
     assert drake.forcing.kind == "aeolian" and drake.forcing.wind_speed == 3.0
@@ -67,7 +67,7 @@ def test_template_comments_out_keys_the_preset_ignores():
     text = scenario_to_toml(default_scenario())
     active = tomllib.loads(text)["span"]
     # The lab preset fixes conductor, length and tension: the template must not show them as
-    # settings (issue 13: they used to be printed and then silently ignored).
+    # settings (a setting shown must be one that is read).
     assert active == {"preset": "paper_lab"}
     assert "# conductor = " in text and "used only with preset" in text
 
@@ -200,7 +200,7 @@ def test_template_of_a_scenario_with_listed_sensors_and_a_tension_loads_back():
     assert scenario.span.build().tension == 25000.0
 
 
-# ------------------------------------------------------------------------ issue 41: escaping
+# --------------------------------------------------------- escaping: text round-trips through TOML
 @pytest.mark.parametrize(("name", "written"), [
     ('the "B" line', r'"the \"B\" line"'),
     (r"C:\new\tests", r'"C:\\new\\tests"'),

@@ -149,7 +149,7 @@ def test_filter_equals_textbook(selection, n_inputs, epsilon, gain_rtol):
     est = KalmanFilter(sys, q, r, epsilon=epsilon, gain_rtol=gain_rtol).filter(y, u)
     if gain_rtol:
         assert est.converged_at is not None and est.converged_at < 1500 - 256  # batch path ran
-    # 1e-9: the issue's requirement; the differences are round-off (and, with a frozen gain, the
+    # 1e-9: the required agreement; the differences are round-off (and, with a frozen gain, the
     # <= 1e-10 relative gain change left at freezing), amplified by the closed loop's memory.
     assert rel(est.states, ref_states) < 1e-9
     assert rel(est.innovations, ref_innov) < 1e-9
@@ -202,7 +202,7 @@ def test_time_varying_gain_converges_to_dlqe():
     dlqe_gain, dlqe_p, _ = ct.dlqe(sys.A, np.eye(n), sys.C, q, r)
     # dlqe returns the predictor-form gain A P C^T S^-1; ours is the filter form P C^T S^-1.
     assert est.converged_at is not None
-    assert rel(np.asarray(sys.A) @ est.gain, dlqe_gain) < 1e-8  # the issue's 1e-8
+    assert rel(np.asarray(sys.A) @ est.gain, dlqe_gain) < 1e-8  # the required agreement
     kf_ss = KalmanFilter(sys, q, r, steady_state=True)
     assert rel(np.asarray(sys.A) @ kf_ss.steady_gain, dlqe_gain) < 1e-8
     # dlqe's P is the predicted covariance; our steady covariance is the posterior one.
@@ -905,7 +905,7 @@ def _score(train, test, sensors, **fit):
 @pytest.mark.parametrize(
     "scenario, low, high",
     [
-        # Measured 1.30 %: the issue asks for < 5 % near resonance.
+        # Measured 1.30 %: the bound is 5 % near resonance.
         ("near_resonance", 0.0, 0.05),
         # Measured 49 %: the first 13 nodes sit within 0.45 m of a support and the d = 1 model
         # cannot carry the rest of the span off resonance. Asserted so that a change is noticed.
@@ -946,7 +946,7 @@ def test_better_recipe_five_spread_sensors(paper_records, better_models, scenari
     est = _better_filter(better_models[scenario], train).filter(test.displacement[SPREAD_5])
     acc = estimation_accuracy(est, test.true_displacement, measured=SPREAD_5, discard=500)
     print(f"better recipe, {scenario}: unmeasured {acc.relative_rms_error_unmeasured:.2%}")
-    # Measured 0.67 % (near) and 0.74 % (between); the issue's target is < 1 %.
+    # Measured 0.67 % (near) and 0.74 % (between); the bound is 1 %.
     assert acc.relative_rms_error_unmeasured < 0.01
 
 
@@ -1311,7 +1311,7 @@ def test_bad_input_table(name, call, error, parameter):
 
 @pytest.mark.parametrize("field_map", [float("nan"), "1.0", True, object(), np.ones((3, 7))])
 def test_filter_consistency_checks_field_map_whatever_the_truth(field_map):
-    # Issue 21: any field_map was accepted when the truth did not use it.
+    # A bad field_map is refused even when the truth does not use it (any was once accepted).
     sys = ct.ss([[0.9]], [[0.0]], [[1.0]], 0, dt=1.0)
     est = plc.KalmanFilter(sys, Q=1.0, R=0.25).filter(np.ones((1, 50)))
     with pytest.raises(plc.InputError, match="'field_map'"):
@@ -1319,7 +1319,7 @@ def test_filter_consistency_checks_field_map_whatever_the_truth(field_map):
 
 
 def test_an_empty_record_is_refused_by_name():
-    # issue 41: numpy's "zero-size array to reduction" escaped from the filter
+    # numpy's "zero-size array to reduction" once escaped from the filter.
     kf = plc.KalmanFilter(ct.ss([[0.5]], [[1.0]], [[1.0]], 0, dt=1.0), Q=1.0, R=1.0)
     with pytest.raises(plc.InputError, match=r"'measurements' parameter must hold at least one "
                                              r"sample.*\(1, 0\)"):

@@ -1,4 +1,4 @@
-"""Issue 19, part 1: the reported sigma on new load histories, with ``model_error_records``.
+"""The reported sigma on new load histories, with ``model_error_records``.
 
 Truth is the simulation's noise-free field on runs of load histories that neither the training
 record nor the model-error records hold; the filter's reported sigma is judged against it.
@@ -27,7 +27,7 @@ def test_drake_model_error_level_from_other_load_histories_holds_on_new_runs():
     the model-error terms from the held-out part (which continues the training loads) the
     reported sigma on new runs is 0.60-0.72 x the actual error (measured on five runs); from two
     records of other load histories (same sensor noise), 0.87-1.04. Asserted on two of those
-    runs, whose loads are in no record the design saw: within the issue's factor 1.5 with the
+    runs, whose loads are in no record the design saw: within a factor 1.5 with the
     records, below 1 / 1.5 without."""
     model, rec = drake_broadband_record()
     loads = drake_broadband_loads

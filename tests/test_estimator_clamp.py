@@ -1,4 +1,4 @@
-"""Issue 19, part 5: clamp bending amplitude Y_b and strain from the sensors, against FE truth.
+"""Clamp bending amplitude Y_b and strain from the sensors, against FE truth.
 
 Truth: the full ``LineModel`` simulation of the same run (the physics mesh graded toward the
 clamps), read by ``simulate(outputs=[0.089, L - 0.089])`` through the element shape functions,
@@ -85,7 +85,7 @@ def test_clamp_strain_bad_input():
         plc.estimate_clamp_strain(design, y, span, model.node_positions, side="middle")
     with pytest.raises(plc.InputError, match="'x_b'"):
         plc.estimate_clamp_strain(design, y, span, model.node_positions, x_b=-1.0)
-    # issue 41: the documented preconditions, checked before the filter runs
+    # The documented preconditions, checked before the filter runs
     pinned = plc.LineModel(span, n_elements=60, bc="pinned")
     with pytest.raises(plc.InputError, match="'positions'.*the left one is pinned"):
         plc.estimate_clamp_strain(design, y, span, pinned)

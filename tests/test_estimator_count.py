@@ -1,4 +1,4 @@
-"""Issue 19, part 4: how many sensors, measured on held-out data, checked on independent runs.
+"""How many sensors, measured on held-out data, checked on independent runs.
 
 Truth is an independent simulation (new random load histories, new noise) judged by its true
 field, never the record the study used.

@@ -1,4 +1,4 @@
-"""Issue 19, part 2-3: the spectral consistency test and the coverage check.
+"""The spectral consistency test and the coverage check.
 
 Truth here is independent of the code under test: the innovations of an exact model are white
 with covariance S (a closed form: their whitened spectrum is 1 in every bin), and the family's
@@ -179,7 +179,7 @@ def test_held_out_family_runs_warn_when_mismatched():
     # Wrong without saying so (actual error above 1.5 x the reported sigma): always warned.
     hidden = [r for r in runs if r.kind != "matched" and r.reported_over_actual < 1 / 1.5]
     assert all(r.warned for r in hidden), [(r.seed, r.kind) for r in hidden if not r.warned]
-    # Issue 19 part 1 on the same held-out runs: the reported sigma at unmeasured nodes against
+    # On the same held-out runs: the reported sigma at unmeasured nodes against
     # the simulation's error, matched runs (lab and real spans). Measured 0.73-1.54, 11 of 12
     # within 1.5x (the constant scale from the held-out tail read 0.89-2.17, 9 of 12 above
     # 1.5x: the real spans' error grows as they ring up, which it did not follow).
@@ -221,7 +221,7 @@ def test_coverage_band_and_check_on_the_lab_span():
         assert cov.check(high.displacement[design.sensors]) > 0.5
     with pytest.raises(plc.InputError, match="'warn'"):
         cov.check(same.displacement[design.sensors], warn="yes")
-    # issue 41: 7 rows for a 4-sensor design (all nodes, or a transposed record) is refused
+    # 7 rows for a 4-sensor design (all nodes, or a transposed record) is refused
     assert cov.n_sensors == 4
     with pytest.raises(plc.InputError, match=r"one row per sensor of the design \(4.*Got 7"):
         cov.outside_share(same.displacement[:7])

@@ -1,4 +1,4 @@
-"""fatigue_over_record and rainflow counting (issue 23, items 3-4).
+"""fatigue_over_record and rainflow counting.
 
 Truths: the steady robot_value figure (a constant-wind record is the steady analysis), the
 rainflow library and ASTM E1049-85's worked sequence, the closed form of a pure sine, the

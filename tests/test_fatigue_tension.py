@@ -1,4 +1,4 @@
-"""Conductor change-of-state data and tension_at_temperature (issue 23, item 1)."""
+"""Conductor change-of-state data and tension_at_temperature."""
 
 import math
 

@@ -27,7 +27,7 @@ def test_pinned_frequencies_match_taut_beam_closed_form():
         * np.sqrt(cond.ei / cond.mass_per_length)
         * np.sqrt(1 + LAB.tension * LAB.length**2 / (cond.ei * n**2 * np.pi**2))
     )
-    # The issue asks for 0.1 %; Hermite cubics at h = L/100 are far better (O(h^4), ~1e-6 at n=10).
+    # The bound is 0.1 %; Hermite cubics at h = L/100 are far better (O(h^4), ~1e-6 at n=10).
     np.testing.assert_allclose(model.natural_frequencies(10), omega / (2 * np.pi), rtol=1e-3)
     np.testing.assert_allclose(model.natural_frequencies(10), omega / (2 * np.pi), rtol=2e-5)
 
@@ -271,7 +271,7 @@ def test_modes_are_cached_per_model_and_read_only():
     assert plc.LineModel(LAB, 20).modes(3) is not basis
 
 
-# ---------------------------------------------------------------- mesh from physics (issue 10)
+# ---------------------------------------------------------------- mesh from physics
 DRAKE = plc.Span.at_rts_fraction(300.0, "drake", 0.20)
 
 
@@ -339,7 +339,7 @@ def drake_band_errors(drake_truth):
 def test_default_drake_mesh_gives_every_frequency_to_50_hz_within_one_percent(drake_band_errors,
                                                                              bc):
     _, error = drake_band_errors[bc, None]
-    assert error < 0.01        # the issue's requirement
+    assert error < 0.01        # 1 %: the required accuracy
     # What docs/model.md states: measured 8.3e-6 (both supports); the h^6 string estimate at
     # 4 elements per 46 Hz loop is 6e-6 at 50 Hz, so 3e-5 leaves room without hiding a regression.
     assert error < 3e-5
@@ -351,7 +351,7 @@ def test_clamped_error_falls_at_the_pinned_rate(drake_band_errors):
         h, e = np.array([drake_band_errors[bc, p] for p in (1.0, 2.0, None)]).T
         slopes[bc] = np.polyfit(np.log(h), np.log(e), 1)[0]
     # Hermite cubics: h^4 (bending) to h^6 (tension); the Drake span mixes them (measured 4.9 for
-    # both). Without grading the clamped error converged at ~1.3 (issue 10), so "within 0.3 of
+    # both). Without grading the clamped error converged at ~1.3, so "within 0.3 of
     # the pinned slope and above 3.5" is what grading must deliver.
     assert 3.5 < slopes["pinned"] < 6.5, slopes
     assert abs(slopes["clamped"] - slopes["pinned"]) < 0.3, slopes
@@ -570,7 +570,7 @@ def test_sparse_eigen_solve_is_repeatable_bit_for_bit():
     assert np.allclose(first.omega, exact, rtol=1e-6)
 
 
-# ------------------------------------------------------------------ issue 21: accuracy warns
+# ------------------------------------------------------ a mesh too coarse for its band warns
 DRAKE_300 = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
 
 
@@ -620,7 +620,7 @@ def test_to_statespace_names_outputs_and_natural_frequencies_wants_an_int():
 
 @pytest.mark.parametrize("frequencies", [(3.0,), 3.0, (1.0, 2.0, 3.0), "ab"])
 def test_rayleigh_damping_needs_two_frequencies(frequencies):
-    # issue 41: one frequency unpacked raw (ValueError / TypeError)
+    # One frequency unpacked raw (ValueError / TypeError)
     with pytest.raises(plc.InputError, match="'frequencies' parameter must be two frequencies"):
         plc.RayleighDamping.from_ratios(frequencies, 0.01)
     # an array of two works as the tuple does (the closed form: beta = 2 zeta / (w1 + w2))

@@ -1,4 +1,4 @@
-"""Property tests of every file format the package writes (issue 41): anything the writer
+"""Property tests of every file format the package writes: anything the writer
 accepts reads back equal, bit for bit, NaN (a missing sample) included.
 
 Formats: scenario TOML (``scenario_to_toml`` -> ``load_scenario``), record CSV and ``.npz``

@@ -161,7 +161,7 @@ def test_free_decay_eigenvalues_match_fe_modes(delays):
     error = nearest_relative_error(found, np.concatenate([expected, expected.conj()]))
     print(f"\nfree decay, delays={delays}: max relative eigenvalue error {error:.2e}")
     # The simulation is exact modal superposition, so only round-off separates the two;
-    # 1e-6 is the issue's bound (measured ~1e-9).
+    # 1e-6 is the required bound (measured ~1e-9).
     assert error < 1e-6
     # Continuous-time analysis of the same modes: natural frequencies and damping ratios.
     upper = dmd.eigenvalues.imag > 0
@@ -201,7 +201,7 @@ def test_tikhonov_equals_naive_eq14(alpha):
     X0, X1 = X[:, :-1], X[:, 1:]
     naive = X1 @ X0.T @ np.linalg.inv(X0 @ X0.T + alpha * np.eye(8))
     model = plc.fit_dmd(X, dt=1.0, alpha=alpha)
-    # cond(X0 X0^T + alpha I) < 10: both evaluations agree to ~1e-14; 1e-10 is the issue's bound.
+    # cond(X0 X0^T + alpha I) < 10: both evaluations agree to ~1e-14; 1e-10 is the required bound.
     np.testing.assert_allclose(model.A, naive, rtol=0, atol=1e-10 * np.abs(naive).max())
 
 
@@ -399,7 +399,7 @@ def test_online_without_forgetting_equals_batch(delays, alpha):
     for k in range(60, 400):
         online.update(X[:, k])
     batch = plc.fit_dmd(X, 0.01, delays=delays, alpha=alpha)
-    # RLS is algebraically the batch solution; 1e-8 is the issue's bound (measured ~1e-13).
+    # RLS is algebraically the batch solution; 1e-8 is the required bound (measured ~1e-13).
     np.testing.assert_allclose(online.A, batch.A, atol=1e-8)
     assert online.n_updates == 340
     snapshot = online.model()
@@ -488,7 +488,7 @@ def test_selection_with_delays_beats_paper_recipe(paper_span_harmonic):
         f"{auto.one_step_error[best]:.3%}, 100-step {auto.multi_step_error[best]:.1%}"
     )
     assert auto.alphas[best] == auto.best_alpha
-    # The issue's claim: at least 5x lower free-run error than the paper's recipe.
+    # The claim checked: at least 5x lower free-run error than the paper's recipe.
     assert auto.multi_step_error[best] * 5 <= paper.multi_step_error[0]
     # ...and an absolute alpha = 0.1 destroys that gain.
     assert absolute_point_one.multi_step_error[0] > 4 * auto.multi_step_error[best]
@@ -656,7 +656,7 @@ def test_load_rejects_truncated_foreign_and_future_files(tmp_path):
 
 
 # ----------------------------------------------------------------------------------------------
-# Identified damping (issue 10 item 5)
+# Identified damping
 # ----------------------------------------------------------------------------------------------
 
 
@@ -713,7 +713,7 @@ def test_damping_report_flags_a_record_too_short_for_the_decay():
 
 
 # ----------------------------------------------------------------------------------------------
-# Misread input and silent NaN (issue 12)
+# Misread input and silent NaN
 # ----------------------------------------------------------------------------------------------
 
 
@@ -796,7 +796,7 @@ def test_to_statespace_warns_what_to_change_for_models_python_control_refuses():
 
 
 # ----------------------------------------------------------------------------------------------
-# Issue 10 item 8: the full-rank fit's Q from Gram matrices (no residual pass) is exact
+# The full-rank fit's Q from Gram matrices (no residual pass) is exact
 # ----------------------------------------------------------------------------------------------
 
 
@@ -1037,6 +1037,6 @@ def test_select_alpha_refuses_more_windows_than_samples():
 
 
 def test_select_alpha_refuses_all_zero_data_as_fit_dmd_does():
-    # issue 41: every alpha "fitted" data without dynamics
+    # Every alpha "fitted" data without dynamics
     with pytest.raises(plc.IdentificationError, match="'X' parameter is all zeros"):
         plc.select_alpha(np.zeros((3, 500)), dt=0.01)

@@ -1,4 +1,4 @@
-"""Issue 21: no raw error, no silent wrong answer, no hang, for every public name.
+"""No raw error, no silent wrong answer, no hang, for every public name.
 
 The sweep (``tests/sweep_cases.py``) starts from one valid call per public callable of
 ``powerline_control.__all__`` (and the public methods users call on what those return), walks
@@ -217,7 +217,7 @@ def test_sweep_covers_every_public_callable_and_reports_its_size(capsys):
     assert sum(per_name.values()) > 3000
 
 
-# ================================================ the issue's named classes, one test each
+# ======================================= the named classes of bad input, one test each
 # (the sweep above finds them too; these state the physics or the contract directly)
 DRAKE = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
 
@@ -280,7 +280,7 @@ def test_sensor_positions_closer_than_a_mesh_cell_are_refused_not_merged():
 def test_check_array_finiteness_equals_the_elementwise_truth(values, allow_nan):
     from powerline_control._validation import check_array
 
-    # Truth: the elementwise mask (what the check allocated before issue 21).
+    # Truth: the elementwise mask (what the check once allocated).
     bad = np.isinf(values) if allow_nan else ~np.isfinite(values)
     if bad.any():
         with pytest.raises(plc.InputError, match="'v' parameter contains"):

@@ -273,7 +273,7 @@ def test_round_trip_keeps_every_field_including_the_gram(tmp_path, kwargs):
         assert (a is None and b is None) or a.tobytes() == b.tobytes(), name
 
 
-# ------------------------------------------------------------------ issue 21: bad paths, limits
+# ------------------------------------------------------------------ bad paths, limits
 def test_save_model_onto_a_folder_is_refused_not_written_beside_it(tmp_path):
     model = small_model()
     folder = tmp_path / "models"

@@ -1,7 +1,7 @@
 """Size limits: every public entry given a huge size parameter refuses before it allocates.
 
-Issue 12, "No public call given the size parameters above allocates more than its budget before
-refusing". Each row calls one public entry with an element count, duration, time step,
+No public call given the size parameters above allocates more than its budget before
+refusing. Each row calls one public entry with an element count, duration, time step,
 bandwidth, delay count, horizon, rank, TOML value or array length that would need gigabytes to
 terabytes (or hours), and checks, with ``tracemalloc`` (numpy reports its buffers to it):
 
@@ -34,7 +34,7 @@ DRAKE = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
 I = InputError
 
 # 64 MB: the largest legitimate working set of these refusals is measured at 33 MB. The 100 MB
-# boolean mask a finiteness check of 1e8 entries once built is gone (issue 21: reductions, no
+# boolean mask a finiteness check of 1e8 entries once built is gone (reductions, no
 # mask), so a row that brings it back fails; a call that started to allocate its would-be size
 # (>= 4 GiB) is 60x over.
 PEAK_LIMIT = 64 * 2**20
@@ -237,7 +237,7 @@ def test_huge_size_on_a_fast_path_stays_within_memory(small, call):
     assert peak < PEAK_LIMIT, f"{peak / 2**20:.0f} MB traced"
 
 
-# ============================================================ issue 21: budgets validated first
+# ============================================================ budgets validated first
 # Each snippet prints the refusal; run in a subprocess under a 2 GiB address-space limit, where
 # the old code (nan makes "estimate > budget" false, so the guard is off) died of a MemoryError
 # or an allocation of the would-be size.
@@ -286,7 +286,7 @@ def test_check_budget_refuses_nan_and_text_budgets_itself():
 
 
 def test_finiteness_check_allocates_nothing_the_size_of_the_input():
-    # Old code built ~np.isfinite(x): one bool per entry (100 MB here; 37 GiB for the issue's
+    # Old code built ~np.isfinite(x): one bool per entry (100 MB here; 37 GiB for a larger
     # broadcast view) before any size check.
     view = np.broadcast_to(3.0, (10**8,))          # 0 bytes of data, 1e8 entries
     tracemalloc.start()

@@ -56,7 +56,7 @@ def test_catalogue_behaves_as_a_mapping():
         plc.conductors["unobtainium"]
 
 
-# ------------------------------------------------------------------ issue 21: physics limits
+# ------------------------------------------------------------------ physics limits
 @pytest.mark.parametrize("fraction", [1.0, 1.5])
 def test_tension_at_or_above_the_rated_strength_is_refused(fraction):
     drake = plc.conductors["drake"]

@@ -385,7 +385,7 @@ def test_analyze_observability_never_reports_observable_with_nan():
     assert report.observable and np.isfinite(report.gramian_min_singular_value)
 
 
-# --------------------------------------------------------------------- architecture (issue 12)
+# --------------------------------------------------------------------- architecture
 PACKAGE = pathlib.Path(plc.__file__).parent
 
 

@@ -1,4 +1,4 @@
-"""The oscillator model of narrowband records as its own type (issue 22).
+"""The oscillator model of narrowband records as its own type.
 
 Independent truths: the eigenvalues of a two-step recursion per line in closed form, its free
 response rho^k cos(omega k dt) and the same recursion run by hand; a file written the way the
@@ -113,7 +113,7 @@ def test_text_says_oscillator_model_and_its_lines_not_dmd_alpha_or_delays(built)
     ({"radius": 1.5}, "'radius'"),
     ({"process_noise": -1.0}, "'process_noise'"),
     ({"unseen": np.ones((3, 1))}, "'unseen'"),
-    # issue 41: the documented preconditions (no line; unseen neither unit nor orthogonal)
+    # The documented preconditions (no line; unseen neither unit nor orthogonal)
     ({"frequencies": [], "shapes": np.zeros((2, 0))}, "at least one line"),
     ({"unseen": [[2.0], [-1.0]]}, r"'unseen'.*\|U\^T U - I\| = 4"),   # orthogonal, norm sqrt 5
     ({"unseen": [[1.0], [0.0]]}, r"'unseen'.*\|Q\^T U\| = 0.894"),   # unit, not orthogonal

@@ -92,7 +92,7 @@ def test_minimum_time_matches_bang_coast_bang(distance, v_max, a_max):
     start = 0.3
     traj = plan_motion(start, start + distance, limits, span_length=SPAN)
     truth = bang_coast_bang_time(distance, v_max, a_max)
-    # 1 % is the issue's requirement; the 100-interval discretisation is measured within 0.1 %.
+    # 1 % is the required accuracy; the 100-interval discretisation is measured within 0.1 %.
     # The discrete optimum can never beat the continuous one (it is a feasible continuous motion).
     assert traj.duration == pytest.approx(truth, rel=1e-2)
     assert traj.duration >= truth * (1 - 1e-6)
@@ -202,7 +202,7 @@ def test_zero_distance_is_a_zero_duration_plan():
          "inside the span"),
         ({"duration": 2.0}, PlanningError, "v_max and a_max"),
         ({"target": 0.55, "duration": 0.1}, PlanningError, "a_max"),
-        ({"start_velocity": 0.6}, InputError, "v_max"),  # bad input (issue 21), not infeasible
+        ({"start_velocity": 0.6}, InputError, "v_max"),  # bad input, not infeasible
         ({"start": 3.6, "start_velocity": 0.5, "target": 2.0}, PlanningError, "a_max"),
         ({"objective": "energy"}, InputError, "'duration'"),
         ({"objective": "fast"}, InputError, "'objective'"),
@@ -326,8 +326,8 @@ def test_mpc_warm_start_needs_fewer_iterations_than_cold():
 
 
 def test_closed_form_seed_beats_shifted_plan_when_the_target_moves():
-    # The issue: once the target moves every step, the shifted previous plan is a poor guess
-    # (measured median 31 iterations here; the issue's 29.5); the time-optimal move from the
+    # Once the target moves every step, the shifted previous plan is a poor guess
+    # (measured median 31 iterations here, 29.5 elsewhere); the time-optimal move from the
     # current state to the new target is a good one (measured 8).  Iteration counts are
     # deterministic (no clock), so the comparison is exact.  Both planners follow the same closed
     # loop (their commands agree to IPOPT's tolerance): 0.4 m to go, then holding on a target

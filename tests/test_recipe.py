@@ -197,7 +197,7 @@ def test_filter_on_other_sensors_is_the_recipe_s_filter_with_its_model_error_ter
         design.filter_on([4, 21])
 
 
-# ------------------------------------------------------------------ generalisation (issue 10.4)
+# ------------------------------------------------------------------ generalisation
 # Lab span, 100 elements, 1 % noise. The training run is a harmonic load near mode 2
 # (14.39 Hz) plus a broadband load elsewhere on the span: richer excitation than the harmonic
 # alone (with the harmonic alone the record holds every other mode only as a free transient at
@@ -232,7 +232,7 @@ def test_lab_design_generalises_to_shifted_harmonic_forcing(lab_design, shift):
     force = plc.HarmonicForce(1.0, LAB_HARMONIC.frequency * shift, LAB_HARMONIC.position)
     error = _new_run_error(model, design, force, seed=11)
     print(f"harmonic x{shift}: unmeasured-node error {error:.2%}")
-    # Issue 10 item 4: under 2 % on a new run with the frequency shifted by 10 %.
+    # Under 2 % on a new run with the frequency shifted by 10 %.
     assert error < 0.02
 
 
@@ -242,7 +242,7 @@ def test_lab_design_generalises_to_new_broadband_forcing(lab_design, position, s
     error = _new_run_error(model, design, plc.RandomForce(1.0, position, 100.0, seed=seed),
                            seed=seed)
     print(f"broadband at {position} m: unmeasured-node error {error:.2%}")
-    # Issue 10 item 4: under 5 % for broadband forcing (a new load history, at the training
+    # Under 5 % for broadband forcing (a new load history, at the training
     # position and at another one).
     assert error < 0.05
 
@@ -263,12 +263,12 @@ def test_real_span_design_estimates_a_new_aeolian_run():
     acc = estimation_accuracy(field, test.true_displacement, measured=design.sensors,
                               discard=500)
     print(f"real span: unmeasured-node error {acc.relative_rms_error_unmeasured:.2%}")
-    # Issue 10 Must-show: under 3 % on held-out data (the time is in bench_identify.py).
+    # Under 3 % on held-out data (the time is in bench_identify.py).
     assert acc.relative_rms_error_unmeasured < 0.03
 
 
 def test_reported_sigma_follows_the_model_error_from_rest_and_in_steady_state():
-    """Issue 19 part 1 on a real span whose model is poor (70-75 % error at unmeasured nodes):
+    """The reported sigma on a real span whose model is poor (70-75 % error at unmeasured nodes):
     Drake 300 m clamped, trained 12 s from rest on a sine near mode 6 plus a broadband load,
     then a new load history of the same kind run 7.2 s from rest and 21.6 s (judged on its
     last third, steady). The truth is the simulation's field. The error there grows 1.7x in
@@ -342,7 +342,7 @@ def test_noise_free_record_gives_a_working_estimator():
     assert acc.relative_rms_error_unmeasured < 0.03
 
 
-# ------------------------------------------------- harmonic-only training (issue 10.4, narrowband)
+# ------------------------------------------------------ harmonic-only training (narrowband)
 # The main job trains on a harmonic load alone. Such a record holds the forced response and the
 # free start-up transients of the undamped span: a sum of spectral lines. design_estimator then
 # builds one oscillator per line (method "modal") and warns ExcitationWarning (the record is not
@@ -388,7 +388,7 @@ def test_harmonic_only_design_generalises_to_shifted_harmonic_forcing(harmonic_d
     error = _new_run_error(model, design, plc.HarmonicForce(1.0, frequency * shift, position),
                            seed=31 if shift < 1 else 37)
     print(f"{frequency} Hz x{shift}: unmeasured-node error {error:.2%}")
-    # Issue 10 item 4: under 2 % on a new run with the frequency shifted by 10 %.
+    # Under 2 % on a new run with the frequency shifted by 10 %.
     assert error < 0.02
 
 
@@ -408,7 +408,7 @@ def test_harmonic_only_design_generalises_to_broadband_when_the_record_saw_its_m
           f" (record saw modes 1-8: {seen})")
     # These three records do (checked, so the claim below is never skipped silently).
     assert seen, "the record does not excite every mode the broadband load does"
-    # Issue 10 item 4: under 5 % for broadband forcing.
+    # Under 5 % for broadband forcing.
     assert error < 0.05
 
 
@@ -597,7 +597,7 @@ def test_excitation_message_of_a_record_the_lines_do_not_explain(occupancy, expe
     assert report.message.startswith(expected) and "time-delay DMD" in report.message
 
 
-# ------------------------------------------------------------------ issue 19, part 6: fixes
+# ------------------------------------------------------------------ fixes
 
 def test_sensors_on_supports_are_refused(small_design):
     """Node 0 and 20 are the pinned supports: with 1 % noise they read noise and nothing else."""
@@ -646,7 +646,7 @@ def test_alpha_sweep_widens_when_its_best_value_is_at_the_top(small_design):
     assert design.model.alpha_relative == pytest.approx(sweep.alphas[best], rel=1e-12)
 
 
-# ------------------------------------------------------------------ issue 19, part 2: detection
+# ------------------------------------------------------------------ detection
 
 # A design is trained on a sine near a low mode plus a broadband load band-limited to `band`;
 # a *matched* run repeats that kind of load (new random history, phase, noise, start time); a
@@ -726,7 +726,7 @@ def test_consistency_warning_on_a_handful_of_lab_runs():
           f"reported / actual error {calibration}")
     assert matched == [False, False]
     assert mismatched[1]
-    # Issue 19 part 1 on the lab span: the reported sigma at unmeasured nodes within a factor
+    # On the lab span: the reported sigma at unmeasured nodes within a factor
     # 1.5 of the actual error (measured 1.1-1.2 on 12 matched lab runs, 0.86-1.19).
     assert all(1 / 1.5 < ratio < 1.5 for ratio in calibration)
 
@@ -745,7 +745,7 @@ RATE_DETECTED, RATE_FALSE_ALARMS = 23, 0
 
 @pytest.mark.slow
 def test_consistency_warning_rates_on_lab_and_real_spans():
-    """Issue 19 Must-show: detection and false-alarm rates, 24 runs each.
+    """Detection and false-alarm rates, 24 runs each.
 
     Lab span and Cardinal 400 m at 25 % RTS, pinned and clamped, two designs per case, three
     matched and three mismatched runs per design. Targets >= 95 % detection and <= 5 % false

@@ -592,7 +592,7 @@ BAD_INPUT = [
 ]
 
 
-# -------------------------------------------------------- issue 12: the classes of bad input
+# -------------------------------------------------------- the classes of bad input
 # Built for the rows below: hostile model files (independent of save_model's writer: zipfile
 # and numpy.lib.format directly) and an unstable identified model.
 def _npy(array) -> bytes:
@@ -699,7 +699,7 @@ def _loop(s, **kwargs):
                                **{**base, **kwargs})
 
 
-# Rows of issue 12 (each class it lists), found by a fuzz of every name in __all__ with NaN, inf,
+# Rows for each class of bad input, found by a fuzz of every name in __all__ with NaN, inf,
 # negative, zero, huge, wrong types, empty, transposed and complex arrays, bools for numbers and
 # strings for bools. A fifth element would mark a finding routed to the owner of a module that is
 # still being edited (strict xfail: it must start passing when fixed); every routed row is fixed.
@@ -1080,7 +1080,7 @@ def test_bad_input_table_covers_every_public_callable():
     public = {n for n in dir(plc) if not n.startswith("_") and callable(getattr(plc, n))
               and not (isinstance(getattr(plc, n), type)
                        and issubclass(getattr(plc, n), BaseException | Warning))}
-    # Names added since issue 21 are covered by the signature-driven sweep (test_input_sweep).
+    # Names added since this table are covered by the signature-driven sweep (test_input_sweep).
     import sweep_cases
 
     swept = {name.split(".")[0] for name in sweep_cases.BASELINES} | sweep_cases.RESULTS

@@ -34,7 +34,7 @@ start = 0.8
 closed_loop = 1.5
 """
 
-# Every figure the issue asks for (13 item 3), by its id in the page.
+# Every figure the report carries, by its id in the page.
 FIGURES = ["eigenvalues", "sensor_count", "estimate", "error_along_span", "layouts",
            "envelope", "robot_path", "closed_loop", "closed_loop_path"]
 SECTIONS = ["Span and model", "Simulated data", "Identification", "Sensor placement",

@@ -1,4 +1,4 @@
-"""The report's first screen (issue 40): the summary's numbers are the result's own fields, its
+"""The report's first screen: the summary's numbers are the result's own fields, its
 links reach the sections they name, its caveats appear exactly when the result has them; every
 row of every section is explained; the JSON says whether the closed loop's headline is steady.
 

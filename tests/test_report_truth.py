@@ -1,4 +1,4 @@
-"""Issue 20, a report that tells the truth: each defect of a fresh-venv run of the shipped
+"""A report that tells the truth: each defect of a fresh-venv run of the shipped
 scenarios, tested against something independent of the code's earlier output (the file's bytes,
 what a figure draws, a hand computation)."""
 

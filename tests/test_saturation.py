@@ -1,4 +1,4 @@
-"""Issue 19, bad input: a sensor that saturates (a channel clipped at its range) is named where
+"""Bad input: a sensor that saturates (a channel clipped at its range) is named where
 measured data enter: design_estimator's training record, KalmanFilter.filter's measurements,
 load_record and the command's ``estimate --record``.
 
@@ -157,7 +157,7 @@ def test_the_command_prints_the_warning_and_still_exits_0(tmp_path):
 
 
 def test_two_channels_at_one_position_are_refused_naming_it(tmp_path):
-    """Issue 19's duplicated sensors: the command's estimate kept the first of two channels at
+    """Duplicated sensors: the command's estimate once kept the first of two channels at
     one position and dropped the other without a word."""
     t = np.arange(100) * 1e-3
     y = 1e-3 * np.sin(2 * np.pi * 12 * t)
@@ -172,7 +172,7 @@ def test_two_channels_at_one_position_are_refused_naming_it(tmp_path):
 
 
 def test_a_constant_channel_inside_the_span_is_refused_by_the_command(tmp_path):
-    """Issue 19's constant channels: the command's estimate ran a dead sensor (one value in
+    """Constant channels: the command's estimate once ran a dead sensor (one value in
     every sample) as if it measured the line, and said only 'consistent: false'."""
     t = np.arange(100) * 1e-3
     rec = Record(t, [1.0, 2.0], np.vstack([1e-3 * np.sin(2 * np.pi * 12 * t),

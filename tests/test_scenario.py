@@ -1,4 +1,4 @@
-"""The scenario pipeline (issue 20): one frozen result, generated captions, units, records, a
+"""The scenario pipeline: one frozen result, generated captions, units, records, a
 failure that keeps what finished, and every problem of a scenario file at once."""
 
 import json
@@ -424,7 +424,7 @@ def test_a_record_too_short_for_its_own_model_says_why(result, gap, advice):
                      stages=pipeline.VERB_STAGES["estimate"])
 
 
-# ------------------------------------------------------------------------ issue 41: files
+# ------------------------------------------------------------------------ files
 @pytest.fixture(scope="module")
 def model_only():
     return run_scenario(load_scenario(text="[model]\nn_elements = 12"), stages=("model",))
@@ -479,7 +479,7 @@ def test_an_npz_whose_metadata_is_a_json_list_is_refused(tmp_path):
         load_record(path)
 
 
-# ------------------------------------------------------------------------ issue 41: preconditions
+# ------------------------------------------------------------------------ preconditions
 def test_check_span_and_without_supports_check_the_length_and_a_channel_of_nan():
     record = Record([0.0, 1.0, 2.0], [1.0, 2.0], [[np.nan] * 3, [0.0, 1e-3, 2e-3]], "f.csv")
     with pytest.raises(InputError, match=r"f.csv: channel x_1_m at 1 m is missing \(NaN\) in "

@@ -1,4 +1,4 @@
-"""Issue 36: a scenario's [truth] (the line simulated) apart from its [span] (what the engineer
+"""A scenario's [truth] (the line simulated) apart from its [span] (what the engineer
 knows), and the ``calibrate`` verb that reads the true span back from a record.
 
 The truth's frequencies are checked against the closed form of the pinned taut beam

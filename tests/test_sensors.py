@@ -441,7 +441,7 @@ def test_paper_101_state_case_needs_at_most_three_sensors(frequency, force_posit
 def test_cut_relaxation_still_bounds_the_optimum(criterion):
     """relaxation_rank below the state size: the cvxpy problem is cut, the bound must hold.
 
-    Whatever the installed solvers do on this machine (the issue's fresh machine saw CLARABEL
+    Whatever the installed solvers do on this machine (a fresh machine once saw CLARABEL
     fail here), the result must carry a valid certificate, checked against brute force."""
     model, sys, q, r = line_problem(13, "clamped", n_modes=3)  # 6 states, cut to 3
     sel = plc.select_sensors(sys, k=3, criterion=criterion, Q=q, R=r, relaxation_rank=3,
@@ -595,7 +595,7 @@ BAD_INPUT = [
      "'forbidden'"),
     ("cost shape", lambda: _select(cost=np.ones(3), budget=1.0), _I, "'cost'"),
     ("budget<0", lambda: _select(cost=np.ones(21), budget=-1.0), _I, "'budget'"),
-    # Issue 21: a negative cost makes the budget meaningless; budgets are checked before use.
+    # A negative cost makes the budget meaningless; budgets are checked before use.
     ("cost negative", lambda: _select(cost=np.r_[-1.0, np.ones(20)], budget=3.0), _I, "'cost'"),
     ("budget inf", lambda: _select(cost=np.ones(21), budget=float("inf")), _I, "'budget'"),
     ("n_random over the memory budget", lambda: _select(n_random=10**15), _I, "'n_random'"),
@@ -691,7 +691,7 @@ def test_a_huge_horizon_costs_its_logarithm_not_its_length():
 
 
 def test_the_fresh_machine_failure_falls_back_to_the_next_solver(monkeypatch):
-    """The issue's failure, reproduced: CLARABEL raises on the cut 'kalman' relaxation. The next
+    """A solver failure, reproduced: CLARABEL raises on the cut 'kalman' relaxation. The next
     installed solver takes over; the certificate is checked against brute force."""
     model, sys, q, r = line_problem(13, "clamped", n_modes=3)
     optimum = brute_force_optimum(sys, 3, "kalman", Q=q, R=r)

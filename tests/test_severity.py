@@ -61,7 +61,7 @@ def drake_results():
 def test_ebm_matches_independent_bisection(drake_results, fraction):
     result = drake_results[fraction]
     expected = np.array([independent_ebm_amplitude(v, fraction) for v in SPEEDS])
-    # The issue asks for 1 %; both solve the same equation to round-off (bisection to 2^-200,
+    # The bound is 1 %; both solve the same equation to round-off (bisection to 2^-200,
     # Brent to 4 eps), so they in fact agree to about 1e-12.
     np.testing.assert_allclose(result.amplitude, expected, rtol=1e-2)
     np.testing.assert_allclose(result.amplitude, expected, rtol=1e-9)
@@ -412,7 +412,7 @@ def test_catenary_parameter_check():
 def test_time_domain_check_within_ten_percent():
     span = plc.Span.at_rts_fraction(26.0, "cardinal", 0.22)
     check = plc.time_domain_check(span, 2.6, n_elements=52, settle=6.0)  # e^-6 transient left
-    # The issue asks for 10 %; measured 0.2 % (the residue is the clamped FE mode's
+    # The bound is 10 %; measured 0.2 % (the residue is the clamped FE mode's
     # projection on the sin(beta x) load and its modal mass against m L / 2).
     assert abs(check.relative_error) < 0.10
     assert check.frequency == pytest.approx(0.185 * check.wind_speed / 0.03038, rel=1e-12)
@@ -428,7 +428,7 @@ def test_time_domain_check_with_the_robot_in_the_fe_model():
     assert check.ebm_amplitude < 0.2 * bare.amplitude[0]     # the damper does the work here
     # The FE computes the absorber's dissipation itself: this checks the first-order damper
     # power (impedance and placement factor) against the coupled model. Measured 0.3 % (1-5 %
-    # for heavier or other placements); the issue's 10 % is the bound (the damper perturbs
+    # for heavier or other placements); 10 % is the bound (the damper perturbs
     # the standing wave at second order, which the energy balance ignores).
     assert abs(check.relative_error) < 0.10
 
@@ -512,7 +512,7 @@ def test_bad_input(call, pattern):
         call()
 
 
-# --------------------------------------------------------------------------- bad input (issue 23)
+# --------------------------------------------------------------------------- bad input
 def test_descending_wind_speeds_are_refused_not_given_negative_probabilities():
     dist = plc.WindDistribution.weibull()
     with pytest.raises(plc.InputError, match="ascending"):

@@ -187,7 +187,7 @@ def test_random_force_rejects_generators_so_values_repeat():
     np.testing.assert_array_equal(force.values(t), force.values(t))
 
 
-# ---------------------------------------------------------------- real spans (issue 10)
+# ---------------------------------------------------------------- real spans
 DRAKE = plc.Span.at_rts_fraction(300.0, "drake", 0.20)
 
 
@@ -240,14 +240,14 @@ def test_aeolian_antinode_spacing_on_default_mesh_is_the_half_wavelength():
     cond, t = DRAKE.conductor, DRAKE.tension
     omega = 2 * np.pi * frequency
     k2 = (-t + np.sqrt(t**2 + 4 * cond.ei * cond.mass_per_length * omega**2)) / (2 * cond.ei)
-    # Measured 0.11 % off; 2 % is the issue's requirement (each crossing is located to ~h/10,
+    # Measured 0.11 % off; 2 % is the required accuracy (each crossing is located to ~h/10,
     # and averaging over ~70 loops divides that by 70).
     assert spacing == pytest.approx(np.pi / np.sqrt(k2), rel=0.02)
     assert inner.size > 60
 
 
 def test_coarse_mesh_warns_that_the_load_wavelength_is_not_resolved():
-    coarse = plc.LineModel(DRAKE, 100)            # the issue's 3 m elements, 3.3 m loops
+    coarse = plc.LineModel(DRAKE, 100)            # 3 m elements, 3.3 m loops
     with pytest.warns(TruncationWarning, match=r"not resolved.*n_elements"):
         plc.simulate(coarse, plc.AeolianForce(wind_speed=3.0), duration=0.05, dt=1e-3)
 
@@ -274,7 +274,7 @@ def test_quasi_static_correction_of_a_random_load_against_python_control():
 
 
 def test_overdamped_rayleigh_modes_on_the_default_lab_model():
-    # issue 12: Rayleigh damping from ratios on the 100-element model gave a false "defective"
+    # Rayleigh damping from ratios on the 100-element model gave a false "defective"
     # ModelError. beta = 2 zeta / (w1 + w2) makes every mode above 2 / beta = 2.75 kHz overdamped.
     damping = plc.RayleighDamping.from_ratios((5.0, 50.0), 0.02)
     model = plc.LineModel(LAB, 100, damping=damping)

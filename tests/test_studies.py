@@ -59,7 +59,7 @@ def test_process_pool_gives_the_serial_results_in_grid_order(tmp_path):
 
 
 def test_seeded_study_is_identical_on_serial_process_pool_and_dask():
-    """The issue's "Must show": one seeded study, three executors, the same table."""
+    """One seeded study, three executors, the same table."""
     distributed = pytest.importorskip("distributed")
     grid = parameter_grid(n_elements=[6, 9], noise_std=[2e-5, 7e-5, 1.3e-4])
     serial = run_study(noisy_record, grid, seed=2026)
@@ -331,7 +331,7 @@ def test_dotted_keys_reach_a_function_that_takes_keyword_arguments():
     assert study.columns == ["estimation.n_sensors", "seed", "n"]
 
 
-# ------------------------------------------------------------------ issue 21: results lose nothing
+# ------------------------------------------------------------------ results lose nothing
 def _same_row(a: dict, b: dict) -> bool:
     """Equal keys, and values bit-for-bit (NaN equal to NaN, types kept: 1 is not 1.0)."""
     return list(a) == list(b) and all(

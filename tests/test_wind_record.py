@@ -180,7 +180,7 @@ def test_start_and_source_are_strings_and_start_a_time_stamp():
         plc.WindRecord(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))
 
 
-# ------------------------------------------------------------------------ issue 41
+# ------------------------------------------------------------------------ files and preconditions
 def test_to_csv_keeps_every_bit_and_the_start_time_stamp(tmp_path):
     path = tmp_path / "wind.csv"
     rows = ["time,wind_speed,direction,temperature,turbulence_intensity",
