@@ -227,7 +227,7 @@ def dominant_frequency(signals: object, dt: object, *, pad: float = DEFAULT_PAD,
 
 
 # ---------------------------------------------------------------------------------- phasors
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PhasorFit:
     """Least-squares harmonic of each signal at one frequency: see :func:`fit_harmonic`.
 

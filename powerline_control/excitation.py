@@ -179,7 +179,7 @@ class AeolianForce:
         return BoundAeolianForce(frequency=frequency, wavenumber=wavenumber, load=load)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BoundAeolianForce:
     """An :class:`AeolianForce` applied to one model (see :meth:`AeolianForce.bind`)."""
 

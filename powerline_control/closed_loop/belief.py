@@ -51,7 +51,7 @@ TRUSTED_SHARE = 0.8
 ASSUMED_DAMPING = ModalDamping(0.0015)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Belief:
     """What the controller predicts with: the span it believes, meshed, and its modal model.
 
@@ -238,7 +238,7 @@ def _within_nyquist(band, dt: float):
     return band[0], min(band[1], 0.4 / dt)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SensorRecord:
     """The sensors' record so far, as :func:`~powerline_control.identify.calibrate_span` reads
     a :class:`~powerline_control.Record` (rows: sensors; NaN: a missing sample)."""

@@ -39,7 +39,7 @@ def arrival_index(position: np.ndarray, start: int, tolerance: float) -> int | N
     return index if index < position.size else None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Settling:
     """When the robot arrived and stayed: per target, per load change, and the settled window."""
 

@@ -19,7 +19,7 @@ import numpy as np
 from ..plan import MotionPlanner, RobotLimits, Trajectory, free_interval, plan_motion
 
 
-@dataclass
+@dataclass(eq=False)
 class Motion:
     """The robot's motion state and the plan it follows (a class with evolving state)."""
 

@@ -140,7 +140,7 @@ def predicted_sensors(bare_shape, plant, robot, omega, position, sensor_position
     return at_sensors + (sensor_rows @ response)[:, 0] * gain[0]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Choice:
     """The predicted best parked position within reach, and what it was chosen from.
 

@@ -10,7 +10,7 @@ from ..errors import InputError
 from .policy import quiet_from
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Comparison:
     """The line's vibration for one robot placement, in steady state where it has one.
 
@@ -60,7 +60,7 @@ class Comparison:
     transient: bool = False
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ClosedLoopResult:
     """What happened in :func:`run_closed_loop`.
 

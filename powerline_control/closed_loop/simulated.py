@@ -42,7 +42,7 @@ def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
             np.asarray(sys.C) @ np.asarray(sys.A))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SimulatedLine:
     """The simulated line (the truth): the bare FE model, the plant with and without the robot,
     the loads, and what the judge (:mod:`.evaluation`) compares on. Nothing here reaches the
@@ -134,7 +134,7 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Calibration:
     """The estimator, designed on the first window with the robot parked at its start."""
 
@@ -179,7 +179,7 @@ def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng) -> Calib
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Measurements:
     """What the simulated line hands the controller: the sensors' and the robot's noisy records
     and the robot's own motion, filled in as the run goes (views of :class:`Records`' arrays).
@@ -193,7 +193,7 @@ class Measurements:
     velocity: np.ndarray        # (n_t,) the robot's velocity, m/s
 
 
-@dataclass
+@dataclass(eq=False)
 class Records:
     """What the run records: histories over every sample (filled as it goes; the calibration
     window first) and a log of every control step."""

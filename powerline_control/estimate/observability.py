@@ -288,7 +288,7 @@ def steady_state_covariance(
 # --------------------------------------------------------------------------- reports
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ObservabilityReport:
     """How well a sensor set sees the model: rank, Gramian spectrum and estimation error.
 
@@ -433,7 +433,7 @@ def analyze_observability(
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SensorSetComparison:
     """Several sensor sets analysed with the same model, noise and horizon.
 

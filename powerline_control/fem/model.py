@@ -157,7 +157,7 @@ class RayleighDamping:
         return cls(2 * zeta * w1 * w2 / (w1 + w2), 2 * zeta / (w1 + w2))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ModalBasis:
     """The lowest undamped modes of a :class:`LineModel`.
 

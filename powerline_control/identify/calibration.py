@@ -316,7 +316,7 @@ def _phasors(values: np.ndarray, dt: float, frequencies: np.ndarray) -> np.ndarr
 
 
 # ------------------------------------------------------------------------------- the model
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _ScaledModes:
     """The nominal model's modes as functions of (T, EI): omega^2 = T g + EI b + r."""
 

@@ -20,7 +20,7 @@ from .kernels import _advance, _bang_coast_bang, _s_curve
 from .limits import RobotLimits
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Trajectory:
     """A planned motion of the robot's centre.
 

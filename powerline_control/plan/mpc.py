@@ -114,7 +114,7 @@ def _track_program(
     return _Program(opti, order, n, states, inputs, duration, params)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MPCStep:
     """The outcome of one receding-horizon step.
 

@@ -37,7 +37,7 @@ from .record import _other_records
 __all__ = ["EstimatorCountStudy", "estimator_count_study"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class EstimatorCountStudy:
     """Held-out error of the estimator against the number of sensors.
 

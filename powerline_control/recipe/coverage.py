@@ -51,7 +51,7 @@ def sensor_psd(y: np.ndarray, segment: int = COVERAGE_SEGMENT) -> np.ndarray:
     return (np.abs(np.fft.rfft(blocks, axis=-1)) ** 2).mean(axis=(0, 1)) / float(np.sum(taper**2))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Coverage:
     """What an estimator design can estimate: the training band, the model's modes, node sigma.
 

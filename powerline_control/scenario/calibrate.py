@@ -23,7 +23,7 @@ from .files import load_scenario  # noqa: F401 (doctests)
 __all__ = ["ScenarioCalibration", "calibrate_scenario"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ScenarioCalibration:
     """A scenario's span calibrated from a record, against its nominal span.
 

@@ -19,7 +19,7 @@ __all__ = ["ClosedLoop", "Fatigue", "Identification", "Layout", "MeasuredEstimat
            "Records", "ScenarioResult", "Severity", "StageFailure", "Tuning"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Records:
     """The data stage: the test record, the training record, and how they were made.
 
@@ -50,7 +50,7 @@ class Records:
     simulation_s: float = 0.0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Identification:
     """The estimator recipe's result and the plain-DMD fit it is compared with.
 
@@ -82,7 +82,7 @@ class Identification:
     record_model: Any = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Layout:
     """One sensor layout estimated on held-out data.
 
@@ -118,7 +118,7 @@ class Layout:
         return 100.0 * float(self.accuracy.relative_rms_error_unmeasured)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MeasuredEstimate:
     """The designed filter run on a measured record (no truth: its consistency tells).
 
@@ -137,7 +137,7 @@ class MeasuredEstimate:
     estimate: Any = field(repr=False)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Plan:
     """Antinodes of the estimated field, the closed loop's target, and the robot's move.
 
@@ -164,7 +164,7 @@ class Plan:
     envelope: Any = field(repr=False)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Tuning:
     """The robot with its absorber tuned to the load.
 
@@ -192,7 +192,7 @@ class Tuning:
     how: str
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ClosedLoop:
     """The closed loop stage: the tuned robot, its sensors and ``run_closed_loop``'s result.
 
@@ -217,7 +217,7 @@ class ClosedLoop:
     sensors_how: str = ""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Severity:
     """The energy-balance severity without dampers and with the robot at each antinode.
 
@@ -245,7 +245,7 @@ class Severity:
     assumptions: tuple = ()
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Fatigue:
     """Fatigue over a wind record: no damper, a fixed damper and the scenario's robot.
 
@@ -287,7 +287,7 @@ class StageFailure:
     error: BaseException = field(repr=False, compare=False)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ScenarioResult:
     """Everything one scenario produced, stage by stage (None for a stage that did not run).
 

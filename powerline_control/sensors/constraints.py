@@ -116,7 +116,7 @@ def _check_zones(forbidden: object) -> list[tuple[float, float]]:
 
 
 # ---------------------------------------------------------------------------- feasibility
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _Feasibility:
     """Integer feasibility of layouts: allowed candidates, spacing conflicts, budget."""
 

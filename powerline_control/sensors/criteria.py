@@ -54,7 +54,7 @@ def _correlated_information(c: np.ndarray, r: np.ndarray, layouts: np.ndarray) -
     return (info + np.swapaxes(info, 1, 2)) / 2
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Polytope:
     """The relaxed feasible set: ``0 <= z <= 1``, ``sum z = k`` and the practical constraints.
 
@@ -172,7 +172,7 @@ def _value_or_inf(crit, z: np.ndarray, reduced: bool) -> float:
 
 
 # ------------------------------------------------------------------------------------ Kalman
-@dataclass
+@dataclass(eq=False)
 class KalmanCriterion:
     """A-optimal: trace of ``H P_post H^T`` for the steady-state posterior covariance (DARE).
 
@@ -356,7 +356,7 @@ def _weighted_sum_expr(mats: np.ndarray, z: cp.Variable):
     return (w + w.T) / 2
 
 
-@dataclass
+@dataclass(eq=False)
 class _WeightedSumCriterion:
     """A criterion of ``W(S) = sum_{i in S} W_i`` (maximised, stored negated as a cost).
 
@@ -389,7 +389,7 @@ class _WeightedSumCriterion:
         return out
 
 
-@dataclass
+@dataclass(eq=False)
 class LogDetCriterion(_WeightedSumCriterion):
     """D-optimal: ``log det sum_{i in S} W_i`` (Gramian) or ``log det Psi_S^T Psi_S`` (basis).
 
@@ -422,7 +422,7 @@ class LogDetCriterion(_WeightedSumCriterion):
         return -logdet, -grad
 
 
-@dataclass
+@dataclass(eq=False)
 class MinEigCriterion(_WeightedSumCriterion):
     """E-optimal: the smallest eigenvalue of ``sum_{i in S} W_i`` (maximised).
 

@@ -39,7 +39,7 @@ class Baseline:
     objective: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SensorSelection:
     """Result of :func:`select_sensors`.
 
@@ -169,7 +169,7 @@ class SensorSelection:
         return "\n".join(lines)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SensorCountStudy:
     """Result of :func:`sensor_count_study`: the criterion and the RMS error against ``k``.
 

@@ -126,7 +126,7 @@ def _check_dampers(dampers: object, span: Span) -> tuple:
     return tuple(dampers)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SeverityResult:
     """Energy-balance severity of one span and damper configuration, one entry per wind speed.
 

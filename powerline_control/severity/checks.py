@@ -33,7 +33,7 @@ __all__ = [
 
 
 # --------------------------------------------------------------------------- time-domain check
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class TimeDomainCheck:
     """EBM antinode amplitude against a time-domain simulation of the same span.
 

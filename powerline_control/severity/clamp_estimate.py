@@ -27,7 +27,7 @@ from .balance import aeolian_severity
 __all__ = ["ClampStrainEstimate", "estimate_clamp_strain"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ClampStrainEstimate:
     """Estimated clamp bending amplitude, stress and strain with their sigma.
 

@@ -233,7 +233,7 @@ def _bin_edges(speeds: np.ndarray) -> np.ndarray:
                            [speeds[-1] + (speeds[-1] - mid[-1])]]).clip(min=0.0)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RobotValue:
     """Fatigue and endurance over a wind climate for three configurations.
 

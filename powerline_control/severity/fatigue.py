@@ -41,7 +41,7 @@ def default_robot() -> tuple[MDR, RobotLimits]:
             RobotLimits(v_max=0.3, a_max=0.5))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RecordDamage:
     """Damage of one configuration over a wind record.
 
@@ -578,7 +578,7 @@ def fatigue_over_record(
 
 
 # --------------------------------------------------------------------------- rainflow
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RainflowCount:
     """Cycles of a signal counted by the rainflow method (ASTM E1049-85).
 

@@ -108,7 +108,7 @@ def _check_time(time: np.ndarray, line_of_row=None) -> float:
     return usual
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class WindRecord:
     """A record of mean wind speed, direction and air temperature, one row per interval.
 

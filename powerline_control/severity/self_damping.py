@@ -130,7 +130,7 @@ STRANDINGS: dict[str, tuple[StrandLayer, ...]] = {
 }
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StrandedBending:
     """The stick-slip bending law of a stranded conductor at one tension.
 

@@ -44,7 +44,7 @@ from ..fem import LineModel
 __all__ = ["Snapshots", "simulate"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Snapshots:
     """Displacement data of a simulated span; columns are time, as in the paper.
 
@@ -429,7 +429,7 @@ def _warn_unresolved(load_frequencies: Sequence[float], nyquist: float, top_mode
             )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _ComplexModes:
     """Eigen-decomposition of the modal first-order system, scaled state s = [omega q; qdot].
 

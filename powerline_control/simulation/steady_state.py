@@ -34,7 +34,7 @@ MODAL_DAMPING_BAND = 2.0
 _SOLVE_CHUNK = 256
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ParkedSteadyState:
     """The line's steady state under one sine with the robot parked at each of ``positions``.
 
