@@ -1,4 +1,4 @@
-"""Generate the synthetic wind record shipped as examples/data/wind_record_28d.csv (issue 23).
+"""Generate the synthetic wind record shipped as examples/data/wind_record_28d.csv.
 
 Four weeks of 10-minute means, seed 2026 (WindRecord.synthetic documents the model):
 

@@ -1,4 +1,4 @@
-"""Aeolian severity of a Drake span and what the damping robot is worth (issue 14).
+"""Aeolian severity of a Drake span and what the damping robot is worth.
 
 1. Energy balance (CIGRE wind power, Noiseux 1991 self-damping with dohl's k) for a 300 m Drake
    span at 20 % RTS, 1-7 m/s: antinode amplitude and clamp strain with no damper, with the robot's

@@ -1,4 +1,4 @@
-"""Fatigue life of a Drake span over a wind record, and what the robot is worth (issue 23).
+"""Fatigue life of a Drake span over a wind record, and what the robot is worth.
 
 Reads the shipped synthetic record examples/data/wind_record_28d.csv (four weeks of 10-minute
 means, made by examples/make_wind_record.py with seed 2026) and, for a 300 m Drake ruling span at
