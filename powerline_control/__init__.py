@@ -72,7 +72,7 @@ _LAZY_EXPORTS = {
         "Accuracy", "Consistency", "Estimate", "KalmanFilter", "estimation_accuracy",
         "filter_consistency",
     ),
-    "estimate.recovery": (
+    "estimate.result": (
         "Recovery", "recovery_time",
     ),
     "estimate.observability": (

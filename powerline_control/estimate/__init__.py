@@ -2,8 +2,9 @@
 (windowed NIS, NEES, spectral), and observability (rank, Gramian, steady covariance, reports).
 
 ``filter.py`` holds :class:`KalmanFilter`; ``_recursion.py`` its per-sample and modal batch
-recursion; ``result.py`` what a run returns (:class:`Estimate`) and how close it came
-(:func:`estimation_accuracy`); ``consistency.py`` the NIS / NEES tests (:func:`filter_consistency`)
+recursion; ``result.py`` what a run returns (:class:`Estimate`, :class:`Consistency`), how close
+it came (:func:`estimation_accuracy`) and how fast it recovers (:func:`recovery_time`);
+``consistency.py`` the NIS / NEES tests (:func:`filter_consistency`)
 and ``_spectrum.py`` the spectral test of the whitened innovations; ``observability.py`` what a
 sensor set can see before any filter runs.
 """
@@ -29,11 +30,11 @@ from .observability import compare_sensor_sets as compare_sensor_sets
 from .observability import observability_gramian as observability_gramian
 from .observability import observability_rank as observability_rank
 from .observability import steady_state_covariance as steady_state_covariance
-from .recovery import Recovery as Recovery
-from .recovery import recovery_time as recovery_time
 from .result import Accuracy as Accuracy
 from .result import Estimate as Estimate
+from .result import Recovery as Recovery
 from .result import estimation_accuracy as estimation_accuracy
+from .result import recovery_time as recovery_time
 
 __all__ = [
     "Estimate",

@@ -46,8 +46,8 @@ from ._spectrum import (
 from .consistency import _window_sums
 
 if TYPE_CHECKING:  # annotations only: both modules import this one
-    from .consistency import Consistency
     from .filter import KalmanFilter
+    from .result import Consistency
 
 # The modal batch recursion is used only when the eigenvector matrix of the closed loop is this
 # well conditioned; its round-off grows with cond(V), and beyond this it could differ from the

@@ -9,9 +9,6 @@ The spectral test of the whitened innovations lives in ``_spectrum.py``; its fie
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.stats as sstats
 
@@ -25,7 +22,7 @@ from .._validation import (
 from ..errors import (
     InputError,
 )
-from .result import Estimate, _freeze_arrays
+from .result import Consistency, Estimate
 
 __all__ = ["Consistency", "filter_consistency", "DEFAULT_CONSISTENCY_WINDOW"]
 
@@ -40,181 +37,6 @@ DEFAULT_CONSISTENCY_WINDOW = 200
 #: Two-sided level of each window's chi-square test, and of the run-level count of rejections.
 _WINDOW_LEVEL = 0.01
 
-
-
-@dataclass(frozen=True)
-class Consistency:
-    """NEES / NIS statistics: is the filter's covariance honest about its errors?
-
-    Two views of the same question (design.md 4.7). The whole-record means (``mean_nis``,
-    ``mean_nees``) with their 95 % bands; and the *windowed* test that
-    :meth:`KalmanFilter.filter` runs on every record: the NIS averaged over consecutive windows
-    of ``window`` samples, each compared with its two-sided 1 % chi-square bounds. The run is
-    ``consistent`` unless more windows reject than chance allows at 1 % (a binomial bound on
-    the count, so that a long record of an honest filter does not warn merely because it has
-    many windows).
-
-    Attributes
-    ----------
-    mean_nis : float
-        Mean normalised innovation squared over the samples used.
-    nis_dof : float
-        Mean number of sensors per update (the expected value of ``mean_nis``).
-    nis_bounds : tuple of float
-        Two-sided 95 % chi-square band of ``mean_nis`` for a consistent filter (valid since the
-        innovations of an optimal filter are white).
-    nis_consistent : bool
-        ``mean_nis`` inside ``nis_bounds``.
-    mean_nees : float or None
-        Mean normalised estimation error squared ``e^T P^-1 e`` (needs the truth and a
-        converged gain), ``None`` otherwise.
-    nees_dof : int or None
-        Its expected value: the rank of the covariance used.
-    nees_bounds : tuple of float or None
-        95 % chi-square band of ``mean_nees`` treating samples as independent; estimation errors
-        are correlated in time, so read it as a guide rather than a test.
-    nees_consistent : bool or None
-        ``mean_nees`` inside ``nees_bounds``.
-    normalised_error : numpy.ndarray or None
-        Per-signal mean of ``error^2 / variance`` ``(n_signals,)`` (1 for an honest variance).
-    window : int
-        Samples per window of the windowed test.
-    window_start : numpy.ndarray
-        First sample of each full window, ``(n_windows,)`` (a trailing partial window is left
-        out).
-    window_nis : numpy.ndarray
-        The statistic: mean NIS of each window, ``(n_windows,)`` (NaN for a window without a
-        measurement).
-    window_dof : numpy.ndarray
-        Degrees of freedom of each window's chi-square law: ``dof_fraction`` times the number
-        of scalar innovations in it (``window * p`` without dropouts). The window's sum of NIS
-        times ``dof_fraction`` is chi-square with this many degrees of freedom.
-    window_bounds : numpy.ndarray
-        Two-sided 1 % bounds of each window's mean NIS, ``(n_windows, 2)``.
-    rejected : numpy.ndarray
-        Indices of the tested windows whose mean NIS lies outside its bounds (int).
-    above : numpy.ndarray
-        Which windows were rejected *above* their bounds (larger innovations than the model
-        predicts), ``(n_windows,)`` bool; the rest of ``rejected`` lies below.
-    tested : numpy.ndarray
-        Which windows were tested, ``(n_windows,)`` bool (see ``n_tested``).
-    n_tested : int
-        Windows tested: every full window after the first (which holds the filter's transient
-        from its prior) that has a measurement.
-    consistent : bool
-        False when the number of windows rejected *above* their bounds (innovations larger than
-        the filter's covariance says: an overconfident estimate) exceeds the 99 % quantile of a
-        binomial law with ``n_tested`` trials of probability 1 % (the run-level test at 1 %), or
-        when the spectral test rejects; True when no window could be tested. Windows below
-        their bounds make the run ``pessimistic`` instead.
-    pessimistic : bool
-        As many windows rejected *below* their bounds: the innovations are smaller than the
-        filter's covariance says (a reported sigma larger than the error, the safe side; typical
-        of a record still ringing up from rest, whose model error grows with the field). Not a
-        reason to warn: a load the model does not know raises the innovations at some
-        frequency, which the spectral test sees even when the total NIS falls.
-    dof_fraction : float
-        Share of the nominal degrees of freedom treated as independent (1 for the white
-        innovations of an exact model; below 1 when a design measured on held-out data that its
-        innovations carry fewer independent samples, see
-        :func:`~powerline_control.recipe.design_estimator`).
-    window_nees : numpy.ndarray or None
-        Mean NEES of each window (with the truth, from the converged gain on), else ``None``.
-    nees_rejected : numpy.ndarray or None
-        Indices into ``window_nees`` of windows outside their 1 % chi-square bounds (estimation
-        errors are correlated in time: a guide, as ``nees_bounds``).
-    spectral_frequencies : numpy.ndarray or None
-        Frequencies (Hz; cycles per sample without ``dt``) of the spectral test's bins, when the
-        filter carries a ``spectral_reference`` (every filter
-        :func:`~powerline_control.recipe.design_estimator` builds from a broadband record).
-    spectral_ratio : numpy.ndarray or None
-        The record's whitened innovation power in each bin over the reference's (1: like the
-        held-out part of the training record; far above 1: power the model does not predict,
-        a load that drives modes the training never saw). With the filter's
-        ``spectral_field_reference`` the reference has followed the record's field where the
-        training saw one (``estimate._spectrum.following_reference``).
-    spectral_threshold : float or None
-        The ratio above which a bin is rejected: the larger of a fixed factor (two matched
-        records of an identified model differ by more than sampling) and the F quantile at 1 %
-        with a Bonferroni correction over the bins.
-    spectral_rejected : numpy.ndarray or None
-        Indices of the rejected bins.
-    spectral_consistent : bool or None
-        No bin rejected (``None``: no spectral test). ``consistent`` is False when either the
-        windowed NIS test or the spectral test rejects.
-
-    Examples
-    --------
-    See :func:`filter_consistency`, which builds it:
-
-    >>> import control as ct
-    >>> from powerline_control.estimate import KalmanFilter
-    >>> sys = ct.ss([[0.5]], [[0.0]], [[1.0]], 0, dt=1.0)
-    >>> est = KalmanFilter(sys, Q=1.0, R=1.0).filter(np.array([[1.0, -1.0, 0.5]]))
-    >>> filter_consistency(est).nis_dof
-    1.0
-    """
-
-    mean_nis: float
-    nis_dof: float
-    nis_bounds: tuple[float, float]
-    nis_consistent: bool
-    mean_nees: float | None = None
-    nees_dof: int | None = None
-    nees_bounds: tuple[float, float] | None = None
-    nees_consistent: bool | None = None
-    normalised_error: np.ndarray | None = None
-    window: int = 0
-    window_start: np.ndarray = dataclasses.field(
-        default_factory=lambda: read_only(np.zeros(0, int)))
-    window_nis: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0)))
-    window_dof: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0)))
-    window_bounds: np.ndarray = dataclasses.field(
-        default_factory=lambda: read_only(np.zeros((0, 2))))
-    rejected: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, int)))
-    above: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, bool)))
-    tested: np.ndarray = dataclasses.field(default_factory=lambda: read_only(np.zeros(0, bool)))
-    n_tested: int = 0
-    consistent: bool = True
-    pessimistic: bool = False
-    dof_fraction: float = 1.0
-    window_nees: np.ndarray | None = None
-    nees_rejected: np.ndarray | None = None
-    spectral_frequencies: np.ndarray | None = None
-    spectral_ratio: np.ndarray | None = None
-    spectral_threshold: float | None = None
-    spectral_rejected: np.ndarray | None = None
-    spectral_consistent: bool | None = None
-
-    def __post_init__(self) -> None:
-        _freeze_arrays(self)
-
-    @property
-    def message(self) -> str:
-        """One sentence: what the windowed test found, for a warning or a report."""
-        if not self.n_tested:
-            return (f"No window of {self.window} samples could be tested (the record is shorter "
-                    "than two windows): the filter's consistency is unknown.")
-        tested = self.window_nis[1:][np.isfinite(self.window_nis[1:])]
-        expected = self.window_dof[1:] / self.dof_fraction / self.window
-        ratio = float(np.nanmedian(self.window_nis[1:] / np.where(expected > 0, expected, np.nan)))
-        verdict = ("consistent" if self.consistent else
-                   "INCONSISTENT: the model does not fit this record")
-        if self.consistent and self.pessimistic:
-            verdict += " (pessimistic: the innovations are smaller than the covariance says)"
-        spectral = ""
-        if self.spectral_consistent is not None:
-            worst = int(np.nanargmax(np.where(np.arange(self.spectral_ratio.size) > 0,
-                                              self.spectral_ratio, np.nan)))
-            spectral = (" Innovation spectrum against the training's: "
-                        f"{self.spectral_rejected.size} of {self.spectral_ratio.size - 1} bins "
-                        f"above {self.spectral_threshold:.3g} times the reference (largest "
-                        f"{self.spectral_ratio[worst]:.3g} at "
-                        f"{self.spectral_frequencies[worst]:.4g} Hz).")
-        return (f"Windowed NIS test ({self.window} samples per window, 1 % two-sided chi-square "
-                f"bounds): {self.rejected.size} of {self.n_tested} windows rejected, mean NIS "
-                f"{float(np.mean(tested)):.3g} per sample against {float(np.mean(expected)):.3g}"
-                f" expected (median ratio {ratio:.3g}).{spectral} Verdict: {verdict}.")
 
 
 def _window_test(sums: np.ndarray, counts: np.ndarray, used: np.ndarray, window: int,
