@@ -1,5 +1,14 @@
-"""Scenarios: the TOML schema and files (config, truth, files, template), and the pipeline that runs
-one stage by stage (stages, sensing, pipeline) into a frozen ScenarioResult (result, summary*)."""
+"""Scenarios: the TOML schema and files (config, files, template), the pipeline that runs one stage
+by stage into a frozen ScenarioResult (truth, sensing, stages, pipeline, result), and its report.
+
+Three parts: the schema (``_schema``, ``config``, ``toml_values``, ``truth``, ``files``,
+``template``), the computation (``sensing``, ``sensor_count``, ``result``, ``stages``,
+``pipeline``, ``calibrate``) and the presentation (``summary_format``, ``summary_truth``, the
+``summary_*`` sections, ``summary``, ``summary_json``). The presentation reads a result's fields
+and recomputes nothing (it imports neither ``result``, ``stages`` nor ``pipeline``);
+:class:`ScenarioResult`'s ``sections``, ``to_dict`` and ``write_report`` call it when asked. No
+modules import each other in a circle (``tests/test_architecture.py``).
+"""
 
 from .config import (
     EstimationConfig,

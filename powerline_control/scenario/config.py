@@ -30,9 +30,9 @@ from dataclasses import dataclass, field
 
 from ..errors import InputError
 from ._schema import _key
-from .truth import TruthConfig, check_truth
 
-__all__ = ["Scenario", "default_scenario", "check_severity_inputs"]
+__all__ = ["Scenario", "TruthConfig", "default_scenario", "check_severity_inputs",
+           "closed_loop_timing"]
 
 #: Largest number of samples a scenario may ask ``simulate`` for (duration / dt): beyond it the
 #: snapshot matrices of even a small model leave a laptop's memory.
@@ -287,6 +287,50 @@ class SeverityConfig:
         "the record). A relative path is read from the scenario file's folder; the severity "
         "verb's --wind-record option replaces it.", kind="str",
         allowed="the path of a CSV file")
+
+
+@dataclass(frozen=True)
+class TruthConfig:
+    """The line as it really is, where it differs from the nominal [span] (every key optional).
+
+    The ``[span]`` section is the nominal: what the engineer knows. ``temperature`` (the true
+    tension from the change of state) and ``tension_factor`` are alternatives; ``ei_factor``,
+    ``mass_factor`` and ``damping_ratio`` change the true conductor and its damping.
+
+    Examples
+    --------
+    >>> TruthConfig().tension_factor is None, TruthConfig().ei_factor
+    (True, 1.0)
+    """
+
+    temperature: float | None = _key(
+        None, "degC", "Conductor temperature of the day simulated: the true tension is the "
+        "nominal span's change of state from truth.stringing_temperature (the parabolic "
+        "change-of-state equation); unset: the nominal tension, or truth.tension_factor. Needs a "
+        "conductor preset (area, elastic modulus, thermal expansion).", kind="real", low=-40.0,
+        low_inclusive=True, high=100.0)
+    stringing_temperature: float = _key(
+        15.0, "degC", "Conductor temperature at which the line has the nominal [span] tension "
+        "(when it was strung; 15 degC: the everyday temperature of CIGRE TB 273).",
+        low=-40.0, low_inclusive=True, high=100.0, needs="temperature")
+    tension_factor: float | None = _key(
+        None, "", "True tension over the nominal [span] tension, instead of truth.temperature "
+        "(unset: 1, or from truth.temperature).", kind="real", low=0.5, low_inclusive=True,
+        high=1.5)
+    ei_factor: float = _key(
+        1.0, "", "True bending stiffness EI over the catalogue's (a stranded conductor's EI lies "
+        "between its strands' and the solid section's).", low=0.2, low_inclusive=True, high=5.0)
+    mass_factor: float = _key(
+        1.0, "", "True mass per metre over the catalogue's.", low=0.8, low_inclusive=True,
+        high=1.2)
+    damping_ratio: float | None = _key(
+        None, "", "Modal damping ratio of the true line (every mode); unset: model.damping_ratio.",
+        kind="real", low=0.0, low_inclusive=True, high=1.0, high_inclusive=False)
+
+    @property
+    def differs(self) -> bool:
+        """Whether any key is set: the line simulated may differ from the nominal."""
+        return self != TruthConfig()
 
 
 @dataclass(frozen=True)
@@ -629,7 +673,39 @@ def _check_scenario(check: _Checker, scenario: Scenario, given: dict) -> None:
                      f"at most {n_el - 1}, the interior nodes of model.n_elements = {n_el} "
                      "(the two end nodes sit on the supports)")
     _check_severity(check, scenario, given)
-    check_truth(check, scenario, given)
+
+
+#: The closed loop's control period, s, and the longest calibration (robot parked, estimator
+#: identified), s: a third of the run at most.
+CONTROL_PERIOD = 0.05
+MAX_CALIBRATION = 2.0
+
+
+def closed_loop_timing(scenario: Scenario) -> tuple[float, float]:
+    """(dt, calibration) of the closed loop, s.
+
+    The calibration (robot parked, the estimator identified) is a third of the run, at most
+    :data:`MAX_CALIBRATION`, in whole :data:`CONTROL_PERIOD` control periods.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``simulation.dt`` and ``robot.closed_loop``.
+
+    Returns
+    -------
+    (float, float)
+
+    Examples
+    --------
+    >>> from powerline_control.scenario import load_scenario
+    >>> closed_loop_timing(load_scenario(text="[robot]\\nclosed_loop = 12.0"))
+    (0.001, 2.0)
+    """
+    dt = scenario.simulation.dt
+    period = max(dt, round(CONTROL_PERIOD / dt) * dt)
+    calibration = max(1, round(min(MAX_CALIBRATION, scenario.robot.closed_loop / 3) / period))
+    return dt, round(calibration * period / dt) * dt
 
 
 def _check_calibration_record(check: _Checker, scenario: Scenario) -> None:
@@ -637,7 +713,6 @@ def _check_calibration_record(check: _Checker, scenario: Scenario) -> None:
     samples for the estimator's recipe."""
     from ..closed_loop.settings import calibration_samples
     from ..recipe.defaults import shortest_record
-    from .stages import MAX_CALIBRATION, closed_loop_timing
 
     needed = shortest_record()   # the closed loop identifies with the recipe's default delays
 

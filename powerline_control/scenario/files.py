@@ -15,6 +15,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from .config import _SECTIONS, Scenario, _check_scenario, _Checker, _read_section, default_scenario
+from .truth import check_truth
 
 __all__ = ["load_scenario", "shipped_scenarios", "read_scenario_text", "override_scenario_text"]
 
@@ -223,6 +224,7 @@ must be on the span. Allowed: 0 < x < 3.66 m (the span length).
         section: _read_section(check, type(factory()), section, data[section])
         for section, factory in _SECTIONS.items() if section in data})
     _check_scenario(check, scenario, data)
+    check_truth(check, scenario, data)   # the [truth] against the nominal span
     wind = scenario.severity.wind_record
     if wind is not None and not wind.strip():
         check.note("severity.wind_record = \"\" is not allowed: give the path of a CSV file, "
@@ -236,6 +238,6 @@ must be on the span. Allowed: 0 < x < 3.66 m (the span length).
 
 
 def _toml_value(value: object) -> str:
-    from .template import toml_value
+    from .toml_values import toml_value
 
     return toml_value(value)

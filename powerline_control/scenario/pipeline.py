@@ -66,6 +66,7 @@ from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     layout_filter,
     longest_complete_run,
     read_wind_record,
+    sensor_count_check,
     severity_inputs,
     severity_span,
     support_intervals,
@@ -296,6 +297,9 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
     elif stage == "sensors":
         state["sensor_count"] = _sensor_count(_need(state, "identification", stage),
                                               state["true_model"])   # the records' mesh
+        if state["sensor_count"] is not None:   # its layouts on the held-out record
+            state["sensor_count_check"] = sensor_count_check(
+                state["sensor_count"], state["records"], state["identification"])
     elif stage == "estimation":
         state["layouts"] = _layouts(scenario, _need(state, "records", stage),
                                     _need(state, "identification", stage), state["model"])

@@ -235,6 +235,9 @@ class Severity:
     assumptions : tuple of str
         What the study assumed where the span gives no data (the lab span's stranding, family
         and rated strength), in words.
+    rated_strength : float
+        The rated strength of the study's conductor, N (it normalises the self-damping law;
+        NaN when the conductor carries none).
     """
 
     bare: Any
@@ -243,6 +246,7 @@ class Severity:
     strand_source: str
     endurance_applies: bool = True
     assumptions: tuple = ()
+    rated_strength: float = float("nan")
 
 
 @dataclass(frozen=True, eq=False)
@@ -310,6 +314,9 @@ class ScenarioResult:
         The estimator design.
     sensor_count : SensorCountStudy or None
         The predicted error against the number of sensors (each count optimised).
+    sensor_count_check : SensorCountCheck or None
+        The study's layouts run with the designed filter on the held-out record (what the
+        report's "how many sensors" figure and the JSON show); None without a study.
     layouts : dict of str to Layout, or None
         The chosen layout ("chosen") and the baselines, estimated on held-out data.
     measured : MeasuredEstimate or None
@@ -350,6 +357,7 @@ class ScenarioResult:
     records: Records | None = None
     identification: Identification | None = None
     sensor_count: Any = None
+    sensor_count_check: Any = None
     layouts: dict | None = None
     measured: MeasuredEstimate | None = None
     plan: Plan | None = None

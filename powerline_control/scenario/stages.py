@@ -13,7 +13,7 @@ import time
 import warnings
 
 from ..errors import InputError, SaturationWarning
-from .config import Scenario
+from .config import CONTROL_PERIOD, MAX_CALIBRATION, Scenario, closed_loop_timing
 from .files import load_scenario  # noqa: F401 (doctests)
 from .result import (
     ClosedLoop,
@@ -27,6 +27,7 @@ from .result import (
     Tuning,
 )
 from .sensing import closed_loop_sensors, evenly_spaced_nodes, given_sensors
+from .sensor_count import SensorCountCheck
 from .truth import on_nodes
 
 __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
@@ -40,10 +41,6 @@ TRAIN_FRACTION = 0.6
 #: Where the identification run's broadband shaker acts, as a fraction of the span: off the
 #: symmetry points 1/2, 1/3, 1/4, 1/5 of the low modes, so it drives every one of them.
 SHAKER_POSITION = 0.31
-#: The closed loop's control period, s, and the longest calibration (robot parked, estimator
-#: identified), s: a third of the run at most.
-CONTROL_PERIOD = 0.05
-MAX_CALIBRATION = 2.0
 #: Antinodes are located on the last this-many samples of the held-out estimate.
 ANTINODE_WINDOW = 500
 
@@ -257,6 +254,49 @@ def _held_out_discard(records: Records) -> int:
     return min(200, (records.test.t.size - records.n_train) // 4)
 
 
+
+def sensor_count_check(study, records: Records, ident: Identification) -> SensorCountCheck:
+    """The sensor-count study's layouts run like the estimation table's: the designed filter
+    with each count's layout on the held-out record (what the report's "how many sensors" figure
+    and the JSON show; the pipeline's sensors stage runs it once, after the study).
+
+    Parameters
+    ----------
+    study : SensorCountStudy
+        The study (:func:`~powerline_control.sensors.sensor_count_study`).
+    records : Records
+        The records stage's result (its held-out part is used).
+    ident : Identification
+        The identification stage's result (the designed filter, the recipe's layout).
+
+    Returns
+    -------
+    SensorCountCheck
+    """
+    import numpy as np
+
+    from ..estimate import estimation_accuracy
+
+    snap, held = records.test, slice(records.n_train, None)
+    truth = snap.true_displacement[:, held]
+    discard = _held_out_discard(records)
+    chosen = [int(i) for i in ident.design.sensors]   # as the table's layout (_layouts)
+    layouts, predicted, measured = [], [], []
+    for k, nodes in zip(study.k, study.layouts, strict=True):
+        nodes = chosen if k == len(chosen) else sorted(int(i) for i in nodes)
+        estimate = layout_filter(ident.design, nodes).filter(snap.displacement[nodes, held])
+        accuracy = estimation_accuracy(estimate.field, truth, measured=nodes, discard=discard)
+        unmeasured = np.ones(truth.shape[0], dtype=bool)
+        unmeasured[nodes] = False
+        variance = np.asarray(estimate.field_variances)[unmeasured, discard:]
+        layouts.append(tuple(nodes))
+        predicted.append(100.0 * float(np.sqrt(np.mean(variance))) / accuracy.rms_truth)
+        measured.append(100.0 * float(accuracy.relative_rms_error_unmeasured))
+    return SensorCountCheck(k=tuple(int(k) for k in study.k), layouts=tuple(layouts),
+                            predicted_percent=tuple(predicted),
+                            measured_percent=tuple(measured), chosen_k=len(chosen))
+
+
 def _layouts(scenario: Scenario, records: Records, ident: Identification, model) -> dict:
     import numpy as np
 
@@ -366,32 +406,6 @@ def tune_robot(scenario: Scenario, model) -> Tuning:
     mdr = dataclasses.replace(mdr, position=cfg.start)
     return Tuning(robot=mdr, mode=mode, mode_frequency=frequency, load_frequency=load_frequency,
                   antinode=antinode, how=how)
-
-
-def closed_loop_timing(scenario: Scenario) -> tuple[float, float]:
-    """(dt, calibration) of the closed loop, s.
-
-    The calibration (robot parked, the estimator identified) is a third of the run, at most
-    :data:`MAX_CALIBRATION`, in whole :data:`CONTROL_PERIOD` control periods.
-
-    Parameters
-    ----------
-    scenario : Scenario
-        Its ``simulation.dt`` and ``robot.closed_loop``.
-
-    Returns
-    -------
-    (float, float)
-
-    Examples
-    --------
-    >>> closed_loop_timing(load_scenario(text="[robot]\\nclosed_loop = 12.0"))
-    (0.001, 2.0)
-    """
-    dt = scenario.simulation.dt
-    period = max(dt, round(CONTROL_PERIOD / dt) * dt)
-    calibration = max(1, round(min(MAX_CALIBRATION, scenario.robot.closed_loop / 3) / period))
-    return dt, round(calibration * period / dt) * dt
 
 
 def _plan(scenario: Scenario, records: Records, layouts: dict, model, tuning: Tuning) -> Plan:
@@ -580,7 +594,8 @@ def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
     strand = kwargs.get("outer_strand_diameter", span.conductor.outer_strand_diameter)
     return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
                     strand_source=source, assumptions=assumptions,
-                    endurance_applies=span.conductor.family == ENDURANCE_FAMILY)
+                    endurance_applies=span.conductor.family == ENDURANCE_FAMILY,
+                    rated_strength=float(span.conductor.rated_strength or float("nan")))
 
 
 def read_wind_record(wind_record) -> tuple:

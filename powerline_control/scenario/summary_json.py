@@ -96,7 +96,7 @@ def result_json(result) -> dict:
         if rm is not None:
             out["record_model"] = {"spectral_radius": _f(rm.spectral_radius),
                                    "least_damped_frequencies_hz": _least_damped(rm)}
-    from .sensor_count import sensor_count_json
+    from .summary_sensors import sensor_count_json
 
     out.update(sensor_count_json(r))
     if r.layouts is not None:

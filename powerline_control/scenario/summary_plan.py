@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import functools
 
-from .summary import _figure, _plotting, positions_text
+from .summary_format import _figure, _plotting, positions_text
 
 __all__ = ["plan_section", "move_note"]
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import functools
 
 from ..severity import ENDURANCE_FAMILY, ENDURANCE_STRAIN_PP
-from .summary import _figure, _plotting, mm
+from .summary_format import _figure, _plotting, mm
 
 __all__ = ["severity_section", "fatigue_section", "wind_speed_note", "FATIGUE_DAYS"]
 
@@ -182,6 +182,5 @@ def fatigue_section(r) -> dict:
 
 
 def _rated(r) -> float:
-    from .pipeline import severity_span
-
-    return float(severity_span(r.scenario, r.span).conductor.rated_strength or float("nan"))
+    """The rated strength the severity study used (its stage's, not recomputed here)."""
+    return float(r.severity.rated_strength)

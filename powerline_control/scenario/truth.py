@@ -15,70 +15,26 @@ robot's tuning, the plan, the severity study's energy balance, the closed loop's
 which calibrates the span from its records) use the nominal. The true span of a scenario has one
 home, :func:`true_span`.
 
-Standard library only at import time, like the rest of the schema.
+The ``[truth]`` section itself (:class:`TruthConfig`) is part of the schema in
+:mod:`~powerline_control.scenario.config`; :func:`check_truth`, its cross-checks against the
+nominal span, runs when a file is read (:mod:`.files`). Standard library only at import time.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from ._schema import _key
+from .config import Scenario, TruthConfig
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..fem import LineModel
     from ..line import Span
-    from .config import Scenario
 
-__all__ = ["TruthConfig", "true_span", "true_model", "on_nodes"]
+__all__ = ["TruthConfig", "true_span", "true_model", "on_nodes"]   # TruthConfig: the schema's
 
 #: The conductor properties the change of state needs (a ``truth.temperature`` needs them all).
 CHANGE_OF_STATE = ("area", "elastic_modulus", "thermal_expansion")
-
-
-@dataclass(frozen=True)
-class TruthConfig:
-    """The line as it really is, where it differs from the nominal [span] (every key optional).
-
-    The ``[span]`` section is the nominal: what the engineer knows. ``temperature`` (the true
-    tension from the change of state) and ``tension_factor`` are alternatives; ``ei_factor``,
-    ``mass_factor`` and ``damping_ratio`` change the true conductor and its damping.
-
-    Examples
-    --------
-    >>> TruthConfig().tension_factor is None, TruthConfig().ei_factor
-    (True, 1.0)
-    """
-
-    temperature: float | None = _key(
-        None, "degC", "Conductor temperature of the day simulated: the true tension is the "
-        "nominal span's change of state from truth.stringing_temperature (the parabolic "
-        "change-of-state equation); unset: the nominal tension, or truth.tension_factor. Needs a "
-        "conductor preset (area, elastic modulus, thermal expansion).", kind="real", low=-40.0,
-        low_inclusive=True, high=100.0)
-    stringing_temperature: float = _key(
-        15.0, "degC", "Conductor temperature at which the line has the nominal [span] tension "
-        "(when it was strung; 15 degC: the everyday temperature of CIGRE TB 273).",
-        low=-40.0, low_inclusive=True, high=100.0, needs="temperature")
-    tension_factor: float | None = _key(
-        None, "", "True tension over the nominal [span] tension, instead of truth.temperature "
-        "(unset: 1, or from truth.temperature).", kind="real", low=0.5, low_inclusive=True,
-        high=1.5)
-    ei_factor: float = _key(
-        1.0, "", "True bending stiffness EI over the catalogue's (a stranded conductor's EI lies "
-        "between its strands' and the solid section's).", low=0.2, low_inclusive=True, high=5.0)
-    mass_factor: float = _key(
-        1.0, "", "True mass per metre over the catalogue's.", low=0.8, low_inclusive=True,
-        high=1.2)
-    damping_ratio: float | None = _key(
-        None, "", "Modal damping ratio of the true line (every mode); unset: model.damping_ratio.",
-        kind="real", low=0.0, low_inclusive=True, high=1.0, high_inclusive=False)
-
-    @property
-    def differs(self) -> bool:
-        """Whether any key is set: the line simulated may differ from the nominal."""
-        return self != TruthConfig()
 
 
 def true_span(scenario: Scenario, nominal: Span | None = None) -> Span:
