@@ -37,7 +37,7 @@ if args.fast:
 
 result = plc.run_scenario(scenario, progress=lambda stage: print(f"... {stage}"))
 
-print(f"\nsensors: {[round(x, 3) for x in result.to_json()['sensor_positions_m']]} m "
+print(f"\nsensors: {[round(x, 3) for x in result.to_dict()['sensor_positions_m']]} m "
       f"(nodes {list(result.sensors)})")
 rows = []
 for name, layout in result.layouts.items():
@@ -51,6 +51,6 @@ with (args.out / "layouts.csv").open("w", newline="") as handle:
     writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
     writer.writeheader()
     writer.writerows(rows)
-(args.out / "summary.json").write_text(json.dumps(result.to_json(), indent=2))
+(args.out / "summary.json").write_text(json.dumps(result.to_dict(), indent=2))
 report = result.report(args.out / "report.html")
 print(f"report: {report}")

@@ -225,7 +225,7 @@ def _write_outputs(out: _Output, result, *, full: bool = True, records: bool = F
             save_model(out.file("dmd_model.npz"), result.identification.design.model)
         if records and result.records is not None:
             _write_records(out, result)
-        out.file("summary.json").write_text(json.dumps(result.to_json(), indent=2,
+        out.file("summary.json").write_text(json.dumps(result.to_dict(), indent=2,
                                                        default=float))
     result.report(out.file("report.html"))
     return out.written
@@ -357,7 +357,7 @@ def _verb_stages(args, console: _Console, *, full: bool = True) -> int:
             if browser is not None and result.ok:
                 _print_pdf(browser, output.path / "report.html", output.file("report.pdf"))
                 written = output.written
-    numbers = result.to_json()
+    numbers = result.to_dict()
     numbers["elapsed_s"]["total"] = round(time.perf_counter() - start, 2)
     if result.failure is not None:
         return _failed(console, result, numbers, output, written)
@@ -461,7 +461,7 @@ def _verb_calibrate(args, console: _Console) -> int:
         result = calibrate_scenario(scenario, record, progress=console.note)
     cal = result.calibration
     if console.as_json:
-        print(json.dumps(result.to_json(), indent=2))
+        print(json.dumps(result.to_dict(), indent=2))
     elif console.quiet:
         print(f"Done. tension = {cal.tension:.6g} +- {cal.tension_std:.2g} N")
     else:
@@ -487,7 +487,7 @@ def _study_point(scenario_text: str, **overrides) -> dict:
     overrides = {key.replace("__", "."): value for key, value in overrides.items()}
     scenario = load_scenario(text=_override_toml(scenario_text, overrides), source="study")
     with _numerics():
-        numbers = run_scenario(scenario, stages=VERB_STAGES["estimate"]).to_json()
+        numbers = run_scenario(scenario, stages=VERB_STAGES["estimate"]).to_dict()
     return {"error_unmeasured_percent": numbers["error_unmeasured_percent"],
             "spectral_radius": numbers["spectral_radius"],
             "sensor_positions_m": " ".join(f"{x:.4g}" for x in numbers["sensor_positions_m"])}

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._results import TabularResult, to_dataframe
 from ._validation import check_budget, check_int, check_real, check_write_path
 from .errors import FileFormatError, InputError
 
@@ -170,7 +171,7 @@ def point_seed(seed: int, point: Mapping) -> int:
 
 
 @dataclass(frozen=True)
-class StudyResult:
+class StudyResult(TabularResult):
     """Parameters and results of a study, one row per grid point, in grid order.
 
     Attributes
@@ -281,14 +282,7 @@ class StudyResult:
 
     def to_dataframe(self):
         """The table as a ``pandas.DataFrame`` (pandas is optional; this needs it installed)."""
-        try:
-            import pandas as pd
-        except ImportError as error:  # pragma: no cover - pandas is installed where tested
-            raise ImportError(
-                "StudyResult.to_dataframe needs pandas (pip install 'powerline_control[pandas]'); "
-                "table(), to_csv() and to_json() work without it."
-            ) from error
-        return pd.DataFrame(self.table(), columns=self.columns)
+        return to_dataframe(self.table(), "StudyResult", columns=self.columns)
 
     def to_csv(self, path: str | Path) -> Path:
         """Write the table as CSV (a file to open in any spreadsheet) and return its path."""
@@ -300,14 +294,53 @@ class StudyResult:
             writer.writerows(rows)
         return path
 
-    def to_json(self, path: str | Path) -> Path:
-        """Write the study as JSON (read back with :meth:`from_json`) and return its path.
+    def to_json(self, path: str | Path | None = None, *, indent: int = 1) -> Path | str:
+        """The study as JSON: written to ``path`` (read back with :meth:`from_json`), or the text.
 
         Lossless: standard JSON has no NaN or infinity, so a non-finite float (a result or a
         parameter) is written as the object ``{"$float": "nan"}`` (``"inf"``, ``"-inf"``), which
         :meth:`from_json` reads back as the float (format version 2; version 1 wrote ``null``).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            The file to write; None returns the JSON text instead.
+        indent : int
+            Indentation of the text.
+
+        Returns
+        -------
+        Path or str
+            The path written, or the text when ``path`` is None.
+
+        Examples
+        --------
+        >>> import json
+        >>> study = run_study(lambda k: {"square": k * k}, parameter_grid(k=[1, 2]))
+        >>> json.loads(study.to_json())["results"]
+        [{'square': 1}, {'square': 4}]
         """
-        document = {
+        text = json.dumps(self.to_dict(), indent=indent, allow_nan=False) + "\n"
+        if path is None:
+            return text
+        path = _study_path(path, reading=False)
+        path.write_text(text)
+        return path
+
+    def to_dict(self) -> dict:
+        """The study as plain JSON types: the document :meth:`to_json` writes.
+
+        Returns
+        -------
+        dict
+
+        Examples
+        --------
+        >>> study = run_study(lambda k: {"square": k * k}, parameter_grid(k=[1, 2]))
+        >>> study.to_dict()["columns"]
+        ['k', 'square']
+        """
+        return {
             "format": _FORMAT,
             "version": _FORMAT_VERSION,
             "base_seed": self.base_seed,
@@ -316,9 +349,6 @@ class StudyResult:
             "seeds": None if self.seeds is None else list(self.seeds),
             "results": [_encode_floats(result) for result in self.results],
         }
-        path = _study_path(path, reading=False)
-        path.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n")
-        return path
 
     @classmethod
     def from_json(cls, path: str | Path) -> StudyResult:

@@ -17,8 +17,9 @@ PACKAGE = pathlib.Path(plc.__file__).parent
 # design.md section 2: a module may import only modules above it. Leaf utilities are free.
 ORDER = ["line", "fem", "excitation", "simulation", "identify", "riccati", "estimate", "sensors",
          "recipe", "antinode", "plan", "severity", "closed_loop", "studies"]
-# Shared helpers every stage may use: validation, errors, tones and phasors, constants, threads.
-LEAVES = {"errors", "_validation", "_spectral", "_constants", "_threads"}
+# Shared helpers every stage may use: validation, errors, tones and phasors, constants, threads,
+# the verbs the results share.
+LEAVES = {"errors", "_validation", "_spectral", "_constants", "_threads", "_results"}
 # The output side and the scenario pipeline (design.md: scenario/ runs every stage, then the
 # report) sit below every stage.
 ANYTHING_GOES = {"output", "scenario", "cli", "__init__", "__main__"}

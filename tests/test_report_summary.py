@@ -166,7 +166,7 @@ def test_every_row_of_every_section_is_explained(lab_result):
 
 
 def test_the_json_says_whether_the_headline_is_steady(lab_result):
-    data = lab_result.to_json()
+    data = lab_result.to_dict()
     json.dumps(data, allow_nan=False)                        # strict JSON: no NaN
     res = lab_result.closed_loop.result
     closed = res.comparison("closed_loop")

@@ -302,7 +302,7 @@ def test_the_identification_text_says_when_alpha_sits_at_the_cap_of_its_sweep(la
     lab_errors = np.asarray(lab_design.alpha_sweep.held_out_error)
     assert int(np.argmin(lab_errors)) < lab_errors.size - 1
     assert "(chosen on held-out data)" in _recipe_text(lab_design)
-    assert lab.to_json()["alpha_at_sweep_cap"] is False
+    assert lab.to_dict()["alpha_at_sweep_cap"] is False
 
 
 # ------------------------------------------------------------------ 6. a study not run says so
@@ -323,7 +323,7 @@ def test_a_skipped_sensor_count_study_says_so_in_progress_report_and_json(monkey
     assert "predicted error of 1 to" not in line[0]        # not printed as if it ran
     rows = {row[0]: row[1] for s in result.sections() for row in s["rows"]}
     assert rows["how many sensors"].startswith(f"not studied: {reason}")
-    entry = result.to_json()["sensor_count"]
+    entry = result.to_dict()["sensor_count"]
     assert entry["studied"] is False and entry["reason"].startswith(reason)
     assert not [f for s in result.sections() for f in s.get("figures", ())
                 if f["name"] == "sensor_count"]
@@ -366,7 +366,7 @@ def test_sensor_count_figure_is_in_percent_and_its_chosen_point_is_the_tables(la
     assert predicted.get_ydata()[at] == pytest.approx(expected, rel=1e-12)
     assert "predicts it from its own covariance" in figure["caption"]
     assert "measured against the simulated truth" in figure["caption"]
-    numbers = lab.to_json()["sensor_count"]
+    numbers = lab.to_dict()["sensor_count"]
     assert numbers["error_unmeasured_percent"][at] == pytest.approx(
         chosen.error_unmeasured_percent, rel=1e-12)
 
@@ -440,7 +440,7 @@ def test_consistency_phases_count_every_tested_window_once_against_the_windows_t
     for name, (above, below, n) in phases.items():
         assert (f"{name} {above} of {n}" in row.split("; below")[0]) == (n > 0), row
         assert (f"{name} {below} of {n}" in row.split("; below")[1]) == (n > 0), row
-    assert lab.to_json()["estimator_windows_rejected"]["moving"] == {
+    assert lab.to_dict()["estimator_windows_rejected"]["moving"] == {
         "above": phases["moving"][0], "below": phases["moving"][1],
         "rejected": phases["moving"][0] + phases["moving"][1], "tested": phases["moving"][2]}
 

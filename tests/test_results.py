@@ -12,6 +12,7 @@ import copy
 import dataclasses
 import importlib
 import inspect
+import json
 import pkgutil
 import re
 from collections.abc import Mapping
@@ -99,3 +100,97 @@ def test_comparing_a_result_never_raises(cls):
         assert (first == second) is False  # by identity
     if cls.__dataclass_params__.frozen and not isinstance(first, Mapping):
         hash(first)  # does not raise: a frozen result keeps object's hash
+
+
+# ------------------------------------------------------------------ one verb set, one display
+
+# The results the section-3 verbs return, by their defining module (some are reached through a
+# subpackage, not the package's top level).
+TOP_LEVEL_RESULTS = {
+    "simulation": ["Snapshots"], "identify": ["DMDModel", "OscillatorModel", "SpanCalibration"],
+    "estimate": ["Estimate"], "recipe": ["EstimatorDesign"], "sensors": ["SensorSelection"],
+    "plan": ["Trajectory"], "closed_loop": ["ClosedLoopResult"],
+    "severity": ["SeverityResult", "RobotValue", "FatigueOverRecord"], "studies": ["StudyResult"],
+    "scenario.result": ["ScenarioResult"], "scenario.calibrate": ["ScenarioCalibration"],
+}
+RESULT_CLASSES = [getattr(importlib.import_module(f"powerline_control.{module}"), name)
+                  for module, names in TOP_LEVEL_RESULTS.items() for name in names]
+
+
+@pytest.mark.parametrize("cls", RESULT_CLASSES, ids=lambda c: c.__name__)
+def test_every_top_level_result_has_the_verbs(cls):
+    for verb in ("summary", "to_dict", "to_json", "_repr_html_"):
+        assert callable(getattr(cls, verb, None)), f"{cls.__name__}.{verb}"
+    if hasattr(cls, "table"):  # tabular: the rows as a DataFrame too
+        assert callable(getattr(cls, "to_dataframe", None)), cls.__name__
+
+
+def test_the_display_has_one_home():
+    """Every result shows itself the same way (one function, not a copy per class)."""
+    assert len({cls._repr_html_ for cls in RESULT_CLASSES}) == 1
+
+
+def _strict_json(text: str) -> object:
+    def refuse(constant):
+        raise AssertionError(f"not standard JSON: {constant}")
+    return json.loads(text, parse_constant=refuse)
+
+
+def _numbers(text: str) -> list[str]:
+    return re.findall(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?", text)
+
+
+def _check_display(result) -> str:
+    """The HTML table holds every number of the summary, and the JSON is standard."""
+    summary, page = result.summary(), result._repr_html_()
+    assert page.startswith('<table class="powerline-control-result">') and \
+        page.rstrip().endswith("</table>")
+    assert "<caption" in page and type(result).__name__ in page
+    numbers = _numbers(summary)
+    assert numbers, summary
+    for number in numbers:
+        assert number in page, (number, page)
+    assert isinstance(_strict_json(result.to_json()), dict)
+    return page
+
+
+def test_a_trajectory_shows_its_move():
+    limits = plc.RobotLimits(v_max=0.5, a_max=1.0)
+    traj = plc.plan_motion(start=0.2, target=1.8, limits=limits)
+    page = _check_display(traj)
+    assert f"{traj.duration:.4g} s" in page and "1.8 m" in page  # what it holds, not a copy
+    data = _strict_json(traj.to_json())
+    assert data["position"] == traj.position.tolist() and data["duration"] == traj.duration
+    assert traj.table()[-1]["position_m"] == pytest.approx(1.8)
+
+
+def test_a_severity_result_shows_its_table():
+    span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
+    sev = plc.aeolian_severity(span, wind_speeds=[2.0, 4.0])
+    page = _check_display(sev)
+    for row in sev.table():  # each wind speed's row, its amplitude in mm as the table says
+        assert f"<td style=\"text-align: left\">{row['amplitude_mm']:.4g}</td>" in page
+    assert _strict_json(sev.to_json())["wind_speed"] == [2.0, 4.0]
+
+
+def test_a_sensor_selection_shows_its_layout_and_certificate():
+    a_diag = np.array([0.9, 0.5, 0.95, 0.7, 0.3])
+    sys = __import__("control").ss(np.diag(a_diag), np.zeros((5, 0)), np.eye(5),
+                                   np.zeros((5, 0)), 1.0)
+    sel = plc.select_sensors(sys, k=2, Q=np.diag([1.0, 2.0, 5.0, 3.0, 0.2]), R=0.5)
+    page = _check_display(sel)
+    assert f"{sel.objective:.6g}" in page and str(list(sel.nodes)) in page
+    for baseline in sel.baselines.values():  # the markdown table's rows become table rows
+        assert f"<td style=\"text-align: left\">{baseline.name}</td>" in page
+    assert "|" not in page  # the markdown is read, not pasted
+
+
+def test_the_display_escapes_text():
+    study = plc.run_study(_tagged, plc.parameter_grid(k=[1, 2]))
+    page = study._repr_html_()
+    assert "&lt;b&gt;" in page and "<b>" not in page
+    assert _strict_json(study.to_json())["results"][0]["label"] == "<b>1</b>"
+
+
+def _tagged(k):
+    return {"label": f"<b>{k}</b>", "nan": float("nan")}

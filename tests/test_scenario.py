@@ -43,7 +43,7 @@ def test_the_result_is_frozen_and_holds_each_stages_own_object(result):
 
 
 def test_json_units_are_in_the_keys_and_agree_with_the_objects(result):
-    data = result.to_json()
+    data = result.to_dict()
     json.dumps(data)                                            # plain JSON types only
     chosen = result.layouts["chosen"]
     # Independent truth: the error recomputed from the estimate and the true held-out field.
@@ -68,7 +68,7 @@ def test_json_units_are_in_the_keys_and_agree_with_the_objects(result):
 
 def test_text_and_json_give_the_error_in_the_same_unit(result):
     rows = {row[0]: row[1] for s in result.sections() for row in s["rows"]}
-    value = result.to_json()["error_unmeasured_percent"]
+    value = result.to_dict()["error_unmeasured_percent"]
     assert rows["error at unmeasured nodes: chosen"].startswith(f"{value:.3g} %")
 
 
@@ -387,7 +387,7 @@ def test_severity_on_the_lab_span_runs_in_python():
                                              "enabled = true\nwind_speeds = [1.0, 2.0]"),
                           stages=("model", "severity"))
     assert result.severity.bare.amplitude.shape == (2,)
-    assert result.to_json()["severity"][0]["wind_speed_m_s"] == 1.0
+    assert result.to_dict()["severity"][0]["wind_speed_m_s"] == 1.0
 
 
 def test_binary_scenario_file_exits_2_with_one_line(tmp_path):

@@ -159,7 +159,7 @@ def test_the_records_are_the_true_lines_and_the_nominal_is_reported_unchanged():
         peak = _peak_near(snap.true_displacement[node], snap.dt, f_true, 1.5 * gap)
         assert abs(peak - f_true) < 0.1 * gap, (peak, f_true, f_nominal)
     # what the engineer knows is reported as it was given
-    numbers = result.to_json()
+    numbers = result.to_dict()
     assert numbers["tension_n"] == numbers["nominal_tension_n"] == LAB.tension
     assert numbers["true_tension_n"] == pytest.approx(truth.tension, rel=1e-12)
     np.testing.assert_allclose(numbers["frequencies_hz"][:3], nominal_f, rtol=1e-3)
@@ -172,7 +172,7 @@ def test_the_records_are_the_true_lines_and_the_nominal_is_reported_unchanged():
 def test_without_a_truth_table_the_line_simulated_is_the_nominal_model_itself():
     result = run_scenario(load_scenario(text="[model]\nn_elements = 12"), stages=("model",))
     assert result.true_model is result.model and result.true_span is result.span
-    assert result.to_json()["truth_differs"] is False
+    assert result.to_dict()["truth_differs"] is False
 
 
 def test_the_true_model_shares_a_uniform_mesh_and_a_graded_one_is_read_at_the_nominal_nodes():
@@ -210,7 +210,7 @@ def test_the_closed_loop_is_told_the_nominal_and_the_summary_shows_its_calibrati
     run = result.closed_loop.result
     assert run.span.tension == pytest.approx(0.97 * LAB.tension)   # the plant: the truth
     assert run.nominal.tension == LAB.tension                       # the controller: told 395 N
-    numbers = result.to_json()
+    numbers = result.to_dict()
     assert numbers["nominal_tension_n"] == LAB.tension
     assert numbers["true_tension_n"] == pytest.approx(0.97 * LAB.tension)
     assert numbers["n_calibrations"] == len(run.calibrations) >= 1

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._results import Result
 from ..errors import InputError
 from .policy import quiet_from
 
@@ -61,7 +62,7 @@ class Comparison:
 
 
 @dataclass(frozen=True, eq=False)
-class ClosedLoopResult:
+class ClosedLoopResult(Result):
     """What happened in :func:`run_closed_loop`.
 
     Attributes

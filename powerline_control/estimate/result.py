@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._results import Result
 from .._validation import (
     check_array,
     check_indices,
@@ -39,7 +40,7 @@ __all__ = ["Estimate", "Consistency", "Accuracy", "estimation_accuracy", "Recove
 
 
 @dataclass(frozen=True, eq=False)
-class Estimate:
+class Estimate(Result):
     """Result of :meth:`KalmanFilter.filter`: filtered states and their uncertainty.
 
     Attributes

@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._constants import GRAVITY
+from .._results import Result
 from .._spectral import interpolated_peak
 from .._validation import check_int, check_real, read_only
 from ..errors import CalibrationWarning, IdentificationError, InputError
@@ -89,7 +90,7 @@ AMBIGUOUS_MASS = 0.05
 
 
 @dataclass(frozen=True, eq=False)
-class SpanCalibration:
+class SpanCalibration(Result):
     """The span a record explains: tension, bending stiffness and their uncertainty.
 
     Returned by :func:`calibrate_span`.

@@ -21,6 +21,7 @@ import control as ct
 import numpy as np
 import scipy.linalg as sla
 
+from .._results import Result
 from .._validation import (
     check_array,
     check_bool,
@@ -44,7 +45,7 @@ _UNIT_CIRCLE_TOL = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
-class DMDModel:
+class DMDModel(Result):
     """A discrete-time linear model identified from snapshots, ``z_{k+1} = A z_k + B u_k``.
 
     Build it with :func:`fit_dmd` (or :meth:`OnlineDMD.model`); every field is set and read-only.

@@ -15,13 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._results import TabularResult
 from .._validation import check_array, read_only
 from .kernels import _advance, _bang_coast_bang, _s_curve
 from .limits import RobotLimits
 
 
 @dataclass(frozen=True, eq=False)
-class Trajectory:
+class Trajectory(TabularResult):
     """A planned motion of the robot's centre.
 
     The highest derivative is constant on each interval ``[t[k], t[k+1])``: the acceleration
@@ -79,6 +80,50 @@ class Trajectory:
     iterations: int = 0
     solve_time: float = 0.0
     method: str = "ipopt"
+
+    def summary(self) -> str:
+        """The move in a few lines: from where to where, how long, how fast.
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        >>> from powerline_control.plan import RobotLimits, plan_motion
+        >>> print(plan_motion(0.0, 2.0, RobotLimits(v_max=0.5, a_max=1.0)).summary())
+        move: 0 m to 2 m
+        duration: 4.5 s (closed_form, objective time)
+        peak speed: 0.5 m/s (v_max 0.5 m/s)
+        peak acceleration: 1 m/s^2 (a_max 1 m/s^2)
+        samples: 101
+        """
+        return "\n".join([
+            f"move: {self.position[0]:.4g} m to {self.position[-1]:.4g} m",
+            f"duration: {self.duration:.4g} s ({self.method}, objective {self.objective})",
+            f"peak speed: {np.abs(self.velocity).max():.4g} m/s (v_max {self.limits.v_max:g} m/s)",
+            f"peak acceleration: {np.abs(self.acceleration).max():.4g} m/s^2 "
+            f"(a_max {self.limits.a_max:g} m/s^2)",
+            f"samples: {self.t.size}",
+        ])
+
+    def table(self) -> list[dict]:
+        """One row per sample: time (s), position (m), velocity (m/s), acceleration (m/s^2).
+
+        Returns
+        -------
+        list of dict
+
+        Examples
+        --------
+        >>> from powerline_control.plan import RobotLimits, plan_motion
+        >>> plan_motion(0.0, 2.0, RobotLimits(v_max=0.5, a_max=1.0)).table()[-1]
+        {'t_s': 4.5, 'position_m': 2.0, 'velocity_m_s': 0.0, 'acceleration_m_s2': 0.0}
+        """
+        return [{"t_s": float(t), "position_m": float(x), "velocity_m_s": float(v),
+                 "acceleration_m_s2": float(a)}
+                for t, x, v, a in zip(self.t, self.position, self.velocity, self.acceleration,
+                                      strict=True)]
 
     def sample(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Exact position, velocity and acceleration at any times in ``[0, duration]``.

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._results import Result
 from .._validation import (
     check_array,
     check_indices,
@@ -61,7 +62,7 @@ class AlphaSweep:
 
 
 @dataclass(frozen=True, eq=False)
-class EstimatorDesign:
+class EstimatorDesign(Result):
     """An identified model, a sensor layout and the Kalman filter on those sensors.
 
     Build it with :func:`design_estimator`.

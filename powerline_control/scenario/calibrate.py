@@ -16,6 +16,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
+from .._results import Result
 from ..errors import InputError
 from .config import Scenario
 from .files import load_scenario  # noqa: F401 (doctests)
@@ -24,7 +25,7 @@ __all__ = ["ScenarioCalibration", "calibrate_scenario"]
 
 
 @dataclass(frozen=True, eq=False)
-class ScenarioCalibration:
+class ScenarioCalibration(Result):
     """A scenario's span calibrated from a record, against its nominal span.
 
     Attributes
@@ -80,9 +81,10 @@ class ScenarioCalibration:
                          f"{sigmas:.2g} standard deviations from it")
         return "\n".join(lines)
 
-    def to_json(self) -> dict:
+    def to_dict(self) -> dict:
         """The numbers as plain JSON types, units in the keys (``_n`` newtons, ``_n_m2`` N m^2,
-        ``_m`` metres, ``_hz`` hertz, ``_s`` seconds, ``_percent`` per cent).
+        ``_m`` metres, ``_hz`` hertz, ``_s`` seconds, ``_percent`` per cent); :meth:`to_json`
+        writes them as text.
 
         Returns
         -------

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .._results import Result, summary_of
 from .._validation import check_write_path
 from ..errors import InputError
 from .config import Scenario
@@ -292,7 +293,7 @@ class StageFailure:
 
 
 @dataclass(frozen=True, eq=False)
-class ScenarioResult:
+class ScenarioResult(Result):
     """Everything one scenario produced, stage by stage (None for a stage that did not run).
 
     Attributes
@@ -343,8 +344,10 @@ class ScenarioResult:
     >>> result = run_scenario(small, stages=("model", "records"))
     >>> result.model.n_nodes, result.records.test.displacement.shape
     (17, (17, 2001))
-    >>> result.to_json()["n_nodes"]
+    >>> result.to_dict()["n_nodes"]
     17
+    >>> print(result.summary().splitlines()[0])
+    scenario: default
     """
 
     scenario: Scenario
@@ -379,8 +382,9 @@ class ScenarioResult:
             return ()
         return tuple(int(i) for i in self.identification.design.sensors)
 
-    def to_json(self) -> dict:
-        """The headline numbers as plain JSON types, one unit per quantity, units in the keys.
+    def to_dict(self) -> dict:
+        """The headline numbers as plain JSON types, one unit per quantity, units in the keys
+        (:meth:`to_json` writes them as text, :meth:`summary` as lines).
 
         A key ending in ``_m`` is metres, ``_s`` seconds, ``_hz`` Hz, ``_m_s`` m/s,
         ``_percent`` per cent, ``_microstrain`` 1e-6; the ``units`` entry lists them.
@@ -396,6 +400,19 @@ class ScenarioResult:
         from .summary_json import result_json
 
         return result_json(self)
+
+    def summary(self) -> str:
+        """The headline numbers of :meth:`to_dict`, one ``key: value`` line each (the scalars).
+
+        Returns
+        -------
+        str
+
+        Examples
+        --------
+        See :class:`ScenarioResult`.
+        """
+        return summary_of(self.to_dict())
 
     def sections(self) -> list:
         """The report's sections (title, intro, rows, figures to draw), in words and units.

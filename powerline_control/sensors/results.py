@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._results import Result
 from .relaxation import _HEURISTIC
 
 
@@ -40,7 +41,7 @@ class Baseline:
 
 
 @dataclass(frozen=True, eq=False)
-class SensorSelection:
+class SensorSelection(Result):
     """Result of :func:`select_sensors`.
 
     Attributes

@@ -29,6 +29,7 @@ import numpy as np
 import scipy.interpolate
 import scipy.optimize
 
+from .._results import TabularResult
 from .._validation import (
     check_budget,
     check_choice,
@@ -127,7 +128,7 @@ def _check_dampers(dampers: object, span: Span) -> tuple:
 
 
 @dataclass(frozen=True, eq=False)
-class SeverityResult:
+class SeverityResult(TabularResult):
     """Energy-balance severity of one span and damper configuration, one entry per wind speed.
 
     Attributes

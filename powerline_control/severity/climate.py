@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._results import TabularResult
 from .._validation import (
     check_array,
     check_choice,
@@ -234,7 +235,7 @@ def _bin_edges(speeds: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class RobotValue:
+class RobotValue(TabularResult):
     """Fatigue and endurance over a wind climate for three configurations.
 
     Attributes

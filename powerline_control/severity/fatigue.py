@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._results import TabularResult
 from .._validation import check_choice, check_real, read_only
 from ..errors import InputError
 from ..excitation import DEFAULT_STROUHAL
@@ -81,7 +82,7 @@ class RecordDamage:
 
 
 @dataclass(frozen=True, eq=False)
-class FatigueOverRecord(Mapping):
+class FatigueOverRecord(Mapping, TabularResult):
     """Fatigue over a wind record for no damper, a fixed damper and the robot.
 
     Index it by configuration: ``result["robot"].life_years``,

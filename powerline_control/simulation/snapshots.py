@@ -26,6 +26,7 @@ import numpy as np
 import scipy.linalg
 import scipy.signal
 
+from .._results import Result
 from .._spectral import load_phasor
 from .._threads import on_one_blas_thread
 from .._validation import (
@@ -45,7 +46,7 @@ __all__ = ["Snapshots", "simulate"]
 
 
 @dataclass(frozen=True, eq=False)
-class Snapshots:
+class Snapshots(Result):
     """Displacement data of a simulated span; columns are time, as in the paper.
 
     Attributes
