@@ -103,7 +103,7 @@ def accuracy_row(seed: int) -> dict:
     except Exception as exc:  # noqa: BLE001 - report it and go on with the table
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
-    others = [w for w in caught if not issubclass(w.category, plc.CalibrationWarning)]
+    others = [w for w in caught if not issubclass(w.category, plc.errors.CalibrationWarning)]
     row.update(
         cal_s=cal_s, tension_error=cal.tension / shown - 1.0,
         z=(cal.tension - shown) / cal.tension_std, std=cal.tension_std / cal.tension,

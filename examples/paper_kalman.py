@@ -151,7 +151,7 @@ def main(out: Path, fast: bool = False) -> None:
     layouts = {"first 13 (paper)": list(range(13)), "first 5": list(range(5)),
                "5 spread": SPREAD_5, "5 at one quarter": [20, 23, 25, 27, 30],
                "5 chosen by design_estimator": chosen}
-    table = plc.compare_sensor_sets(candidates, layouts, Q=dmd.residual_covariance,
+    table = plc.estimate.compare_sensor_sets(candidates, layouts, Q=dmd.residual_covariance,
                                     R=noise_std**2, field_map=dmd.field_map)
     print(f"\nSteady-state estimation error from the Riccati equation (the recipe's model: "
           f"d={dmd.delays}, rank {dmd.rank}, 19 Hz):")

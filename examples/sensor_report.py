@@ -46,7 +46,7 @@ print()
 
 ks = [1, 2, 3, 4, 6, 9, 13]
 target = float(np.sqrt(first13 / sys_all.nstates))  # the paper layout's RMS error per state
-study = plc.sensor_count_study(sys_all, ks, Q=Q, R=noise_var, target_error=target,
+study = plc.sensors.sensor_count_study(sys_all, ks, Q=Q, R=noise_var, target_error=target,
                                n_steps=2000, positions=model.node_positions)
 print("| k | layout | predicted RMS (um) | simulated RMS (um) |")
 print("|---|---|---|---|")

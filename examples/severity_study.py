@@ -31,8 +31,9 @@ def main(output: pathlib.Path) -> dict:
     robot = plc.MDR.tuned(0.0, body_mass=6.0, suspended_mass=1.5, frequency=15.0,
                           damping_ratio=0.3)
     limits = plc.RobotLimits(v_max=0.3, a_max=0.5)
-    value = plc.robot_value(span, robot, limits, speeds,
-                            distribution=plc.WindDistribution.weibull(shape=2.0, scale=4.0),
+    value = plc.severity.robot_value(span, robot, limits, speeds,
+                            distribution=plc.severity.WindDistribution.weibull(shape=2.0,
+                                                                               scale=4.0),
                             persistence=600.0)
 
     print(f"Drake, 300 m, {span.tension / 1e3:.2f} kN (20 % RTS); fixed damper at "
@@ -51,11 +52,11 @@ def main(output: pathlib.Path) -> dict:
         print(f"  {row['configuration']:<20s} time over 150 ue: "
               f"{100 * row['fraction_over_endurance']:5.1f} %   Miner damage/year: "
               f"{row['fatigue_index_per_year']:.3g}")
-    check = plc.catenary_check(span)
+    check = plc.severity.catenary_check(span)
     print(f"TB 273: H/w = {check.catenary_parameter:.0f} m against {check.limit:.0f} m "
           f"({check.source}) -> {'within' if check.within_limit else 'over'} the limit")
     short = plc.Span.at_rts_fraction(30.0, "drake", 0.20)
-    td = plc.time_domain_check(short, 2.0, n_elements=60)
+    td = plc.severity.time_domain_check(short, 2.0, n_elements=60)
     print(f"Time-domain check (Drake 30 m, mode {td.mode}, {td.wind_speed:.3f} m/s): EBM "
           f"{td.ebm_amplitude * 1e3:.3f} mm, simulated {td.simulated_amplitude * 1e3:.3f} mm "
           f"({100 * td.relative_error:+.2f} %), zeta_eq {td.damping_ratio:.2e}, "

@@ -144,7 +144,7 @@ def test_steady_state_scan_matches_the_finite_element_model():
     assert abs(result.best_position - best_x) < 0.02 * LAB.length / mode
 
 
-@pytest.mark.filterwarnings("ignore::powerline_control.ReachWarning")  # a short run: no trip
+@pytest.mark.filterwarnings("ignore::powerline_control.errors.ReachWarning")  # a short run: no trip
 def test_parked_plant_matches_full_fe_simulation():
     # The baseline (robot parked at its start) against plc.simulate on the full FE model with the
     # robot attached: exact modal propagation of every mode, closed form for the harmonic load.
@@ -200,7 +200,7 @@ def test_wind_change_robot_follows_to_the_new_best_position():
     assert final < 0.5 * after_change  # the RMS falls again once the robot has moved
 
 
-@pytest.mark.filterwarnings("ignore::powerline_control.ReachWarning")  # a short run: no trip
+@pytest.mark.filterwarnings("ignore::powerline_control.errors.ReachWarning")  # a short run: no trip
 def test_noise_free_sensors_work():
     robot = _robot(2, LAB.length / 2)
     result = run_closed_loop(LAB, plc.HarmonicForce(1.0, FREQS[1], 1.0), robot, sensors=[5, 9, 14],
@@ -363,16 +363,16 @@ def test_bad_arguments(kwargs, name):
     ("kwargs", "warning", "words"),
     [
         # 0.01 m/s and 0.01 m/s^2 cover 5.6 mm in 1.5 s: not a quarter of the 1.22 m loop
-        (dict(limits=plc.RobotLimits(0.01, 0.01)), plc.ReachWarning, "v_max=0.01"),
+        (dict(limits=plc.RobotLimits(0.01, 0.01)), plc.errors.ReachWarning, "v_max=0.01"),
         # the loops at 0.46 and 1.83 m lie beyond the obstacles around the start
-        (dict(obstacles=[(0.9, 1.0), (1.5, 1.6)]), plc.ReachWarning, "'obstacles'"),
+        (dict(obstacles=[(0.9, 1.0), (1.5, 1.6)]), plc.errors.ReachWarning, "'obstacles'"),
         # 6 elements cannot hold the 24.5 Hz load's 1.22 m loops
         (dict(n_elements=6, sensors=[1, 3, 5]), plc.TruncationWarning, "'n_elements'"),
     ],
     ids=["slow-limits", "obstacles-everywhere", "coarse-model"],
 )
 # A robot kept from every loop ends above a damper parked near the clamp, and says that too.
-@pytest.mark.filterwarnings("ignore::powerline_control.ShortfallWarning")
+@pytest.mark.filterwarnings("ignore::powerline_control.errors.ShortfallWarning")
 def test_what_keeps_the_robot_from_the_loops_is_named(kwargs, warning, words):
     args = dict(sensors=[7, 16, 28], n_elements=40, duration=4.0, calibration=1.0, seed=1)
     args.update(kwargs)
@@ -390,7 +390,8 @@ def test_robot_too_heavy_for_the_tension():
                         sensors=[5, 10], n_elements=20, duration=3.0, calibration=1.0)
 
 
-@pytest.mark.filterwarnings("ignore::powerline_control.ReachWarning")  # a 0.5 s loop: no trip
+# a 0.5 s loop: no trip
+@pytest.mark.filterwarnings("ignore::powerline_control.errors.ReachWarning")
 def test_aeolian_load_and_mpc_motion_run():
     # A distributed lock-in load (bound to the model: it has a frequency) and the MPC planner:
     # the loop runs, the planner reports its statuses, the scan exists (the load is a sine).
@@ -403,7 +404,7 @@ def test_aeolian_load_and_mpc_motion_run():
     assert result.scan_rms.size > 0 and np.isfinite(result.best_position)
 
 
-@pytest.mark.filterwarnings("ignore::powerline_control.ReachWarning")  # a short run: no trip
+@pytest.mark.filterwarnings("ignore::powerline_control.errors.ReachWarning")  # a short run: no trip
 def test_results_do_not_depend_on_the_machine_load():
     # No wall-clock budget anywhere in the loop (closed-form motion, no timed solver): the same
     # seed gives bit-identical results with a CPU-burning process running alongside.
@@ -602,7 +603,7 @@ def test_band_plant_field_of_a_long_span_matches_the_modal_sum():
     assert np.abs(field - truth).max() < 1e-2 * np.abs(truth).max()
 
 
-@pytest.mark.filterwarnings("ignore::powerline_control.ReachWarning")  # a short run: no trip
+@pytest.mark.filterwarnings("ignore::powerline_control.errors.ReachWarning")  # a short run: no trip
 def test_long_span_no_robot_rms_matches_the_closed_form_steady_state():
     # The public path of the finding above: run_closed_loop on a 100 m Drake span (a band plant)
     # with a point load; its "no robot" comparison against the closed-form steady state of the
@@ -645,7 +646,8 @@ class _UserLoad:
         return model.point_load(self.position)
 
 
-@pytest.mark.filterwarnings("ignore::powerline_control.ReachWarning")  # a 0.5 s loop: no trip
+# a 0.5 s loop: no trip
+@pytest.mark.filterwarnings("ignore::powerline_control.errors.ReachWarning")
 def test_user_load_without_a_frequency_runs():
     # Review finding: float(load.frequency) raised a raw TypeError for frequency = None.
     result = run_closed_loop(LAB, _UserLoad(), plc.MDR(1.0, 0.03, 0.04, 1500.0, 2.0),

@@ -191,5 +191,5 @@ def test_a_run_that_ends_worse_than_its_start_or_a_clamp_damper_says_so():
     assert "where the robot started" in shortfalls[0] and "1.20x" in shortfalls[0]
     assert closed.rms < start.rms
     with warnings.catch_warnings():
-        warnings.simplefilter("error", plc.ShortfallWarning)
+        warnings.simplefilter("error", plc.errors.ShortfallWarning)
         plc.run_closed_loop(TRUTH, FORCE, ROBOT, **RUN)   # no warning for a run that did well

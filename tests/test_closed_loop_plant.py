@@ -1,6 +1,6 @@
 """The moving-robot plant against the exact parked steady state of the full FE model.
 
-Truth: :func:`powerline_control.parked_steady_state` (sparse LU of the bare FE line and a
+Truth: :func:`powerline_control.simulation.parked_steady_state` (sparse LU of the bare FE line and a
 rank-one update per position, itself tested against dense solves with the robot attached in
 tests/test_steady_state.py). The plant is what the closed loop simulates: its steady state,
 its time-domain parked response, its energy and its exact first-order hold.
@@ -47,7 +47,7 @@ def long_span():
         rng = np.random.default_rng(0)
         positions = np.sort(np.concatenate([[0.5, span.length - 0.5, x_f - 0.2, x_f + 0.2],
                                             rng.uniform(1.0, span.length - 1.0, 46)]))
-        exact = plc.parked_steady_state(bare, force, robot, positions)
+        exact = plc.simulation.parked_steady_state(bare, force, robot, positions)
         dt = 2e-3
         plant, amplitudes, rms, omega = _case(span, bare, robot, force, positions, dt)
     return dict(span=span, bare=bare, robot=robot, force=force, positions=positions,
@@ -80,7 +80,7 @@ def test_band_plant_near_a_clamp_where_the_body_resonates_on_the_local_line(long
     positions = np.linspace(0.3, 1.1, 17)
     w2 = c["omega"] ** 2
     assert max(plant.residual_flexibility(x) * w2 * robot.body_mass for x in positions) > 1.0
-    exact = plc.parked_steady_state(bare, force, robot, positions)
+    exact = plc.simulation.parked_steady_state(bare, force, robot, positions)
     _, _, rms, _ = _case(c["span"], bare, robot, force, positions, c["dt"])
     # as the 50-position test: measured worst 0.1 %
     assert np.abs(rms / exact.rms - 1).max() < 0.01
@@ -136,7 +136,7 @@ def test_lab_span_plant_steady_state_matches_the_exact_one():
     rng = np.random.default_rng(1)
     positions = np.sort(np.concatenate([[0.01, 0.05, span.length - 0.05, x_f - 0.2, x_f + 0.2,
                                          x_f + 0.02], rng.uniform(0.02, span.length - 0.02, 44)]))
-    exact = plc.parked_steady_state(bare, force, robot, positions)
+    exact = plc.simulation.parked_steady_state(bare, force, robot, positions)
     _, _, rms, _ = _case(span, bare, robot, force, positions, 1e-3)
     error = np.abs(rms / exact.rms - 1)
     # The lowest modes below 8 f plus the load's Ritz vector and the robot's residual: measured

@@ -1315,7 +1315,7 @@ def test_filter_consistency_checks_field_map_whatever_the_truth(field_map):
     sys = ct.ss([[0.9]], [[0.0]], [[1.0]], 0, dt=1.0)
     est = plc.KalmanFilter(sys, Q=1.0, R=0.25).filter(np.ones((1, 50)))
     with pytest.raises(plc.InputError, match="'field_map'"):
-        plc.filter_consistency(est, field_map=field_map)
+        plc.estimate.filter_consistency(est, field_map=field_map)
 
 
 def test_an_empty_record_is_refused_by_name():

@@ -84,7 +84,7 @@ def test_recovery_after_a_step_in_the_process_noise():
     assert rec.nis_samples is not None and 0 < rec.nis_samples <= 800
     assert rec.error_samples is not None and rec.error_samples <= 800
     assert rec.time == max(rec.nis_time, rec.error_time)
-    never = plc.recovery_time(fixed, change)
+    never = plc.estimate.recovery_time(fixed, change)
     assert never.nis_samples is None and never.nis_time == np.inf
     assert np.isnan(never.error_time)
 
@@ -114,7 +114,7 @@ def test_bad_recovery_arguments_are_named():
                          ({"change_at": 500, "factor": 0.5}, "'factor'"),
                          ({"change_at": 500, "truth": np.zeros((2, 1000))}, "'truth'")):
         with pytest.raises(InputError, match=word):
-            plc.recovery_time(est, **kwargs)
+            plc.estimate.recovery_time(est, **kwargs)
     silent = plc.KalmanFilter(sys, Q=0.1, R=1.0, consistency_window=None).filter(y)
     with pytest.raises(InputError, match="no windowed NIS test"):
         silent.recovery(500)

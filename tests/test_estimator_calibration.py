@@ -122,7 +122,7 @@ def test_records_set_the_level_when_the_held_out_part_is_too_short(lab_records):
     records still set it, by their defining property."""
     _, rec, other = lab_records
     with warnings.catch_warnings():
-        warnings.simplefilter("error", plc.ModelErrorRecordsWarning)
+        warnings.simplefilter("error", plc.errors.ModelErrorRecordsWarning)
         design = plc.design_estimator(rec, n_sensors=3, seed=0, delays=4, rank=12,
                                       train_fraction=0.95, model_error_records=other)
         plain = plc.design_estimator(rec, n_sensors=3, seed=0, delays=4, rank=12,
@@ -162,7 +162,7 @@ def test_records_without_error_above_their_noise_warn_and_floor_the_terms(lab_re
     names the parameter and what would work; the terms go to their floor, not to (1, 0)."""
     _, rec, other = lab_records
     loud = dataclasses.replace(other, noise_std=20 * other.noise_std)
-    with pytest.warns(plc.ModelErrorRecordsWarning) as caught:
+    with pytest.warns(plc.errors.ModelErrorRecordsWarning) as caught:
         design = plc.design_estimator(rec, n_sensors=3, seed=0, delays=4, rank=12,
                                       model_error_records=loud)
     messages = [str(w.message) for w in caught]
@@ -177,7 +177,7 @@ def test_records_of_other_noise_warn(lab_records):
     """Records must carry the training record's sensor noise: 3x warns, naming the record."""
     model, rec, _ = lab_records
     noisy = plc.simulate(model, _lab_loads(23), 2.0, 1e-3, noise_std=3 * rec.noise_std, seed=7)
-    with pytest.warns(plc.ModelErrorRecordsWarning,
+    with pytest.warns(plc.errors.ModelErrorRecordsWarning,
                       match="'model_error_records' parameter's record 0 has sensor noise std"):
         plc.design_estimator(rec, n_sensors=3, seed=0, delays=4, rank=12,
                              model_error_records=noisy)
@@ -213,7 +213,7 @@ def test_records_with_the_modal_model():
         warnings.simplefilter("always")
         design = plc.design_estimator(rec, n_sensors=3, seed=0, model_error_records=other)
     assert design.excitation.method == "modal"
-    assert any(issubclass(w.category, plc.ModelErrorRecordsWarning)
+    assert any(issubclass(w.category, plc.errors.ModelErrorRecordsWarning)
                and "'model_error_records'" in str(w.message) and "method='dmd'" in str(w.message)
                for w in caught)
 

@@ -41,7 +41,8 @@ def _runs(name: str):
         test = plc.simulate(model, load, **kw)
         truth = plc.simulate(model, load, outputs=[0.089, length - 0.089], **kw)
         for side, row in (("left", 0), ("right", 1)):
-            est = plc.estimate_clamp_strain(design, test.displacement[design.sensors], span,
+            est = plc.severity.estimate_clamp_strain(design, test.displacement[design.sensors],
+                                                     span,
                                             model.node_positions, side=side, discard=500)
             true_yb = 2 * np.sqrt(2) * np.sqrt(np.mean(truth.true_displacement[row, 500:] ** 2))
             out.append((est, true_yb))
@@ -80,23 +81,23 @@ def test_clamp_strain_bad_input():
         design = plc.design_estimator(snap, n_sensors=3, delays=4, rank=12, seed=0)
     y = snap.displacement[design.sensors]
     with pytest.raises(plc.InputError, match="'positions'.*61 node positions"):
-        plc.estimate_clamp_strain(design, y, span, model.node_positions[:-1])
+        plc.severity.estimate_clamp_strain(design, y, span, model.node_positions[:-1])
     with pytest.raises(plc.InputError, match="'side'"):
-        plc.estimate_clamp_strain(design, y, span, model.node_positions, side="middle")
+        plc.severity.estimate_clamp_strain(design, y, span, model.node_positions, side="middle")
     with pytest.raises(plc.InputError, match="'x_b'"):
-        plc.estimate_clamp_strain(design, y, span, model.node_positions, x_b=-1.0)
+        plc.severity.estimate_clamp_strain(design, y, span, model.node_positions, x_b=-1.0)
     # The documented preconditions, checked before the filter runs
     pinned = plc.LineModel(span, n_elements=60, bc="pinned")
     with pytest.raises(plc.InputError, match="'positions'.*the left one is pinned"):
-        plc.estimate_clamp_strain(design, y, span, pinned)
+        plc.severity.estimate_clamp_strain(design, y, span, pinned)
     with pytest.raises(plc.InputError, match=r"from 0 to its length 300 m.*Got 0 to 3000 m"):
-        plc.estimate_clamp_strain(design, y, span, 10 * model.node_positions)
+        plc.severity.estimate_clamp_strain(design, y, span, 10 * model.node_positions)
     # A conductor without a rated strength (the lab's) converts by Poffenberger-Swart too; the
     # old error advised a keyword (self_damping_k=) this function does not take. Truth: the
     # severity stage's strain per Y_b, which no self-damping constant changes (linear map).
     lab = plc.Span(length=span.length, tension=span.tension,
                    conductor=plc.Span.paper_lab().conductor)
-    est = plc.estimate_clamp_strain(design, y, lab, model, discard=100)
+    est = plc.severity.estimate_clamp_strain(design, y, lab, model, discard=100)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         sev = plc.aeolian_severity(lab, wind_speeds=[3.0], bc="clamped", self_damping_k=7.0)

@@ -35,7 +35,7 @@ def test_lab_span_count_reaches_the_target_on_an_independent_run():
     check = plc.simulate(model, [plc.RandomForce(1.0, 0.9, 100.0, seed=23),
                                  plc.RandomForce(1.0, 2.6, 100.0, seed=24)], 4.0, 1e-3,
                          noise_fraction=0.01, seed=7)
-    study = plc.estimator_count_study(rec, [1, 2, 3, 5], target_error=0.1, check=check)
+    study = plc.recipe.estimator_count_study(rec, [1, 2, 3, 5], target_error=0.1, check=check)
     assert study.smallest_k is not None and "sensors reach" in study.message
     assert study.check_error.shape == (4, 1)
     design = plc.design_estimator(rec, n_sensors=study.smallest_k, seed=0)
@@ -52,7 +52,7 @@ def test_cardinal_400m_says_it_cannot_and_an_independent_run_agrees():
     model = plc.LineModel(span, n_elements=400, bc="pinned")
     load = [plc.RandomForce(1.0, 124.0, 10.0, seed=3), plc.RandomForce(1.0, 308.0, 10.0, seed=4)]
     rec = plc.simulate(model, load, 30.0, 4e-3, noise_fraction=0.01, seed=0)
-    study = plc.estimator_count_study(rec, [3, 5, 8], target_error=0.1)
+    study = plc.recipe.estimator_count_study(rec, [3, 5, 8], target_error=0.1)
     print(study.held_out_error, study.message)
     assert study.smallest_k is None and "cannot" in study.message
     assert np.all(np.diff(study.held_out_error) < 0)  # more sensors, less error
@@ -72,10 +72,10 @@ def test_drake_300m_with_a_check_record_says_it_cannot_and_new_runs_agree():
     model, rec = drake_broadband_record()
     loads = drake_broadband_loads
     check = plc.simulate(model, loads(43), 30.0, 4e-3, noise_fraction=0.01, seed=143)
-    alone = plc.estimator_count_study(rec, [24], target_error=0.1)
+    alone = plc.recipe.estimator_count_study(rec, [24], target_error=0.1)
     assert alone.smallest_k == 24 and alone.check_error is None
     assert "continuation of the training record only" in alone.message
-    study = plc.estimator_count_study(rec, [24], target_error=0.1, check=check)
+    study = plc.recipe.estimator_count_study(rec, [24], target_error=0.1, check=check)
     assert study.held_out_error[0] < 0.1 < study.check_error[0, 0]
     assert study.smallest_k is None and "cannot" in study.message
     design = plc.design_estimator(rec, n_sensors=24, seed=0)
@@ -98,7 +98,7 @@ def test_check_records_are_judged_with_their_own_noise_and_the_shipped_design():
     rec = plc.simulate(model, loads(3), 3.0, 1e-3, noise_fraction=0.01, seed=0)
     check = plc.simulate(model, loads(23), 2.0, 1e-3, noise_fraction=0.1, seed=7)
     options = {"delays": 4, "rank": 12}
-    study = plc.estimator_count_study(rec, [3], check=check, **options)
+    study = plc.recipe.estimator_count_study(rec, [3], check=check, **options)
     design = plc.design_estimator(rec, n_sensors=3, seed=0, **options)
     np.testing.assert_array_equal(study.shipped_sensors[0], design.sensors)
     assert study.check_noise_std == (check.noise_std,)
@@ -115,11 +115,11 @@ def test_check_records_are_judged_with_their_own_noise_and_the_shipped_design():
     # No noise_std on the record: estimated from its singular values (measured 3 % off the
     # true sigma, hence the error 3 % off).
     unknown = dataclasses.replace(check, noise_std=float("nan"))
-    estimated = plc.estimator_count_study(rec, [3], check=unknown, **options)
+    estimated = plc.recipe.estimator_count_study(rec, [3], check=unknown, **options)
     assert estimated.check_noise_std[0] == pytest.approx(check.noise_std, rel=0.1)
     assert estimated.check_error[0, 0] == pytest.approx(actual, rel=0.1)
     # The old rule (the training record's sigma) leaves the check record's extra noise in.
-    old = plc.estimator_count_study(rec, [3], check=check, check_noise_std=rec.noise_std,
+    old = plc.recipe.estimator_count_study(rec, [3], check=check, check_noise_std=rec.noise_std,
                                     **options)
     assert old.check_error[0, 0] > 1.2 * actual
 
@@ -131,28 +131,29 @@ def test_count_study_bad_input():
         rec = plc.simulate(model, plc.RandomForce(1.0, 0.9, 80.0, seed=3), 2.0, 1e-3,
                            noise_fraction=0.01, seed=0)
     with pytest.raises(plc.InputError, match="'k_values'.*ascending"):
-        plc.estimator_count_study(rec, [3, 2])
+        plc.recipe.estimator_count_study(rec, [3, 2])
     with pytest.raises(plc.InputError, match="'target_error'"):
-        plc.estimator_count_study(rec, [2], target_error=2.0)
+        plc.recipe.estimator_count_study(rec, [2], target_error=2.0)
     with pytest.raises(plc.InputError, match="'snapshots'"):
-        plc.estimator_count_study(np.zeros((21, 100)), [2])
+        plc.recipe.estimator_count_study(np.zeros((21, 100)), [2])
     with pytest.raises(plc.InputError, match="'check'.*record 0 must be a Snapshots"):
-        plc.estimator_count_study(rec, [2], check=[rec.displacement])
+        plc.recipe.estimator_count_study(rec, [2], check=[rec.displacement])
     with pytest.raises(plc.InputError, match="'check'.*record 1.*same 21 nodes at the same dt"):
-        plc.estimator_count_study(rec, [2], check=[rec, dataclasses.replace(rec, dt=2 * rec.dt)])
+        plc.recipe.estimator_count_study(rec, [2], check=[rec, dataclasses.replace(rec,
+                                                                                   dt=2 * rec.dt)])
     with pytest.raises(plc.InputError, match="'check'.*sequence"):
-        plc.estimator_count_study(rec, [2], check=[])
+        plc.recipe.estimator_count_study(rec, [2], check=[])
     # Same node count, other positions (a shifted or regraded mesh): named, with the node.
     moved = dataclasses.replace(rec, x=rec.x * 1.01)
     with pytest.raises(plc.InputError, match=r"'check'.*record 1.*node positions.*Got node 20 "
                                              r"at 3\.6966 m against 3\.66 m"):
-        plc.estimator_count_study(rec, [2], check=[rec, moved])
+        plc.recipe.estimator_count_study(rec, [2], check=[rec, moved])
     with pytest.raises(plc.InputError,
                        match="'check'.*record 0.*21 node positions of 'snapshots'. Got 20"):
-        plc.estimator_count_study(rec, [2], check=dataclasses.replace(rec, x=rec.x[:20]))
+        plc.recipe.estimator_count_study(rec, [2], check=dataclasses.replace(rec, x=rec.x[:20]))
     with pytest.raises(plc.InputError, match="'check_noise_std'.*one per record \\(2\\)"):
-        plc.estimator_count_study(rec, [2], check=[rec, rec], check_noise_std=[1e-3] * 3)
+        plc.recipe.estimator_count_study(rec, [2], check=[rec, rec], check_noise_std=[1e-3] * 3)
     with pytest.raises(plc.InputError, match="'check_noise_std'"):
-        plc.estimator_count_study(rec, [2], check=rec, check_noise_std=-1e-3)
+        plc.recipe.estimator_count_study(rec, [2], check=rec, check_noise_std=-1e-3)
     with pytest.raises(plc.InputError, match="'check_noise_std'.*needs 'check'"):
-        plc.estimator_count_study(rec, [2], check_noise_std=1e-3)
+        plc.recipe.estimator_count_study(rec, [2], check_noise_std=1e-3)

@@ -27,8 +27,9 @@ def test_constant_wind_record_equals_the_steady_robot_value(speed):
     steady analysis: robot_value with all the probability in that wind speed's bin and the
     record's step as the persistence (the robot starts every record half a loop away:
     move="worst") gives the same damage per year for all three configurations."""
-    dist = plc.WindDistribution.histogram([0.5 * speed, 1.5 * speed], [1.0 / speed])
-    value = plc.robot_value(DRAKE, ROBOT, LIMITS, [speed], distribution=dist, persistence=600.0)
+    dist = plc.severity.WindDistribution.histogram([0.5 * speed, 1.5 * speed], [1.0 / speed])
+    value = plc.severity.robot_value(DRAKE, ROBOT, LIMITS, [speed], distribution=dist,
+                                     persistence=600.0)
     record = plc.WindRecord.constant(speed, n_records=12, step=600.0)
     life = plc.fatigue_over_record(DRAKE, record, ROBOT, LIMITS, move="worst",
                                    fixed_position=value.fixed_position, **EXACT)
@@ -49,7 +50,7 @@ def test_a_robot_that_stays_put_is_the_robot_at_the_antinode():
     start = float(first.robot_position[0])
     life = plc.fatigue_over_record(DRAKE, record, ROBOT, LIMITS, robot_start=start, **EXACT)
     assert np.all(life.move_time == 0.0)
-    steady = plc.aeolian_severity(DRAKE, [3.0], (plc.AtAntinode(ROBOT),))
+    steady = plc.aeolian_severity(DRAKE, [3.0], (plc.fem.AtAntinode(ROBOT),))
     expected = steady.frequency[0] * SECONDS_PER_YEAR / _sbl_cycles(steady.stress_ps, "multi")[0]
     assert life["robot"].damage_per_year == pytest.approx(expected, rel=1e-9)
     # the first run paid one move, from x* to the antinode, at rest_to_rest_time's price
@@ -91,7 +92,7 @@ def test_a_slower_robot_does_more_damage_and_an_instant_one_the_least():
     # phi^2 = 1/2 all the time
     crawl = plc.fatigue_over_record(DRAKE, record, ROBOT, plc.RobotLimits(1e-6, 1e-6))
     moving = plc.aeolian_severity(DRAKE, np.unique(record.wind_speed),
-                                  (plc.AtAntinode(ROBOT, "moving", 0.5),))
+                                  (plc.fem.AtAntinode(ROBOT, "moving", 0.5),))
     per_speed = moving.frequency * 600.0 / _sbl_cycles(moving.stress_ps, "multi")
     by_speed = dict(zip(moving.wind_speed.tolist(), per_speed, strict=True))
     total = sum(by_speed[v] for v in record.wind_speed.tolist())
@@ -182,7 +183,7 @@ def test_rainflow_on_the_astm_e1049_sequence():
     """ASTM E1049-85 (2017) section 5.4.4's example history -2, 1, -3, 5, -1, 3, -4, 4, -2:
     ranges 3 (0.5 cycle), 4 (1.5), 6 (0.5), 8 (1.0), 9 (0.5), as the standard's Fig. 6 counts
     it and the rainflow library returns."""
-    count = plc.rainflow_count(ASTM_SEQUENCE)
+    count = plc.severity.rainflow_count(ASTM_SEQUENCE)
     assert count.histogram() == {3.0: 0.5, 4.0: 1.5, 6.0: 0.5, 8.0: 1.0, 9.0: 0.5}
     assert list(count.histogram().items()) == rainflow.count_cycles(ASTM_SEQUENCE)
     library = list(rainflow.extract_cycles(ASTM_SEQUENCE))
@@ -191,7 +192,7 @@ def test_rainflow_on_the_astm_e1049_sequence():
 
 def test_rainflow_matches_the_library_on_a_random_history():
     x = np.random.default_rng(3).standard_normal(2000).cumsum()
-    ours = plc.rainflow_count(x).histogram()
+    ours = plc.severity.rainflow_count(x).histogram()
     theirs = dict(rainflow.count_cycles(x))
     assert ours.keys() == theirs.keys()
     np.testing.assert_allclose(list(ours.values()), list(theirs.values()), rtol=0, atol=1e-12)
@@ -204,12 +205,12 @@ def test_rainflow_of_a_pure_cosine_is_its_periods(periods):
     amplitude = 12e6
     t = np.linspace(0.0, periods, 40 * periods + 1)
     stress = amplitude * np.cos(2 * np.pi * t)
-    count = plc.rainflow_count(stress)
+    count = plc.severity.rainflow_count(stress)
     np.testing.assert_allclose(count.ranges, 2 * amplitude, rtol=1e-12)  # peaks sampled exactly
     # 2 N reversals of range 2 A: N cycles in all (equal ranges stay in the residue, so the
     # standard's procedure books them as 2 N half cycles)
     assert count.counts.sum() == periods
-    damage = plc.rainflow_damage(stress)
+    damage = plc.severity.rainflow_damage(stress)
     assert damage == pytest.approx(periods / _sbl_cycles(amplitude, "multi"), rel=1e-12)
 
 
@@ -221,7 +222,7 @@ def test_rainflow_damage_of_the_steady_clamp_stress_is_the_record_damage():
     f, sigma = float(sev.frequency[0]), float(sev.stress_ps[0])
     periods = 20
     t = np.linspace(0.0, periods / f, 64 * periods + 1)
-    counted = plc.rainflow_damage(sigma * np.cos(2 * np.pi * f * t))
+    counted = plc.severity.rainflow_damage(sigma * np.cos(2 * np.pi * f * t))
     life = plc.fatigue_over_record(DRAKE, plc.WindRecord.constant(3.0, n_records=1, step=1.0),
                                    **EXACT)
     per_period = life["no_damper"].damage[0] / f
@@ -231,13 +232,14 @@ def test_rainflow_damage_of_the_steady_clamp_stress_is_the_record_damage():
 @pytest.mark.parametrize("bad", [[1.0, math.nan], [[1.0, 2.0]], ["a", "b"], [True, False]])
 def test_rainflow_refuses_bad_signals(bad):
     with pytest.raises(plc.InputError):
-        plc.rainflow_count(bad)
+        plc.severity.rainflow_count(bad)
 
 
 def test_rainflow_of_a_constant_signal_has_no_range_and_no_damage():
-    assert np.all(plc.rainflow_count([1.0, 1.0, 1.0]).ranges == 0.0)   # as the library says
-    assert plc.rainflow_count([]).counts.size == 0
-    assert plc.rainflow_damage(np.zeros(10)) == 0.0
+    assert np.all(plc.severity.rainflow_count([1.0, 1.0,
+                                               1.0]).ranges == 0.0)   # as the library says
+    assert plc.severity.rainflow_count([]).counts.size == 0
+    assert plc.severity.rainflow_damage(np.zeros(10)) == 0.0
 
 
 def test_with_limits_equals_a_fresh_run_with_those_limits():
@@ -260,18 +262,18 @@ def test_rainflow_of_the_time_domain_stress_history_matches_the_energy_balance()
     f / N_SBL(sigma_a) to the simulated amplitude's error raised to the S-N slope (1/0.17 = 5.9:
     -0.13 % in amplitude is -0.8 % in damage), and to f / N_SBL at the simulated amplitude to
     the sampling of the peaks (64 samples per period: cos(pi / 64) - 1 = -0.12 % at worst)."""
-    check = plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
+    check = plc.severity.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
                                   n_elements=60)
-    count = plc.rainflow_count(check.clamp_stress)
+    count = plc.severity.rainflow_count(check.clamp_stress)
     assert count.counts.sum() == pytest.approx(8.0)
     duration = check.clamp_time[-1] - check.clamp_time[0]
-    rate = plc.rainflow_damage(check.clamp_stress) / duration
+    rate = plc.severity.rainflow_damage(check.clamp_stress) / duration
     ebm_rate = check.frequency / _sbl_cycles(check.ebm_stress, "multi")
     assert rate == pytest.approx(ebm_rate, rel=0.02)
     simulated_stress = check.ebm_stress * (1 + check.relative_error)
     assert rate == pytest.approx(check.frequency / _sbl_cycles(simulated_stress, "multi"),
                                  rel=6 * 0.0013)
-    pinned = plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
+    pinned = plc.severity.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
                                    n_elements=40, bc="pinned")
     assert pinned.clamp_stress is None          # no clamp, no Poffenberger-Swart history
 

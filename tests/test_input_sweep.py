@@ -225,14 +225,14 @@ DRAKE = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
 def test_histogram_honours_its_rtol():
     # The densities integrate to 1.0005. Old code re-checked at a fixed 1e-6 whatever rtol said.
     edges, density = [0.0, 2.0, 4.0, 8.0], [0.125, 0.25, 0.0626]
-    w = plc.WindDistribution.histogram(edges, density, rtol=1e-3)
+    w = plc.severity.WindDistribution.histogram(edges, density, rtol=1e-3)
     assert float(w.cdf(8.0)) == pytest.approx(1.0, abs=1e-3)
     with pytest.raises(plc.InputError, match="'density'"):
-        plc.WindDistribution.histogram(edges, density, rtol=1e-4)
+        plc.severity.WindDistribution.histogram(edges, density, rtol=1e-4)
 
 
 def test_descending_wind_speeds_never_give_negative_probabilities():
-    w = plc.WindDistribution.weibull()
+    w = plc.severity.WindDistribution.weibull()
     # Old code: differences of the CDF over descending speeds were negative probabilities.
     with pytest.raises(plc.InputError, match="'wind_speeds'"):
         w.probability_of(np.array([6.0, 4.0, 2.0]))
@@ -243,16 +243,16 @@ def test_descending_wind_speeds_never_give_negative_probabilities():
 def test_robot_value_refuses_dampers_by_name_not_by_a_forwarding_type_error():
     # Old code: "got multiple values for argument 'dampers'" from aeolian_severity.
     with pytest.raises(plc.InputError, match="'dampers'"):
-        plc.robot_value(DRAKE, plc.MDR(1.0, 1.0), plc.RobotLimits(0.5, 1.0),
+        plc.severity.robot_value(DRAKE, plc.MDR(1.0, 1.0), plc.RobotLimits(0.5, 1.0),
                         wind_speeds=[2.0, 4.0], dampers=[plc.MDR(2.0, 1.0)])
 
 
 def test_catenary_check_never_sees_a_tension_at_or_above_rts():
     drake = plc.conductors["drake"]
     with pytest.raises(plc.InputError, match="'tension'"):
-        plc.catenary_check(plc.Span(300.0, 1.5 * drake.rated_strength, drake))
+        plc.severity.catenary_check(plc.Span(300.0, 1.5 * drake.rated_strength, drake))
     # At 20 % RTS the catenary parameter H / w is 28020 N / (1.628 kg/m g) = 1755 m.
-    check = plc.catenary_check(DRAKE)
+    check = plc.severity.catenary_check(DRAKE)
     assert check.catenary_parameter == pytest.approx(28020.0 / (1.628 * 9.80665), rel=1e-3)
 
 
@@ -330,9 +330,11 @@ def test_choose_parked_position_refuses_a_model_that_carries_the_robot():
     limits = plc.RobotLimits(0.5, 1.0)
     # Old code: answered 1.825 m (the robot counted twice) against 0.554 m for the bare line.
     with pytest.raises(plc.InputError, match="'model'.*bare line"):
-        plc.choose_parked_position(model.with_robot(robot), field, 1e-3, robot, 1.2, limits)
+        plc.closed_loop.choose_parked_position(model.with_robot(robot), field, 1e-3, robot, 1.2,
+                                               limits)
     with pytest.raises(plc.InputError, match="'field' parameter is constant in time"):
-        plc.choose_parked_position(model, np.zeros_like(field), 1e-3, robot, 1.2, limits)
+        plc.closed_loop.choose_parked_position(model, np.zeros_like(field), 1e-3, robot, 1.2,
+                                               limits)
 
 
 def test_locate_antinodes_refuses_a_shape_sampled_twice_per_loop():
@@ -381,7 +383,8 @@ def test_a_sensor_position_that_rounds_to_a_support_is_refused():
 def test_parked_steady_state_warns_of_a_load_the_mesh_cannot_show():
     model = plc.LineModel(plc.Span.paper_lab(), 20, damping=plc.ModalDamping(0.01))
     with pytest.warns(plc.TruncationWarning, match="n_elements"):
-        plc.parked_steady_state(model, plc.HarmonicForce(1.0, 1e5, 0.5), plc.MDR(1.0, 0.02),
+        plc.simulation.parked_steady_state(model, plc.HarmonicForce(1.0, 1e5, 0.5), plc.MDR(1.0,
+                                                                                            0.02),
                                 [1.0])
 
 

@@ -109,7 +109,8 @@ REFUSALS = [
      lambda s: plc.run_closed_loop(LAB, s["force"], s["robot"], s["limits"], sensors=[3, 7],
                                    n_elements=10**7), "n_elements", "10000000"),
     ("time_domain_check n_elements=1e7",
-     lambda s: plc.time_domain_check(DRAKE, 3.0, n_elements=10**7), "n_elements", "10000000"),
+     lambda s: plc.severity.time_domain_check(DRAKE, 3.0,
+                                              n_elements=10**7), "n_elements", "10000000"),
     ("load_scenario n_elements=1e9",
      lambda s: config.load_scenario(text="[model]\nn_elements = 1000000000"), "n_elements",
      "1000000000"),
@@ -121,7 +122,8 @@ REFUSALS = [
     ("aeolian_severity 2e5 wind speeds (work)",
      lambda s: plc.aeolian_severity(DRAKE, [3.0] * 200_000), "wind_speeds", "200000"),
     ("robot_value 1e8 wind speeds",
-     lambda s: plc.robot_value(DRAKE, s["robot"], s["limits"], wind_speeds=s["speeds_1e8"]),
+     lambda s: plc.severity.robot_value(DRAKE, s["robot"], s["limits"],
+                                        wind_speeds=s["speeds_1e8"]),
      "wind_speeds", "100000000"),
     # 8 bytes x 1e10 steps x (4 states + 4 nodes) = 596 GiB (MemoryError before the budget).
     ("DMDModel.predict n_steps=1e10",
@@ -222,7 +224,7 @@ FAST_PATHS = [
      lambda s: len(plc.select_sensors(s["sys"], 2, "gramian", Q=s["dmd"].residual_covariance,
                                       horizon=10**8, n_random=0).nodes) == 2),
     ("observability_gramian horizon=1e9",
-     lambda s: bool(np.all(np.isfinite(plc.observability_gramian(s["sys"], 10**9))))),
+     lambda s: bool(np.all(np.isfinite(plc.estimate.observability_gramian(s["sys"], 10**9))))),
     # Closed form: a 1e9 m move is three phases, not a sampled program.
     ("plan_motion over 1e9 m",
      lambda s: plc.plan_motion(0.0, 1e9, s["limits"]).duration > 1e9 / 0.5),

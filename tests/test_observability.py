@@ -270,8 +270,8 @@ def test_bad_input(call, match):
 
 
 def test_public_names_exported():
-    assert plc.steady_state_covariance is steady_state_covariance
-    assert plc.compare_sensor_sets is compare_sensor_sets
+    assert plc.estimate.steady_state_covariance is steady_state_covariance
+    assert plc.estimate.compare_sensor_sets is compare_sensor_sets
 
 
 @pytest.mark.parametrize("radius", [0.99, 1.0, 1.3])
@@ -359,8 +359,8 @@ def test_rank_of_a_strongly_unstable_model_does_not_overflow():
     with np.errstate(all="ignore"):
         assert not np.all(np.isfinite(ct.obsv(1e20 * rotation, c)))  # the naive route fails
     sys = ct.ss(1e20 * rotation, np.zeros((n, 1)), c, 0, dt=1.0)
-    assert plc.observability_rank(sys) == truth
-    report = plc.analyze_observability(sys, horizon=1)
+    assert plc.estimate.observability_rank(sys) == truth
+    report = plc.estimate.analyze_observability(sys, horizon=1)
     assert report.observable and report.rank == n
     assert np.isfinite(report.gramian_min_singular_value)
 
@@ -441,11 +441,11 @@ def test_every_result_array_of_the_estimation_modules_is_read_only():
     report = analyze_observability(sys, [1, 4], Q=q, R=1e-3, field_map=np.asarray(sys.C))
     table = compare_sensor_sets(sys, {"a": [1], "b": [2, 4]}, Q=q, R=1e-3)
     selection = plc.select_sensors(sys, 2, Q=q, R=1e-3, n_random=2)
-    study = plc.sensor_count_study(sys, [1, 2], Q=q, R=1e-3, n_steps=20)
+    study = plc.sensors.sensor_count_study(sys, [1, 2], Q=q, R=1e-3, n_steps=20)
     y = np.random.default_rng(1).normal(size=(6, 40)) * 1e-3
     est = plc.KalmanFilter(sys, q, 1e-3, field_map=np.asarray(sys.C)).filter(y)
     acc = plc.estimation_accuracy(est.field, est.field + 1.0, measured=[0])
-    cons = plc.filter_consistency(est, est.states)
+    cons = plc.estimate.filter_consistency(est, est.states)
     results = [report, *table.reports, selection, study, est, acc, cons,
                *selection.baselines.values()]
     seen = 0

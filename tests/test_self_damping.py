@@ -307,12 +307,13 @@ def test_usable_wherever_a_law_is(model, drake):
     assert float(p) == float(model.power(0.002, 20.0, drake))
     with pytest.raises(InputError, match="self_damping_k"):
         self_damping_power(0.002, 20.0, drake, self_damping=model, self_damping_k=1.0)
-    assert plc.FotiMartinelli is FotiMartinelli
+    assert plc.severity.FotiMartinelli is FotiMartinelli
 
 
 def test_robot_value_passes_the_model_on(model, drake):
     robot = plc.MDR.tuned(0.0, 6.0, 1.5, frequency=18.0, damping_ratio=0.3)
-    value = plc.robot_value(drake, robot, plc.RobotLimits(v_max=0.25, a_max=0.4), [2.0, 4.0],
+    value = plc.severity.robot_value(drake, robot, plc.RobotLimits(v_max=0.25, a_max=0.4), [2.0,
+                                                                                            4.0],
                             self_damping=model)
     none = value.severities[0]
     direct = aeolian_severity(drake, wind_speeds=[2.0, 4.0], self_damping=model)

@@ -284,7 +284,7 @@ def test_nan_in_the_model_is_rejected():
     with pytest.raises(InputError, match="'sys' parameter has 1 NaN or infinite entries"):
         plc.select_sensors(bad, k=2, Q=q, R=r)
     with pytest.raises(InputError, match="'sys'"):
-        plc.sensor_count_study(bad, [1, 2], Q=q, R=r)
+        plc.sensors.sensor_count_study(bad, [1, 2], Q=q, R=r)
 
 
 def test_continuous_system_is_rejected():
@@ -366,13 +366,13 @@ def test_result_is_frozen_and_baselines_are_complete():
 # --------------------------------------------------------------------------- how many sensors
 def test_sensor_count_study_simulation_agrees_with_riccati():
     model, sys, q, r = line_problem(9)
-    study = plc.sensor_count_study(sys, [1, 2, 3], Q=q, R=r, n_steps=3000, seed=1,
+    study = plc.sensors.sensor_count_study(sys, [1, 2, 3], Q=q, R=r, n_steps=3000, seed=1,
                                    error_weight="outputs")
     assert np.all(np.diff(study.rms_error) < 0)
     # 3000 correlated steps of a lightly damped line: the sample RMS scatters by ~10 %.
     np.testing.assert_allclose(study.simulated_rms_error, study.rms_error, rtol=0.2)
     target = float(study.rms_error[1]) * 1.0001
-    again = plc.sensor_count_study(sys, [1, 2, 3], Q=q, R=r, n_steps=10, seed=1,
+    again = plc.sensors.sensor_count_study(sys, [1, 2, 3], Q=q, R=r, n_steps=10, seed=1,
                                    error_weight="outputs", target_error=target)
     assert again.smallest_k == 2
 
@@ -380,7 +380,7 @@ def test_sensor_count_study_simulation_agrees_with_riccati():
 def test_sensor_count_study_survives_a_failing_doubling(monkeypatch):
     """The doubling solver goes first; if it gives up, SciPy's QZ takes over (same rule)."""
     model, sys, q, r = line_problem(9)
-    reference = plc.sensor_count_study(sys, [1, 2], Q=q, R=r, n_steps=200, seed=1)
+    reference = plc.sensors.sensor_count_study(sys, [1, 2], Q=q, R=r, n_steps=200, seed=1)
     calls = []
 
     def fail(a, q_, info):
@@ -390,7 +390,7 @@ def test_sensor_count_study_survives_a_failing_doubling(monkeypatch):
         return nan, nan, np.zeros(len(info), dtype=bool)
 
     monkeypatch.setattr(_riccati, "steady_state_batch", fail)
-    study = plc.sensor_count_study(sys, [1, 2], Q=q, R=r, n_steps=200, seed=1)
+    study = plc.sensors.sensor_count_study(sys, [1, 2], Q=q, R=r, n_steps=200, seed=1)
     assert calls and study.layouts == reference.layouts
     # Same seeded simulation, two Riccati solvers: only round-off differs.
     np.testing.assert_allclose(study.simulated_rms_error, reference.simulated_rms_error,
@@ -603,7 +603,7 @@ BAD_INPUT = [
     ("error_weight None, gramian", lambda: _select(criterion="gramian", error_weight=None), _I,
      "'error_weight'"),
     ("error_weight number", lambda: _select(error_weight=1.0), _I, "'error_weight'"),
-    ("count study n_steps over the work budget", lambda: plc.sensor_count_study(
+    ("count study n_steps over the work budget", lambda: plc.sensors.sensor_count_study(
         _problem()[0], [1], Q=_problem()[1], n_steps=10**15), _I, "'n_steps'"),
     ("horizon 0", lambda: _select(horizon=0), _I, "'horizon'"),
     ("horizon float", lambda: _select(horizon=10.0), _I, "'horizon'"),
@@ -623,21 +623,23 @@ BAD_INPUT = [
     ("error_weight choice", lambda: _select(error_weight="nodes"), _I, "'error_weight'"),
     ("basis rows", lambda: _select(criterion="reconstruction", basis=np.ones((3, 2))), _I,
      "'basis'"),
-    ("count study empty", lambda: plc.sensor_count_study(_problem()[0], [], Q=_problem()[1]),
+    ("count study empty", lambda: plc.sensors.sensor_count_study(_problem()[0], [],
+                                                                 Q=_problem()[1]),
      _I, "'k_values'"),
-    ("count study int", lambda: plc.sensor_count_study(_problem()[0], 3, Q=_problem()[1]),
+    ("count study int", lambda: plc.sensors.sensor_count_study(_problem()[0], 3, Q=_problem()[1]),
      _I, "'k_values'"),
-    ("count study str", lambda: plc.sensor_count_study(_problem()[0], "12", Q=_problem()[1]),
+    ("count study str", lambda: plc.sensors.sensor_count_study(_problem()[0], "12",
+                                                               Q=_problem()[1]),
      _I, "'k_values'"),
-    ("count study float", lambda: plc.sensor_count_study(_problem()[0], [1.5],
+    ("count study float", lambda: plc.sensors.sensor_count_study(_problem()[0], [1.5],
                                                          Q=_problem()[1]), _I, "'k_values'"),
-    ("count study descending", lambda: plc.sensor_count_study(
+    ("count study descending", lambda: plc.sensors.sensor_count_study(
         _problem()[0], [2, 1], Q=_problem()[1]), _I, "'k_values'"),
-    ("count study n_steps", lambda: plc.sensor_count_study(
+    ("count study n_steps", lambda: plc.sensors.sensor_count_study(
         _problem()[0], [1], Q=_problem()[1], n_steps=0), _I, "'n_steps'"),
-    ("count study R", lambda: plc.sensor_count_study(
+    ("count study R", lambda: plc.sensors.sensor_count_study(
         _problem()[0], [1], Q=_problem()[1], R=-1.0), _I, "'R'"),
-    ("count study target", lambda: plc.sensor_count_study(
+    ("count study target", lambda: plc.sensors.sensor_count_study(
         _problem()[0], [1], Q=_problem()[1], target_error=float("nan")), _I, "'target_error'"),
 ]
 

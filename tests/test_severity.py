@@ -112,10 +112,10 @@ def test_energy_balance_identity(curve, dampers):
                                   turbulence_intensity=0.05)
     for i in np.flatnonzero(result.balanced):
         y, f = result.amplitude[i], result.frequency[i]
-        wind = float(plc.wind_power(y, f, SPAN_CONDOR.conductor.diameter, wind_curve=curve,
+        wind = float(plc.severity.wind_power(y, f, SPAN_CONDOR.conductor.diameter, wind_curve=curve,
                                     turbulence_intensity=0.05))
-        self_ = float(plc.self_damping_power(y, f, SPAN_CONDOR))
-        damp = sum(float(plc.damper_power(dmp, SPAN_CONDOR, y, f)) for dmp in dampers)
+        self_ = float(plc.severity.self_damping_power(y, f, SPAN_CONDOR))
+        damp = sum(float(plc.severity.damper_power(dmp, SPAN_CONDOR, y, f)) for dmp in dampers)
         # Brent's method to 4 eps in Y: the residual is round-off of the three powers.
         assert abs(wind - self_ - damp) <= 1e-9 * wind
         assert result.wind_power[i] == pytest.approx(wind, rel=1e-12)
@@ -153,7 +153,7 @@ DOHL_FITS = {
 @pytest.mark.parametrize("name", sorted(DOHL_FITS))
 def test_digitised_points_agree_with_dohls_fits(name):
     coefficients, stated = DOHL_FITS[name]
-    curve = plc.WIND_POWER_CURVES[name]
+    curve = plc.severity.WIND_POWER_CURVES[name]
     a = np.array(curve.amplitudes)
     fit = a * np.polyval(coefficients[::-1], a)
     # The fits are 8-term polynomials through 3-10 points: they miss them by up to the
@@ -181,10 +181,10 @@ def test_damper_power_largest_at_antinode_zero_at_node():
     f = 0.185 * 3.3 / DRAKE.diameter
     loop = sv.loop_length(span, f)
     positions = np.linspace(0.0, 2 * loop, 4001)
-    powers = np.array([float(plc.damper_power(plc.MDR(x, 4.0, 1.2, ROBOT.stiffness,
+    powers = np.array([float(plc.severity.damper_power(plc.MDR(x, 4.0, 1.2, ROBOT.stiffness,
                                                       ROBOT.damping), span, 0.004, f))
                        for x in positions])
-    at_antinode = float(plc.damper_power(sv.AtAntinode(ROBOT), span, 0.004, f))
+    at_antinode = float(plc.severity.damper_power(sv.AtAntinode(ROBOT), span, 0.004, f))
     # Largest near the middle of a loop (the clamp boundary layer shifts it by ~1/alpha = 4 cm)
     # and equal to the antinode value (sin^2 = 1) to the grid's resolution.
     best = positions[np.argmax(powers)]
@@ -193,7 +193,7 @@ def test_damper_power_largest_at_antinode_zero_at_node():
     assert powers.max() <= at_antinode * (1 + 1e-12)
     # Zero at the clamp (a node) and at the pinned span's interior node x = loop length.
     assert powers[0] == 0.0
-    node = plc.damper_power(plc.MDR(loop, 4.0, 1.2, ROBOT.stiffness, ROBOT.damping), span,
+    node = plc.severity.damper_power(plc.MDR(loop, 4.0, 1.2, ROBOT.stiffness, ROBOT.damping), span,
                             0.004, f, bc="pinned")
     assert float(node) <= 1e-24 * at_antinode
 
@@ -223,7 +223,7 @@ def test_damper_power_matches_two_dof_closed_form(mode, position, tuning, zeta):
     robot = plc.MDR(position, body, m_d, k_s, c)
     # The energy-balance damper power, per metre, times the span: the same physics at the
     # line amplitude |q|, so equal to round-off.
-    ours = float(plc.damper_power(robot, span, abs(q), f, bc="pinned")) * span.length
+    ours = float(plc.severity.damper_power(robot, span, abs(q), f, bc="pinned")) * span.length
     assert ours == pytest.approx(absorber, rel=1e-9)
     # And the 2-DOF energy identity: input = line damping + absorber.
     supplied = 0.5 * (np.conj(force) * 1j * omega * q).real
@@ -236,8 +236,8 @@ def test_impedance_table_reproduces_the_device_it_tabulates():
     f = float(STOCKBRIDGE_LIKE.frequencies[17])   # a tabulated frequency: interpolation exact
     two = [plc.MDR.tuned(2.1, 0.0, 0.8, frequency=11.0, damping_ratio=0.4),
            plc.MDR.tuned(2.1, 0.0, 0.6, frequency=29.7, damping_ratio=0.4)]
-    expected = sum(float(plc.damper_power(d, span, 0.003, f)) for d in two)
-    assert float(plc.damper_power(STOCKBRIDGE_LIKE, span, 0.003, f)) == pytest.approx(
+    expected = sum(float(plc.severity.damper_power(d, span, 0.003, f)) for d in two)
+    assert float(plc.severity.damper_power(STOCKBRIDGE_LIKE, span, 0.003, f)) == pytest.approx(
         expected, rel=1e-12)
 
 
@@ -251,13 +251,13 @@ def test_robot_at_antinode_never_worse_than_fixed_damper(conductor, fraction, le
                                                         zeta, m_d):
     span = plc.Span.at_rts_fraction(length, conductor, fraction)
     robot = plc.MDR.tuned(0.0, 6.0, m_d, frequency=tuning, damping_ratio=zeta)
-    value = plc.robot_value(span, robot, plc.RobotLimits(v_max=0.25, a_max=0.4),
+    value = plc.severity.robot_value(span, robot, plc.RobotLimits(v_max=0.25, a_max=0.4),
                             np.arange(0.8, 7.6, 0.4))
     none, fixed, at_antinode = value.severities
     # sin^2 = 1 >= sin^2(x*) and the balance root falls as the damping rises.
     assert np.all(at_antinode.amplitude <= fixed.amplitude * (1 + 1e-12))
     assert np.all(fixed.amplitude <= none.amplitude * (1 + 1e-12))
-    assert value.fixed_position == pytest.approx(plc.harmonic_mean_position(
+    assert value.fixed_position == pytest.approx(plc.severity.harmonic_mean_position(
         span, np.arange(0.8, 7.6, 0.4)))
 
 
@@ -276,7 +276,7 @@ def test_any_damper_anywhere_only_lowers_the_amplitude(position, tuning, zeta, s
 
 def test_harmonic_mean_position_equalises_band_edges():
     span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
-    x_star = plc.harmonic_mean_position(span, [1.0, 7.0])
+    x_star = plc.severity.harmonic_mean_position(span, [1.0, 7.0])
     f1, f7 = 0.185 / DRAKE.diameter, 7 * 0.185 / DRAKE.diameter
     # |sin(pi x*/l)| equal at both edges: pi x*/l_max = pi - pi x*/l_min (domain.md 2.4; with
     # l_max / l_min ~ 7 that is sin(pi/8) = 0.383 on the string).
@@ -290,9 +290,9 @@ def test_fatigue_index_is_miners_sum_on_the_safe_border_line():
     span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
     robot = plc.MDR.tuned(0.0, 5.0, 1.5, frequency=15.0, damping_ratio=0.3)
     speeds = np.array([1.5, 3.0, 4.5, 6.0])
-    climate = plc.WindDistribution.histogram([0.75, 2.25, 3.75, 5.25, 6.75, 12.0],
+    climate = plc.severity.WindDistribution.histogram([0.75, 2.25, 3.75, 5.25, 6.75, 12.0],
                                              [0.15, 0.2, 0.15, 0.1, 0.1 / 5.25])
-    value = plc.robot_value(span, robot, plc.RobotLimits(0.3, 0.5), speeds,
+    value = plc.severity.robot_value(span, robot, plc.RobotLimits(0.3, 0.5), speeds,
                             distribution=climate, persistence=300.0, en_route="undamped")
     none = value.severities[0]
     # Bins centred on the speeds with edges half way: exactly the histogram's bins here.
@@ -322,7 +322,7 @@ def test_fatigue_index_is_miners_sum_on_the_safe_border_line():
 
 
 def test_weibull_bins_are_cdf_differences():
-    dist = plc.WindDistribution.weibull(shape=1.8, scale=5.5)
+    dist = plc.severity.WindDistribution.weibull(shape=1.8, scale=5.5)
     speeds = np.array([1.0, 2.0, 3.0])
     edges = np.array([0.5, 1.5, 2.5, 3.5])
     cdf = 1 - np.exp(-((edges / 5.5) ** 1.8))
@@ -379,12 +379,13 @@ def test_clamped_standing_wave_matches_the_fe_mode_near_the_clamp(mode_index):
 
 def test_user_self_damping_law():
     span = plc.Span.at_rts_fraction(250.0, "cardinal", 0.21)
-    p = plc.self_damping_power(0.0031, 17.0, span, self_damping_k=0.7,
+    p = plc.severity.self_damping_power(0.0031, 17.0, span, self_damping_k=0.7,
                                self_damping_exponents=(2.2, 5.1, 2.6))
     assert float(p) == pytest.approx(0.7 * 0.0031**2.2 * 17.0**5.1 / (span.tension / 1e3)**2.6,
                                      rel=1e-13)
     lilien = 30.38 / math.sqrt(1.829 * 150.4)
-    assert plc.SELF_DAMPING_LAWS["kraus"].coefficient(span) == pytest.approx(lilien, rel=1e-12)
+    assert plc.severity.SELF_DAMPING_LAWS["kraus"].coefficient(span) == pytest.approx(lilien,
+                                                                                      rel=1e-12)
 
 
 def test_table_rows():
@@ -400,18 +401,20 @@ def test_table_rows():
 
 def test_catenary_parameter_check():
     span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
-    check = plc.catenary_check(span)
+    check = plc.severity.catenary_check(span)
     assert check.catenary_parameter == pytest.approx(1755, abs=0.5)   # domain.md 2.5
     assert not check.within_limit and "FROM MEMORY" in check.source
-    assert plc.catenary_check(span, limit=1800.0).within_limit
+    assert plc.severity.catenary_check(span, limit=1800.0).within_limit
     low = plc.Span.at_rts_fraction(300.0, "drake", 0.15)
-    assert plc.catenary_check(low, terrain=4).catenary_parameter == pytest.approx(1316, abs=0.5)
+    assert plc.severity.catenary_check(low, terrain=4).catenary_parameter == pytest.approx(1316,
+                                                                                           abs=0.5)
 
 
 # ----------------------------------------------------------------- time domain
 def test_time_domain_check_within_ten_percent():
     span = plc.Span.at_rts_fraction(26.0, "cardinal", 0.22)
-    check = plc.time_domain_check(span, 2.6, n_elements=52, settle=6.0)  # e^-6 transient left
+    check = plc.severity.time_domain_check(span, 2.6, n_elements=52,
+                                           settle=6.0)  # e^-6 transient left
     # The bound is 10 %; measured 0.2 % (the residue is the clamped FE mode's
     # projection on the sin(beta x) load and its modal mass against m L / 2).
     assert abs(check.relative_error) < 0.10
@@ -423,7 +426,7 @@ def test_time_domain_check_with_the_robot_in_the_fe_model():
     span = plc.Span.at_rts_fraction(32.0, "drake", 0.19)
     robot = plc.MDR.tuned(2.3, 0.0, 0.04, frequency=15.5, damping_ratio=0.25)
     # settle = 6 decay times leaves e^-6 = 0.25 % of the start-up transient.
-    check = plc.time_domain_check(span, 2.1, n_elements=64, damper=robot, settle=6.0)
+    check = plc.severity.time_domain_check(span, 2.1, n_elements=64, damper=robot, settle=6.0)
     bare = plc.aeolian_severity(span, [check.wind_speed])
     assert check.ebm_amplitude < 0.2 * bare.amplitude[0]     # the damper does the work here
     # The FE computes the absorber's dissipation itself: this checks the first-order damper
@@ -439,7 +442,7 @@ def test_plot_severity_draws_amplitude_and_strain():
 
     span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
     robot = plc.MDR.tuned(0.0, 5.0, 1.5, frequency=15.0, damping_ratio=0.3)
-    value = plc.robot_value(span, robot, plc.RobotLimits(0.3, 0.5), [1.0, 3.0, 5.0])
+    value = plc.severity.robot_value(span, robot, plc.RobotLimits(0.3, 0.5), [1.0, 3.0, 5.0])
     fig = plot_severity(value.severities)
     assert len(fig.axes) == 2
     assert len(fig.axes[0].get_lines()) == 3
@@ -475,15 +478,16 @@ CUSTOM = plc.Span(300.0, 20e3, plc.Conductor(1.5, 0.028, 40.0, rated_strength=12
     (lambda: plc.aeolian_severity(SPAN, turbulence_intensity=-0.1),
      r"'turbulence_intensity'.*>= 0"),
     (lambda: plc.aeolian_severity(SPAN, layers="three"), r"'layers'.*'multi'.*'single'"),
-    (lambda: plc.WindDistribution.histogram([0.0, 2.0, 4.0], [0.3, 0.3]),
+    (lambda: plc.severity.WindDistribution.histogram([0.0, 2.0, 4.0], [0.3, 0.3]),
      r"'density'.*integrate to 1.*Got 1\.2"),
-    (lambda: plc.WindDistribution.histogram([0.0, 2.0], [0.5, 0.5]),
+    (lambda: plc.severity.WindDistribution.histogram([0.0, 2.0], [0.5, 0.5]),
      r"'edges'.*n \+ 1.*2 edges and 2 densities"),
-    (lambda: plc.WindDistribution.weibull(shape=0.0), r"'shape'.*> 0"),
-    (lambda: plc.robot_value(SPAN, ROBOT, plc.RobotLimits(0.3, 0.5), distribution=[0.5, 0.5]),
+    (lambda: plc.severity.WindDistribution.weibull(shape=0.0), r"'shape'.*> 0"),
+    (lambda: plc.severity.robot_value(SPAN, ROBOT, plc.RobotLimits(0.3, 0.5), distribution=[0.5,
+                                                                                            0.5]),
      r"'distribution'.*WindDistribution"),
-    (lambda: plc.robot_value(SPAN, ROBOT, (0.3, 0.5)), r"'limits'.*RobotLimits"),
-    (lambda: plc.robot_value(SPAN, ROBOT, plc.RobotLimits(0.3, 0.5), persistence=0.0),
+    (lambda: plc.severity.robot_value(SPAN, ROBOT, (0.3, 0.5)), r"'limits'.*RobotLimits"),
+    (lambda: plc.severity.robot_value(SPAN, ROBOT, plc.RobotLimits(0.3, 0.5), persistence=0.0),
      r"'persistence'.*> 0"),
     (lambda: sv.ImpedanceDamper(1.0, [1.0, 2.0], [-1.0, 1.0]), r"'impedance'.*Re Z >= 0"),
     (lambda: sv.ImpedanceDamper(1.0, [2.0, 1.0], [1.0, 1.0]), r"'frequencies'.*ascending"),
@@ -493,18 +497,18 @@ CUSTOM = plc.Span(300.0, 20e3, plc.Conductor(1.5, 0.028, 40.0, rated_strength=12
      r"'frequency' \(85.4\d* Hz\).*\(2-80 Hz\).*restrict the wind speeds"),
     (lambda: sv.AtAntinode("robot"), r"'damper'.*MDR.*ImpedanceDamper"),
     (lambda: sv.AtAntinode(ROBOT, factor=1.5), r"'factor'.*<= 1"),
-    (lambda: plc.robot_value(SPAN, ROBOT, plc.RobotLimits(0.3, 0.5), en_route="parked"),
+    (lambda: plc.severity.robot_value(SPAN, ROBOT, plc.RobotLimits(0.3, 0.5), en_route="parked"),
      r"'en_route'.*'average'.*'undamped'"),
-    (lambda: plc.wind_power(0.05, 10.0, 0.028, wind_curve="pon"),
+    (lambda: plc.severity.wind_power(0.05, 10.0, 0.028, wind_curve="pon"),
      r"'amplitude'.*\[0, 0\.3 D\].*'pon'"),
     (lambda: sv.standing_wave_shape(SPAN, 10.0, 301.0), r"'position'.*\[0, 300\]"),
-    (lambda: plc.catenary_check(SPAN, terrain=5), r"'terrain'.*1, 2, 3 or 4.*5"),
-    (lambda: plc.catenary_check(SPAN, limit=-3.0), r"'limit'.*> 0"),
-    (lambda: plc.time_domain_check(SPAN, 0.0, n_elements=40), r"'wind_speed'.*> 0"),
-    (lambda: plc.time_domain_check(SPAN, 2.0, n_elements=1), r"'n_elements'.*>= 2"),
-    (lambda: plc.time_domain_check(SPAN, 2.0, n_elements=700),
+    (lambda: plc.severity.catenary_check(SPAN, terrain=5), r"'terrain'.*1, 2, 3 or 4.*5"),
+    (lambda: plc.severity.catenary_check(SPAN, limit=-3.0), r"'limit'.*> 0"),
+    (lambda: plc.severity.time_domain_check(SPAN, 0.0, n_elements=40), r"'wind_speed'.*> 0"),
+    (lambda: plc.severity.time_domain_check(SPAN, 2.0, n_elements=1), r"'n_elements'.*>= 2"),
+    (lambda: plc.severity.time_domain_check(SPAN, 2.0, n_elements=700),
      r"'n_elements'.*700.*1200 DOFs.*shorter span"),
-    (lambda: plc.time_domain_check(SPAN, 2.0, n_elements=40, damper=STOCKBRIDGE_LIKE),
+    (lambda: plc.severity.time_domain_check(SPAN, 2.0, n_elements=40, damper=STOCKBRIDGE_LIKE),
      r"'damper'.*must be an MDR"),
 ])
 def test_bad_input(call, pattern):
@@ -514,7 +518,7 @@ def test_bad_input(call, pattern):
 
 # --------------------------------------------------------------------------- bad input
 def test_descending_wind_speeds_are_refused_not_given_negative_probabilities():
-    dist = plc.WindDistribution.weibull()
+    dist = plc.severity.WindDistribution.weibull()
     with pytest.raises(plc.InputError, match="ascending"):
         dist.probability_of(np.array([3.0, 2.0, 1.0]))
     with pytest.raises(plc.InputError, match="ascending"):
@@ -527,12 +531,12 @@ def test_descending_wind_speeds_are_refused_not_given_negative_probabilities():
 
 def test_histogram_honours_its_rtol():
     # integrates to 1.001: accepted at rtol 1e-2 (it was re-checked at 1e-6 and refused)
-    dist = plc.WindDistribution.histogram([0.0, 2.0, 4.0], [0.25, 0.2505], rtol=1e-2)
+    dist = plc.severity.WindDistribution.histogram([0.0, 2.0, 4.0], [0.25, 0.2505], rtol=1e-2)
     assert dist.rtol == 1e-2
     with pytest.raises(plc.InputError, match="integrate to 1"):
-        plc.WindDistribution.histogram([0.0, 2.0, 4.0], [0.25, 0.2505])
+        plc.severity.WindDistribution.histogram([0.0, 2.0, 4.0], [0.25, 0.2505])
     with pytest.raises(plc.InputError, match="integrate to 1"):
-        plc.WindDistribution("histogram", edges=(0.0, 2.0, 4.0), density=(0.25, 0.2505))
+        plc.severity.WindDistribution("histogram", edges=(0.0, 2.0, 4.0), density=(0.25, 0.2505))
 
 
 @pytest.mark.parametrize("option", ["dampers", "label"])
@@ -540,7 +544,7 @@ def test_robot_value_refuses_options_it_sets_itself(option):
     span = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
     robot = plc.MDR.tuned(0.0, 5.0, 1.5, frequency=15.0, damping_ratio=0.3)
     with pytest.raises(plc.InputError, match=rf"'{option}' option cannot be passed"):
-        plc.robot_value(span, robot, plc.RobotLimits(0.3, 0.5), [2.0],
+        plc.severity.robot_value(span, robot, plc.RobotLimits(0.3, 0.5), [2.0],
                         **{option: (robot,) if option == "dampers" else "x"})
 
 
@@ -550,38 +554,39 @@ def test_catenary_check_refuses_a_tension_at_or_above_the_rated_strength():
         # Span refuses it itself (line.py's validation); catenary_check refuses a span that
         # slipped past (built before that check, or altered): both layers are exercised
         with pytest.raises(plc.InputError, match="rated (tensile )?strength"):
-            plc.catenary_check(plc.Span(300.0, tension, drake))
+            plc.severity.catenary_check(plc.Span(300.0, tension, drake))
         span = plc.Span(300.0, 0.2 * drake.rated_strength, drake)
         object.__setattr__(span, "tension", tension)
         with pytest.raises(plc.InputError, match="'span.tension'.*rated strength"):
-            plc.catenary_check(span)
-    below = plc.catenary_check(plc.Span(300.0, 0.99 * drake.rated_strength, drake))
+            plc.severity.catenary_check(span)
+    below = plc.severity.catenary_check(plc.Span(300.0, 0.99 * drake.rated_strength, drake))
     assert below.catenary_parameter == pytest.approx(0.99 * 140.1e3 / (1.628 * 9.80665))
 
 
 @pytest.mark.parametrize("call, name", [
-    (lambda: plc.AtAntinode(plc.MDR(1.0, 1.0), label=None), "label"),
-    (lambda: plc.ImpedanceDamper(1.0, (5.0, 50.0), (1 + 0j, 2 + 0j), label=3), "label"),
-    (lambda: plc.WindPowerCurve("x", None, "s", (1.0, 0.0)), "label"),
-    (lambda: plc.WindPowerCurve("x", "x", "s", None, (0.1, 0.2), (1.0, 2.0)), "coefficients"),
-    (lambda: plc.WindPowerCurve("x", "x", "s", (), (0.1, 0.2), (1.0, -2.0)), "powers"),
-    (lambda: plc.WindDistribution("weibull", edges=None), "edges"),
-    (lambda: plc.WindDistribution("weibull", rtol=math.nan), "rtol"),
+    (lambda: plc.fem.AtAntinode(plc.MDR(1.0, 1.0), label=None), "label"),
+    (lambda: plc.fem.ImpedanceDamper(1.0, (5.0, 50.0), (1 + 0j, 2 + 0j), label=3), "label"),
+    (lambda: plc.severity.WindPowerCurve("x", None, "s", (1.0, 0.0)), "label"),
+    (lambda: plc.severity.WindPowerCurve("x", "x", "s", None, (0.1, 0.2), (1.0, 2.0)),
+     "coefficients"),
+    (lambda: plc.severity.WindPowerCurve("x", "x", "s", (), (0.1, 0.2), (1.0, -2.0)), "powers"),
+    (lambda: plc.severity.WindDistribution("weibull", edges=None), "edges"),
+    (lambda: plc.severity.WindDistribution("weibull", rtol=math.nan), "rtol"),
     (lambda: plc.aeolian_severity(plc.Span.at_rts_fraction(300.0, "drake", 0.2), [2.0],
                                   label=3), "label"),
     (lambda: plc.aeolian_severity(plc.Span.at_rts_fraction(300.0, "drake", 0.2), [2.0],
                                   self_damping_exponents=2.0), "self_damping_exponents"),
     (lambda: plc.aeolian_severity(plc.Span.at_rts_fraction(300.0, "drake", 0.2), [2.0],
                                   strouhal=1e-300), "strouhal"),
-    (lambda: plc.harmonic_mean_position(plc.Span.at_rts_fraction(300.0, "drake", 0.2),
+    (lambda: plc.severity.harmonic_mean_position(plc.Span.at_rts_fraction(300.0, "drake", 0.2),
                                         strouhal=1e-300), "strouhal"),
     (lambda: plc.aeolian_severity(plc.Span.at_rts_fraction(300.0, "drake", 0.2), [2.0],
                                   x_b=1e-300), "x_b"),
-    (lambda: plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
+    (lambda: plc.severity.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
                                    n_elements=20, settle=1e-300), "settle"),
-    (lambda: plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
+    (lambda: plc.severity.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 2.0,
                                    n_elements=20, samples_per_period=10**9), "samples_per_period"),
-    (lambda: plc.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 1e-9,
+    (lambda: plc.severity.time_domain_check(plc.Span.at_rts_fraction(30.0, "drake", 0.2), 1e-9,
                                    n_elements=20), "wind_speed"),
 ])
 def test_sweep_findings_are_refused_by_name(call, name):

@@ -56,7 +56,7 @@ def test_lab_span_matches_dense_fe_solves_with_the_robot_attached():
     # everywhere, including 0.2 m from the load, 0.5 m and 1 cm from the clamps' ends
     positions = np.array([0.01, 0.05, 0.5, 0.93, 1.17, 1.37 - 0.2, 1.37 + 0.2, 1.37, 1.83, 2.5,
                           LAB.length - 0.5, LAB.length - 0.01])
-    state = plc.parked_steady_state(bare, force, robot, positions)
+    state = plc.simulation.parked_steady_state(bare, force, robot, positions)
     c = (damping.mass_coefficient * bare.mass_matrix
          + damping.stiffness_coefficient * bare.stiffness_matrix).toarray()
     for i, p in enumerate(positions):
@@ -78,7 +78,7 @@ def test_400m_clamped_span_matches_dense_fe_solves_near_a_clamp_and_a_load():
     x_f = 151.3
     force = plc.HarmonicForce(20.0, 1.002 * freqs[mode - 1], x_f)
     positions = np.array([0.5, 1.7, x_f - 0.2, x_f + 0.2, 233.3, LONG.length - 0.5])
-    state = plc.parked_steady_state(bare, force, robot, positions)
+    state = plc.simulation.parked_steady_state(bare, force, robot, positions)
     c = (damping.mass_coefficient * bare.mass_matrix
          + damping.stiffness_coefficient * bare.stiffness_matrix).toarray()
     for i, p in enumerate(positions):
@@ -89,7 +89,7 @@ def test_400m_clamped_span_matches_dense_fe_solves_near_a_clamp_and_a_load():
                                    atol=1e-7 * np.abs(truth).max())
         assert state.rms[i] == pytest.approx(_rms(bare, truth), rel=1e-7)
     # The robot changes the field: the tuned absorber near an antinode damps the span.
-    assert state.best_rms < 0.5 * plc.parked_steady_state(bare, force, None).rms[0]
+    assert state.best_rms < 0.5 * plc.simulation.parked_steady_state(bare, force, None).rms[0]
 
 
 @threadpool_limits.wrap(limits=1, user_api="blas")
@@ -104,7 +104,7 @@ def test_modal_damping_matches_dense_solves_with_the_full_modal_damping_matrix()
     shapes = np.asarray(basis.shapes)
     c = mass @ shapes @ np.diag(2 * zeta * np.asarray(basis.omega)) @ shapes.T @ mass
     positions = np.array([0.5, 1.9, 2.3, 3.0])
-    state = plc.parked_steady_state(bare, force, robot, positions)
+    state = plc.simulation.parked_steady_state(bare, force, robot, positions)
     for i, p in enumerate(positions):
         truth = _dense_truth(bare, force, robot, p, c)
         # Modes above 2 f keep no damping in parked_steady_state: each of their terms changes by
@@ -119,7 +119,7 @@ def test_damper_power_is_the_absorber_dissipation_of_the_dense_solution():
     robot = plc.tune_damper(bare, 2, None, 0.04, body_mass=0.02)
     force = plc.HarmonicForce(1.0, f2, 1.0)
     p = 2.6
-    state = plc.parked_steady_state(bare, force, robot, [p])
+    state = plc.simulation.parked_steady_state(bare, force, robot, [p])
     omega = 2 * np.pi * f2
     with_robot = plc.LineModel(LAB, 60, mdr=dataclasses.replace(robot, position=p))
     n = bare.n_dofs
@@ -145,7 +145,7 @@ def test_pinned_beam_without_robot_matches_the_modal_closed_form():
     a, f0, x_f = 0.3, 1.4, 1.07
     model = plc.LineModel(span, 200, damping=plc.RayleighDamping(a, 0.0))
     frequency = 0.97 * model.natural_frequencies(3)[2]
-    state = plc.parked_steady_state(model, plc.HarmonicForce(f0, frequency, x_f), None)
+    state = plc.simulation.parked_steady_state(model, plc.HarmonicForce(f0, frequency, x_f), None)
     n = np.arange(1, 4001)[:, None]
     m = span.conductor.mass_per_length
     omega_n = 2 * np.pi * span.pinned_frequencies(4000)[:, None]
@@ -168,7 +168,7 @@ def test_taut_string_without_robot_matches_the_greens_function():
     span = plc.Span(length=2.0, tension=300.0, conductor=cond)
     model = plc.LineModel(span, 400)
     frequency, x_f, f0 = 140.0, 0.73, 2.0
-    state = plc.parked_steady_state(model, plc.HarmonicForce(f0, frequency, x_f), None)
+    state = plc.simulation.parked_steady_state(model, plc.HarmonicForce(f0, frequency, x_f), None)
     k = 2 * np.pi * frequency * np.sqrt(cond.mass_per_length / span.tension)
     x = model.node_positions
     lo, hi = np.minimum(x, x_f), np.maximum(x, x_f)
@@ -189,13 +189,13 @@ def test_aeolian_and_a_list_of_loads_are_superposed():
     f = model.natural_frequencies(2)[1]
     a = plc.HarmonicForce(1.0, f, 0.7)
     b = plc.HarmonicForce(0.5, f, 2.9, phase=1.0)
-    both = plc.parked_steady_state(model, [a, b], robot, [1.0, 2.0])
-    one = plc.parked_steady_state(model, a, robot, [1.0, 2.0])
-    two = plc.parked_steady_state(model, (b,), robot, [1.0, 2.0])
+    both = plc.simulation.parked_steady_state(model, [a, b], robot, [1.0, 2.0])
+    one = plc.simulation.parked_steady_state(model, a, robot, [1.0, 2.0])
+    two = plc.simulation.parked_steady_state(model, (b,), robot, [1.0, 2.0])
     # Linear in the load: round-off of a near-resonant solve (condition ~1e4) only.
     np.testing.assert_allclose(both.field, one.field + two.field, rtol=0,
                                atol=1e-9 * np.abs(both.field).max())
-    wind = plc.parked_steady_state(model, plc.AeolianForce(wind_speed=1.0), robot)
+    wind = plc.simulation.parked_steady_state(model, plc.AeolianForce(wind_speed=1.0), robot)
     assert wind.frequency == pytest.approx(plc.AeolianForce(1.0).frequency_for(LAB.conductor))
     assert wind.positions.tolist() == [robot.position]
     assert both.best_position in (1.0, 2.0)
@@ -223,13 +223,13 @@ def test_bad_arguments(kwargs, name):
                 robot=plc.MDR(1.0, 0.02, 0.01, 50.0, 0.1), positions=None)
     args.update(kwargs)
     with pytest.raises(InputError, match=name):
-        plc.parked_steady_state(**args)
+        plc.simulation.parked_steady_state(**args)
 
 
 def test_model_with_a_robot_is_refused():
     robot = plc.MDR(1.0, 0.02, 0.01, 50.0, 0.1)
     with pytest.raises(InputError, match="mdr=None"):
-        plc.parked_steady_state(plc.LineModel(LAB, 20, mdr=robot),
+        plc.simulation.parked_steady_state(plc.LineModel(LAB, 20, mdr=robot),
                                 plc.HarmonicForce(1.0, 10.0, 1.0), robot)
 
 
@@ -237,4 +237,4 @@ def test_undamped_resonance_without_a_robot_is_a_model_error_not_nan():
     model = plc.LineModel(LAB, 20)
     f1 = float(model.natural_frequencies(1)[0])
     with pytest.raises(ModelError, match="Hz"):
-        plc.parked_steady_state(model, plc.HarmonicForce(1.0, f1, 1.0), None)
+        plc.simulation.parked_steady_state(model, plc.HarmonicForce(1.0, f1, 1.0), None)

@@ -515,8 +515,8 @@ def _python_control_trouble(model: DMDModel, C: np.ndarray) -> str | None:
     if model.n_states == 0:
         return None
     advice = ("Refit with a larger alpha (select_alpha's stable_alpha / best_stable_alpha), a "
-              "rank, or more delays; or use plc.KalmanFilter / plc.steady_state_covariance, "
-              "whose Riccati solver handles it.")
+              "rank, or more delays; or use plc.KalmanFilter / "
+              "plc.estimate.steady_state_covariance, whose Riccati solver handles it.")
     if not model.is_stable:
         return (f"The model is unstable (spectral radius {model.spectral_radius:.6g} >= 1): "
                 "python-control's dlqe / dlqr / dare may refuse it (SciPy: 'Reordering of "

@@ -152,7 +152,7 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
     >>> model = plc.LineModel(plc.Span.paper_lab(), n_elements=20)
     >>> snap = plc.simulate(model, plc.RandomForce(1.0, 1.3, 80.0, seed=2), 4.0, 1e-3,
     ...                     noise_fraction=0.01, seed=0)
-    >>> study = plc.estimator_count_study(snap, [2, 4], delays=4, rank=12)
+    >>> study = plc.recipe.estimator_count_study(snap, [2, 4], delays=4, rank=12)
     >>> study.k, study.held_out_error.shape
     ((2, 4), (2,))
     """

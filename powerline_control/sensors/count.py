@@ -117,7 +117,7 @@ def sensor_count_study(
     >>> import numpy as np, control as ct
     >>> import powerline_control as plc
     >>> sys = ct.ss(np.diag([0.9, 0.5]), np.zeros((2, 0)), np.eye(2), np.zeros((2, 0)), 1.0)
-    >>> study = plc.sensor_count_study(sys, [1, 2], Q=np.eye(2), R=0.1, n_steps=200)
+    >>> study = plc.sensors.sensor_count_study(sys, [1, 2], Q=np.eye(2), R=0.1, n_steps=200)
     >>> study.k, bool(study.rms_error[1] < study.rms_error[0])
     ((1, 2), True)
     """

@@ -196,7 +196,7 @@ class SensorCountStudy:
     >>> import numpy as np, control as ct
     >>> import powerline_control as plc
     >>> sys = ct.ss(np.diag([0.9, 0.5]), np.zeros((2, 0)), np.eye(2), np.zeros((2, 0)), 1.0)
-    >>> study = plc.sensor_count_study(sys, [1, 2], Q=np.eye(2), R=0.1, target_error=1.0,
+    >>> study = plc.sensors.sensor_count_study(sys, [1, 2], Q=np.eye(2), R=0.1, target_error=1.0,
     ...                                n_steps=50)
     >>> study.smallest_k, study.layouts
     (1, ((0,), (0, 1)))

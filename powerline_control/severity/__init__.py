@@ -22,6 +22,8 @@ from .balance import SAFE_BORDER_LINES  # noqa: F401
 from .balance import __all__ as _balance_all
 from .checks import *  # noqa: F403
 from .checks import __all__ as _checks_all
+from .clamp_estimate import *  # noqa: F403
+from .clamp_estimate import __all__ as _clamp_estimate_all
 from .climate import *  # noqa: F403
 from .climate import __all__ as _climate_all
 from .dampers import *  # noqa: F403
@@ -36,4 +38,4 @@ from .wind import *  # noqa: F403
 from .wind import __all__ as _wind_all
 
 __all__ = [*_wind_all, *_dampers_all, *_balance_all, *_climate_all, *_checks_all, *_record_all,
-           *_fatigue_all, *_self_damping_all]
+           *_fatigue_all, *_self_damping_all, *_clamp_estimate_all]

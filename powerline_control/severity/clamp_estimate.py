@@ -158,7 +158,7 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
     ...     warnings.simplefilter("ignore")
     ...     train = plc.simulate(model, load, 12.0, 4e-3, noise_fraction=0.01, seed=0)
     ...     design = plc.design_estimator(train, n_sensors=5, seed=0)
-    ...     clamp = plc.estimate_clamp_strain(design, train.displacement[design.sensors],
+    ...     clamp = plc.severity.estimate_clamp_strain(design, train.displacement[design.sensors],
     ...                                       span, model.node_positions, discard=500)
     >>> bool(clamp.bending_amplitude > 0 and clamp.strain_sigma > 0)
     True

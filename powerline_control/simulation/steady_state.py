@@ -63,7 +63,7 @@ class ParkedSteadyState:
     >>> model = plc.LineModel(plc.Span.paper_lab(), 40, damping=plc.ModalDamping(0.01))
     >>> robot = plc.tune_damper(model, 2, None, 0.04, body_mass=0.02)
     >>> force = plc.HarmonicForce(1.0, model.natural_frequencies(2)[1], 1.2)
-    >>> state = plc.parked_steady_state(model, force, robot, np.linspace(0.1, 3.5, 35))
+    >>> state = plc.simulation.parked_steady_state(model, force, robot, np.linspace(0.1, 3.5, 35))
     >>> state.field.shape
     (35, 41)
     >>> bool(state.best_rms < state.rms.max())
@@ -240,8 +240,8 @@ def parked_steady_state(model: LineModel, force: object, robot: MDR | None,
     >>> f3 = model.natural_frequencies(3)[2]
     >>> robot = plc.tune_damper(model, 3, None, 0.04, body_mass=0.03)
     >>> force = plc.HarmonicForce(1.0, f3, 0.41 * span.length)
-    >>> scan = plc.parked_steady_state(model, force, robot, np.linspace(0.05, 3.6, 72))
-    >>> bare = plc.parked_steady_state(model, force, None)
+    >>> scan = plc.simulation.parked_steady_state(model, force, robot, np.linspace(0.05, 3.6, 72))
+    >>> bare = plc.simulation.parked_steady_state(model, force, None)
     >>> bool(bare.rms[0] > 3 * scan.best_rms)       # the tuned robot at its best damps the mode
     True
     >>> bool(np.all(scan.damper_power >= 0))
