@@ -2,11 +2,12 @@
 (windowed NIS, NEES, spectral), and observability (rank, Gramian, steady covariance, reports).
 
 ``filter.py`` holds :class:`KalmanFilter`; ``_recursion.py`` its per-sample and modal batch
-recursion; ``result.py`` what a run returns (:class:`Estimate`, :class:`Consistency`), how close
-it came (:func:`estimation_accuracy`) and how fast it recovers (:func:`recovery_time`);
-``consistency.py`` the NIS / NEES tests (:func:`filter_consistency`)
-and ``_spectrum.py`` the spectral test of the whitened innovations; ``observability.py`` what a
-sensor set can see before any filter runs.
+recursion, which reads the filter's frozen specification (``FilterSpec``) and nothing else of
+it; ``result.py`` what a run returns (:class:`Estimate`, :class:`Consistency`), how close it
+came (:func:`estimation_accuracy`) and how fast it recovers (:func:`recovery_time`);
+``consistency.py`` the NIS / NEES tests (:func:`filter_consistency`) and ``_spectrum.py`` the
+spectral test of the whitened innovations; ``observability.py`` what a sensor set can see before
+any filter runs.
 """
 
 from ._model_error import running_mean_square as running_mean_square

@@ -61,16 +61,17 @@ def check_adaptation(horizon: object, bounds: object, steady_state: object
 class _Adaptation:
     """The running means of the covariance matching (one per recursion)."""
 
-    def __init__(self, kf) -> None:
-        self.horizon = kf._adapt_horizon
-        self.low, self.high = kf._adapt_range
+    def __init__(self, spec) -> None:
+        """``spec``: the filter's frozen specification (``_recursion.FilterSpec``)."""
+        self.horizon = spec.adapt_horizon
+        self.low, self.high = spec.adapt_range
         self.keep = 1.0 - 1.0 / self.horizon
         self.q = 1.0
         self.means: np.ndarray | None = None   # (nis, a, b) averaged over the horizon
-        c = kf._C
+        c = spec.C
         self.c = c
-        self.cqc = c @ kf._Q @ c.T
-        self.fixed = kf._epsilon * (c @ c.T) + kf._r_eff   # the parts of S without P or Q
+        self.cqc = c @ spec.Q @ c.T
+        self.fixed = spec.epsilon * (c @ c.T) + spec.r_eff   # the parts of S without P or Q
 
     def update(self, nis: float, propagated: np.ndarray) -> None:
         """One full sample: its NIS and ``A P[k-1|k-1] A^T`` it was predicted from (with the

@@ -14,7 +14,6 @@ import scipy.signal as ssig
 
 from .._validation import check_real
 from ..errors import InputError
-from .consistency import DEFAULT_CONSISTENCY_WINDOW
 
 
 def running_mean_square(field: np.ndarray, window: int) -> np.ndarray:
@@ -144,45 +143,3 @@ def check_innovation_growth(innovation_growth: object, steady_state: object
             f"covariance and needs steady_state=True. Got steady_state={steady_state!r}."
         )
     return reference, share
-
-
-class _ModelErrorTerms:
-    """:class:`~powerline_control.estimate.KalmanFilter`'s read-only model-error settings and
-    the adaptation's state (mixed into it: the terms' one home beside their definitions)."""
-
-    @property
-    def field_variance_scale(self) -> float:
-        """Factor on the reported field variances (as given)."""
-        return self._fv_scale
-
-    @property
-    def field_relative_variance(self) -> float:
-        """Factor on the running mean square of the field added to its variances (as given)."""
-        return self._fv_relative
-
-    @property
-    def innovation_growth(self) -> tuple[float, float] | None:
-        """``(reference, share)`` of the innovation covariance's growth (as given)."""
-        return (self._innov_ref, self._innov_rel) if self._innov_rel > 0 else None
-
-    def _inflation(self, states: np.ndarray, start: float) -> tuple[np.ndarray, float]:
-        """(factor on ``S`` per sample, running mean square after them) for ``states``."""
-        return innovation_inflation(self._measure(states), self._mean_square_window,
-                                    self._innov_rel, self._innov_ref, start)
-
-    @property
-    def _mean_square_window(self) -> int:
-        """Time constant (samples) of the running mean squares of the model-error terms: the
-        consistency window, so that S and the variances follow the field as the test does."""
-        return self._window or DEFAULT_CONSISTENCY_WINDOW
-
-    @property
-    def adapt_horizon(self) -> int | None:
-        """Time constant (samples) of the covariance matching of ``Q`` (``None``: off)."""
-        return self._adapt_horizon
-
-    @property
-    def process_noise_scale(self) -> float:
-        """Current scale ``q`` on ``Q`` of the real-time recursion (1 without adaptation)."""
-        return 1.0 if self._running.adapt is None else self._running.adapt.q
-

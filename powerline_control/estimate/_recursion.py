@@ -1,11 +1,13 @@
 """The recursion behind :class:`~powerline_control.estimate.KalmanFilter`, sample by sample and
-in batches.
+in batches, and the frozen specification it reads.
 
+:class:`FilterSpec` is what the filter hands the recursion: its model, noise and settings,
+checked and frozen at construction (with the steady-state DARE solution computed on first use).
 :class:`_Recursion` is the per-sample filter state (Joseph or information update, convergence
-tracking, divergence checks) shared by ``step`` and ``filter``; :class:`_FilterInternals` holds
-the filter's private helpers: the steady-state DARE solution, the spectral test of a run, and the
-modal batch recursion that evaluates converged NaN-free stretches as a blocked scan over all
-modes at once (:func:`_recursion_tables`, :func:`_diagonal_recursion`).
+tracking, divergence checks, the consistency windows, the spectral test of a run) shared by
+``step`` and ``filter``, and the modal batch recursion that evaluates converged NaN-free
+stretches as a blocked scan over all modes at once (:func:`_recursion_tables`,
+:func:`_diagonal_recursion`). Nothing here imports the filter.
 
 Test seam: ``_recursion_tables``, ``_diagonal_recursion`` and ``_SCAN_BLOCK``: the blocked scan is
 checked against a plain step-by-step recursion across block boundaries (tests/test_estimate.py).
@@ -14,7 +16,8 @@ checked against a plain step-by-step recursion across block boundaries (tests/te
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.linalg as sla
@@ -26,13 +29,13 @@ from .._riccati import (
     solve_filter_dare,
 )
 from .._validation import (
-    check_array,
     read_only,
 )
 from ..errors import (
     EstimationError,
 )
 from ._adaptive import _Adaptation
+from ._model_error import innovation_inflation
 from ._spectrum import (
     NIS_FIELD_SPAN,
     following_reference,
@@ -43,11 +46,8 @@ from ._spectrum import (
     whitening_factor,
     window_nis_growth,
 )
-from .consistency import _window_sums
-
-if TYPE_CHECKING:  # annotations only: both modules import this one
-    from .filter import KalmanFilter
-    from .result import Consistency
+from .consistency import DEFAULT_CONSISTENCY_WINDOW, _window_sums
+from .result import Consistency
 
 # The modal batch recursion is used only when the eigenvector matrix of the closed loop is this
 # well conditioned; its round-off grows with cond(V), and beyond this it could differ from the
@@ -58,6 +58,133 @@ _CONFIRM_SAMPLES = 10
 # Block length of the vectorised diagonal recursion: in-block work grows with it, the Python
 # loop over blocks shrinks with it; 16 was fastest for n = 101 on the reference machine.
 _SCAN_BLOCK = 16
+
+
+@dataclass(frozen=True, eq=False)
+class FilterSpec:
+    """What the recursion reads of a :class:`~powerline_control.estimate.KalmanFilter`: its
+    model, noise and settings, checked and frozen when the filter is built.
+
+    The filter validates its arguments and hands one of these to every :class:`_Recursion` it
+    starts (with the prior ``x0``, ``P0``); the recursion and the covariance matching
+    (``_adaptive._Adaptation``) read nothing else of the filter. Derived quantities (the
+    steady-state DARE solution, the information-form products, the steady closed loop's modal
+    form) are computed on first use and kept.
+
+    Attributes
+    ----------
+    A, B, C, D : ndarray
+        The model's matrices.
+    Q, q_eff, r_eff : ndarray
+        Process-noise covariance as given; ``Q + epsilon I`` and ``R + epsilon I``.
+    n, p, m : int
+        States, outputs (sensors) and used inputs (0 for a zero ``B`` and ``D``).
+    epsilon, gain_rtol : float
+        The paper's regulariser; the relative change below which the gain is frozen.
+    steady_state : bool
+        Constant steady-state gain.
+    sel : ndarray or None
+        The state each output selects when ``C`` only selects states.
+    info_form : bool
+        Information (Woodbury) form of the update (more outputs than states).
+    r_diag : ndarray or None
+        The diagonal of ``r_eff`` when it is diagonal.
+    undetectable : ndarray
+        Eigenvalues on or outside the unit circle the sensors cannot see.
+    radius, diverged : float
+        Spectral radius of ``A``; the covariance size that counts as divergence.
+    dt : float or None
+        Sample time.
+    window : int or None
+        Samples per consistency window (None: the test is off).
+    follows_spectrum, total_growth : bool
+        Whether the window's factor on ``S`` follows the field's spectrum, or its total.
+    spectral_ref, spectral_count, spectral_field
+        The spectral test's reference, its count and the field reference (as checked).
+    innov_ref, innov_rel : float
+        ``innovation_growth``'s reference and share (share 0: off).
+    adapt_horizon : int or None
+        Covariance matching's horizon (None: off).
+    adapt_range : tuple of float
+        Bounds of the matched scale on ``Q``.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    Q: np.ndarray
+    q_eff: np.ndarray
+    r_eff: np.ndarray
+    n: int
+    p: int
+    m: int
+    epsilon: float
+    gain_rtol: float
+    steady_state: bool
+    sel: np.ndarray | None
+    info_form: bool
+    r_diag: np.ndarray | None
+    undetectable: np.ndarray
+    radius: float
+    diverged: float
+    dt: float | None
+    window: int | None
+    follows_spectrum: bool
+    total_growth: bool
+    spectral_ref: np.ndarray | None
+    spectral_count: int
+    spectral_field: tuple | None
+    innov_ref: float
+    innov_rel: float
+    adapt_horizon: int | None
+    adapt_range: tuple
+
+    def apply_r_inv(self, values: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
+        """``R_uu^-1 values`` for the sensors ``index`` (all without), diagonal fast path."""
+        if self.r_diag is not None:
+            r = self.r_diag if index is None else self.r_diag[index]
+            return values / r[:, None]
+        r = self.r_eff if index is None else self.r_eff[np.ix_(index, index)]
+        return sla.cho_solve(sla.cho_factor(r), values)
+
+    @cached_property
+    def r_inv_c(self) -> np.ndarray:
+        """``R^-1 C`` of the information-form update."""
+        return self.apply_r_inv(self.C)
+
+    @cached_property
+    def info_full(self) -> np.ndarray:
+        """``C^T R^-1 C`` of the information-form update with every sensor."""
+        return self.C.T @ self.r_inv_c
+
+    def measure(self, x: np.ndarray) -> np.ndarray:
+        """``C x`` (by indexing when ``C`` only selects states)."""
+        return x[self.sel] if self.sel is not None else self.C @ x
+
+    @cached_property
+    def steady_solution(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(filter gain, posterior covariance, predicted covariance) from the DARE."""
+        predicted = solve_filter_dare(self.A, self.C, self.q_eff, self.r_eff)
+        posterior = posterior_from_predicted(predicted, self.C, self.r_eff)
+        gain = filter_gain(predicted, self.C, self.r_eff, posterior)
+        return gain, posterior, predicted
+
+    @cached_property
+    def steady_batch(self):
+        """The modal form of the steady closed loop (:func:`_build_batch`), or False."""
+        return _build_batch(self, self.steady_solution[0])
+
+    @property
+    def mean_square_window(self) -> int:
+        """Time constant (samples) of the running mean squares of the model-error terms: the
+        consistency window, so that S and the variances follow the field as the test does."""
+        return self.window or DEFAULT_CONSISTENCY_WINDOW
+
+    def inflation(self, states: np.ndarray, start: float) -> tuple[np.ndarray, float]:
+        """(factor on ``S`` per sample, running mean square after them) for ``states``."""
+        return innovation_inflation(self.measure(states), self.mean_square_window,
+                                    self.innov_rel, self.innov_ref, start)
 
 
 def _selection_indices(c: np.ndarray) -> np.ndarray | None:
@@ -78,11 +205,11 @@ class _Recursion:
     covariance work.
     """
 
-    def __init__(self, kf: KalmanFilter) -> None:
-        self.kf = kf
-        self.x = kf._x0.copy()
+    def __init__(self, spec: FilterSpec, x0: np.ndarray, P0: np.ndarray) -> None:
+        self.spec = spec
+        self.x = x0.copy()
         self.first = True  # the prior describes sample 0: no prediction before its update
-        self.u_prev = np.zeros(kf._m)
+        self.u_prev = np.zeros(spec.m)
         self.k = 0
         self.last_full_gain: np.ndarray | None = None
         self.converged = False
@@ -96,37 +223,37 @@ class _Recursion:
         self.closed: list[tuple[float, int, int]] = []
         # With a field reference the window's factor on S follows the spectrum of the last
         # NIS_FIELD_SPAN measurements: a ring buffer of them (``recent_count`` stored so far).
-        self.recent = (np.full((kf._p, NIS_FIELD_SPAN), np.nan) if kf._follows_spectrum
+        self.recent = (np.full((spec.p, NIS_FIELD_SPAN), np.nan) if spec.follows_spectrum
                        else None)
         self.recent_count = 0
         # Running mean square of the estimate at the sensors (KalmanFilter's innovation_growth).
         self.mean_square = 0.0
         # Scalar covariance matching of Q (KalmanFilter's adapt_horizon), None when off.
-        self.adapt = _Adaptation(kf) if kf._adapt_horizon is not None else None
-        if kf.steady_state:
-            gain, posterior, predicted = kf._steady_solution()
+        self.adapt = _Adaptation(spec) if spec.adapt_horizon is not None else None
+        if spec.steady_state:
+            gain, posterior, predicted = spec.steady_solution
             self.freeze(gain, posterior, predicted)
             self.P = predicted  # prior of sample 0: the stationary predicted covariance
             self.converged_at = 0
             self.last_full_gain = gain
         else:
-            self.P = kf._P0.copy()
+            self.P = P0.copy()
 
     def freeze(self, gain: np.ndarray, posterior: np.ndarray, predicted: np.ndarray) -> None:
         """Adopt a converged gain: from now on full samples need no covariance work."""
-        kf = self.kf
+        spec = self.spec
         self.converged = True
         self.gain_ss, self.posterior_ss, self.predicted_ss = gain, posterior, predicted
         self.closed_loop = None   # (F, (I - K C) B) of advance_frozen, built on first use
-        if kf._info_form:
+        if spec.info_form:
             self.s_factor = None  # NIS through Woodbury with posterior_ss, O(n p)
         else:
             s = (
-                predicted[np.ix_(kf._sel, kf._sel)]
-                if kf._sel is not None
-                else kf._C @ predicted @ kf._C.T
+                predicted[np.ix_(spec.sel, spec.sel)]
+                if spec.sel is not None
+                else spec.C @ predicted @ spec.C.T
             )
-            s = s + kf._r_eff
+            s = s + spec.r_eff
             self.s_factor = sla.cho_factor((s + s.T) / 2, lower=True)
             # e^T S^-1 e = |L^-1 e|^2: L^-1 once, then one small product per sample (a
             # triangular solve per sample cost as much as the rest of the step)
@@ -146,9 +273,9 @@ class _Recursion:
             self.w_valid += 1
             self.w_used += used
         self.w_len += 1
-        if self.w_len == self.kf._window:
+        if self.w_len == self.spec.window:
             if self.recent is not None:
-                self.w_sum /= self.kf._realtime_growth(self)
+                self.w_sum /= self.realtime_growth()
             self.closed.append((self.w_sum, self.w_valid, self.w_used))
             self.w_sum, self.w_valid, self.w_used, self.w_len = 0.0, 0, 0, 0
 
@@ -158,12 +285,12 @@ class _Recursion:
         its full windows closed (``nis`` with ``S_k``), the rest open. With a field reference
         the open window's factor on ``S`` is set when it closes, so it holds ``raw_nis`` (with
         ``S``), and the ring buffer the record's last measurements."""
-        window, n_t = self.kf._window, nis.size
+        window, n_t = self.spec.window, nis.size
         sums, counts, _ = _window_sums(nis, window)
         used_sums = n_used[: sums.size * window].reshape(-1, window).sum(axis=1)
         self.closed = list(zip(sums.tolist(), counts.tolist(), used_sums.tolist(), strict=True))
         tail = n_t - sums.size * window
-        rest_nis = (raw_nis if self.kf._follows_spectrum else nis)[n_t - tail:]
+        rest_nis = (raw_nis if self.spec.follows_spectrum else nis)[n_t - tail:]
         ok = ~np.isnan(rest_nis)
         self.w_sum, self.w_valid = float(rest_nis[ok].sum()), int(ok.sum())
         self.w_used, self.w_len = int(n_used[n_t - tail:].sum()), tail
@@ -186,39 +313,39 @@ class _Recursion:
 
     def nis_frozen(self, e: np.ndarray) -> np.ndarray:
         """``e^T S^-1 e`` per column of ``e`` ``(p, L)`` with the frozen covariance."""
-        kf = self.kf
+        spec = self.spec
         if self.s_factor is not None:
             whitened = self.whitener @ e
             return np.einsum("ij,ij->j", whitened, whitened)
         # Woodbury: S^-1 = R^-1 - R^-1 C P+ C^T R^-1 (P+ the posterior), never a p x p solve.
-        r_inv_e = kf._apply_r_inv(e)
-        w = kf._C.T @ r_inv_e
+        r_inv_e = spec.apply_r_inv(e)
+        w = spec.C.T @ r_inv_e
         return np.einsum("ij,ij->j", e, r_inv_e) - np.einsum("ij,ij->j", w, self.posterior_ss @ w)
 
     def check_divergence(self, what: str) -> None:
         """EstimationError when the covariance or the state stops being finite or explodes."""
-        kf = self.kf
+        spec = self.spec
         with np.errstate(all="ignore"):
             size = float(np.max(np.abs(self.P))) if self.P.size else 0.0
-        if np.isfinite(size) and size <= kf._diverged and np.all(np.isfinite(self.x)):
+        if np.isfinite(size) and size <= spec.diverged and np.all(np.isfinite(self.x)):
             return
-        unseen = kf._undetectable
+        unseen = spec.undetectable
         cause = (
             f"the modes with eigenvalues {describe_modes(unseen)} lie on or outside the unit "
             "circle and are not detectable from the sensors"
             if unseen.size
-            else f"the model has spectral radius {kf._radius:.6g} and {what}"
+            else f"the model has spectral radius {spec.radius:.6g} and {what}"
         )
         raise EstimationError(
             f"The Kalman filter diverged at sample {self.k - 1}: its error covariance reached "
-            f"{size:.3g} (over {kf._diverged:.3g}, 1e100 times its scale): {cause}. The "
+            f"{size:.3g} (over {spec.diverged:.3g}, 1e100 times its scale): {cause}. The "
             "estimate has no meaning any more; shorten the dropout, add sensors that see those "
             "modes, or stabilise the model."
         )
 
     def advance(self, y: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float, int]:
         """Process one sample; return (innovation, NIS, number of sensors used)."""
-        kf = self.kf
+        spec = self.spec
         mask = ~np.isnan(y)
         full = bool(mask.all())
         # --- prediction of the state (the covariance only when it is needed)
@@ -226,45 +353,45 @@ class _Recursion:
             x_pred, p_pred = self.x, self.P
             self.first = False
         else:
-            x_pred = kf._A @ self.x
-            if kf._m:
-                x_pred += kf._B @ self.u_prev
+            x_pred = spec.A @ self.x
+            if spec.m:
+                x_pred += spec.B @ self.u_prev
             p_pred = None
         self.u_prev = u
-        innovation = np.full(kf._p, np.nan)
+        innovation = np.full(spec.p, np.nan)
         self.k += 1
         # --- converged covariance and every sensor present: a plain linear update
         if self.converged and full:
-            e = y - kf._measure(x_pred) - (kf._D @ u if kf._m else 0.0)
+            e = y - spec.measure(x_pred) - (spec.D @ u if spec.m else 0.0)
             self.x = x_pred + self.gain_ss @ e
             self.P = self.posterior_ss
             innovation[:] = e
-            return innovation, float(self.nis_frozen(e[:, None])[0]), kf._p
+            return innovation, float(self.nis_frozen(e[:, None])[0]), spec.p
         propagated = None
         if p_pred is None:
             # From the current covariance: after a frozen full sample P is the stationary
             # posterior and this is the stationary prior; during a dropout it grows as it must.
             if self.adapt is None:
-                p_pred = kf._A @ self.P @ kf._A.T + kf._q_eff
+                p_pred = spec.A @ self.P @ spec.A.T + spec.q_eff
             else:  # Q scaled by the matched q (estimate._adaptive)
-                propagated = kf._A @ self.P @ kf._A.T
-                p_pred = propagated + self.adapt.q * kf._Q + kf._epsilon * np.eye(kf._n)
+                propagated = spec.A @ self.P @ spec.A.T
+                p_pred = propagated + self.adapt.q * spec.Q + spec.epsilon * np.eye(spec.n)
         if not mask.any():
             self.x, self.P = x_pred, (p_pred + p_pred.T) / 2
-            self.last_full_gain = None if not kf.steady_state else self.last_full_gain
-            if not kf.steady_state:
+            self.last_full_gain = None if not spec.steady_state else self.last_full_gain
+            if not spec.steady_state:
                 self.converged, self.settled, self.last_posterior = False, 0, None
             self.check_divergence("every measurement is missing (a dropout only predicts)")
             return innovation, float("nan"), 0
         # --- measurement update with the available sensors
         index = np.flatnonzero(mask)
-        if kf._info_form:
+        if spec.info_form:
             gain, nis, e = self._information_update(p_pred, x_pred, y, u, index, full)
         else:
             gain, nis, e = self._joseph_update(p_pred, x_pred, y, u, index)
         innovation[index] = e
         self.check_divergence("some sensors are missing")
-        if kf.steady_state:
+        if spec.steady_state:
             return innovation, nis, index.size
         if not full:
             self.converged, self.settled = False, 0
@@ -284,61 +411,61 @@ class _Recursion:
 
         For a converged recursion and NaN-free samples only. Each sample is then the linear
         closed loop ``x[k] = F x[k-1] + K y[k] + (I - K C) B u[k-1] - K D u[k]`` with
-        ``F = (I - K C) A`` (the batch form of :meth:`_FilterInternals._build_batch`, stepped
+        ``F = (I - K C) A`` (the batch form of :func:`_build_batch`, stepped
         here, not diagonalised): one product per sample, the drives of the block and its
         innovations in one product each; equal to :meth:`advance` per sample to round-off.
         """
-        kf = self.kf
+        spec = self.spec
         if self.closed_loop is None:
-            i_kc = np.eye(kf._n) - self.gain_ss @ kf._C
-            self.closed_loop = (i_kc @ kf._A, i_kc @ kf._B if kf._m else None)
+            i_kc = np.eye(spec.n) - self.gain_ss @ spec.C
+            self.closed_loop = (i_kc @ spec.A, i_kc @ spec.B if spec.m else None)
         closed, input_map = self.closed_loop
         n_t = y.shape[1]
         drive = self.gain_ss @ y
-        previous = np.empty((kf._n, n_t))      # x[k-1] per column
-        if kf._m:
+        previous = np.empty((spec.n, n_t))      # x[k-1] per column
+        if spec.m:
             u_prev = np.column_stack([self.u_prev, u[:, :-1]])
-            drive += input_map @ u_prev - self.gain_ss @ (kf._D @ u)
-        states = np.empty((kf._n, n_t))
+            drive += input_map @ u_prev - self.gain_ss @ (spec.D @ u)
+        states = np.empty((spec.n, n_t))
         x = self.x
         for k in range(n_t):
             previous[:, k] = x
             x = closed @ x + drive[:, k]
             states[:, k] = x
-        predicted = kf._A @ previous
-        if kf._m:
-            predicted += kf._B @ u_prev
-        innovations = y - (predicted[kf._sel] if kf._sel is not None else kf._C @ predicted)
-        if kf._m:
-            innovations -= kf._D @ u
+        predicted = spec.A @ previous
+        if spec.m:
+            predicted += spec.B @ u_prev
+        innovations = y - (predicted[spec.sel] if spec.sel is not None else spec.C @ predicted)
+        if spec.m:
+            innovations -= spec.D @ u
         self.x, self.P, self.k = x, self.posterior_ss, self.k + n_t
         if n_t:
             self.u_prev = u[:, -1]
         nis_block = self.nis_frozen(innovations)
-        if kf._total_growth:
-            factor, self.mean_square = kf._inflation(states, self.mean_square)
+        if spec.total_growth:
+            factor, self.mean_square = spec.inflation(states, self.mean_square)
             nis_block = nis_block / factor
-        if kf._window is not None:
+        if spec.window is not None:
             for k, nis in enumerate(nis_block.tolist()):
-                self.monitor(nis, kf._p, y[:, k])
+                self.monitor(nis, spec.p, y[:, k])
         return states
 
     def _joseph_update(self, p_pred, x_pred, y, u, index):
         """Covariance form (``p <= n``): gain through a Cholesky of ``S``, Joseph update."""
-        kf = self.kf
-        r_used = kf._r_eff[np.ix_(index, index)]
-        if kf._sel is not None:
-            cols = kf._sel[index]
+        spec = self.spec
+        r_used = spec.r_eff[np.ix_(index, index)]
+        if spec.sel is not None:
+            cols = spec.sel[index]
             pht = p_pred[:, cols]  # P C^T by indexing: C only selects states
             s = pht[cols] + r_used
             hx = x_pred[cols]
         else:
-            c = kf._C[index]
+            c = spec.C[index]
             pht = p_pred @ c.T
             s = c @ pht + r_used
             hx = c @ x_pred
-        if kf._m:
-            hx = hx + kf._D[index] @ u
+        if spec.m:
+            hx = hx + spec.D[index] @ u
         try:
             with np.errstate(all="ignore"):
                 factor = sla.cho_factor((s + s.T) / 2, lower=True)
@@ -355,7 +482,7 @@ class _Recursion:
         # Joseph form through the structure, O(n^2 p): M = (I - K C) P = P - K (P C^T)^T, then
         # M (I - K C)^T + K R K^T = M - (M C^T) K^T + K R K^T.
         m = p_pred - gain @ pht.T
-        mht = m[:, cols] if kf._sel is not None else m @ c.T
+        mht = m[:, cols] if spec.sel is not None else m @ c.T
         posterior = m - mht @ gain.T + gain @ r_used @ gain.T
         self.P = (posterior + posterior.T) / 2
         return gain, float(e @ sla.cho_solve(factor, e)), e
@@ -365,17 +492,17 @@ class _Recursion:
 
         Every product is ``O(n^3 + n^2 p)``; the ``p x p`` innovation covariance is never formed.
         """
-        kf = self.kf
-        n = kf._n
+        spec = self.spec
+        n = spec.n
         if full:
-            c, r_inv_c, info = kf._C, kf._r_inv_c, kf._info_full
+            c, r_inv_c, info = spec.C, spec.r_inv_c, spec.info_full
         else:
-            c = kf._C[index]
-            r_inv_c = kf._apply_r_inv(c, index)
+            c = spec.C[index]
+            r_inv_c = spec.apply_r_inv(c, index)
             info = c.T @ r_inv_c
         hx = c @ x_pred
-        if kf._m:
-            hx = hx + kf._D[index] @ u
+        if spec.m:
+            hx = hx + spec.D[index] @ u
         with np.errstate(all="ignore"):
             posterior = np.linalg.solve(np.eye(n) + p_pred @ info, p_pred)
         posterior = (posterior + posterior.T) / 2
@@ -383,7 +510,7 @@ class _Recursion:
         e = y[index] - hx
         self.x = x_pred + gain @ e
         self.P = posterior
-        r_inv_e = kf._apply_r_inv(e[:, None], index)[:, 0]
+        r_inv_e = spec.apply_r_inv(e[:, None], index)[:, 0]
         w = c.T @ r_inv_e
         return gain, float(e @ r_inv_e - w @ posterior @ w), e
 
@@ -394,12 +521,12 @@ class _Recursion:
         there) looks settled; the old gain-only test froze a small, wrong covariance. A model
         with undetectable modes on or outside the unit circle is never frozen.
         """
-        kf = self.kf
+        spec = self.spec
         previous_gain, previous_p = self.last_full_gain, self.last_posterior
-        rtol = kf.gain_rtol
+        rtol = spec.gain_rtol
         steady = (
             rtol > 0
-            and not kf._undetectable.size
+            and not spec.undetectable.size
             and previous_gain is not None
             and previous_p is not None
             and np.max(np.abs(gain - previous_gain)) <= rtol * np.max(np.abs(gain))
@@ -409,194 +536,113 @@ class _Recursion:
         # Freeze only after the covariance has stayed put for a few samples: the extra steps
         # shrink what is left of the geometric convergence at almost no cost.
         if self.settled >= _CONFIRM_SAMPLES:
-            self.freeze(gain, self.P, kf._A @ self.P @ kf._A.T + kf._q_eff)
+            self.freeze(gain, self.P, spec.A @ self.P @ spec.A.T + spec.q_eff)
             if self.converged_at is None:
                 self.converged_at = self.k
         self.last_full_gain, self.last_posterior = gain, self.P
 
+    # ------------------------------------------------------------------ model error of S
 
-
-class _FilterInternals:
-    """Private helpers of :class:`~powerline_control.estimate.KalmanFilter` (mixed into it)."""
-
-    def _apply_r_inv(self, values: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
-        """``R_uu^-1 values`` for the sensors ``index`` (all without), diagonal fast path."""
-        if self._r_diag is not None:
-            r = self._r_diag if index is None else self._r_diag[index]
-            return values / r[:, None]
-        r = self._r_eff if index is None else self._r_eff[np.ix_(index, index)]
-        return sla.cho_solve(sla.cho_factor(r), values)
-
-    # ------------------------------------------------------------------ steady state
-
-    def _steady_solution(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(filter gain, posterior covariance, predicted covariance) from the DARE, cached."""
-        if self._steady is None:
-            predicted = solve_filter_dare(self._A, self._C, self._q_eff, self._r_eff)
-            posterior = posterior_from_predicted(predicted, self._C, self._r_eff)
-            gain = filter_gain(predicted, self._C, self._r_eff, posterior)
-            self._steady = (gain, posterior, predicted)
-        return self._steady
-
-    def _measure(self, x: np.ndarray) -> np.ndarray:
-        return x[self._sel] if self._sel is not None else self._C @ x
-
-    def _check_input_sample(self, u_k: object) -> np.ndarray:
-        if u_k is None:
-            return np.zeros(self._m)
-        u = check_array("u_k", u_k, shape=(self.n_inputs,))
-        return u if self._m else np.zeros(0)
-
-    def _check_input_block(self, inputs: object, n_t: int) -> np.ndarray:
-        """Known inputs ``(m, n_t)`` of a block or record (zeros when not given)."""
-        if inputs is None:
-            return np.zeros((self._m, n_t))
-        u = check_array("inputs", inputs, shape=(self.n_inputs, n_t))
-        return u if self._m else np.zeros((0, n_t))
-
-    def _s_growth(self, states: np.ndarray, measurements: np.ndarray,
-                  run: _Recursion) -> np.ndarray | None:
+    def s_growth(self, states: np.ndarray, measurements: np.ndarray) -> np.ndarray | None:
         """Factor on ``S`` per sample of a record (``S_k = S factor``), ``None`` for ``S_k = S``:
         the one place that chooses it. Per frequency with a field reference (one factor per
         consistency window, ``_spectrum.window_nis_growth``), else from the running mean
-        square of the whole field at the sensors (``innovation_growth``; ``run.mean_square``
+        square of the whole field at the sensors (``innovation_growth``; ``self.mean_square``
         is carried on). :meth:`KalmanFilter.filter` scales its field variances by the
         per-frequency factor too (``Estimate.field_growth``), not by the other."""
-        if self._follows_spectrum:
-            whitener = self._spectral_whitener(run)
+        spec = self.spec
+        if spec.follows_spectrum:
+            whitener = self.spectral_whitener()
             if whitener is None:
                 return None
-            return window_nis_growth(measurements, self._window, whitener,
-                                     self._spectral_ref, *self._spectral_field,
-                                     converged_at=run.converged_at or 0)
-        if self._total_growth:
-            factor, run.mean_square = self._inflation(states, run.mean_square)
+            return window_nis_growth(measurements, spec.window, whitener,
+                                     spec.spectral_ref, *spec.spectral_field,
+                                     converged_at=self.converged_at or 0)
+        if spec.total_growth:
+            factor, self.mean_square = spec.inflation(states, self.mean_square)
             return factor
         return None
 
-    def _spectral_whitener(self, run: _Recursion) -> np.ndarray | None:
+    def spectral_whitener(self) -> np.ndarray | None:
         """Lower Cholesky factor of the converged ``S`` the spectral test and the windowed
         test's factor whiten by (``None`` before the gain converges)."""
-        if not run.converged:
+        if not self.converged:
             return None
-        if run.s_factor is not None:
-            return np.tril(run.s_factor[0])
-        s = self._C @ run.predicted_ss @ self._C.T + self._r_eff
+        if self.s_factor is not None:
+            return np.tril(self.s_factor[0])
+        s = self.spec.C @ self.predicted_ss @ self.spec.C.T + self.spec.r_eff
         return whitening_factor(s)
 
-    def _realtime_growth(self, run: _Recursion) -> float:
-        """Factor on ``S`` of the window :meth:`_Recursion.monitor` closes (1 before the gain
-        converges): ``_spectrum.nis_growth`` of the buffered measurements."""
-        whitener = self._spectral_whitener(run)
+    def realtime_growth(self) -> float:
+        """Factor on ``S`` of the window :meth:`monitor` closes (1 before the gain converges):
+        ``_spectrum.nis_growth`` of the buffered measurements."""
+        whitener = self.spectral_whitener()
         if whitener is None:
             return 1.0
-        return nis_growth(run.recent_measurements(), whitener, self._spectral_ref,
-                          *self._spectral_field)
+        return nis_growth(self.recent_measurements(), whitener, self.spec.spectral_ref,
+                          *self.spec.spectral_field)
 
-    def _spectral_consistency(self, consistency: Consistency, innovations: np.ndarray,
-                              scaled: np.ndarray, measurements: np.ndarray,
-                              run: _Recursion) -> Consistency:
+    def spectral_consistency(self, consistency: Consistency, innovations: np.ndarray,
+                             scaled: np.ndarray, measurements: np.ndarray) -> Consistency:
         """``consistency`` with the spectral test of the whitened innovations added.
 
         ``scaled`` are the innovations over ``sqrt`` of the growth factor of ``S_k`` (the
         test's innovations without a field reference); with one, the raw ``innovations``
         whitened by ``S`` are judged against the reference following the field of
         ``measurements``."""
-        factor = self._spectral_whitener(run)
+        spec = self.spec
+        factor = self.spectral_whitener()
         if factor is None:
             return consistency
-        segment = 2 * (self._spectral_ref.size - 1)
-        reference = self._spectral_ref
-        if self._spectral_field is not None:
-            field = measurement_psd(measurements, factor, discard=self._window, segment=segment)
-            reference = following_reference(reference, *self._spectral_field, field)
+        segment = 2 * (spec.spectral_ref.size - 1)
+        reference = spec.spectral_ref
+        if spec.spectral_field is not None:
+            field = measurement_psd(measurements, factor, discard=spec.window, segment=segment)
+            reference = following_reference(reference, *spec.spectral_field, field)
         else:
             innovations = scaled
-        psd, n_avg = whitened_psd(innovations, factor, discard=self._window, segment=segment)
-        fields = spectral_test(psd, n_avg, reference, self._spectral_count)
+        psd, n_avg = whitened_psd(innovations, factor, discard=spec.window, segment=segment)
+        fields = spectral_test(psd, n_avg, reference, spec.spectral_count)
         fields["spectral_ratio"] = read_only(fields["spectral_ratio"])
         fields["spectral_rejected"] = read_only(fields["spectral_rejected"])
-        dt = 1.0 if self.dt is None else self.dt
+        dt = 1.0 if spec.dt is None else spec.dt
         fields["spectral_frequencies"] = read_only(np.fft.rfftfreq(segment, dt))
         consistent = consistency.consistent and fields["spectral_consistent"] is not False
         return dataclasses.replace(consistency, consistent=consistent, **fields)
 
     # ------------------------------------------------------------------ batch recursion
 
-    def _batch_ready(self, run: _Recursion) -> bool:
+    def batch_ready(self) -> bool:
         """Prepare the modal form of the converged closed loop; False if too ill-conditioned."""
-        if run.batch is None:
-            if self.steady_state:
-                # The steady gain never changes: decompose the closed loop once per filter.
-                if self._steady_batch is None:
-                    self._steady_batch = self._build_batch(run.gain_ss)
-                run.batch = self._steady_batch
-            else:
-                run.batch = self._build_batch(run.gain_ss)
-        return run.batch is not False
+        if self.batch is None:
+            # The steady gain never changes: its closed loop is decomposed once per filter.
+            self.batch = (self.spec.steady_batch if self.spec.steady_state
+                          else _build_batch(self.spec, self.gain_ss))
+        return self.batch is not False
 
-    def _build_batch(self, gain: np.ndarray):
-        """Modal form of the converged posterior recursion, or False if it would lose accuracy.
-
-        ``x[k] = F x[k-1] + K y[k] + (I - K C) B u[k-1] - K D u[k]`` with ``F = (I - K C) A``.
-        With ``F = V diag(lambda) V^-1`` every mode is a first-order recursion, all evaluated
-        together by :func:`_diagonal_recursion`; conjugate pairs are run once and lifted back
-        with ``2 Re(.)``, so the lift is one real ``(n, n)`` product per stretch.
-        """
-        n = self._n
-        i_kc = np.eye(n) - gain @ self._C
-        closed = i_kc @ self._A
-        eigenvalues, vectors = np.linalg.eig(closed)
-        if np.linalg.cond(vectors) > _MAX_MODAL_CONDITION:
-            return False
-        real = np.flatnonzero(eigenvalues.imag == 0)
-        upper = np.flatnonzero(eigenvalues.imag > 0)
-        if real.size + 2 * upper.size != n:
-            return False  # eigenvalues not in exact conjugate pairs: keep the loop
-        keep = np.concatenate([real, upper])
-        lu = sla.lu_factor(vectors)
-        drive = gain if not self._m else np.hstack([gain, i_kc @ self._B, -gain @ self._D])
-        modal_drive = sla.lu_solve(lu, drive.astype(complex))[keep]
-        lift = np.hstack(
-            [vectors[:, real].real, 2 * vectors[:, upper].real, -2 * vectors[:, upper].imag]
-        )
-        powers, toeplitz = _recursion_tables(eigenvalues[keep], _SCAN_BLOCK)
-        return {
-            "powers": powers,
-            "toeplitz": toeplitz,
-            "eigenvalues": eigenvalues[keep],
-            "n_real": real.size,
-            "lift": np.ascontiguousarray(lift),
-            "drive_re": np.ascontiguousarray(modal_drive.real),
-            "drive_im": np.ascontiguousarray(modal_drive[real.size :].imag),
-            "lu": lu,
-            "keep": keep,
-            "predict_output": self._C @ self._A,
-            "predict_input": self._C @ self._B if self._m else None,
-        }
-
-    def _run_batch(self, run, y_all, u_all, start, end, states, innovations, nis) -> None:
+    def run_batch(self, y_all, u_all, start, end, states, innovations, nis) -> None:
         """Samples ``start:end`` (converged, NaN-free) through the diagonalised closed loop."""
-        cache = run.batch
+        spec = self.spec
+        cache = self.batch
         n_real = cache["n_real"]
         length = end - start
         y = y_all[:, start:end]
-        if self._m:
+        if spec.m:
             u = u_all[:, start:end]
             u_prev = np.empty_like(u)
-            u_prev[:, 0] = run.u_prev
+            u_prev[:, 0] = self.u_prev
             u_prev[:, 1:] = u[:, :-1]
             drivers = np.vstack([y, u_prev, u])
         else:
             drivers = y
         drive_re = cache["drive_re"] @ drivers
         drive_im = cache["drive_im"] @ drivers
-        z0 = sla.lu_solve(cache["lu"], run.x.astype(complex))[cache["keep"]]
+        z0 = sla.lu_solve(cache["lu"], self.x.astype(complex))[cache["keep"]]
         drive = drive_re.astype(complex)
         drive[n_real:] += 1j * drive_im
         modal = _diagonal_recursion(cache["powers"], cache["toeplitz"], drive, z0)
         n_pairs = modal.shape[0] - n_real
-        stacked = np.empty((self._n, length))
+        stacked = np.empty((spec.n, length))
         stacked[:n_real] = modal[:n_real].real
         stacked[n_real : n_real + n_pairs] = modal[n_real:].real
         stacked[n_real + n_pairs :] = modal[n_real:].imag
@@ -604,17 +650,58 @@ class _FilterInternals:
         # Innovations y[k] - C (A x[k-1] + B u[k-1]) - D u[k] from the states just computed.
         seen = cache["predict_output"] @ block
         predicted = np.empty_like(y)
-        predicted[:, 0] = cache["predict_output"] @ run.x
+        predicted[:, 0] = cache["predict_output"] @ self.x
         predicted[:, 1:] = seen[:, :-1]
-        if self._m:
-            predicted += cache["predict_input"] @ u_prev + self._D @ u
+        if spec.m:
+            predicted += cache["predict_input"] @ u_prev + spec.D @ u
         e = y - predicted
         innovations[:, start:end] = e
-        nis[start:end] = run.nis_frozen(e)
-        run.x = block[:, -1].copy()
-        if self._m:
-            run.u_prev = u[:, -1].copy()
-        run.k += length
+        nis[start:end] = self.nis_frozen(e)
+        self.x = block[:, -1].copy()
+        if spec.m:
+            self.u_prev = u[:, -1].copy()
+        self.k += length
+
+
+def _build_batch(spec: FilterSpec, gain: np.ndarray):
+    """Modal form of the converged posterior recursion, or False if it would lose accuracy.
+
+    ``x[k] = F x[k-1] + K y[k] + (I - K C) B u[k-1] - K D u[k]`` with ``F = (I - K C) A``.
+    With ``F = V diag(lambda) V^-1`` every mode is a first-order recursion, all evaluated
+    together by :func:`_diagonal_recursion`; conjugate pairs are run once and lifted back
+    with ``2 Re(.)``, so the lift is one real ``(n, n)`` product per stretch.
+    """
+    n = spec.n
+    i_kc = np.eye(n) - gain @ spec.C
+    closed = i_kc @ spec.A
+    eigenvalues, vectors = np.linalg.eig(closed)
+    if np.linalg.cond(vectors) > _MAX_MODAL_CONDITION:
+        return False
+    real = np.flatnonzero(eigenvalues.imag == 0)
+    upper = np.flatnonzero(eigenvalues.imag > 0)
+    if real.size + 2 * upper.size != n:
+        return False  # eigenvalues not in exact conjugate pairs: keep the loop
+    keep = np.concatenate([real, upper])
+    lu = sla.lu_factor(vectors)
+    drive = gain if not spec.m else np.hstack([gain, i_kc @ spec.B, -gain @ spec.D])
+    modal_drive = sla.lu_solve(lu, drive.astype(complex))[keep]
+    lift = np.hstack(
+        [vectors[:, real].real, 2 * vectors[:, upper].real, -2 * vectors[:, upper].imag]
+    )
+    powers, toeplitz = _recursion_tables(eigenvalues[keep], _SCAN_BLOCK)
+    return {
+        "powers": powers,
+        "toeplitz": toeplitz,
+        "eigenvalues": eigenvalues[keep],
+        "n_real": real.size,
+        "lift": np.ascontiguousarray(lift),
+        "drive_re": np.ascontiguousarray(modal_drive.real),
+        "drive_im": np.ascontiguousarray(modal_drive[real.size :].imag),
+        "lu": lu,
+        "keep": keep,
+        "predict_output": spec.C @ spec.A,
+        "predict_input": spec.C @ spec.B if spec.m else None,
+    }
 
 
 def _recursion_tables(eigenvalues: np.ndarray, block: int) -> tuple[np.ndarray, np.ndarray]:

@@ -57,13 +57,12 @@ from ..errors import (
 )
 from ._adaptive import DEFAULT_ADAPT_RANGE, check_adaptation
 from ._model_error import (
-    _ModelErrorTerms,
     check_innovation_growth,
     growth_factor,
     next_mean_square,
     running_mean_square,
 )
-from ._recursion import _FilterInternals, _Recursion, _selection_indices
+from ._recursion import FilterSpec, _Recursion, _selection_indices
 from ._spectrum import check_spectral_arguments
 from .consistency import (
     DEFAULT_CONSISTENCY_WINDOW,
@@ -81,7 +80,7 @@ __all__ = ["KalmanFilter"]
 _MIN_BATCH = 256
 
 
-class KalmanFilter(_FilterInternals, _ModelErrorTerms):
+class KalmanFilter:
     """Kalman filter on a discrete ``control.StateSpace`` (time-varying or steady-state gain).
 
     Model ``x[k+1] = A x[k] + B u[k] + w[k]``, ``y[k] = C x[k] + D u[k] + v[k]`` with
@@ -279,100 +278,96 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
         adapt_range: tuple[float, float] = DEFAULT_ADAPT_RANGE,
     ) -> None:
         sys = check_discrete_system("sys", sys)
-        self._adapt_horizon, self._adapt_range = check_adaptation(adapt_horizon, adapt_range,
-                                                                  steady_state)
+        adapt_horizon, adapt_range = check_adaptation(adapt_horizon, adapt_range, steady_state)
         if not isinstance(warn_inconsistent, bool):
             raise InputError("The 'warn_inconsistent' parameter must be True or False. Got "
                              f"{warn_inconsistent!r}.")
         self._warn = warn_inconsistent
-        self._window = (None if consistency_window is None
-                        else check_int("consistency_window", consistency_window, low=1))
+        window = (None if consistency_window is None
+                  else check_int("consistency_window", consistency_window, low=1))
         self._dof_fraction = check_real("nis_dof_fraction", nis_dof_fraction, low=0.0, high=1.0)
         self._fv_scale = check_real("field_variance_scale", field_variance_scale, low=0.0)
         self._fv_relative = check_real("field_relative_variance", field_relative_variance,
                                        low=0.0, low_inclusive=True)
-        self._innov_ref, self._innov_rel = check_innovation_growth(innovation_growth,
-                                                                   steady_state)
-        self._spectral_ref, self._spectral_count, self._spectral_field = \
-            check_spectral_arguments(spectral_reference, spectral_reference_count,
-                                     spectral_field_reference)
-        # S's factor in the windowed test: per window and frequency, or of the whole field.
-        self._follows_spectrum = self._spectral_field is not None and self._window is not None
-        self._total_growth = self._innov_rel > 0 and self._spectral_field is None
-        self._A = np.array(sys.A, dtype=float)
-        self._B = np.array(sys.B, dtype=float)
-        self._C = np.array(sys.C, dtype=float)
-        self._D = np.array(sys.D, dtype=float)
+        innov_ref, innov_rel = check_innovation_growth(innovation_growth, steady_state)
+        spectral_ref, spectral_count, spectral_field = check_spectral_arguments(
+            spectral_reference, spectral_reference_count, spectral_field_reference)
+        A = np.array(sys.A, dtype=float)  # noqa: N806 - the model's conventional names
+        B = np.array(sys.B, dtype=float)  # noqa: N806
+        C = np.array(sys.C, dtype=float)  # noqa: N806
+        D = np.array(sys.D, dtype=float)  # noqa: N806
         self._dims = (sys.nstates, sys.noutputs, sys.ninputs)
-        self._n, self._p = sys.nstates, sys.noutputs
+        n, p = sys.nstates, sys.noutputs
         # A zero B (an autonomous model built with a dummy input) is skipped entirely.
-        has_input = sys.ninputs > 0 and (np.any(self._B) or np.any(self._D))
-        self._m = sys.ninputs if has_input else 0
-        self._dt = None if sys.dt is True else float(sys.dt)
+        has_input = sys.ninputs > 0 and (np.any(B) or np.any(D))
         if not isinstance(steady_state, bool):
             raise InputError(
                 f"The 'steady_state' parameter must be True or False. Got {steady_state!r}."
             )
-        self._steady_state = steady_state
-        self._epsilon = check_real("epsilon", epsilon, low=0.0, low_inclusive=True)
-        self._gain_rtol = check_real("gain_rtol", gain_rtol, low=0.0, low_inclusive=True)
-        if self._p == 0:
+        epsilon = check_real("epsilon", epsilon, low=0.0, low_inclusive=True)
+        gain_rtol = check_real("gain_rtol", gain_rtol, low=0.0, low_inclusive=True)
+        if p == 0:
             raise InputError("The 'sys' parameter must have at least one output (sensor).")
-        n, p = self._n, self._p
-        self._Q = read_only(check_covariance("Q", Q, n))
+        Q = read_only(check_covariance("Q", Q, n))  # noqa: N806
         self._R = read_only(check_covariance("R", R, p))
-        self._q_eff = self._Q + self._epsilon * np.eye(n)
-        self._r_eff = self._R + self._epsilon * np.eye(p)
+        q_eff = Q + epsilon * np.eye(n)
+        r_eff = self._R + epsilon * np.eye(p)
         try:  # the one rule for R: positive definite (here with the paper's epsilon added)
-            np.linalg.cholesky(self._r_eff)
+            np.linalg.cholesky(r_eff)
         except np.linalg.LinAlgError:
             raise InputError(
                 "The 'R' parameter plus epsilon * I must be positive definite: every sensor "
                 "needs measurement noise (a noise-free sensor makes the innovation covariance "
-                f"singular). Got smallest eigenvalue {np.linalg.eigvalsh(self._r_eff).min():.3g}"
-                f" with epsilon={self._epsilon!r}; give R > 0 or use epsilon > 0."
+                f"singular). Got smallest eigenvalue {np.linalg.eigvalsh(r_eff).min():.3g}"
+                f" with epsilon={epsilon!r}; give R > 0 or use epsilon > 0."
             ) from None
         self._x0 = (
             np.zeros(n) if x0 is None else check_array("x0", x0, shape=(n,)).astype(float)
         )
         self._P0 = np.eye(n) if P0 is None else check_covariance("P0", P0, n)
         self._field_map = check_field_map(field_map, n)
-        self._sel = _selection_indices(self._C)
-        # Information (Woodbury) form when there are more outputs than states: every update
-        # then costs O(n^3 + n^2 p) instead of the O(p^3) of a p x p innovation covariance.
-        self._info_form = p > n and self._sel is None
-        diagonal = not np.any(self._r_eff - np.diag(np.diag(self._r_eff)))
-        self._r_diag = np.diag(self._r_eff).copy() if diagonal else None
-        if self._info_form:
-            self._r_inv_c = self._apply_r_inv(self._C)
-            self._info_full = self._C.T @ self._r_inv_c
-        self._radius = float(np.max(np.abs(np.linalg.eigvals(self._A))))
-        self._undetectable = read_only(undetectable_modes(self._A, self._C))
+        sel = _selection_indices(C)
+        diagonal = not np.any(r_eff - np.diag(np.diag(r_eff)))
+        undetectable = read_only(undetectable_modes(A, C))
         # Divergence: a covariance 1e100 times its natural scale has lost all meaning.
-        scale = max(float(np.max(np.abs(self._P0))), float(np.max(np.abs(self._q_eff))),
-                    float(np.max(np.abs(self._r_eff))), 1e-300)
-        self._diverged = 1e100 * scale
-        self._steady: tuple | None = None
-        self._steady_batch: dict | bool | None = None
+        scale = max(float(np.max(np.abs(self._P0))), float(np.max(np.abs(q_eff))),
+                    float(np.max(np.abs(r_eff))), 1e-300)
+        self._spec = FilterSpec(
+            A=A, B=B, C=C, D=D, Q=Q, q_eff=q_eff, r_eff=r_eff, n=n, p=p,
+            m=sys.ninputs if has_input else 0, epsilon=epsilon, gain_rtol=gain_rtol,
+            steady_state=steady_state, sel=sel,
+            # Information (Woodbury) form when there are more outputs than states: every update
+            # then costs O(n^3 + n^2 p) instead of the O(p^3) of a p x p innovation covariance.
+            info_form=p > n and sel is None,
+            r_diag=np.diag(r_eff).copy() if diagonal else None, undetectable=undetectable,
+            radius=float(np.max(np.abs(np.linalg.eigvals(A)))), diverged=1e100 * scale,
+            dt=None if sys.dt is True else float(sys.dt), window=window,
+            # S's factor in the windowed test: per window and frequency, or of the whole field.
+            follows_spectrum=spectral_field is not None and window is not None,
+            total_growth=innov_rel > 0 and spectral_field is None,
+            spectral_ref=spectral_ref, spectral_count=spectral_count,
+            spectral_field=spectral_field, innov_ref=innov_ref, innov_rel=innov_rel,
+            adapt_horizon=adapt_horizon, adapt_range=adapt_range,
+        )
         if steady_state:
             self._steady_solution()  # fail early (EstimationError) if no steady state exists
-        elif self._undetectable.size:
+        elif undetectable.size:
             warnings.warn(
                 f"The sensors cannot see the modes with eigenvalues "
-                f"{describe_modes(self._undetectable)} (on or outside the unit circle): their "
+                f"{describe_modes(undetectable)} (on or outside the unit circle): their "
                 "estimation error grows without bound. The filter keeps propagating their "
                 "covariance honestly (never frozen) and Estimate.undetectable_modes names them.",
                 UndetectableModeWarning,
                 stacklevel=2,
             )
-        self._running = _Recursion(self)
+        self._running = _Recursion(self._spec, self._x0, self._P0)
 
     # ------------------------------------------------------------------ read-only parameters
 
     @property
     def Q(self) -> np.ndarray:  # noqa: N802 - the covariance's conventional name
         """Process-noise covariance ``(n, n)`` given at construction (read-only)."""
-        return self._Q
+        return self._spec.Q
 
     @property
     def R(self) -> np.ndarray:  # noqa: N802 - the covariance's conventional name
@@ -382,22 +377,22 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
     @property
     def epsilon(self) -> float:
         """The paper's regulariser added to ``Q`` and ``R``."""
-        return self._epsilon
+        return self._spec.epsilon
 
     @property
     def gain_rtol(self) -> float:
         """Relative change of the covariance and gain below which the gain is frozen."""
-        return self._gain_rtol
+        return self._spec.gain_rtol
 
     @property
     def steady_state(self) -> bool:
         """Whether the gain is the constant steady-state one."""
-        return self._steady_state
+        return self._spec.steady_state
 
     @property
     def dt(self) -> float | None:
         """Sample time (``None`` for an unspecified timebase)."""
-        return self._dt
+        return self._spec.dt
 
     @property
     def n_states(self) -> int:
@@ -417,12 +412,12 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
     @property
     def undetectable_modes(self) -> np.ndarray:
         """Eigenvalues on or outside the unit circle that the sensors cannot see (read-only)."""
-        return self._undetectable
+        return self._spec.undetectable
 
     @property
     def consistency_window(self) -> int | None:
         """Samples per consistency window (``None``: the test is off)."""
-        return self._window
+        return self._spec.window
 
     @property
     def nis_dof_fraction(self) -> float:
@@ -445,7 +440,7 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
         loops): read ``consistency.consistent`` there.
         """
         closed = self._running.closed
-        if self._window is None or not closed:
+        if self._spec.window is None or not closed:
             return None
         sums, counts, used = (np.array(v, dtype=float) for v in zip(*closed, strict=True))
         if not counts.sum():
@@ -456,8 +451,8 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
         return Consistency(
             mean_nis=mean, nis_dof=total / n_valid, nis_bounds=bounds,
             nis_consistent=bool(bounds[0] <= mean <= bounds[1]),
-            window_start=read_only(np.arange(sums.size) * self._window),
-            **_window_test(sums, counts, used, self._window, self._dof_fraction),
+            window_start=read_only(np.arange(sums.size) * self._spec.window),
+            **_window_test(sums, counts, used, self._spec.window, self._dof_fraction),
         )
 
     @property
@@ -466,12 +461,12 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
 
         ``control.dlqe`` returns the predictor-form gain, which equals ``A @ steady_gain``.
         """
-        return read_only(self._steady_solution()[0].copy())
+        return read_only(self._spec.steady_solution[0].copy())
 
     @property
     def steady_covariance(self) -> np.ndarray:
         """Steady-state posterior covariance ``P[k|k]`` from the Riccati equation, ``(n, n)``."""
-        return read_only(self._steady_solution()[1].copy())
+        return read_only(self._spec.steady_solution[1].copy())
 
     @property
     def innovation_covariance(self) -> np.ndarray:
@@ -487,24 +482,67 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
         >>> float(kf.innovation_covariance[0, 0].round(4))   # P = (1 + sqrt 5) / 2, S = P + 1
         2.618
         """
-        predicted = self._steady_solution()[2]
-        s = self._C @ predicted @ self._C.T + self._r_eff
+        predicted = self._spec.steady_solution[2]
+        s = self._spec.C @ predicted @ self._spec.C.T + self._spec.r_eff
         return read_only((s + s.T) / 2)
 
     @property
     def spectral_reference(self) -> np.ndarray | None:
         """Reference whitened innovation power per bin of the spectral test (``None``: off)."""
-        return self._spectral_ref
+        return self._spec.spectral_ref
 
     @property
     def spectral_reference_count(self) -> int:
         """Segments times channels averaged in :attr:`spectral_reference` (as given)."""
-        return self._spectral_count
+        return self._spec.spectral_count
 
     @property
     def spectral_field_reference(self) -> tuple[np.ndarray, float] | None:
         """``(power, noise)`` the spectral reference follows the field by (as given)."""
-        return self._spectral_field
+        return self._spec.spectral_field
+
+    @property
+    def field_variance_scale(self) -> float:
+        """Factor on the reported field variances (as given)."""
+        return self._fv_scale
+
+    @property
+    def field_relative_variance(self) -> float:
+        """Factor on the running mean square of the field added to its variances (as given)."""
+        return self._fv_relative
+
+    @property
+    def innovation_growth(self) -> tuple[float, float] | None:
+        """``(reference, share)`` of the innovation covariance's growth (as given)."""
+        spec = self._spec
+        return (spec.innov_ref, spec.innov_rel) if spec.innov_rel > 0 else None
+
+    @property
+    def adapt_horizon(self) -> int | None:
+        """Time constant (samples) of the covariance matching of ``Q`` (``None``: off)."""
+        return self._spec.adapt_horizon
+
+    @property
+    def process_noise_scale(self) -> float:
+        """Current scale ``q`` on ``Q`` of the real-time recursion (1 without adaptation)."""
+        return 1.0 if self._running.adapt is None else self._running.adapt.q
+
+    def _steady_solution(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(filter gain, posterior covariance, predicted covariance) from the DARE, cached."""
+        return self._spec.steady_solution
+
+    def _check_input_sample(self, u_k: object) -> np.ndarray:
+        if u_k is None:
+            return np.zeros(self._spec.m)
+        u = check_array("u_k", u_k, shape=(self.n_inputs,))
+        return u if self._spec.m else np.zeros(0)
+
+    def _check_input_block(self, inputs: object, n_t: int) -> np.ndarray:
+        """Known inputs ``(m, n_t)`` of a block or record (zeros when not given)."""
+        if inputs is None:
+            return np.zeros((self._spec.m, n_t))
+        u = check_array("inputs", inputs, shape=(self.n_inputs, n_t))
+        return u if self._spec.m else np.zeros((0, n_t))
 
     # ------------------------------------------------------------------ public API
 
@@ -524,10 +562,10 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
             If ``x0`` or ``P0`` has the wrong shape or is not finite / PSD.
         """
         if x0 is not None:
-            self._x0 = check_array("x0", x0, shape=(self._n,)).astype(float)
+            self._x0 = check_array("x0", x0, shape=(self._spec.n,)).astype(float)
         if P0 is not None:
-            self._P0 = check_covariance("P0", P0, self._n)
-        self._running = _Recursion(self)
+            self._P0 = check_covariance("P0", P0, self._spec.n)
+        self._running = _Recursion(self._spec, self._x0, self._P0)
 
     @property
     def state(self) -> np.ndarray:
@@ -562,18 +600,19 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
         EstimationError
             If the innovation covariance becomes singular.
         """
-        y = check_array("y_k", y_k, shape=(self._p,), allow_nan=True)
+        y = check_array("y_k", y_k, shape=(self._spec.p,), allow_nan=True)
         return self._advance(y, self._check_input_sample(u_k)).copy()
 
     def _advance(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
         """One checked sample through the real-time recursion and its consistency window."""
         run = self._running
+        spec = self._spec
         _, nis, used = run.advance(y, u)
-        if self._total_growth:  # one sample of _inflation, without the array set-up
-            nis = nis / float(growth_factor(run.mean_square, self._innov_rel, self._innov_ref))
-            run.mean_square = next_mean_square(run.mean_square, self._measure(run.x),
-                                               self._mean_square_window)
-        if self._window is not None:
+        if spec.total_growth:  # one sample of FilterSpec.inflation, without the array set-up
+            nis = nis / float(growth_factor(run.mean_square, spec.innov_rel, spec.innov_ref))
+            run.mean_square = next_mean_square(run.mean_square, spec.measure(run.x),
+                                               spec.mean_square_window)
+        if spec.window is not None:
             run.monitor(nis, used, y)
         return run.x
 
@@ -615,14 +654,14 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
         >>> bool(np.array_equal(block.step_block(y), by_step))
         True
         """
-        y_all = check_array("measurements", measurements, shape=(self._p, None),
+        y_all = check_array("measurements", measurements, shape=(self._spec.p, None),
                             allow_nan=True)
         n_t = y_all.shape[1]
         u_all = self._check_input_block(inputs, n_t)
         run = self._running
         if run.converged and not run.first and not np.isnan(y_all).any():
             return run.advance_frozen(y_all, u_all)   # no covariance work: one loop, no checks
-        states = np.empty((self._n, n_t))
+        states = np.empty((self._spec.n, n_t))
         for k in range(n_t):
             states[:, k] = self._advance(y_all[:, k], u_all[:, k])
         return states
@@ -671,10 +710,10 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
                 f"The 'update_state' parameter must be True or False. Got {update_state!r}."
             )
         y_all = check_array("measurements", measurements, ndim=2, allow_nan=True)
-        if y_all.shape[0] != self._p:
+        if y_all.shape[0] != self._spec.p:
             raise InputError(
                 "The 'measurements' parameter has the wrong shape: expected "
-                f"({self._p}, n_t) (one row per model output, time along columns) but found "
+                f"({self._spec.p}, n_t) (one row per model output, time along columns) but found "
                 f"{y_all.shape}."
             )
         if y_all.shape[1] == 0:   # numpy's "zero-size array" error otherwise, from deep inside
@@ -684,7 +723,7 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
         warn_if_saturated("The 'measurements' parameter", y_all, stacklevel=2)
         n_t = y_all.shape[1]
         u_all = self._check_input_block(inputs, n_t)
-        n, p = self._n, self._p
+        n, p = self._spec.n, self._spec.p
         states = np.empty((n, n_t))
         innovations = np.full((p, n_t), np.nan)
         nis = np.full(n_t, np.nan)
@@ -708,15 +747,15 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
                 last_p, last_field_var = cov, self._fv_scale * mapped_variances(cov, field_map)
             return last_field_var
 
-        run = _Recursion(self)
+        run = _Recursion(self._spec, self._x0, self._P0)
         scales = None if run.adapt is None else np.empty(n_t)
         k = 0
         while k < n_t:
             if run.converged and not run.first and not missing_rows[k]:
                 nxt = np.searchsorted(nan_positions, k)
                 end = int(nan_positions[nxt]) if nxt < nan_positions.size else n_t
-                if end - k >= _MIN_BATCH and self._batch_ready(run):
-                    self._run_batch(run, y_all, u_all, k, end, states, innovations, nis)
+                if end - k >= _MIN_BATCH and run.batch_ready():
+                    run.run_batch(y_all, u_all, k, end, states, innovations, nis)
                     run.P = run.posterior_ss  # every sample of the stretch was a frozen update
                     if variances is not None:
                         variances[:, k:end] = np.diag(run.P)[:, None]
@@ -739,11 +778,11 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
             variances = np.broadcast_to(np.diag(run.P)[:, None], (n, n_t))
         whitened_innovations = innovations
         raw_nis = nis
-        factor = self._s_growth(states, y_all, run)
+        factor = run.s_growth(states, y_all)
         if factor is not None:  # S_k = S * factor_k: the model error that grows with the field
             nis = nis / factor
             whitened_innovations = innovations / np.sqrt(factor)
-        field_growth = factor if factor is not None and self._follows_spectrum else None
+        field_growth = factor if factor is not None and self._spec.follows_spectrum else None
         if update_state:
             self._running = run
         field = None
@@ -756,7 +795,7 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
                 )
             if self._fv_relative > 0:
                 field_variances = field_variances + self._fv_relative * running_mean_square(
-                    field, self._mean_square_window)
+                    field, self._spec.mean_square_window)
             if field_growth is not None:
                 # The model error at nodes no sensor sees grows as the innovations' does: the
                 # window's factor on S (per frequency) scales the field variances too.
@@ -775,18 +814,18 @@ class KalmanFilter(_FilterInternals, _ModelErrorTerms):
             field=field,
             field_variances=field_variances,
             field_growth=field_growth,
-            undetectable_modes=tuple(complex(v) for v in self._undetectable),
+            undetectable_modes=tuple(complex(v) for v in self._spec.undetectable),
             process_noise_scale=scales,
         )
-        if update_state and self._window is not None:
+        if update_state and self._spec.window is not None:
             run.resume(nis, raw_nis, n_used, y_all)  # the real-time monitor continues from here
-        if self._window is None or not np.any(n_used):
+        if self._spec.window is None or not np.any(n_used):
             return estimate
-        consistency = filter_consistency(estimate, window=self._window,
+        consistency = filter_consistency(estimate, window=self._spec.window,
                                          dof_fraction=self._dof_fraction)
-        if self._spectral_ref is not None:
-            consistency = self._spectral_consistency(consistency, innovations,
-                                                     whitened_innovations, y_all, run)
+        if self._spec.spectral_ref is not None:
+            consistency = run.spectral_consistency(consistency, innovations,
+                                                    whitened_innovations, y_all)
         if self._warn and not consistency.consistent:
             warnings.warn(
                 consistency.message + " Neither the estimate nor its variances describe this "
