@@ -1,7 +1,8 @@
 """Pages generated from the code, so that they cannot fall behind it.
 
 - ``api/index.rst``: every name in ``powerline_control.__all__``, one section per module in the
-  package's data-flow order, each name an autosummary entry (numpydoc renders its page).
+  package's data-flow order, each name an autosummary entry (numpydoc renders its page); then
+  the subpackages' other public names (each module's ``__all__``), one section per module.
 - ``gallery/<example>.md``: one page per script in ``examples/`` (its docstring, how to run it,
   its source), and ``gallery/index.md`` listing them. The examples named in the
   ``plc_gallery_execute`` setting of conf.py (the quick ones) run during the build, in their own
@@ -129,7 +130,38 @@ def api_page() -> str:
                   "   :nosignatures:", ""]
         lines += [f"   {name}" for name in names]
         lines.append("")
+    lines += [SUBPACKAGE_PART, "=" * len(SUBPACKAGE_PART), "",
+              "The other public names, importable from their subpackage or module",
+              "(``plc.severity.robot_value``, ``plc.errors.ReachWarning``), in the same order.", ""]
+    for module, title, names in subpackage_sections():
+        heading = f"{title} (``powerline_control.{module}``)"
+        lines += [heading, "-" * len(heading), "", f".. currentmodule:: powerline_control.{module}",
+                  "", ".. autosummary::", "   :toctree: generated", "   :nosignatures:", ""]
+        lines += [f"   {name}" for name in names]
+        lines.append("")
     return "\n".join(lines)
+
+
+#: The heading of the API page's second part: the names of the subpackages beyond the top level.
+SUBPACKAGE_PART = "In the subpackages"
+
+
+def subpackage_sections() -> list[tuple[str, str, list[str]]]:
+    """(module, title, names) of the public names the top level does not export: each listed
+    module's ``__all__`` less ``powerline_control.__all__``, in data-flow order; a name two
+    modules export (a re-export) is listed under the first."""
+    top, seen, sections = set(public_names()), set(), []
+    for module in MODULE_ORDER:
+        try:
+            mod = importlib.import_module(f"powerline_control.{module}")
+        except ImportError:
+            continue
+        names = sorted({n for n in getattr(mod, "__all__", ()) if n not in top | seen},
+                       key=str.lower)
+        if names:
+            sections.append((module, _module_title(module), names))
+            seen |= set(names)
+    return sections
 
 
 def example_scripts() -> list[Path]:
@@ -279,6 +311,14 @@ def executed_examples(configured: list[str] | str) -> set[str]:
 def write_pages(docs: Path = DOCS, execute: set[str] = frozenset(), warn=print) -> None:
     """Generate ``api/index.rst`` and ``gallery/*.md`` under ``docs``, running ``execute``."""
     _write_if_changed(docs / "api" / "index.rst", api_page())
+    # autosummary never removes a page: one left by a name since moved or removed would be an
+    # orphan (a -W failure), so the pages of names no longer listed go, as stale gallery pages do
+    listed = {f"powerline_control.{name}" for name in public_names()} | {
+        f"powerline_control.{module}.{name}" for module, _, names in subpackage_sections()
+        for name in names}
+    for stale in (docs / "api" / "generated").glob("*.rst"):
+        if stale.stem not in listed:
+            stale.unlink()
     scripts = example_scripts()
     gallery = docs / "gallery"
     for stale in gallery.glob("*.md"):
