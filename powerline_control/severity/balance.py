@@ -29,7 +29,7 @@ import numpy as np
 import scipy.interpolate
 import scipy.optimize
 
-from .._results import TabularResult
+from .._results import TabularResult, to_dataframe
 from .._validation import (
     check_budget,
     check_choice,
@@ -208,8 +208,8 @@ class SeverityResult(TabularResult):
         Parameters
         ----------
         as_frame : bool
-            True returns a pandas DataFrame (pandas must be installed); default a list of
-            dicts.
+            True returns a pandas DataFrame, as :meth:`to_dataframe` does (pandas must be
+            installed); default a list of dicts.
 
         Returns
         -------
@@ -241,14 +241,7 @@ class SeverityResult(TabularResult):
                 "sbl_margin": float(self.sbl_margin[i]),
                 "endurance_margin": float(self.endurance_margin[i]),
             })
-        if not as_frame:
-            return rows
-        try:
-            import pandas as pd
-        except ImportError as exc:  # pragma: no cover - depends on the environment
-            raise InputError("as_frame=True needs pandas; install it or use the list of "
-                             "dicts (as_frame=False).") from exc
-        return pd.DataFrame(rows)
+        return to_dataframe(rows, "SeverityResult") if as_frame else rows
 
 
 def _clamp_stress(span: Span, frequency: float, amplitude: float, *, strand: float,
