@@ -194,3 +194,20 @@ def test_the_display_escapes_text():
 
 def _tagged(k):
     return {"label": f"<b>{k}</b>", "nan": float("nan")}
+
+
+def test_every_result_of_a_scenario_shows_itself(lab_result):
+    """The results a scenario holds (the session's lab run): a display and a summary each, and
+    strict JSON from the small ones (the records' JSON is megabytes: not worth the seconds)."""
+    design = lab_result.identification.design
+    shown = [lab_result, lab_result.records.test, design, design.model,
+             lab_result.layouts["chosen"].estimate, lab_result.plan.trajectory,
+             lab_result.closed_loop.result, lab_result.severity.bare]
+    for result in shown:
+        page = result._repr_html_()
+        assert page.startswith('<table class="powerline-control-result">'), type(result)
+        assert result.summary().strip(), type(result)
+    for result in (lab_result, design.model, lab_result.plan.trajectory,
+                   lab_result.severity.bare):
+        assert isinstance(_strict_json(result.to_json()), dict)
+    assert _strict_json(lab_result.to_json()).keys() == lab_result.to_dict().keys()
