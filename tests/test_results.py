@@ -108,7 +108,8 @@ def test_comparing_a_result_never_raises(cls):
 # subpackage, not the package's top level).
 TOP_LEVEL_RESULTS = {
     "simulation": ["Snapshots"], "identify": ["DMDModel", "OscillatorModel", "SpanCalibration"],
-    "estimate": ["Estimate"], "recipe": ["EstimatorDesign"], "sensors": ["SensorSelection"],
+    "estimate": ["Estimate", "Consistency", "Accuracy"], "recipe": ["EstimatorDesign", "Coverage"],
+    "sensors": ["SensorSelection"],
     "plan": ["Trajectory"], "closed_loop": ["ClosedLoopResult"],
     "severity": ["SeverityResult", "RobotValue", "FatigueOverRecord"], "studies": ["StudyResult"],
     "scenario.result": ["ScenarioResult"], "scenario.calibrate": ["ScenarioCalibration"],

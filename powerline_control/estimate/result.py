@@ -156,7 +156,7 @@ def _freeze_arrays(result: object) -> None:
 
 
 @dataclass(frozen=True, eq=False)
-class Consistency:
+class Consistency(Result):
     """NEES / NIS statistics: is the filter's covariance honest about its errors?
 
     Two views of the same question (design.md 4.7). The whole-record means (``mean_nis``,
@@ -331,7 +331,7 @@ class Consistency:
 
 
 @dataclass(frozen=True, eq=False)
-class Accuracy:
+class Accuracy(Result):
     """RMS estimation errors, relative to the RMS of the true signal.
 
     Attributes

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._results import Result
 from .._validation import check_array, read_only
 from ..errors import EstimatorInconsistentWarning, InputError, SaturationWarning
 from ..estimate import DEFAULT_CONSISTENCY_WINDOW
@@ -52,7 +53,7 @@ def sensor_psd(y: np.ndarray, segment: int = COVERAGE_SEGMENT) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class Coverage:
+class Coverage(Result):
     """What an estimator design can estimate: the training band, the model's modes, node sigma.
 
     Built by :func:`~powerline_control.recipe.design_estimator` (``EstimatorDesign.coverage``).
