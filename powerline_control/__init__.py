@@ -108,7 +108,6 @@ def __dir__() -> list[str]:
 # subpackage, where the docs list it: plc.severity.robot_value, plc.estimate.analyze_observability,
 # plc.errors.ReachWarning, plc.simulation.parked_steady_state, ...
 __all__ = [
-    "MDR",
     "AeolianForce",
     "Antinode",
     "ClosedLoopResult",
@@ -127,6 +126,7 @@ __all__ = [
     "InputError",
     "KalmanFilter",
     "LineModel",
+    "MDR",
     "ModalDamping",
     "MotionPlanner",
     "OnlineDMD",

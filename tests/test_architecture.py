@@ -274,6 +274,15 @@ def test_the_package_is_a_plain_module():
     assert not shadowing, f"modules named after public names of the package: {shadowing}"
 
 
+def test_the_top_level_is_sorted_and_everything_else_has_a_subpackage():
+    """``__all__`` is sorted, lists each name once, and the package resolves each lazily; the
+    names it leaves out stay public in their subpackage (the API page lists those too)."""
+    assert plc.__all__ == sorted(plc.__all__) and len(set(plc.__all__)) == len(plc.__all__)
+    assert all(getattr(plc, name, None) is not None for name in plc.__all__)
+    assert plc.severity.robot_value and plc.estimate.analyze_observability
+    assert plc.errors.ReachWarning and plc.simulation.parked_steady_state
+
+
 def test_no_module_only_forwards_to_another():
     """No deprecation layer before the first release: each module path is a real home."""
     forwarding = sorted(path.name for path in PACKAGE.rglob("*.py")
