@@ -28,7 +28,7 @@ Modules: :mod:`.model` (DMDModel), :mod:`.stability` (StabilityReport, DampingRe
 :mod:`.fit` (fit_dmd), :mod:`._ridge` (the ridge solve), :mod:`.alpha` (select_alpha,
 AlphaCurve), :mod:`.online` (OnlineDMD), :mod:`.oscillator` (OscillatorModel),
 :mod:`.calibration` (calibrate_span, SpanCalibration: the physics model's tension and EI from a
-record).
+record), :mod:`.span_model` (span_model, SpanModel: the calibrated span's modes as a model).
 """
 
 from .alpha import AlphaCurve, select_alpha
@@ -37,6 +37,7 @@ from .fit import fit_dmd
 from .model import DMDModel
 from .online import OnlineDMD
 from .oscillator import OscillatorModel
+from .span_model import SpanModel, span_model
 from .stability import DampingReport, StabilityReport
 
 __all__ = [
@@ -50,4 +51,6 @@ __all__ = [
     "select_alpha",
     "SpanCalibration",
     "calibrate_span",
+    "SpanModel",
+    "span_model",
 ]

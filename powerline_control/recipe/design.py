@@ -45,6 +45,7 @@ from .._validation import (
     warn_if_saturated,
 )
 from ..errors import (
+    ExcitationWarning,
     IdentificationError,
     InputError,
     ModelErrorRecordsWarning,
@@ -65,6 +66,7 @@ from .defaults import (
 )
 from .dmd import _dmd_design
 from .modal import _completed_basis, _modal_design, _smooth_basis
+from .physics import _check_nominal, _choose
 from .record import (
     _check_noise_std,
     _noise_floor,
@@ -99,6 +101,8 @@ def design_estimator(
     warn_inconsistent: bool = False,
     model_error_records: object = None,
     adapt_horizon: int | None = None,
+    nominal: object = None,
+    bc: object = None,
 ) -> EstimatorDesign:
     """Identify a reduced model, select sensors and build the Kalman filter, in one call.
 
@@ -140,14 +144,15 @@ def design_estimator(
         model is fitted on the whole record.
     seed : int, Generator or None
         Seed of the sensor selection's random baseline.
-    method : {"auto", "dmd", "modal"}, default "auto"
+    method : {"auto", "dmd", "modal", "physics"}, default "auto"
         "dmd": time-delay DMD (steps 1-4 above). "modal": one undamped oscillator per spectral
         line of the record (frequency and spatial shape found above the noise, in the data's POD
         directions completed with smooth fields over ``positions``); ``delays``, ``rank`` and
         ``alphas`` are then not used. "auto": "modal" when the record is narrowband (its
         spectral lines explain it down to the noise: a harmonic load), else "dmd". A narrowband
         record warns :class:`~powerline_control.errors.ExcitationWarning` (see
-        :attr:`EstimatorDesign.excitation`).
+        :attr:`EstimatorDesign.excitation`). "physics": the calibrated span's modes
+        (``nominal`` required).
     process_noise : float, default 1
         Modal model only: process-noise variance per step and line coordinate, in units of the
         sensor noise variance (the unknown load of a new run, tracked from the sensors).
@@ -182,6 +187,19 @@ def design_estimator(
         the innovations over this horizon, ``R`` the sensor noise; the model-error terms are
         fitted with it. Default ``None``: the steady filter with ``Q`` and ``R`` matched once
         on the held-out part (``docs/validation/adaptive_noise.md`` compares the two).
+    nominal : Span or LineModel, optional
+        The span as told (catalogue conductor, length, supports, stringing tension): adds the
+        physics candidate, the nominal span calibrated from the training part of the record
+        (:func:`~powerline_control.identify.calibrate_span` at up to 16 evenly spread moving
+        nodes) and written as its modes near the record's spectral lines
+        (:func:`~powerline_control.identify.span_model`), which carry the standing wave between
+        the sensors. With ``method="auto"`` it replaces the DMD or oscillator model when its
+        estimator's error at the unmeasured nodes of the held-out part is smaller (the same
+        score as the alpha sweep's; ``excitation.method`` is then "physics"); the final
+        model is calibrated on the whole record. Needs the node positions (Snapshots' ``x`` or
+        ``positions``).
+    bc : str or (str, str), optional
+        Supports of a nominal Span (default "pinned"); a LineModel carries its own.
 
     Returns
     -------
@@ -238,23 +256,42 @@ def design_estimator(
                    train_fraction=train_fraction, seed=seed, method=method,
                    process_noise=process_noise, warn_inconsistent=warn_inconsistent,
                    model_error_records=model_error_records, adapt_horizon=adapt_horizon)
+    told = _check_nominal(nominal, bc)
+    if rec.method == "physics":
+        if told is None:
+            raise InputError("The 'method' parameter is 'physics', which calibrates the span "
+                             "as told: give 'nominal' (a Span with bc=, or a LineModel). Got "
+                             "nominal=None.")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SaturationWarning)
+            return _choose(None, rec, *told)
     # A narrowband record gets one oscillator per spectral line, unless ("auto") its lines
     # leave more than noise unexplained; every other record gets a time-delay DMD model.
     # A clipped node was named above: the held-out filter runs on its rows do not repeat it.
+    # With a nominal span, the physics candidate then replaces it if it scores better on the
+    # held-out part (the narrowband warning waits for that choice).
+    design = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SaturationWarning)
+        if told is not None:
+            warnings.simplefilter("ignore", ExcitationWarning)
         if rec.method == "modal" or (rec.method == "auto"
                                      and rec.excitation.occupancy < _NARROWBAND_OCCUPANCY):
             design = _modal_design(rec)
-            if design is not None:
-                if rec.others:
-                    warnings.warn(
-                        f"The 'model_error_records' parameter ({len(rec.others)} record(s)) was "
-                        "not used: method='auto' chose the modal model for this narrowband "
-                        "record, which has no model-error terms. Pass method='dmd' to set their "
-                        "level from the records.", ModelErrorRecordsWarning, stacklevel=2)
-                return design
-        return _dmd_design(rec, alphas)
+            if design is not None and rec.others:
+                warnings.warn(
+                    f"The 'model_error_records' parameter ({len(rec.others)} record(s)) was "
+                    "not used: method='auto' chose the modal model for this narrowband "
+                    "record, which has no model-error terms. Pass method='dmd' to set their "
+                    "level from the records.", ModelErrorRecordsWarning, stacklevel=2)
+        if design is None:
+            design = _dmd_design(rec, alphas)
+        if told is None:
+            return design
+        design = _choose(design, rec, *told) if rec.method == "auto" else design
+    if design.excitation.narrowband:
+        warnings.warn(design.excitation.message, ExcitationWarning, stacklevel=2)
+    return design
 
 
 #: A model-error record whose sensor noise std differs from the training record's by more than
@@ -300,7 +337,7 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
             f"{n_samples - n_fit} samples) need at least {4 * delays} each. Give a longer "
             "record (a few periods of the lowest mode of interest) or fewer 'delays'."
         )
-    method = check_choice("method", method, ("auto", "dmd", "modal"))
+    method = check_choice("method", method, ("auto", "dmd", "modal", "physics"))
     process_noise = check_real("process_noise", process_noise, low=0.0, high=1e6)
     if adapt_horizon is not None:   # the filter's own check, before the alpha sweep
         adapt_horizon = check_int("adapt_horizon", adapt_horizon, low=2)

@@ -107,6 +107,18 @@ def _held_out_error(train: np.ndarray, held: np.ndarray, spatial: np.ndarray, dt
     """
     try:
         model = _sweep_model(train, spatial, dt, alpha, delays, rank)
+    except _MODEL_FAILURES:
+        return math.inf
+    return _unmeasured_score(model, held, layout, candidates, noise, data_noise, q_floor, delays)
+
+
+def _unmeasured_score(model, held: np.ndarray, layout: np.ndarray, candidates: np.ndarray,
+                      noise: float, data_noise: float, q_floor: float, delays: int) -> float:
+    """The held-out score of one model (inf: its filter fails): the steady filter on the
+    ``layout`` rows of ``held``, its relative RMS error at the other moving nodes with the
+    noise of the held-out truth removed (:func:`_held_out_error`). The one rule every candidate
+    of the recipe is compared by (the DMD alphas, the oscillator and the physics models)."""
+    try:
         field = _steady_filter(model, layout, noise, q_floor).filter(held[layout]).field
     except _MODEL_FAILURES:
         return math.inf
@@ -402,7 +414,7 @@ def _lift(model: DMDModel, spatial: np.ndarray) -> DMDModel:
 
 def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
     """The time-delay DMD design: alpha from held-out data, sensors, calibrated filter."""
-    X, dt, delays, n_samples = rec.X, rec.dt, rec.delays, rec.n_samples
+    X, dt, delays = rec.X, rec.dt, rec.delays
     coords, spatial, noise, q_floor = rec.coords, rec.spatial, rec.noise, rec.q_floor
     # 4. Alpha from held-out data: the error of the estimator itself at unmeasured nodes.
     grid = _DEFAULT_ALPHAS if alphas is None else check_array("alphas", alphas, ndim=1)
@@ -453,6 +465,19 @@ def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
         partial_model = _sweep_model(coords[:, :n_fit], spatial, dt, alpha, delays, rank)
     except _MODEL_FAILURES:
         partial_model = None
+    return _calibrated_design(rec, model, partial_model, chosen, selection, sweep,
+                              spatial_rank=rec.k, n_stabilised=lifted.n_unstable,
+                              excitation=rec.excitation)
+
+
+def _calibrated_design(rec: _Record, model, partial_model, chosen: np.ndarray, selection,
+                       sweep: AlphaSweep, *, spatial_rank: int, n_stabilised: int,
+                       excitation) -> EstimatorDesign:
+    """The design of ``model`` on the ``chosen`` sensors, its filter's covariance matched on the
+    held-out part with ``partial_model`` (the same model from the training part alone; None:
+    not measured) and its model-error terms fitted (:func:`_field_error_model`). Shared by the
+    DMD and the physics families."""
+    X, dt, n_fit, noise, q_floor = rec.X, rec.dt, rec.n_fit, rec.noise, rec.q_floor
     scale, fraction, reference, sigma_ratio, growth = _calibration(
         partial_model, X[:, n_fit:], chosen, noise, q_floor, rec.candidates, rec.data_noise)
     # Model error at the unmeasured nodes, which the innovations cannot show: fitted on the
@@ -481,12 +506,12 @@ def _dmd_design(rec: _Record, alphas) -> EstimatorDesign:
         noise_std=float(noise),
         noise_source=rec.source,
         alpha_sweep=sweep,
-        spatial_rank=rec.k,
+        spatial_rank=spatial_rank,
         sensor_selection=selection,
-        n_train=n_samples,
-        n_stabilised=lifted.n_unstable,
+        n_train=rec.n_samples,
+        n_stabilised=n_stabilised,
         q_floor=q_floor,
-        excitation=rec.excitation,
+        excitation=excitation,
         covariance_scale=scale,
         nis_dof_fraction=fraction,
         coverage=build_coverage(X[chosen], dt, rec.data_noise, model, kf, chosen),
