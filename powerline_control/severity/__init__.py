@@ -1,8 +1,9 @@
 """Aeolian severity of a span: wind power, self-damping, the standing wave and its dampers, the
 energy balance and clamp strain, wind climates and records, fatigue, the robot's value, checks.
 
-Modules: wind, self_damping, dampers, balance, climate, checks, record, fatigue, and
-clamp_estimate (clamp strain from an estimator's field, with its sigma).
+Modules: wind, self_damping, dampers, balance, aeolian_run (the same powers in the time
+domain), climate, checks, record, fatigue, and clamp_estimate (clamp strain from an estimator's
+field, with its sigma).
 ``powerline_control.severity`` keeps every name the single module ``severity.py`` had.
 """
 
@@ -17,7 +18,9 @@ from ._common import (  # noqa: F401 (constants other modules and users import f
     POFFENBERGER_SWART_DISTANCE,
     SECONDS_PER_YEAR,
 )
-from .balance import *  # noqa: F403 (each module's public names: its __all__)
+from .aeolian_run import *  # noqa: F403 (each module's public names: its __all__)
+from .aeolian_run import __all__ as _aeolian_run_all
+from .balance import *  # noqa: F403
 from .balance import SAFE_BORDER_LINES  # noqa: F401
 from .balance import __all__ as _balance_all
 from .checks import *  # noqa: F403
@@ -38,4 +41,4 @@ from .wind import *  # noqa: F403
 from .wind import __all__ as _wind_all
 
 __all__ = [*_wind_all, *_dampers_all, *_balance_all, *_climate_all, *_checks_all, *_record_all,
-           *_fatigue_all, *_self_damping_all, *_clamp_estimate_all]
+           *_fatigue_all, *_self_damping_all, *_clamp_estimate_all, *_aeolian_run_all]

@@ -282,13 +282,15 @@ class ModalPlant:
                               if robot.damping > 0 else 0.0)
         return result
 
-    def matrices(self, x: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def matrices(self, x: float | None, line_damping: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """M, C, K over (q, y): O(r^2) rank-one updates of the bare line's diagonal ones, with
-        the robot's parameters of :meth:`robot_parameters` at x."""
+        the robot's parameters of :meth:`robot_parameters` at x. ``line_damping`` (r, r), if
+        given, replaces the line's own modal damping (an amplitude-dependent one)."""
         r, nq = self.r, self.n_q
         mass, damp, stiff = np.eye(nq), np.zeros((nq, nq)), np.zeros((nq, nq))
         stiff[:r, :r] = np.diag(self.omega2)
-        damp[:r, :r] = self.line_damping
+        damp[:r, :r] = self.line_damping if line_damping is None else line_damping
         if self.robot is None or x is None:
             return mass, damp, stiff
         n = self.coupling(x)
@@ -314,12 +316,8 @@ class ModalPlant:
             return self._cache[key]
         mass, damp, stiff = self.matrices(x)
         nq, r, dt = self.n_q, self.r, self.dt
-        inverse_mass = np.linalg.inv(mass)  # block-diagonal, rank-one off I: well conditioned
+        inverse_mass, a = _first_order(mass, damp, stiff)
         n_z = 2 * nq
-        a = np.zeros((n_z, n_z))
-        a[:nq, nq:] = np.eye(nq)
-        a[nq:, :nq] = -inverse_mass @ stiff
-        a[nq:, nq:] = -inverse_mass @ damp
         phi = scipy.linalg.expm(a * dt)
         stiffness_factor = scipy.linalg.cho_factor(stiff)
 
@@ -339,6 +337,12 @@ class ModalPlant:
             self._cache.clear()
         self._cache[key] = result
         return result
+
+    def state_matrix(self, x: float | None, line_damping: np.ndarray | None = None
+                     ) -> np.ndarray:
+        """A of z' = A z, z = (q, y, q', y'), with the robot at x (and ``line_damping`` as in
+        :meth:`matrices`)."""
+        return _first_order(*self.matrices(x, line_damping))[1]
 
     def energy(self, z: np.ndarray, x: float | None) -> float:
         """Kinetic plus potential energy of state z = (q, y, q', y'), J."""
@@ -365,6 +369,18 @@ class ModalPlant:
     def receptance(self, x: float, omega: float) -> np.ndarray:
         """Bare line's displacement at every node per unit harmonic force at x (modal sum)."""
         return self.nodal @ self.modal_response(self.coupling(x), omega)
+
+
+def _first_order(mass: np.ndarray, damp: np.ndarray, stiff: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(M^-1, A) of M q'' + C q' + K q = 0 written as z' = A z, z = (q, q')."""
+    inverse_mass = np.linalg.inv(mass)  # block-diagonal, rank-one off I: well conditioned
+    nq = mass.shape[0]
+    a = np.zeros((2 * nq, 2 * nq))
+    a[:nq, nq:] = np.eye(nq)
+    a[nq:, :nq] = -inverse_mass @ stiff
+    a[nq:, nq:] = -inverse_mass @ damp
+    return inverse_mass, a
 
 
 def _sines(model: LineModel, loads) -> list[tuple[float, np.ndarray]]:

@@ -1,0 +1,387 @@
+"""The self-limiting aeolian vibration in the time domain: the energy balance's own powers.
+
+In lock-in the wind's lift follows the conductor's velocity: it is a negative damping whose
+power at antinode amplitude Y is the power curve's P_w(Y); the conductor's self-damping is a
+positive damping whose power is the self-damping law's P_c(Y). For a standing wave
+y = Y sin(beta x) sin(omega t), a uniform viscous damping c = 2 zeta m omega per metre takes
+zeta m omega^3 Y^2 / 2 per metre, so each power is a modal damping ratio
+
+    zeta(Y) = 2 P(Y) / (m omega^3 Y^2)
+
+(the mapping :func:`~powerline_control.severity.time_domain_check` uses). The run integrates the
+line's modes and the parked robot exactly (:class:`~powerline_control.simulation.plant.ModalPlant`)
+over blocks short against the amplitude's own time scale, each block with the ratios of the
+amplitudes at its start: the wind feeds the mode locked to the Strouhal frequency, self-damping
+acts on every mode at its own amplitude, and the robot's damper is the FE robot's. The amplitude
+settles where P_w = P_c + P_robot, as the energy balance says, without a lift coefficient or a
+modal damping ratio chosen by hand.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from .._threads import on_one_blas_thread
+from .._validation import check_real, read_only
+from ..errors import InputError, TruncationWarning
+from ..excitation import DEFAULT_STROUHAL
+from ..fem import MDR, LineModel
+from ..line import Span
+from ..simulation.plant import ModalPlant, default_modes
+from ._common import MAX_WIND_SPEED, _check_span
+from .balance import _check_dampers, aeolian_severity
+from .self_damping import FotiMartinelli
+from .wind import SelfDampingLaw, _curve, self_damping_power, wind_power
+
+__all__ = ["AeolianRun", "simulate_aeolian"]
+
+#: The wind's negative damping is evaluated at no less than this reduced amplitude Y/D: the
+#: CIGRE cubic's constant term gives the wind a finite power at Y = 0 (which the energy balance
+#: uses as it is), hence an infinite ratio zeta_w at rest.
+LOWEST_REDUCED_AMPLITUDE = 1e-3
+
+#: A line whose amplitude falls below this fraction of the wind's lowest amplitude has stopped
+#: vibrating: the wind cannot sustain it (the energy balance's amplitude there comes from the
+#: power curve's constant term, below the curves' data).
+VANISHED = 1e-3
+
+#: Largest change of the amplitude-dependent damping's decay exponent over one block: each block
+#: holds the ratios of its start, so it must be short against the amplitude's time scale.
+BLOCK_EXPONENT = 0.05
+
+
+@dataclass(frozen=True, eq=False)
+class AeolianRun:
+    """A self-limiting aeolian run (see :func:`simulate_aeolian`) against the energy balance.
+
+    Attributes
+    ----------
+    wind_speed : float
+        m/s.
+    frequency : float
+        Natural frequency of the locked-in mode (the bare line's mode nearest St V / D), Hz.
+    mode : int
+        That mode's number (1-based).
+    amplitude : float
+        Steady antinode amplitude, zero-to-peak, m: the largest of sqrt(2 mean y^2) over the
+        nodes in the final window.
+    balance_amplitude : float
+        The energy balance's amplitude for the same span, wind and robot
+        (:func:`aeolian_severity`), m.
+    relative_error : float
+        ``amplitude / balance_amplitude - 1``.
+    settled : bool
+        True when the amplitude's extrapolated remaining change is below ``settle_tolerance``,
+        or when the vibration has died out (below :data:`VANISHED` times
+        :data:`LOWEST_REDUCED_AMPLITUDE` D).
+    t_envelope, envelope : ndarray
+        Block start times, s, and the locked mode's antinode amplitude then, m.
+    wind_power, self_damping_power, robot_power : float
+        Powers measured in the final window, W per metre of span: the wind's input, the
+        conductor's self-damping and the robot's damper.
+    energy_residual : float
+        (wind input - dissipation - energy gained) / wind input over the final window: the
+        integration's energy conservation.
+    x : ndarray
+        Node positions, m.
+    field_amplitude : ndarray
+        Steady amplitude at each node, m.
+
+    Examples
+    --------
+    >>> from powerline_control import Span
+    >>> run = simulate_aeolian(Span.at_rts_fraction(60.0, "drake", 0.2), 3.0)
+    >>> run.settled, abs(run.relative_error) < 0.1
+    (True, True)
+    """
+
+    wind_speed: float
+    frequency: float
+    mode: int
+    amplitude: float
+    balance_amplitude: float
+    relative_error: float
+    settled: bool
+    t_envelope: np.ndarray = field(repr=False)
+    envelope: np.ndarray = field(repr=False)
+    wind_power: float = 0.0
+    self_damping_power: float = 0.0
+    robot_power: float = 0.0
+    energy_residual: float = 0.0
+    x: np.ndarray = field(default=None, repr=False)
+    field_amplitude: np.ndarray = field(default=None, repr=False)
+
+
+def _ratio(power: float, mass: float, omega: float, amplitude: float) -> float:
+    """zeta = 2 P / (m omega^3 Y^2): the modal damping ratio that takes ``power`` W/m."""
+    return 2.0 * power / (mass * omega**3 * amplitude**2)
+
+
+@on_one_blas_thread
+def simulate_aeolian(
+    span: Span,
+    wind_speed: float,
+    robot: MDR | None = None,
+    *,
+    bc: str = "clamped",
+    n_elements: int | None = None,
+    strouhal: float = DEFAULT_STROUHAL,
+    wind_curve: str = "cigre",
+    turbulence_intensity: float = 0.0,
+    self_damping: str | SelfDampingLaw | FotiMartinelli = "noiseux1991",
+    self_damping_k: float | None = None,
+    self_damping_exponents: Sequence[float] | None = None,
+    start_amplitude: float | None = None,
+    settle_tolerance: float = 0.01,
+    max_duration: float = 7200.0,
+    samples_per_period: int = 32,
+    window_periods: int = 20,
+) -> AeolianRun:
+    """Simulate aeolian vibration that settles by the energy balance's own powers.
+
+    The wind and the self-damping are the functions the energy balance calls
+    (:func:`wind_power`, :func:`self_damping_power`), applied as amplitude-dependent modal
+    damping (the module doc gives the mapping); the robot parked at ``robot.position`` is the FE
+    robot, so its power is computed, not imposed. Blocks of the exact linear flow are chained,
+    each short enough that the amplitude-dependent ratios change its decay by at most
+    :data:`BLOCK_EXPONENT`; the run stops when the amplitude's extrapolated remaining change
+    (Aitken's, over three equally spaced envelope values) is below ``settle_tolerance``, or at
+    ``max_duration`` with a warning. A final window of ``window_periods`` periods sampled
+    ``samples_per_period`` times a period measures the amplitude and the three powers.
+
+    Parameters
+    ----------
+    span : Span
+        The line.
+    wind_speed : float
+        m/s, in (0, 30].
+    robot : MDR or None
+        The robot, parked at its position (None: the bare line).
+    bc : {"clamped", "pinned"}
+        Supports.
+    n_elements : int or None
+        FE mesh (None: the mesh that resolves the aeolian band).
+    strouhal, wind_curve, turbulence_intensity, self_damping, self_damping_k, \
+self_damping_exponents
+        As in :func:`aeolian_severity`.
+    start_amplitude : float or None
+        Antinode amplitude of the locked mode at the start, m (default: half the energy
+        balance's amplitude without the robot, so the run approaches the steady state from
+        below).
+    settle_tolerance : float
+        Relative distance to the steady amplitude at which the run stops, in (0, 0.5].
+    max_duration : float
+        Longest simulated time, s (> 0).
+    samples_per_period : int
+        Samples a period in the final window, 8-1024.
+    window_periods : int
+        Periods in the final window, 2-10000.
+
+    Returns
+    -------
+    AeolianRun
+
+    Raises
+    ------
+    InputError
+        For bad arguments, a robot that is not an MDR, or a wind whose energy balance leaves the
+        power curve's data (name another ``wind_curve``).
+
+    Warns
+    -----
+    TruncationWarning
+        When the run reaches ``max_duration`` before it settles (a very light damping: a low
+        wind on a long span); the result then has ``settled=False``.
+
+    Examples
+    --------
+    >>> from powerline_control import Span
+    >>> run = simulate_aeolian(Span.at_rts_fraction(60.0, "drake", 0.2), 3.0)
+    >>> round(run.amplitude / run.balance_amplitude, 2)
+    1.0
+    """
+    span = _check_span(span)
+    speed = check_real("wind_speed", wind_speed, low=0.0, high=MAX_WIND_SPEED)
+    if robot is not None and not isinstance(robot, MDR):
+        raise InputError("The 'robot' parameter of simulate_aeolian must be an MDR or None. Got "
+                         f"{type(robot).__name__}.")
+    tolerance = check_real("settle_tolerance", settle_tolerance, low=0.0, high=0.5,
+                           high_inclusive=True)
+    max_duration = check_real("max_duration", max_duration, low=0.0)
+    per_period = int(check_real("samples_per_period", samples_per_period, low=8,
+                                low_inclusive=True, high=1024, high_inclusive=True))
+    n_window = int(check_real("window_periods", window_periods, low=2, low_inclusive=True,
+                              high=10000, high_inclusive=True))
+    dampers = () if robot is None else (robot,)
+    _check_dampers(dampers, span)
+    powers = {"wind_curve": wind_curve, "turbulence_intensity": turbulence_intensity}
+    law = {"self_damping": self_damping, "self_damping_k": self_damping_k,
+           "self_damping_exponents": self_damping_exponents}
+    balance = aeolian_severity(span, [speed], dampers, strouhal=strouhal, bc=bc, **powers, **law)
+    if balance.status[0] == "above curve range":
+        raise InputError(
+            f"The 'wind_speed' {speed:g} m/s drives the span past the {wind_curve!r} power "
+            f"curve's data (Y/D > {_curve(wind_curve).max_reduced_amplitude:g}): the steady "
+            "amplitude is unknown. Choose a wind_curve whose data reach further.")
+    if start_amplitude is None:
+        bare_balance = balance if robot is None else aeolian_severity(
+            span, [speed], strouhal=strouhal, bc=bc, **powers, **law)
+        start = 0.5 * float(bare_balance.amplitude[0])
+        if start <= 0:
+            start = LOWEST_REDUCED_AMPLITUDE * span.conductor.diameter
+    else:
+        start = check_real("start_amplitude", start_amplitude, low=0.0,
+                           high=span.conductor.diameter * _curve(wind_curve).max_reduced_amplitude,
+                           high_inclusive=True)
+
+    cond = span.conductor
+    shedding = strouhal * speed / cond.diameter
+    bare = LineModel(span, n_elements, bc=bc)
+    modes = default_modes(span, bare, [shedding], 1.0 / (8 * shedding))
+    plant = ModalPlant(bare, robot, modes, dt=1.0 / (per_period * shedding))
+    band = plant.n_band
+    omega = np.sqrt(plant.omega2[:band])
+    locked = int(np.argmin(np.abs(omega / (2 * math.pi) - shedding)))
+    frequency = float(omega[locked] / (2 * math.pi))
+    mode_number = int((np.arange(modes) if np.ndim(modes) == 0 else modes)[locked]) + 1
+    peak = np.max(np.abs(plant.nodal[:, :band]), axis=0)    # antinode displacement per unit q
+    position = None if robot is None else robot.position
+    floor = LOWEST_REDUCED_AMPLITUDE * cond.diameter
+    y_max = _curve(wind_curve).max_reduced_amplitude * cond.diameter
+    mass = cond.mass_per_length
+
+    def amplitudes(z: np.ndarray) -> np.ndarray:
+        """Each band mode's antinode amplitude from its energy (smooth where the robot's
+        absorber exchanges energy with the line; exact for a free mode)."""
+        q, v = z[:band], z[plant.n_q:plant.n_q + band]
+        return peak * np.sqrt(q**2 + (v / omega) ** 2)
+
+    def line_amplitude(z: np.ndarray) -> float:
+        """The antinode amplitude of one standing wave at the locked frequency carrying the
+        line's whole vibration energy, E = m omega^2 Y^2 L / 4 (what the run follows)."""
+        q, v = z[:band], z[plant.n_q:plant.n_q + band]
+        energy = 0.5 * float(np.sum(v**2 + omega**2 * q**2))
+        return math.sqrt(4 * energy / (mass * omega[locked] ** 2 * span.length))
+
+    def line_damping(z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Modal damping (r, r): each band mode's self-damping 2 zeta_c omega at its own
+        amplitude, and the wind's negative -2 zeta_w omega on the locked mode at its own."""
+        y = amplitudes(z)
+        own = np.zeros(band)
+        for i in np.flatnonzero(y > 0):
+            p_c = float(self_damping_power(y[i], omega[i] / (2 * math.pi), span, **law))
+            own[i] = 2 * _ratio(p_c, mass, omega[i], y[i]) * omega[i]
+        y_wind = min(max(y[locked], floor), y_max)
+        p_w = float(wind_power(y_wind, frequency, cond.diameter, **powers))
+        wind = -2 * _ratio(p_w, mass, omega[locked], y_wind) * omega[locked]
+        matrix = np.zeros((plant.r, plant.r))
+        matrix[:band, :band] = np.diag(own)
+        matrix[locked, locked] += wind
+        return matrix, own, wind
+
+    z = np.zeros(2 * plant.n_q)
+    z[locked] = start / peak[locked]
+    t, times, envelope = 0.0, [], []
+    settled, observed = False, 0.0
+    energy = plant.energy(z, position)
+    while t < max_duration:
+        times.append(t)
+        envelope.append(line_amplitude(z))
+        if _settled(times, envelope, tolerance) or envelope[-1] < VANISHED * floor:
+            settled = True
+            break
+        matrix, own, wind = line_damping(z)
+        # the amplitude's own rate, 1/s: the ratios' and what the last block showed of the
+        # total energy (the robot's damping is in the exact flow, but it moves the amplitudes
+        # the ratios follow; the line's own energy alone beats with the absorber's)
+        rate = max(abs(wind), float(own[locked]), 1e-12) / 2
+        step = min(BLOCK_EXPONENT / max(rate, observed), max_duration - t)
+        step = max(step, 0.25 / frequency)
+        z = _flow(plant.state_matrix(position, matrix), step, z)
+        t += step
+        energy, before = plant.energy(z, position), energy
+        observed = abs(math.log(max(energy, 1e-300) / max(before, 1e-300))) / (2 * step)
+    if not settled:
+        warnings.warn(
+            f"simulate_aeolian: at {speed:g} m/s the amplitude had not settled within "
+            f"'max_duration'={max_duration:g} s (last {envelope[-1]:.3g} m, energy balance "
+            f"{float(balance.amplitude[0]):.3g} m): the damping is very light. Raise "
+            "max_duration or start_amplitude nearer the balance.", TruncationWarning,
+            stacklevel=2)
+
+    # ---- the final window: amplitude and powers, sampled, the ratios held at its start
+    matrix, own, wind = line_damping(z)
+    dt = 1.0 / (per_period * frequency)
+    phi = scipy.linalg.expm(plant.state_matrix(position, matrix) * dt)
+    n_samples = per_period * n_window + 1
+    states = np.empty((n_samples, z.size))
+    states[0] = z
+    for k in range(1, n_samples):
+        states[k] = phi @ states[k - 1]
+    velocities = states[:, plant.n_q:]
+    _, robot_damping, _ = plant.matrices(position, np.zeros((plant.r, plant.r)))
+
+    def mean_power(quadratic: np.ndarray) -> float:
+        values = np.einsum("ki,ij,kj->k", velocities, quadratic, velocities)
+        return float(np.trapezoid(values, dx=dt) / (dt * (n_samples - 1)))
+
+    own_matrix = np.zeros((plant.n_q, plant.n_q))
+    own_matrix[:band, :band] = np.diag(own)
+    wind_matrix = np.zeros((plant.n_q, plant.n_q))
+    wind_matrix[locked, locked] = -wind
+    p_wind, p_self = mean_power(wind_matrix), mean_power(own_matrix)
+    p_robot = mean_power(robot_damping)
+    gained = (plant.energy(states[-1], position) - plant.energy(states[0], position)) \
+        / (dt * (n_samples - 1))
+    residual = (p_wind - p_self - p_robot - gained) / p_wind if p_wind > 0 else 0.0
+    field_amplitude = np.sqrt(2 * np.mean((states[:, :plant.r] @ plant.nodal.T) ** 2, axis=0))
+    amplitude = float(field_amplitude.max())
+    reference = float(balance.amplitude[0])
+    return AeolianRun(
+        wind_speed=speed, frequency=frequency, mode=mode_number,
+        amplitude=amplitude, balance_amplitude=reference,
+        relative_error=amplitude / reference - 1 if reference > 0 else math.inf,
+        settled=settled, t_envelope=read_only(np.asarray(times)),
+        envelope=read_only(np.asarray(envelope)), wind_power=p_wind / span.length,
+        self_damping_power=p_self / span.length, robot_power=p_robot / span.length,
+        energy_residual=float(residual), x=read_only(bare.node_positions.copy()),
+        field_amplitude=read_only(field_amplitude))
+
+
+def _flow(a: np.ndarray, duration: float, z: np.ndarray) -> np.ndarray:
+    """exp(A duration) z through A's eigenvectors: one eigen-solve, where expm of a block many
+    periods long needs many squarings of the whole matrix."""
+    eigenvalues, vectors = np.linalg.eig(a)
+    return np.real(vectors @ (np.exp(eigenvalues * duration) * np.linalg.solve(vectors, z)))
+
+
+def _settled(times: list[float], envelope: list[float], tolerance: float) -> bool:
+    """Aitken's extrapolation over the envelope's time means on the last three quarters of the
+    run, in three equal windows: the remaining change of a geometric approach to the steady
+    amplitude, relative to it. Means, not samples: where the robot's absorber exchanges energy
+    with the line, the amplitude at a block's start carries the beat."""
+    if len(envelope) < 12:
+        return False
+    t, y = np.asarray(times), np.asarray(envelope)
+    edges = t[-1] * np.array([0.25, 0.5, 0.75, 1.0])
+    means = []
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        inside = (t >= lo) & (t <= hi)
+        if np.count_nonzero(inside) < 3:
+            return False
+        means.append(float(np.trapezoid(y[inside], t[inside]) / (t[inside][-1] - t[inside][0])))
+    y1, y2, y3 = means
+    if y3 <= 0:
+        return False
+    d1, d2 = y2 - y1, y3 - y2
+    if max(abs(d1), abs(d2)) > tolerance * y3:   # both windows still: no fast transient left
+        return False
+    denominator = d2 - d1
+    remaining = d2 if denominator == 0 else -d2 * d2 / denominator
+    return abs(remaining) <= tolerance * y3

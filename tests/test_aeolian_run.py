@@ -1,0 +1,139 @@
+"""The self-limiting aeolian run: it settles where the energy balance says, conserves energy, and
+refuses what it cannot do.
+
+Independent truths: the energy balance's amplitude (a root of P_w = P_c found by bracketing, no
+time integration), the conservation of energy over the final window (wind input = dissipation +
+energy gained), and the closed-form decay of quadratic power laws (constant damping ratios).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import powerline_control as plc
+from powerline_control.errors import InputError, TruncationWarning
+from powerline_control.severity import simulate_aeolian
+
+
+def _span(name: str, length: float) -> plc.Span:
+    return plc.Span.at_rts_fraction(length, name, 0.2)
+
+
+@pytest.mark.parametrize(("name", "length", "bc", "wind_speed"), [
+    ("drake", 60.0, "clamped", 3.0),
+    ("condor", 80.0, "pinned", 2.0),
+    ("cardinal", 80.0, "pinned", 4.0),
+])
+def test_bare_line_settles_at_the_energy_balance(name, length, bc, wind_speed):
+    span = _span(name, length)
+    run = simulate_aeolian(span, wind_speed, bc=bc)
+    balance = plc.severity.aeolian_severity(span, [wind_speed], bc=bc)
+    assert run.settled
+    # the energy balance at the Strouhal frequency; the run locks to the nearest mode, whose
+    # frequency differs by at most half a mode spacing (a few % on these short spans)
+    assert run.balance_amplitude == pytest.approx(float(balance.amplitude[0]))
+    assert abs(run.relative_error) < 0.05
+    # energy: what the wind puts in is what the conductor takes out (steady state)
+    assert abs(run.energy_residual) < 0.01
+    assert run.self_damping_power == pytest.approx(run.wind_power, rel=0.02)
+    assert run.robot_power == 0.0
+
+
+def test_run_approaches_the_balance_from_above_and_below():
+    span = _span("drake", 60.0)
+    low = simulate_aeolian(span, 3.0, start_amplitude=1e-3)
+    high = simulate_aeolian(span, 3.0, start_amplitude=20e-3)
+    assert low.envelope[0] < low.amplitude and high.envelope[0] > high.amplitude
+    assert low.amplitude == pytest.approx(high.amplitude, rel=0.02)
+
+
+def test_measured_powers_are_the_power_curve_and_the_law_at_the_amplitude():
+    # The window's wind power is the power curve's at the locked mode's amplitude, at the mode's
+    # frequency: the run uses the energy balance's functions, not a lift of its own.
+    span = _span("drake", 60.0)
+    run = simulate_aeolian(span, 3.0)
+    d = span.conductor.diameter
+    expected = float(plc.severity.wind_power(run.amplitude, run.frequency, d))
+    assert run.wind_power == pytest.approx(expected, rel=0.02)
+    law = float(plc.severity.self_damping_power(run.amplitude, run.frequency, span))
+    assert run.self_damping_power == pytest.approx(law, rel=0.02)
+
+
+def test_robot_takes_power_and_lowers_the_amplitude():
+    span = _span("drake", 60.0)
+    model = plc.LineModel(span, bc="clamped")
+    robot = plc.tune_damper(model, 18, 32.6, 3.0, body_mass=5.0)
+    bare = simulate_aeolian(span, 3.0)
+    damped = simulate_aeolian(span, 3.0, robot)
+    assert damped.settled and damped.amplitude < 0.2 * bare.amplitude
+    assert damped.robot_power > 0.5 * damped.wind_power
+    assert abs(damped.energy_residual) < 0.01
+
+
+def test_a_wind_that_cannot_sustain_vibration_lets_it_die_out():
+    # Oxlip (AAC, 10.5 mm) at 20 % RTS: the energy balance's 5 m/s amplitude is Y/D = 3e-4, a
+    # balance of the self-damping with the CIGRE cubic's constant term at Y = 0, below any
+    # measured power curve point; the wind's negative damping, capped at Y/D = 1e-3, cannot
+    # hold the line there, and the run ends with the vibration gone.
+    span = _span("oxlip", 50.0)
+    run = simulate_aeolian(span, 5.0)
+    assert run.settled and run.amplitude < 1e-3 * run.balance_amplitude
+    assert run.balance_amplitude / span.conductor.diameter < 1e-3
+
+
+def test_too_short_a_run_says_so():
+    with pytest.warns(TruncationWarning, match="max_duration"):
+        run = simulate_aeolian(_span("drake", 60.0), 3.0, max_duration=1.0)
+    assert not run.settled
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"wind_speed": -1.0}, "wind_speed"),
+    ({"wind_speed": 3.0, "robot": "mdr"}, "robot"),
+    ({"wind_speed": 3.0, "settle_tolerance": 0.0}, "settle_tolerance"),
+    ({"wind_speed": 3.0, "max_duration": 0.0}, "max_duration"),
+    ({"wind_speed": 3.0, "samples_per_period": 4}, "samples_per_period"),
+    ({"wind_speed": 3.0, "wind_curve": "nope"}, "wind_curve"),
+    ({"wind_speed": 3.0, "start_amplitude": 1.0}, "start_amplitude"),
+])
+def test_bad_input_is_named(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        simulate_aeolian(_span("drake", 60.0), **kwargs)
+
+
+def test_a_wind_beyond_the_power_curve_is_refused():
+    # Bate's digitised curve starts at Y/D = 0.06 and ends at 0.2: a 1 m/s wind on Drake
+    # balances beyond it (the energy balance says "above curve range")
+    span = _span("drake", 300.0)
+    balance = plc.severity.aeolian_severity(span, [1.0], wind_curve="bate", bc="clamped")
+    assert balance.status[0] == "above curve range"
+    with pytest.raises(InputError, match="wind_curve"):
+        simulate_aeolian(span, 1.0, wind_curve="bate")
+
+
+def test_decay_rate_matches_the_net_damping_closed_form():
+    # Quadratic powers make both dampings constant ratios, zeta = 2 P / (m omega^3 Y^2): the
+    # wind's zeta_w = 2 c D^2 / (m (2 pi)^3) for F(a) = c a^2, the conductor's
+    # zeta_c = 2 k / (m (2 pi)^3) for P_c = k Y^2 f^3 (T^0). The amplitude then decays exactly
+    # as exp(-(zeta_c - zeta_w) omega t).
+    span = _span("drake", 60.0)
+    d, m = span.conductor.diameter, span.conductor.mass_per_length
+    c, k = 1e4, 10.0
+    curve = plc.severity.WindPowerCurve("quadratic", "test", "F(a) = c a^2",
+                                        coefficients=(-1e-9, c, 0.0, 0.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TruncationWarning)
+        run = simulate_aeolian(span, 3.0, wind_curve=curve, self_damping_k=k,
+                               self_damping_exponents=(2.0, 3.0, 0.0), start_amplitude=1e-3,
+                               max_duration=2.0)
+    zeta_w = 2 * c * d**2 / (m * (2 * math.pi) ** 3)
+    zeta_c = 2 * k / (m * (2 * math.pi) ** 3)
+    assert zeta_c - zeta_w > 0.005          # a decay of a few e-folds in 2 s
+    omega = 2 * math.pi * run.frequency
+    expected = np.exp(-(zeta_c - zeta_w) * omega * run.t_envelope)
+    assert run.t_envelope[-1] > 1.5
+    assert np.allclose(run.envelope / run.envelope[0], expected, rtol=1e-3)
