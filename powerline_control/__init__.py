@@ -67,7 +67,7 @@ _LAZY_EXPORTS = {
         "fatigue_over_record",
     ),
     "closed_loop": (
-        "ClosedLoopResult", "run_closed_loop",
+        "ClosedLoopResult", "PolicySettings", "run_closed_loop",
     ),
     "studies": (
         "StudyResult", "parameter_grid", "run_study",
@@ -131,6 +131,7 @@ __all__ = [
     "MotionPlanner",
     "OnlineDMD",
     "PlanningError",
+    "PolicySettings",
     "PowerlineControlError",
     "RandomForce",
     "RayleighDamping",

@@ -24,28 +24,15 @@ from ..fem import MDR, LineModel, ModalDamping
 from ..identify import calibrate_span
 from ..line import Span
 from ..simulation.plant import ModalPlant, default_modes
+from .policy_settings import PolicySettings
 
 # A nominal span must have the simulated span's length within this fraction: a record or a model
 # of another span is no belief about this one (lengths are surveyed; tensions drift).
 LENGTH_TOLERANCE = 0.01
-#: The closed loop calibrates on records of at least this many cycles of the nominal
-#: fundamental: the modes beside the tone are a fundamental apart, and a record resolves lines
-#: about 2 / duration apart (a shorter one's lines are too wide to tell neighbouring modes).
-MIN_CYCLES = 2.0
 #: A record must grow by this much (s) before it is calibrated again.
 MIN_NEW_RECORD = 1.0
-#: The belief is rebuilt on a calibrated tension that differs from the believed one by more than
-#: this fraction of it: the calibration's posterior mean (the nominal is its prior) is the best
-#: guess even when it lies within its own standard deviation of the nominal, and a smaller change
-#: moves an antinode 200 m from a support by less than 5 % of a loop at mode 100.
-BELIEF_TOLERANCE = 1e-3
-#: A calibration this many times less certain than the one believed moves nothing.
-LESS_CERTAIN = 2.0
-#: The belief moves on a calibration whose main peak holds at least this share of its posterior
-#: (an unambiguous one holds 95 %): a robot that waits for certainty holds still at its start,
-#: often near a node, and a move on odds of 4 to 1 is checked by what the sensors measure after it
-#: (the policy undoes a move that made the line vibrate more).
-TRUSTED_SHARE = 0.8
+# When a calibration moves the belief (min_cycles, belief_tolerance, trusted_share,
+# less_certain) is the policy's to set: PolicySettings, with the evidence for each value.
 #: The line damping a controller told only a Span assumes: a conductor's self-damping at aeolian
 #: amplitudes is 0.05-0.5 % of critical; this is the middle of that range on a log scale.
 ASSUMED_DAMPING = ModalDamping(0.0015)
@@ -258,14 +245,18 @@ class BeliefTracker:
     (:func:`~powerline_control.identify.calibrate_span`, the nominal model as prior, the robot
     parked where it spent most of the record) and rebuilds the
     Belief from the calibrated span when its tension differs from the believed one by more than
-    BELIEF_TOLERANCE of it (a rebuild costs a modal plant). A calibration whose main peak holds
-    less than TRUSTED_SHARE of its posterior (several tensions explain the record) moves nothing:
-    its highest peak may be a neighbouring mode's; nor does one LESS_CERTAIN times less certain
-    than the one believed (a record over which the robot moved tells less).
+    ``settings.belief_tolerance`` of it (a rebuild costs a modal plant). A calibration whose main
+    peak holds less than ``settings.trusted_share`` of its posterior (several tensions explain
+    the record) moves nothing: its highest peak may be a neighbouring mode's; nor does one
+    ``settings.less_certain`` times less certain than the one believed (a record over which the
+    robot moved tells less); nor one on fewer than ``settings.min_cycles`` cycles of the
+    fundamental.
     """
 
     def __init__(self, nominal: Belief, *, robot: MDR, n_modes, dt: float,
-                 frequencies: Sequence[float], calibrate: bool):
+                 frequencies: Sequence[float], calibrate: bool,
+                 settings: PolicySettings | None = None):
+        self.settings = PolicySettings() if settings is None else settings
         self.nominal = nominal
         self.belief = nominal
         self.calibrate = calibrate
@@ -280,9 +271,9 @@ class BeliefTracker:
     @property
     def waiting(self) -> bool:
         """Whether a first target waits for the span's calibration: calibrating and none
-        trusted yet (TRUSTED_SHARE). A target chosen on a nominal tension several per cent off
-        lands loops away on a long span (a 330 m span told 1 % low: 2.9x worse than where the robot
-        started), so the robot holds until its records tell the tension."""
+        trusted yet (``settings.trusted_share``). A target chosen on a nominal tension several
+        per cent off lands loops away on a long span (a 330 m span told 1 % low: 2.9x worse than
+        where the robot started), so the robot holds until its records tell the tension."""
         return self.calibrate and not self.trusted
 
     def update(self, seen, k: int, band: tuple[float, float] | None = None) -> str | None:
@@ -307,9 +298,11 @@ class BeliefTracker:
         """:meth:`update`'s calibration and rebuild (timed by it)."""
         now = float(seen.t[k])
         fundamental = float(self.nominal.span.pinned_frequencies(1)[0])
-        if (now - float(seen.t[0])) * fundamental < MIN_CYCLES:
+        policy = self.settings
+        if (now - float(seen.t[0])) * fundamental < policy.min_cycles:
             return (f"belief kept at tension {self.belief.span.tension:.5g} N: the record "
-                    f"({now - float(seen.t[0]):.3g} s) is shorter than {MIN_CYCLES:g} cycles of "
+                    f"({now - float(seen.t[0]):.3g} s) is shorter than {policy.min_cycles:g} "
+                    "cycles of "
                     f"the fundamental ({fundamental:.3g} Hz), too short to separate the modes "
                     "beside the tone")
         positions, values = seen.sensor_positions, seen.sensors[:, : k + 1]
@@ -331,12 +324,12 @@ class BeliefTracker:
             return f"belief kept at tension {self.belief.span.tension:.5g} N: {error}"
         self.calibrations.append((now, calibration))
         believed = self.belief.span.tension
-        if calibration.peak_share < TRUSTED_SHARE:
+        if calibration.peak_share < policy.trusted_share:
             # several tensions explain the record: its highest peak may be a neighbouring mode's
             return (f"belief kept at tension {believed:.5g} N: the record (its "
                     f"{calibration.duration:.3g} s) cannot tell between tensions "
                     f"{calibration.tension:.5g} +- {calibration.tension_std:.2g} N")
-        if self.trusted and calibration.tension_std > LESS_CERTAIN * self._believed_std:
+        if self.trusted and calibration.tension_std > policy.less_certain * self._believed_std:
             # the record grew but tells much less: the robot moved during it, its field is no
             # longer one steady state; the calibration believed stands (a new tone's
             # calibration, after a wind change, is about as certain as the last)
@@ -345,7 +338,7 @@ class BeliefTracker:
                     f"certain than the one believed (+- {self._believed_std:.2g} N)")
         self.trusted = True
         self._believed_std = calibration.tension_std
-        if abs(calibration.tension - believed) <= BELIEF_TOLERANCE * believed:
+        if abs(calibration.tension - believed) <= policy.belief_tolerance * believed:
             return None
         self.belief = believe(calibration.span, like=self.nominal.bare, robot=self._robot,
                               n_modes=self._n_modes, dt=self._dt,

@@ -1,4 +1,10 @@
-"""run_closed_loop: sensors -> estimate -> target -> motion -> the robot moves, and the verdict."""
+"""run_closed_loop: sensors' phasors -> target -> motion -> the robot moves, and the verdict.
+
+The target comes from the phasors of the sensors and of the robot's own motion at the load's
+tone (the robot-free excited shape, :func:`.policy.kernel_shape`), predicted with the controller's
+belief; the Kalman estimate is run alongside and judged (its innovation ratio, its consistency),
+not steered by.
+"""
 
 from __future__ import annotations
 
@@ -20,10 +26,6 @@ from .belief import Belief, BeliefTracker, believe, checked_nominal
 from .evaluation import all_comparisons, settling_of
 from .motion import Motion
 from .policy import (
-    DECISION_TONE_WINDOW,
-    MIN_GAIN,
-    TRAVEL_FRACTION,
-    UNSTEADY_LIMIT,
     Targeting,
     choose_target,
     kernel_shape,
@@ -38,6 +40,7 @@ from .policy import (
     tone_wait,
     travel_budget,
 )
+from .policy_settings import PolicySettings
 from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
 from .simulated import Calibration, Measurements, Records, advance_plant, build_line
@@ -74,28 +77,30 @@ def _observe(records: Records, seen: Measurements, calibration: Calibration,
 
 
 def _bare_shape(seen: Measurements, belief: Belief, robot: MDR, x_r: float, lo: int, end: int,
-                frequency: float) -> np.ndarray:
+                frequency: float, policy: PolicySettings) -> np.ndarray:
     """The robot-free excited shape (at the believed mesh's nodes) from the sensors' and the
     robot's own phasors on [lo, end]."""
     tt = seen.t[lo : end + 1]
     sensed = fit_phasors(seen.sensors[:, lo : end + 1], tt, frequency)
     at_robot = fit_phasors(seen.robot[None, lo : end + 1], tt, frequency)[0]
     return kernel_shape(belief.plant, belief.rows, sensed, robot, belief.inside(x_r), at_robot,
-                         2 * np.pi * frequency)
+                         2 * np.pi * frequency, policy)
 
 
 def _excited_shape(seen: Measurements, belief: Belief, robot: MDR, x_r: float, end: int,
-                   frequency: float, window: int, record: int) -> tuple[np.ndarray, float]:
+                   frequency: float, window: int, record: int,
+                   policy: PolicySettings) -> tuple[np.ndarray, float]:
     """W_bare over the last ``record`` samples (estimate phasor minus the robot's own reaction),
     and how unsteady the last ``window`` is: the relative difference of the shapes fitted on its
     two halves."""
     lo = max(end + 1 - window, 0)
     mid = (lo + end) // 2
-    first = _bare_shape(seen, belief, robot, x_r, lo, mid, frequency)
-    second = _bare_shape(seen, belief, robot, x_r, mid, end, frequency)
+    first = _bare_shape(seen, belief, robot, x_r, lo, mid, frequency, policy)
+    second = _bare_shape(seen, belief, robot, x_r, mid, end, frequency, policy)
     scale = np.linalg.norm(first) + np.linalg.norm(second)
     unsteady = 2 * float(np.linalg.norm(first - second)) / max(scale, 1e-300)
-    shape = _bare_shape(seen, belief, robot, x_r, max(end + 1 - record, 0), end, frequency)
+    shape = _bare_shape(seen, belief, robot, x_r, max(end + 1 - record, 0), end, frequency,
+                        policy)
     return shape, unsteady
 
 
@@ -103,12 +108,12 @@ def _decision_tone(seen: Measurements, settings: Settings, targeting: Targeting,
                    excitation: tuple[float, float]) -> tuple[float, int]:
     """The tone a decision is made at, measured on the excitation's record (``excitation``: when
     it began and when it was seen, s; at least the change-detection window, at most
-    DECISION_TONE_WINDOW s back), and how many samples the robot-free shape is fitted on: the
-    part of that record since the robot stopped and the excitation was seen (at least one
-    antinode window)."""
+    ``policy.decision_tone_window`` s back), and how many samples the robot-free shape is fitted
+    on: the part of that record since the robot stopped and the excitation was seen (at least
+    one antinode window)."""
     dt = settings.dt
     begun, noticed = excitation
-    tone_from = max(begun, k * dt - DECISION_TONE_WINDOW)
+    tone_from = max(begun, k * dt - settings.policy.decision_tone_window)
     lo = max(min(int(np.ceil(tone_from / dt - 1e-9)), k + 1 - settings.frequency_samples), 0)
     shape_from = max(lo, *(int(np.ceil(time / dt - 1e-9)) for time in (targeting.last_moving,
                                                                           noticed)))
@@ -142,21 +147,22 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
     (``beliefs``); ``records`` only logs what it decided."""
     t = seen.t
     belief = beliefs.belief
-    if t[k] >= quiet_from(t[0], t[-1]):
+    policy = settings.policy
+    if t[k] >= quiet_from(t[0], t[-1], policy):
         return
     robot_still = motion.at_rest
     targeting.update_clocks(t[k], robot_still, watched, settings.retarget_threshold)
-    resolve = resolve_time(watched, belief.mode_frequencies)
+    resolve = resolve_time(watched, belief.mode_frequencies, policy)
     retarget, confirm = targeting.due(t[k], robot_still, settings.window * settings.dt,
                                       settings.settle_margin, resolve)
     if not robot_still or not (retarget or confirm):
         return
     excitation = targeting.excitation(retarget, settings.frequency_samples * settings.dt)
-    if retarget and tone_wait(t[k], excitation[0], resolve, t[-1]):
+    if retarget and tone_wait(t[k], excitation[0], resolve, t[-1], policy):
         return
     tone, shape_window = _decision_tone(seen, settings, targeting, k, excitation)
     shape, unsteady = _excited_shape(seen, belief, robot, motion.position, k, tone,
-                                     settings.window, shape_window)
+                                     settings.window, shape_window, policy)
     retarget, confirm, ended = targeting.gate_unsteady(retarget, confirm, unsteady, t[k])
     if ended is not None:
         records.decisions.append((float(t[k]), ended))
@@ -165,7 +171,7 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
     if _recalibrate(beliefs, records, seen, k, tone) is not belief:   # the record moved it
         belief = beliefs.belief
         shape, unsteady = _excited_shape(seen, belief, robot, motion.position, k, tone,
-                                         settings.window, shape_window)
+                                         settings.window, shape_window, policy)
     if retarget and beliefs.waiting:
         if not records.decisions or not records.decisions[-1][1].startswith("hold"):
             records.decisions.append((float(t[k]), (
@@ -174,16 +180,17 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
         return
     _check_prediction(records, seen, motion.position, k, tone, shape_window)
     low, high = motion.bounds()
-    reach = reach_within(settings.limits, travel_budget(t[k], t[0], t[-1]))
+    reach = reach_within(settings.limits, travel_budget(t[k], t[0], t[-1], policy))
     choice = choose_target(shape, belief.plant, robot, 2 * np.pi * tone, belief.weights,
                            belief.inside(motion.position), *belief.within(low, high), reach,
-                           obstacle_ends((low, high), settings.obstacles, settings.limits.length))
+                           obstacle_ends((low, high), settings.obstacles, settings.limits.length),
+                           policy)
     records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape),
                                 tone))
     if retarget:
         note = _out_of_reach(choice, shape, belief, motion, robot, settings, 2 * np.pi * tone,
                              (reach, reach_within(settings.limits,
-                                                  TRAVEL_FRACTION * (t[-1] - t[k]))),
+                                                  policy.travel_fraction * (t[-1] - t[k]))),
                              (low, high))
         if note is not None:
             records.decisions.append((float(t[k]), note))
@@ -192,7 +199,7 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
         records.target_starts.append(k)
     measured = _sensed_power(seen, k, tone, settings.window)
     decision = targeting.check_measured(measured, choice.predicted_here, motion.position,
-                                        retarget, unsteady <= UNSTEADY_LIMIT, reach)
+                                        retarget, unsteady <= policy.unsteady_limit, reach)
     if decision is None:
         decision = targeting.accept(choice, motion.position, belief.loop_length(tone), watched,
                                     retarget, excitation)
@@ -239,24 +246,27 @@ def _sensed_power(seen: Measurements, k: int, frequency: float, window: int) -> 
 def _out_of_reach(choice, shape: np.ndarray, belief: Belief, motion: Motion, robot: MDR,
                   settings: Settings, omega: float, reaches: tuple[float, float],
                   bounds: tuple[float, float]) -> str | None:
-    """What keeps the robot from a position predicted clearly better (by MIN_GAIN) than the
+    """What keeps the robot from a position predicted clearly better (by ``min_gain``) than the
     best within reach, in words (None: nothing does). ``reaches``: the decision's reach and the
     limits' alone (half the rest of the run, without the quiet end). A ReachWarning when the
-    limits let the robot reach less than a quarter loop, or the obstacles hold it at the edge
+    limits let the robot reach less than ``reach_warning_loops`` (a quarter loop), or the
+    obstacles hold it at the edge
     of its free interval; a far loop beyond the travel budget (on a long span, or late in the
     run) is only noted: few sensors rank far loops poorly, and the trip would cost most of the
     run. Predictions are the ``belief``'s, on its span; the free interval is the robot's
     (``motion``: where its body may go)."""
+    policy = settings.policy
     half, length = settings.limits.length / 2, motion.span_length
     if bounds == (half, length - half):   # no obstacle: the choice's own prediction covers it
         anywhere = pick_target(choice.grid, choice.predicted, choice.predicted_here,
-                               choice.position)
+                               choice.position, settings=policy)
     else:
         anywhere = choose_target(shape, belief.plant, robot, omega, belief.weights,
-                                 choice.position, *belief.within(half, length - half))
+                                 choice.position, *belief.within(half, length - half),
+                                 settings=policy)
     chosen, best = predicted_rms(shape, belief.plant, robot, omega,
                                  [choice.position, anywhere.position], belief.weights)
-    if best >= (1 - MIN_GAIN) * chosen:
+    if best >= (1 - policy.min_gain) * chosen:
         return None
     limits, gain = settings.limits, 100 * (1 - best / chosen)
     found = (f"{anywhere.position:.4g} m is predicted {gain:.0f} % better than "
@@ -271,11 +281,14 @@ def _out_of_reach(choice, shape: np.ndarray, belief: Belief, motion: Motion, rob
         return f"blocked by an obstacle: {found}"
     loop = belief.loop_length(omega / (2 * np.pi))
     reach, limits_reach = reaches
-    if limits_reach < 0.25 * loop:
+    if limits_reach < policy.reach_warning_loops * loop:
+        least = ("a quarter loop" if policy.reach_warning_loops == 0.25 else
+                 f"{policy.reach_warning_loops:g} loop")
         warnings.warn(
             f"The robot cannot reach where it would damp best: {found}, but the 'limits' "
             f"(v_max={limits.v_max:g} m/s, a_max={limits.a_max:g} m/s^2, j_max={limits.j_max}) "
-            f"let it travel only {limits_reach:.3g} m (a quarter loop is {0.25 * loop:.3g} m) "
+            f"let it travel only {limits_reach:.3g} m ({least} is "
+            f"{policy.reach_warning_loops * loop:.3g} m) "
             f"in half the rest of the {settings.duration:g} s run ('duration'): raise the "
             "limits or lengthen the run.", ReachWarning, stacklevel=4)
     return f"beyond the travel budget ({reach:.3g} m): {found}"
@@ -323,6 +336,7 @@ def run_closed_loop(
     seed: int | np.random.Generator | None = 0,
     nominal: Span | LineModel | None = None,
     calibrate: bool = True,
+    settings: PolicySettings | None = None,
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
 
@@ -383,7 +397,7 @@ def run_closed_loop(
         Length of the window the dominant frequency is watched on for a wind change, s (its
         resolution is about 1 / window). The tone a target is chosen at is measured on the
         excitation's whole record, which resolves the load from the free modes beside it
-        (``policy.DECISION_TONE_WINDOW``; docs/closed_loop.md).
+        (``PolicySettings.decision_tone_window``; docs/closed_loop.md).
     retarget_threshold : float
         Relative change of the dominant frequency that, held for ``antinode_window`` (and at
         least 1 s), makes the robot choose a new target (a wind change).
@@ -428,7 +442,11 @@ def run_closed_loop(
         fundamental). The robot holds at its start until a calibration tells
         the tension (one whose main peak holds less than 80 % of its posterior, or twice as
         uncertain as the one believed, moves nothing). False: the controller predicts with the
-        nominal as told.
+        nominal as told. (0.1 %, two cycles, 80 % and twice: ``settings.belief_tolerance``,
+        ``min_cycles``, ``trusted_share``, ``less_certain``.)
+    settings : PolicySettings or None
+        The policy's settings (:class:`~powerline_control.closed_loop.PolicySettings`: each with
+        its value, what it guards and the evidence for it). None (default): the tuned values.
 
     Returns
     -------
@@ -478,9 +496,9 @@ def run_closed_loop(
         noise_fraction=noise_fraction, delays=delays, estimator_rank=estimator_rank,
         antinode_window=antinode_window, frequency_window=frequency_window,
         retarget_threshold=retarget_threshold, settle_margin=settle_margin, obstacles=obstacles,
-        motion=motion, planner_time_budget=planner_time_budget,
-    )
-    robot, limits = settings.robot, settings.limits
+        motion=motion, planner_time_budget=planner_time_budget, policy=settings,
+    )   # from here on 'settings' is the run's checked settings, the policy's in settings.policy
+    robot, limits, policy = settings.robot, settings.limits, settings.policy
     span = settings.bare.span
     told = checked_nominal(nominal, settings.bare)
     calibrate = check_bool("calibrate", calibrate)
@@ -505,11 +523,12 @@ def run_closed_loop(
                      n_modes=n_modes, dt=settings.dt, sensor_positions=seen.sensor_positions,
                      frequencies=band)
     beliefs = BeliefTracker(belief, robot=robot, n_modes=n_modes, dt=settings.dt,
-                            frequencies=band, calibrate=calibrate and told is not None)
+                            frequencies=band, calibrate=calibrate and told is not None,
+                            settings=policy)
 
     # ---- the loop: every control period, estimate, choose a target, move (and simulate)
     plant_state = calibrated.start_states[n_cal - 1].copy()
-    targeting = Targeting()
+    targeting = Targeting(settings=policy)
     motion_state = Motion.new(limits, span.length, settings.obstacles, robot.position,
                               settings.motion, settings.control_period,
                               settings.planner_time_budget)
@@ -540,7 +559,7 @@ def run_closed_loop(
     loop_length = float(span.loop_length(frequencies[-1])) if frequencies else float("nan")
     settling = settling_of(records, t, segments, n_cal, loop_length, settings.settle_margin)
     loop_power = damper_power(line.plant, robot, records.plant_states, records.position)
-    travel_time = travel_budget(t[n_cal - 1], t[0], t[-1])
+    travel_time = travel_budget(t[n_cal - 1], t[0], t[-1], policy)
     bounds = free_interval(robot.position, limits, span.length, settings.obstacles)
     displacement = nodal_field(line.plant, records.plant_states, line.residual, records.position)
     baseline = nodal_field(line.plant, calibrated.start_states, line.residual, robot.position)
@@ -590,6 +609,7 @@ def run_closed_loop(
         belief=beliefs.belief.span,
         calibrations=tuple(beliefs.calibrations),
         misfits=tuple(records.misfits),
+        policy=policy,
     )
     for text in result.shortfalls:
         warnings.warn(f"The closed loop falls short: {text}.", ShortfallWarning, stacklevel=3)

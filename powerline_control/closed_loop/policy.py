@@ -17,6 +17,7 @@ wherever the robot is; then it predicts the span's RMS with itself parked at eve
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 
 import numpy as np
 
@@ -26,71 +27,36 @@ from ..errors import InputError
 from ..fem import MDR, LineModel
 from ..plan import RobotLimits, free_interval
 from ..simulation.plant import ModalPlant, default_modes, robot_dynamic_stiffness
+from .policy_settings import PolicySettings, checked_policy
 
-# The policy: a window whose two halves give excited shapes differing by more than this (relative)
-# still beats with a decaying mode; wait up to MAX_WAIT s for a steady one. At most MAX_CHOICES
-# loops are tried per excitation before the choice is final.
-UNSTEADY_LIMIT = 0.25
-MAX_WAIT = 3.0
-MAX_CHOICES = 3
-# Local minima of the predicted RMS within this fraction of the lowest count as equally good:
-# the robot takes the nearest (equal loops of a resonant mode need no long trip).
-NEAR_OPTIMAL = 0.03
-# ... but only among the minima the robot reaches spending at most this fraction of the remaining
-# run travelling: a far loop predicted slightly better is not worth a trip that leaves the line
-# vibrating at the start's level for most of the run.
-TRAVEL_FRACTION = 0.5
-# A move must be predicted to lower the span's RMS by at least this fraction of its value where
-# the robot is: below it the prediction (a few sensors' phasors) cannot tell the two apart, and
-# the robot holds still rather than wander between equally good loops.
-MIN_GAIN = 0.05
-# ... and a refinement inside the anchor's loop at least this much: near a minimum the RMS is flat
-# to second order, and a move of a few per cent of a loop would only restart the settling.
-REFINE_GAIN = 0.01
-# A move after which the sensors measure this much more vibration (mean square amplitude at the
-# load frequency, same load) than before it is undone: the robot goes back and stays.
-WORSE_TOLERANCE = 0.5
-# A decision's tone and robot-free shape come from the excitation's record, not from the last
-# window: a lightly damped long span rings in free modes a mode spacing or less from the load for
-# tens of seconds, and a 2 s window's spectral peak lands up to a mode spacing off the load (the
-# shape fitted at that tone swaps nodes and antinodes). The tone is measured over the record since
-# the excitation began, at most DECISION_TONE_WINDOW s; the shape over the part of it since the
-# robot stopped.
-DECISION_TONE_WINDOW = 12.0
-# Such a record separates the load from the free modes beside it once it is TONE_RESOLUTION /
-# spacing long (spacing: of the line's modes around the tone; a Hann window's main lobe is
-# 4 / length wide). A new target waits for that much record, but at most MAX_TONE_WAIT s and
-# TONE_WAIT_FRACTION of what is left of the run, so the robot keeps time to move and settle; a
-# confirmation waits for CONFIRM_RESOLVE of it with the robot still.
-TONE_RESOLUTION = 2.0
-MAX_TONE_WAIT = 8.0
-TONE_WAIT_FRACTION = 0.25
-CONFIRM_RESOLVE = 0.5
-# Every move ends before the last QUIET_FRACTION of the run, the window the result judges
-# settling on (``ClosedLoopResult.last_quarter_range``): a move started later leaves the robot
-# moving when the run ends and the line no time to settle at the new position, and what it
-# can gain there (a refinement within a loop, a few per cent) is less than its prediction's error.
-QUIET_FRACTION = 0.25
+# Every number the policy decides by is a field of PolicySettings (policy_settings.py), with
+# its value, what it guards and the evidence for it; the functions below take the settings and
+# default to the tuned ones.
+DEFAULT_POLICY = PolicySettings()
 
-def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega):
+
+def kernel_shape(plant, sensor_rows, sensed, robot, x_r, at_robot, omega,
+                 settings: PolicySettings = DEFAULT_POLICY):
     """Robot-free excited shape at every node from the sensors' and the robot's phasors.
 
     The robot's reaction ``D_r W_r`` is removed from every measurement with the bare line's
     receptance; the robot-free shape is then the posterior mean of a Gaussian prior over the bare
     modal amplitudes with variance ``1 / |omega_n^2 - omega^2 + i omega z_n|^2`` (what a load
     spread evenly over the modes would drive): near a resonance it is that mode, fitted; between
-    two, the mix the few measurements support.
+    two, the mix the few measurements support. The prior's damping floor and the fit's ridge are
+    ``settings.prior_damping_floor`` and ``settings.prior_regularization``.
     """
     n_r = plant.coupling(x_r)
     rows = np.vstack([sensor_rows, n_r])  # (p + 1, r)
     values = np.append(sensed, at_robot)
     reaction = robot_dynamic_stiffness(robot, omega) * at_robot
     values = values - rows @ plant.modal_response(n_r, omega) * reaction
-    # A floor of 0.1 % damping keeps the prior finite on an undamped line at resonance.
-    floor = 2e-3 * np.sqrt(plant.omega2) * omega
+    # A floor of damping (0.1 %) keeps the prior finite on an undamped line at resonance.
+    floor = 2 * settings.prior_damping_floor * np.sqrt(plant.omega2) * omega
     variance = 1.0 / (np.abs(plant.omega2 - omega**2) ** 2 + floor**2)
     gram = (rows * variance) @ rows.T
-    gram = gram + 1e-6 * np.trace(gram) / gram.shape[0] * np.eye(gram.shape[0])
+    gram = gram + settings.prior_regularization * np.trace(gram) / gram.shape[0] * np.eye(
+        gram.shape[0])
     return (plant.nodal * variance) @ (rows.T @ np.linalg.solve(gram, values))
 
 
@@ -177,23 +143,27 @@ class Choice:
 
 
 def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high,
-                  reach=np.inf, obstacle_ends=(False, False)) -> Choice:
+                  reach=np.inf, obstacle_ends=(False, False),
+                  settings: PolicySettings = DEFAULT_POLICY) -> Choice:
     """The predicted best parked position within reach: among the local minima of the predicted
-    RMS no farther than ``reach`` from the robot, those within NEAR_OPTIMAL of the lowest of
-    them, the one nearest the robot (when none is within reach, the lowest position within
-    reach, on the way down to one; the robot's own position when the prediction has no minimum
-    or nothing within reach is lower than where it is). When no minimum within reach pays for a
-    move (MIN_GAIN), the edge of the reach on the way down to a lower minimum beyond it is
-    taken instead, if it lies lower. ``obstacle_ends``: whether an obstacle
-    (not a support) bounds the interval [low, high] on each side."""
-    grid = np.linspace(low, high, max(4 * plant.model.n_nodes, 200))
+    RMS no farther than ``reach`` from the robot, those within ``settings.near_optimal`` of the
+    lowest of them, the one nearest the robot (when none is within reach, the lowest position
+    within reach, on the way down to one; the robot's own position when the prediction has no
+    minimum or nothing within reach is lower than where it is). When no minimum within reach
+    pays for a move (``settings.min_gain``), the edge of the reach on the way down to a lower
+    minimum beyond it is taken instead, if it lies lower. ``obstacle_ends``: whether an obstacle
+    (not a support) bounds the interval [low, high] on each side. The candidates are
+    ``max(settings.grid_per_node * n_nodes, settings.min_grid)`` positions of [low, high]."""
+    grid = np.linspace(low, high, max(settings.grid_per_node * plant.model.n_nodes,
+                                      settings.min_grid))
     predicted = predicted_rms(bare_shape, plant, robot, omega, grid, weights)
     here = float(predicted_rms(bare_shape, plant, robot, omega, [robot_position], weights)[0])
-    return pick_target(grid, predicted, here, robot_position, reach, obstacle_ends)
+    return pick_target(grid, predicted, here, robot_position, reach, obstacle_ends, settings)
 
 
 def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_position: float,
-                reach: float = np.inf, obstacle_ends=(False, False)) -> Choice:
+                reach: float = np.inf, obstacle_ends=(False, False),
+                settings: PolicySettings = DEFAULT_POLICY) -> Choice:
     """:func:`choose_target`'s rule on a predicted RMS already computed on a uniform grid."""
     # The ends of the grid count as minima only where an obstacle bounds it: at a support the
     # robot does nothing (the line does not move there), so a "minimum" there is the prediction's
@@ -218,9 +188,9 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
         best = candidates[np.argmin(predicted[candidates])]
         return Choice(float(grid[best]), read_only(grid), read_only(predicted), here)
     lowest = min(predicted[i] for i in reachable)
-    good = [i for i in reachable if predicted[i] <= (1 + NEAR_OPTIMAL) * lowest]
+    good = [i for i in reachable if predicted[i] <= (1 + settings.near_optimal) * lowest]
     pick = min(good, key=lambda i: abs(grid[i] - robot_position))
-    if predicted[pick] > (1 - MIN_GAIN) * here:
+    if predicted[pick] > (1 - settings.min_gain) * here:
         # No minimum within reach pays for a move: as when none is within reach, the best the
         # robot can reach may lie at the edge of its reach, on the way down to a lower minimum
         # beyond it.
@@ -247,14 +217,16 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
 
 def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot: MDR,
                            start: float, limits: RobotLimits, *, obstacles=(),
-                           travel_time: float = np.inf) -> Choice:
+                           travel_time: float = np.inf,
+                           settings: PolicySettings | None = None) -> Choice:
     """Where the closed loop would send the robot, from a record of the robot-free field.
 
     The closed loop's own targeting rule (:func:`choose_target`) on a record with no robot on
     the line (e.g. a Kalman estimate of the whole span): its phasor at the dominant frequency is
     the robot-free excited shape, the steady-state span RMS with the robot parked at every
     position of its free interval is predicted from it, and the best within reach is chosen
-    (the nearest of the positions within 3 % of the best, when a move is worth it).
+    (the nearest of the positions within ``settings.near_optimal`` of the best, 3 % by
+    default, when a move is worth it).
 
     Parameters
     ----------
@@ -274,6 +246,8 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
         Intervals it may not enter or cross, m.
     travel_time : float
         Time the robot may spend travelling, s (``inf``: the whole free interval is in reach).
+    settings : PolicySettings or None
+        The policy's settings (None: the defaults, the closed loop's own).
 
     Returns
     -------
@@ -294,6 +268,7 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
     """
     if not isinstance(model, LineModel):
         raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
+    settings = checked_policy(settings)
     check_bare_line(model, "the robot is the 'robot' argument (the field is the line's without it)")
     if not isinstance(robot, MDR):
         raise InputError(f"The 'robot' parameter must be an MDR. Got {type(robot).__name__}.")
@@ -326,7 +301,7 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
     low, high = free_interval(start, limits, model.span.length, obstacles)
     return choose_target(shape, plant, robot, 2 * np.pi * frequency, model.span_weights, start,
                          low, high, reach_within(limits, travel_time),
-                         obstacle_ends((low, high), obstacles, limits.length))
+                         obstacle_ends((low, high), obstacles, limits.length), settings)
 
 
 def obstacle_ends(bounds: tuple[float, float], obstacles, body_length: float) -> tuple[bool, bool]:
@@ -336,32 +311,38 @@ def obstacle_ends(bounds: tuple[float, float], obstacles, body_length: float) ->
             any(abs(left - half - bounds[1]) < 1e-9 for left, _ in obstacles))
 
 
-def quiet_from(start: float, end: float) -> float:
-    """When the part of a run [start, end] (s) without moves begins: its last QUIET_FRACTION."""
-    return start + (1 - QUIET_FRACTION) * (end - start)
+def quiet_from(start: float, end: float, settings: PolicySettings = DEFAULT_POLICY) -> float:
+    """When the part of a run [start, end] (s) without moves begins: its last
+    ``settings.quiet_fraction``."""
+    return start + (1 - settings.quiet_fraction) * (end - start)
 
 
-def travel_budget(now: float, start: float, end: float) -> float:
+def travel_budget(now: float, start: float, end: float,
+                  settings: PolicySettings = DEFAULT_POLICY) -> float:
     """Time (s) a decision at ``now`` in a run [start, end] may spend travelling: half of what
-    is left (TRAVEL_FRACTION), and a move must end before the quiet end (:func:`quiet_from`)."""
-    return max(min(TRAVEL_FRACTION * (end - now), quiet_from(start, end) - now), 0.0)
+    is left (``settings.travel_fraction``), and a move must end before the quiet end
+    (:func:`quiet_from`)."""
+    budget = min(settings.travel_fraction * (end - now), quiet_from(start, end, settings) - now)
+    return max(budget, 0.0)
 
 
-def tone_wait(now: float, begun: float, resolve: float, end: float) -> bool:
+def tone_wait(now: float, begun: float, resolve: float, end: float,
+              settings: PolicySettings = DEFAULT_POLICY) -> bool:
     """Whether a new target should wait for a longer record of the excitation that began at
-    ``begun`` s: until it is ``resolve`` s long, but at most TONE_WAIT_FRACTION of what is left
-    of the run (until ``end``) from that start, so that the robot keeps time to move and
-    settle."""
-    return now - begun < min(resolve, TONE_WAIT_FRACTION * (end - begun))
+    ``begun`` s: until it is ``resolve`` s long, but at most ``settings.tone_wait_fraction`` of
+    what is left of the run (until ``end``) from that start, so that the robot keeps time to move
+    and settle."""
+    return now - begun < min(resolve, settings.tone_wait_fraction * (end - begun))
 
 
-def resolve_time(frequency: float, mode_frequencies: np.ndarray) -> float:
-    """Record length (s) that resolves ``frequency`` from the modes beside it (at most
-    MAX_TONE_WAIT)."""
+def resolve_time(frequency: float, mode_frequencies: np.ndarray,
+                 settings: PolicySettings = DEFAULT_POLICY) -> float:
+    """Record length (s) that resolves ``frequency`` from the modes beside it:
+    ``settings.tone_resolution / spacing``, at most ``settings.max_tone_wait``."""
     spacing = mode_spacing(mode_frequencies, frequency)
     if not spacing > 0:   # two modes at one frequency: no record separates them
-        return MAX_TONE_WAIT
-    return min(TONE_RESOLUTION / spacing, MAX_TONE_WAIT)
+        return settings.max_tone_wait
+    return min(settings.tone_resolution / spacing, settings.max_tone_wait)
 
 
 def mode_spacing(mode_frequencies: np.ndarray, frequency: float) -> float:
@@ -389,10 +370,28 @@ def reach_within(limits: RobotLimits, time_budget: float) -> float:
     return low
 
 
+class Phase(Enum):
+    """Where the targeting of one excitation stands (:class:`Targeting`).
+
+    ``FIRST_TARGET`` -> ``CONFIRMING`` when a target is chosen (:meth:`Targeting.accept` of a new
+    target); ``CONFIRMING`` -> ``CONFIRMING`` when a confirmation tries another loop, ->
+    ``FINAL`` when it confirms the anchor's loop, runs out of loops, finds the line still
+    beating (:meth:`Targeting.gate_unsteady`) or undoes a move (:meth:`Targeting.check_measured`).
+    A wind change held long enough makes a new target due from any phase.
+    """
+
+    FIRST_TARGET = "first target"   # nothing chosen yet: the first decision is a new target
+    CONFIRMING = "confirming"       # a target chosen: confirm it once the robot has settled
+    FINAL = "final"                 # the choice is final until the frequency changes
+
+
 @dataclass
 class Targeting:
-    """The policy's memory between control steps (see the module doc)."""
+    """The policy's memory between control steps (see the module doc); ``settings``: the
+    policy's :class:`~powerline_control.closed_loop.PolicySettings`."""
 
+    settings: PolicySettings = DEFAULT_POLICY
+    phase: Phase = Phase.FIRST_TARGET
     goal: float = np.nan                # where the robot is sent
     anchor: float = np.nan              # the choice the confirmation gate is anchored to
     loop: float = np.nan                # the loop length at the anchor, m
@@ -403,7 +402,6 @@ class Targeting:
     still_since: float | None = None    # since when the robot is still at its steer point
     last_moving: float = 0.0            # when it was last seen moving (0: parked from the start)
     choices: int = 0                    # loops tried for this excitation
-    confirmed: bool = False             # the choice is final until the frequency changes
     reference_power: float = np.nan     # what the sensors measured before this excitation's move
     reference_position: float = np.nan  # ... and where the robot was then
     reference_estimate: float = np.nan  # ... and the span RMS estimated there
@@ -426,20 +424,22 @@ class Targeting:
 
     def due(self, now: float, robot_still: bool, window_time: float,
             settle_margin: float, resolve: float) -> tuple[bool, bool]:
-        """(retarget, confirm): a first target or a wind change held for a window with the robot
-        still; else a confirmation once the robot has been still for a window (and for
-        CONFIRM_RESOLVE of ``resolve``, the record that resolves the tone, s)."""
-        retarget = np.isnan(self.goal) or (
+        """(retarget, confirm): a first target or a wind change held for a window (at least
+        ``settings.min_change_hold`` s) with the robot still; else, while confirming, a
+        confirmation once the robot has been still for a window (and for
+        ``settings.confirm_resolve`` of ``resolve``, the record that resolves the tone, s)."""
+        policy = self.settings
+        retarget = self.phase is Phase.FIRST_TARGET or (
             self.pending_since is not None
-            and now - self.pending_since >= max(window_time, 1.0)
+            and now - self.pending_since >= max(window_time, policy.min_change_hold)
             and robot_still
         )
         confirm = (
             not retarget
-            and not self.confirmed
+            and self.phase is Phase.CONFIRMING
             and self.still_since is not None
             and now - self.still_since >= max(window_time, settle_margin,
-                                              CONFIRM_RESOLVE * resolve)
+                                              policy.confirm_resolve * resolve)
         )
         return retarget, confirm
 
@@ -458,15 +458,17 @@ class Targeting:
         the last is None unless a still-beating window ends the search here."""
         since = self.pending_since if retarget else self.still_since
         waited = now - since if since is not None else 0.0
+        policy = self.settings
         # A window that still beats with a decaying mode misleads the prediction: wait (up to
-        # MAX_WAIT s) for a steady one, except for the very first target.
-        if unsteady > UNSTEADY_LIMIT and waited < MAX_WAIT and not np.isnan(self.goal):
+        # policy.max_wait s) for a steady one, except for the very first target.
+        beating = unsteady > policy.unsteady_limit
+        if beating and waited < policy.max_wait and self.phase is not Phase.FIRST_TARGET:
             return False, False, None
-        if confirm and unsteady > UNSTEADY_LIMIT:
-            # Still beating after MAX_WAIT s: its steady-state prediction is no better than
+        if confirm and beating:
+            # Still beating after max_wait s: its steady-state prediction is no better than
             # the anchor's (a long, lightly damped span rings for tens of seconds after the
             # robot arrives). Keep the goal and stop.
-            self.confirmed = True
+            self.phase = Phase.FINAL
             return retarget, False, (f"final at {self.goal:.4g} m: the line still beats "
                                      f"{waited:.3g} s after the robot stopped")
         return retarget, confirm, None
@@ -476,8 +478,8 @@ class Targeting:
         """Check a move against the run itself. ``power``: the sensors' mean square amplitude at
         the load frequency over the last window; ``estimate``: the span RMS with the robot
         where it is, estimated from that same window (``Choice.predicted_here``). At a new
-        target both are the reference; at a confirmation, a robot whose move made both worse
-        (by more than WORSE_TOLERANCE) goes back to where it was and stays. Both, because
+        target both are the reference; at a confirmation, a robot whose move made both worse (by
+        more than ``settings.worse_tolerance``) goes back to where it was and stays. Both, because
         either alone misleads: a few sensors can sit where the robot's move raised the
         vibration while the span's fell, and the estimate is the prediction that chose the
         move. A way back longer than ``reach`` (the travel budget left) is not taken: a return
@@ -491,11 +493,12 @@ class Targeting:
             self.reference_position, self.reference_estimate = here, estimate
             return None
         moved = 1e-6 < abs(here - self.reference_position) <= reach
-        worse = (power > (1 + WORSE_TOLERANCE) * self.reference_power
-                 and estimate > (1 + WORSE_TOLERANCE) * self.reference_estimate)
+        tolerance = self.settings.worse_tolerance
+        worse = (power > (1 + tolerance) * self.reference_power
+                 and estimate > (1 + tolerance) * self.reference_estimate)
         if moved and worse:
             self.goal = self.anchor = self.reference_position
-            self.confirmed = True
+            self.phase = Phase.FINAL
             return (f"return to {self.reference_position:.4g} m: at {here:.4g} m the sensors "
                     f"measure {100 * (power / self.reference_power - 1):.0f} % more vibration "
                     "and the span is estimated "
@@ -508,36 +511,38 @@ class Targeting:
         """Take the predicted best position as the goal (a new target, or a confirmation), or
         hold where the robot is (``here``) when moving is not predicted to pay; returns what was
         decided, in words (the result's decision log). A new target must be predicted to pay
-        by MIN_GAIN; a confirmation may refine inside the anchor's loop or try another loop
-        (at most MAX_CHOICES per excitation). ``frequency``: the watched tone the anchor is
+        by ``settings.min_gain``; a confirmation may refine inside the anchor's loop (within
+        ``settings.same_loop`` loops of it) or try another loop (at most ``settings.max_choices``
+        per excitation). ``frequency``: the watched tone the anchor is
         kept against; ``excitation``: (begun, seen) of the excitation a new target is for."""
-        worth_moving = choice.gain >= MIN_GAIN
+        policy = self.settings
+        worth_moving = choice.gain >= policy.min_gain
         if retarget:
             self.excitation_start, self.excitation_seen = excitation
             self.anchor = self.goal = choice.position if worth_moving else here
             self.loop, self.anchor_frequency, self.pending_since = loop, frequency, None
-            self.choices, self.confirmed = 1, False
+            self.choices, self.phase = 1, Phase.CONFIRMING
             if worth_moving:
                 return f"target {choice.position:.4g} m (predicted {100 * choice.gain:.0f} % lower)"
             return (f"hold at {here:.4g} m: the best predicted position {choice.position:.4g} m "
-                    f"is only {100 * choice.gain:.1f} % lower (< {100 * MIN_GAIN:g} %)")
-        if abs(choice.position - self.anchor) <= 0.25 * self.loop:
+                    f"is only {100 * choice.gain:.1f} % lower (< {100 * policy.min_gain:g} %)")
+        if abs(choice.position - self.anchor) <= policy.same_loop * self.loop:
             # The same minimum, better estimated from a steady window: accept it (the
             # gate is anchored to the choice, it never moves with the goal) and stop; a
-            # refinement predicted to gain less than REFINE_GAIN is not worth the move.
-            self.confirmed = True
-            if choice.gain < REFINE_GAIN:
+            # refinement predicted to gain less than refine_gain is not worth the move.
+            self.phase = Phase.FINAL
+            if choice.gain < policy.refine_gain:
                 return (f"confirm {here:.4g} m (the refinement to {choice.position:.4g} m is "
                         f"predicted only {100 * choice.gain:.1f} % lower)")
             self.goal = choice.position
             return f"confirm {choice.position:.4g} m (anchor {self.anchor:.4g} m)"
-        if self.choices < MAX_CHOICES:
-            # Another loop, predicted better (by more than NEAR_OPTIMAL, or choose_target would
-            # have kept the near one) from a steadier window: go there.
+        if self.choices < policy.max_choices:
+            # Another loop, predicted better (by more than near_optimal, or choose_target would
+            # have kept the near one) from a steadier window: go there (still confirming).
             self.anchor, self.loop, self.goal = choice.position, loop, choice.position
             self.choices += 1
             return (f"another loop: {choice.position:.4g} m (predicted "
                     f"{100 * choice.gain:.0f} % lower)")
-        self.confirmed = True
+        self.phase = Phase.FINAL
         return (f"final at {self.goal:.4g} m (best predicted {choice.position:.4g} m, "
                 f"{100 * choice.gain:.1f} % lower)")

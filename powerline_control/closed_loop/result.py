@@ -9,6 +9,7 @@ import numpy as np
 from .._results import Result
 from ..errors import InputError
 from .policy import quiet_from
+from .policy_settings import PolicySettings
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,6 +150,8 @@ class ClosedLoopResult(Result):
         Each check of the belief against the measurements: the time (s), where the robot had
         settled (m) and the misfit of shapes (sqrt(1 - MAC)) between the sensors' phasors
         measured there and those the belief predicted at the decision that sent it.
+    policy : PolicySettings
+        The policy's settings the run used (``run_closed_loop(settings=...)``).
     estimator_consistency : Consistency or None
         The windowed NIS test (:class:`~powerline_control.estimate.Consistency`) of the
         estimator's filter over the calibration record and the loop (None when no window
@@ -213,6 +216,7 @@ class ClosedLoopResult(Result):
     belief: object = field(default=None, repr=False)
     calibrations: tuple = field(default=(), repr=False)
     misfits: tuple = field(default=(), repr=False)
+    policy: PolicySettings = field(default_factory=PolicySettings, repr=False)
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""
@@ -231,14 +235,15 @@ class ClosedLoopResult(Result):
 
     @property
     def estimator_valid(self) -> np.ndarray:
-        """Per control step: the estimator's model still fits (innovation ratio below 3)."""
-        return self.innovation_ratio < 3.0
+        """Per control step: the estimator's model still fits (innovation ratio below
+        ``policy.innovation_ratio_limit``, 3 by default)."""
+        return self.innovation_ratio < self.policy.innovation_ratio_limit
 
     @property
     def last_quarter_range(self) -> float:
         """Range of the robot's position over the last quarter of the run (the policy's quiet
         end, where no move is made), in loops (the robot has settled when it is at most 0.02)."""
-        last = self.t >= quiet_from(self.t[0], self.t[-1])
+        last = self.t >= quiet_from(self.t[0], self.t[-1], self.policy)
         return float(np.ptp(self.robot_position[last]) / self.loop_length)
 
     @property

@@ -13,6 +13,7 @@ from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
 from ..recipe.defaults import DEFAULT_DELAYS, shortest_record
+from .policy_settings import PolicySettings, checked_policy
 
 # A robot heavier than this fraction of the span's own mass is no longer a small attachment: the
 # slowly-varying-parameter plant and the single-mode tuning are not credible beyond it.
@@ -77,6 +78,7 @@ class Settings:
     motion: str
     bare: LineModel             # the line the loop runs on (without the robot)
     obstacles: tuple
+    policy: PolicySettings      # the policy's settings (run_closed_loop's 'settings')
 
     @property
     def n_samples(self) -> int:
@@ -97,7 +99,8 @@ class Settings:
 def checked_settings(model, robot, limits, sensors, *, n_elements, bc, damping, duration,
                       calibration, dt, control_period, plant_period, noise_fraction, delays,
                       estimator_rank, antinode_window, frequency_window, retarget_threshold,
-                      settle_margin, obstacles, motion, planner_time_budget) -> Settings:
+                      settle_margin, obstacles, motion, planner_time_budget,
+                      policy=None) -> Settings:
     """Every argument checked once, in a fixed order (the first bad one is the one reported)."""
     if not isinstance(model, Span | LineModel):
         raise InputError(
@@ -141,6 +144,7 @@ def checked_settings(model, robot, limits, sensors, *, n_elements, bc, damping, 
     bare = _bare_model(model, sensors, duration, dt, n_elements=n_elements, bc=bc,
                        damping=damping)
     obstacles = tuple(_checked_obstacles(obstacles, robot, limits, span.length))
+    policy = checked_policy(policy)
     return Settings(
         robot=robot, limits=limits, duration=duration, dt=dt, control_period=control_period,
         steps_per_period=steps_per_period, plant_steps=plant_steps, n_cal=n_cal,
@@ -148,6 +152,7 @@ def checked_settings(model, robot, limits, sensors, *, n_elements, bc, damping, 
         antinode_window=antinode_window, frequency_window=frequency_window,
         retarget_threshold=retarget_threshold, settle_margin=settle_margin, delays=delays,
         estimator_rank=estimator_rank, motion=motion, bare=bare, obstacles=obstacles,
+        policy=policy,
     )
 
 

@@ -1,0 +1,105 @@
+"""PolicySettings: the closed-loop policy's settings, documented, checked, and passed through.
+
+The defaults are the policy's tuned values (a run with ``settings=PolicySettings()`` is the run
+without it); each field's documentation names its value and what it guards; a bad value is an
+InputError naming the field, the value and what is allowed; the targeting's phases move as the
+policy's rules say.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from numpydoc.docscrape import ClassDoc
+
+import powerline_control as plc
+from powerline_control.closed_loop import policy
+from powerline_control.closed_loop.policy import Phase, Targeting
+
+
+def test_every_setting_is_documented_with_its_value():
+    documented = {p.name: " ".join(p.desc) for p in ClassDoc(plc.PolicySettings)["Parameters"]}
+    settings = plc.PolicySettings()
+    assert set(documented) == {f.name for f in dataclasses.fields(settings)}
+    for name, text in documented.items():
+        value = getattr(settings, name)
+        # the description opens with the default ("0.25.", "3.0 s.", "1e-06" as "1e-6")
+        assert float(text.split()[0].rstrip(".")) == value, (name, text)
+
+
+@pytest.mark.parametrize(("field", "value"), [
+    ("min_gain", 1.5), ("min_gain", -0.1), ("max_choices", 2.5), ("max_choices", True),
+    ("max_choices", 0), ("trusted_share", math.nan), ("unsteady_limit", 0.0),
+    ("decision_tone_window", math.inf), ("less_certain", 0.5), ("quiet_fraction", "0.25"),
+])
+def test_a_bad_setting_names_itself_its_value_and_what_is_allowed(field, value):
+    named = rf"'PolicySettings\.{field}' setting must be "
+    with pytest.raises(plc.InputError, match=named) as info:
+        plc.PolicySettings(**{field: value})
+    assert f"Got {value!r}." in str(info.value)
+
+
+def test_settings_are_frozen_and_integers_stay_integers():
+    settings = plc.PolicySettings(max_choices=np.int64(2), min_gain=np.float32(0.1))
+    assert type(settings.max_choices) is int and type(settings.min_gain) is float
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        settings.min_gain = 0.2
+
+
+def test_run_closed_loop_refuses_settings_that_are_not_policy_settings():
+    model = plc.LineModel(plc.Span.paper_lab(), 20, damping=plc.ModalDamping(0.01))
+    robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
+    with pytest.raises(plc.InputError, match="'settings' parameter must be a PolicySettings"):
+        plc.run_closed_loop(model, plc.HarmonicForce(1.0, 24.0, 0.5), robot, sensors=[4, 9, 15],
+                            duration=6.0, calibration=1.0, settings={"min_gain": 0.1})
+
+
+def test_choose_parked_position_takes_the_settings():
+    # The docstring's lab span: the loop at 0.58 m is predicted 83 % better than the start.
+    model = plc.LineModel(plc.Span.paper_lab(), n_elements=40, damping=plc.ModalDamping(0.01))
+    snap = plc.simulate(model, plc.HarmonicForce(1.0, 24.0, 0.5), duration=3.0, dt=1e-3)
+    robot = plc.tune_damper(model, 3, 1.83, 0.05, body_mass=0.02)
+    args = (model, snap.displacement[:, -2000:], snap.dt, robot, 1.2, plc.RobotLimits(0.5, 1.0))
+    default = plc.closed_loop.choose_parked_position(*args)
+    same = plc.closed_loop.choose_parked_position(*args, settings=plc.PolicySettings())
+    assert same.position == default.position and np.array_equal(same.predicted,
+                                                                   default.predicted)
+    # a move must pay more than the best one predicted: the robot stays where it is
+    stay = plc.closed_loop.choose_parked_position(
+        *args, settings=plc.PolicySettings(min_gain=0.9, near_optimal=0.0))
+    assert default.gain < 0.9
+    finer = plc.closed_loop.choose_parked_position(*args, settings=plc.PolicySettings(min_grid=999))
+    assert finer.grid.size == 999 and stay.grid.size == default.grid.size
+
+
+def _choice(position):
+    return policy.Choice(position, np.array([0.5, 1.0, 1.5]), np.array([1e-4, 2e-4, 3e-4]), 1e-3)
+
+
+def test_targeting_moves_from_first_target_through_confirming_to_final():
+    targeting = Targeting()
+    assert targeting.phase is Phase.FIRST_TARGET
+    assert targeting.due(0.0, True, 1.0, 1.0, 0.0) == (True, False)   # a first target is due
+    targeting.accept(_choice(0.5), 1.2, 1.0, 24.0, True)
+    assert targeting.phase is Phase.CONFIRMING and targeting.goal == 0.5
+    targeting.update_clocks(1.0, True, 24.0, 0.05)                     # still from 1 s
+    assert targeting.due(2.5, True, 1.0, 1.0, 0.0) == (False, True)   # confirm after a window
+    note = targeting.accept(_choice(0.6), 0.5, 1.0, 24.0, False)      # the same loop (0.25)
+    assert targeting.phase is Phase.FINAL and note.startswith("confirm")
+    assert targeting.due(9.0, True, 1.0, 1.0, 0.0) == (False, False)  # final: nothing is due
+
+
+def test_a_confirmation_elsewhere_tries_another_loop_until_max_choices():
+    targeting = Targeting(settings=plc.PolicySettings(max_choices=2))
+    targeting.accept(_choice(0.5), 1.2, 1.0, 24.0, True)
+    assert targeting.accept(_choice(1.5), 0.5, 1.0, 24.0, False).startswith("another loop")
+    assert targeting.phase is Phase.CONFIRMING and targeting.choices == 2
+    assert targeting.accept(_choice(0.5), 1.5, 1.0, 24.0, False).startswith("final")
+    assert targeting.phase is Phase.FINAL
+
+
+def test_a_wider_same_loop_confirms_where_the_default_tries_another():
+    wide = Targeting(settings=plc.PolicySettings(same_loop=1.5))
+    wide.accept(_choice(0.5), 1.2, 1.0, 24.0, True)
+    assert wide.accept(_choice(1.5), 0.5, 1.0, 24.0, False).startswith("confirm")
