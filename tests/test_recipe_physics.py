@@ -139,10 +139,10 @@ def test_lock_in_record_chooses_the_physics_model_and_estimates_a_faster_wind(na
     """Issue 37 item 1 on the issue's two unseen real spans (Oxlip 220 m pinned, Condor 180 m
     clamped; the truth's tension drawn off the nominal, the estimator told the nominal): trained
     on 20 s of wind in lock-in, tested on the same wind 1 % faster, against the noise-free
-    simulation. Measured (docs/validation/physics_candidate.md, seed 1): today's recipe 12 % and
-    15 % at the unmeasured nodes; with the nominal, the physics model is chosen and reads the
-    faster wind within the bounds below, and its sigma is within 2x of its error (today's:
-    0.02x)."""
+    simulation. Measured (docs/validation/physics_candidate.md, seed 1): today's recipe 12.4 %
+    and 15.1 % at the unmeasured nodes, sigma 0.02x and 0.01x the actual error; with the nominal
+    the physics model is chosen, 2.8 % and 2.4 %, sigma 0.55x and 0.59x. The bounds leave about
+    2x on the error (5 % is the issue's target) and cover the sigma ratio it measured."""
     nominal, bc, model, wind = family.draw(name, 1)
     train, test = family.records(model, wind, 1)
     with warnings.catch_warnings():
@@ -151,5 +151,5 @@ def test_lock_in_record_chooses_the_physics_model_and_estimates_a_faster_wind(na
     assert design.excitation.method == "physics" and isinstance(design.model, SpanModel)
     error, ratio = family.judge(design, test)
     print(f"{name}: error {error:.2%}, sigma/actual {ratio:.2f}")
-    assert error < 0.10
-    assert 0.5 < ratio < 2.0
+    assert error < 0.05
+    assert 0.35 < ratio < 2.0

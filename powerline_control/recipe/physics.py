@@ -53,11 +53,12 @@ _PROCESS_NOISE = (1.0, 100.0)
 _ONE_TONE_SHARE = 0.9
 #: On a one-tone record the held-out part continues the training tone: it cannot show how a
 #: model follows the tone as the wind moves it, and a data-driven model that learned the tone's
-#: shape wins there (DMD 0.3-0.5 % on Oxlip 220 m and Condor 180 m in lock-in) while it fails at
-#: the same wind 1 % faster (12-15 %: the standing wave's wavelength moved; the physics model:
-#: 2-5 % held out, 3.5-8 % on the faster wind). The physics model is then chosen unless its
-#: held-out error exceeds this: a model that misses a tenth of the tone it was calibrated on
-#: holds the wrong span (a wrong mode, a nominal far off), and the data-driven one is kept.
+#: shape wins there (DMD 0.1-0.6 % on Oxlip 220 m and Condor 180 m in lock-in) while it fails at
+#: the same wind 1 % faster (5-26 %: the standing wave's wavelength moved; the physics model:
+#: 0.8-6.3 % held out, 1-6.7 % on the faster wind, docs/validation/physics_candidate.md). The
+#: physics model is then chosen unless its held-out error exceeds this: a model that misses a
+#: tenth of the tone it was calibrated on holds the wrong span (a wrong mode, a nominal far
+#: off), and the data-driven one is kept.
 _ONE_TONE_ACCEPT = 0.10
 
 
