@@ -39,7 +39,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .._riccati import gramian_sum
-from .._threads import one_blas_thread
+from .._threads import on_one_blas_thread
 from .._validation import (
     check_array,
     check_budget,
@@ -162,6 +162,7 @@ def _check_work(criterion: str, n: int, m: int, horizon: int, needs_covariance: 
 
 
 # ------------------------------------------------------------------------------- public API
+@on_one_blas_thread   # matrices <= ~100 wide: threads only add contention
 def select_sensors(
     sys: ct.StateSpace,
     k: int,
@@ -288,13 +289,6 @@ def select_sensors(
     >>> sel.nodes, sel.gap >= 0, sel.bound <= sel.objective
     ((0, 3), True, True)
     """
-    with one_blas_thread():   # matrices <= ~100 wide: threads only add contention
-        return _select_sensors(**locals())
-
-
-def _select_sensors(sys, k, criterion, *, Q, R, positions, forbidden, min_spacing, required, cost,
-                    budget, error_weight, basis, horizon, relaxation_rank, solver, n_random,
-                    brute_force_limit, seed) -> SensorSelection:
     started = time.perf_counter()
     sys = check_discrete_system("sys", sys)
     a = np.asarray(sys.A, dtype=float)
