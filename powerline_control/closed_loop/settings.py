@@ -11,7 +11,7 @@ from .._validation import check_budget, check_indices, check_int, check_real
 from ..errors import InputError
 from ..fem import MDR, LineModel
 from ..line import Span
-from ..plan import RobotLimits, free_interval
+from ..plan import RobotLimits, check_obstacles, free_interval
 from ..recipe.defaults import DEFAULT_DELAYS, shortest_record
 from .policy_settings import PolicySettings, checked_policy
 
@@ -259,26 +259,10 @@ def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping) -> Lin
 
 def _checked_obstacles(obstacles, robot: MDR, limits: RobotLimits,
                        span_length: float) -> list[tuple[float, float]]:
-    """(left, right) pairs, left < right, none holding the robot's body at its start."""
-    try:
-        pairs = [tuple(pair) for pair in obstacles]
-    except TypeError:
-        pairs = [()]
-    if any(len(pair) != 2 for pair in pairs):
-        raise InputError("The 'obstacles' parameter must be a sequence of (left, right) pairs "
-                         f"in m. Got {obstacles!r}.")
-    checked = [(check_real("obstacles", a), check_real("obstacles", b)) for a, b in pairs]
-    for left, right in checked:
-        if not left < right:
-            raise InputError(f"Each of 'obstacles' must be (left, right), left < right. Got "
-                             f"{(left, right)}.")
-        half = limits.length / 2
-        if left - half < robot.position < right + half:
-            raise InputError(
-                f"The 'robot.position' ({robot.position:g} m) puts the robot's body (length "
-                f"{limits.length:g} m) inside the obstacle {(left, right)}."
-            )
-    # the package's one free-interval rule: the body inside the span, out of every obstacle
+    """The obstacles read by the package's one rule (:func:`~powerline_control.plan.
+    check_obstacles`), with the robot's body free at its start (:func:`~powerline_control.plan.
+    free_interval`: inside the span, touching an obstacle at most)."""
+    checked = check_obstacles(obstacles, span_length)
     try:
         free_interval(robot.position, limits, span_length, checked)
     except InputError as exc:

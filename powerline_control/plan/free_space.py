@@ -22,9 +22,40 @@ from .limits import RobotLimits, _check_limits
 _GEOMETRY_TOL = 1e-9
 
 
-def _check_obstacles(
+def check_obstacles(
     obstacles: Sequence[tuple[float, float]], span_length: float | None
 ) -> list[tuple[float, float]]:
+    """The obstacles as the package reads them: (left, right) pairs in metres, sorted.
+
+    The one obstacle rule (the planners, :func:`free_interval` and the closed loop all read
+    obstacles through it): each is a pair of finite numbers with ``left <= right`` (a point
+    obstacle, such as a spacer's clamp, has ``left == right``) that meets the span
+    ``[0, span_length]``. The robot's body may touch an obstacle but not enter it
+    (:func:`free_interval`).
+
+    Parameters
+    ----------
+    obstacles : sequence of (left, right)
+        Intervals, m; ``()`` for none.
+    span_length : float or None
+        Span length, m (None: no span to meet).
+
+    Returns
+    -------
+    list of (float, float)
+        The obstacles, sorted by their left ends.
+
+    Raises
+    ------
+    InputError
+        If ``obstacles`` is not a sequence of pairs, a pair is not finite, has ``right < left``
+        or misses the span; the message names the pair's index.
+
+    Examples
+    --------
+    >>> check_obstacles([(2.0, 2.1), (0.5, 0.5)], 3.66)
+    [(0.5, 0.5), (2.0, 2.1)]
+    """
     if isinstance(obstacles, str | bytes) or not isinstance(obstacles, Sequence | np.ndarray):
         raise InputError(
             "The 'obstacles' parameter must be a sequence of (left, right) pairs in metres "
@@ -123,7 +154,7 @@ def free_interval(
     _check_limits(limits)
     span_length = _check_span_length(span_length, limits)
     position = check_real("position", position, low=0.0, high=span_length, low_inclusive=True)
-    checked = _check_obstacles(obstacles, span_length)
+    checked = check_obstacles(obstacles, span_length)
     _check_start_free(position, limits.length, span_length, checked)
     low, high, _, _ = _free_interval(position, limits.length, span_length, checked)
     return low, high

@@ -21,12 +21,12 @@ from ..errors import InputError
 from .closed_form import Trajectory, _sample_pieces, _time_optimal_pieces
 from .free_space import (
     _GEOMETRY_TOL,
-    _check_obstacles,
     _check_position,
     _check_span_length,
     _check_start_free,
     _free_interval,
     _push_out_of_obstacles,
+    check_obstacles,
 )
 from .limits import RobotLimits, _check_limits
 from .nlp import (
@@ -267,7 +267,7 @@ class MotionPlanner:
         if span_length is not None:
             span_length = _check_span_length(span_length, limits)
         self.span_length = span_length
-        self.obstacles = tuple(_check_obstacles(obstacles, span_length))
+        self.obstacles = tuple(check_obstacles(obstacles, span_length))
         self.time_budget = (
             None if time_budget is None else check_real("time_budget", time_budget, low=0.0)
         )

@@ -36,12 +36,12 @@ from .closed_form import (
 from .free_space import (
     _GEOMETRY_TOL,
     _check_braking,
-    _check_obstacles,
     _check_position,
     _check_span_length,
     _check_start_free,
     _check_target_reachable,
     _free_interval,
+    check_obstacles,
 )
 from .kernels import _extremes
 from .limits import RobotLimits, _check_limits, _check_velocity_state
@@ -383,7 +383,7 @@ def plan_motion(
         )
     if duration is not None:
         duration = check_real("duration", duration, low=0.0)
-    obstacles = _check_obstacles(obstacles, span_length)
+    obstacles = check_obstacles(obstacles, span_length)
     _check_start_free(start, limits.length, span_length, obstacles)
     interval = _free_interval(start, limits.length, span_length, obstacles)
     _check_target_reachable(target, start, limits.length, obstacles, interval)
