@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -30,7 +30,7 @@ from ..fem.mesh import parse_bc
 from ..identify import OscillatorModel, calibrate_span, span_model
 from ..identify.span_model import MESH_MARGIN, MESH_TOLERANCE
 from ..line import Span
-from .dmd import _MODEL_FAILURES, _calibrated_design, _unmeasured_score
+from .dmd import _MODEL_FAILURES, _calibrated_design, _held_out_error, _unmeasured_score
 from .record import _Record
 from .results import AlphaSweep, EstimatorDesign, ExcitationReport
 from .sensing import _choose_sensors
@@ -60,6 +60,9 @@ _ONE_TONE_SHARE = 0.9
 #: tenth of the tone it was calibrated on holds the wrong span (a wrong mode, a nominal far
 #: off), and the data-driven one is kept.
 _ONE_TONE_ACCEPT = 0.10
+#: A provisional layout whose sensors read under this share of the moving nodes' mean square is
+#: blind to the record's field (``_scoring_layout``).
+_BLIND_LAYOUT = 0.1
 
 
 @dataclass(frozen=True, eq=False)  # holds arrays: compared by identity
@@ -163,11 +166,35 @@ def _physics_candidate(rec: _Record, span: Span, bc: tuple):
     return best[0], best[1], partial_cal, tone
 
 
-def _held_out_of(design: EstimatorDesign, rec: _Record) -> float:
-    """The held-out score of another family's design: the DMD sweep's best, or the oscillator
+def _scoring_layout(rec: _Record) -> np.ndarray:
+    """The provisional layout, or, where its sensors read under :data:`_BLIND_LAYOUT` of the
+    moving nodes' mean square (on the standing wave's vibration nodes: five nodes evenly spread
+    over a pinned span lie at multiples of L / 6, the nodes of every sixth mode), each sensor
+    moved to the node of largest mean square within a quarter of the layout's spacing."""
+    layout = rec.provisional
+    power = np.mean(rec.X**2, axis=1)
+    if rec.given is not None or np.mean(power[layout]) >= _BLIND_LAYOUT * np.mean(
+            power[rec.candidates]):
+        return layout
+    reach = max(1, rec.candidates.size // (4 * (layout.size + 1)))
+    where = np.searchsorted(rec.candidates, layout)
+    moved = [int(rec.candidates[lo + np.argmax(power[rec.candidates[lo:hi]])])
+             for lo, hi in ((max(0, w - reach), min(rec.candidates.size, w + reach + 1))
+                            for w in where)]
+    return np.unique(moved)
+
+
+def _held_out_of(design: EstimatorDesign, rec: _Record, layout: np.ndarray) -> float:
+    """The held-out score of another family's design on ``layout``: the DMD sweep's best (its
+    alpha refitted on the training part when ``layout`` is not the sweep's), or the oscillator
     model's on the same part (its lines came from the whole record, which favours it)."""
     if isinstance(design.model, OscillatorModel):
         return _score(rec, design.model)
+    if not np.array_equal(layout, design.alpha_sweep.layout):
+        return _held_out_error(rec.coords[:, :rec.n_fit], rec.X[:, rec.n_fit:], rec.spatial,
+                               rec.dt, design.model.alpha_relative, rec.delays,
+                               int(design.model.rank), layout, rec.candidates, rec.noise,
+                               rec.data_noise, rec.q_floor)
     errors = np.asarray(design.alpha_sweep.held_out_error, dtype=float)
     return float(np.nanmin(np.where(np.isfinite(errors), errors, np.nan))) \
         if np.isfinite(errors).any() else math.inf
@@ -180,7 +207,8 @@ def _choose(design: EstimatorDesign | None, rec: _Record, span: Span, bc: tuple
     if rec.positions is None:
         raise InputError("The 'nominal' parameter needs the node positions (m) of the record: "
                          "give 'positions', or Snapshots (with x).")
-    other = math.inf if design is None else _held_out_of(design, rec)
+    rec = replace(rec, provisional=_scoring_layout(rec))
+    other = math.inf if design is None else _held_out_of(design, rec, rec.provisional)
     found = _physics_candidate(rec, span, bc)
     if found is not None and _one_tone_share(rec, span) >= _ONE_TONE_SHARE:
         other = max(other, _ONE_TONE_ACCEPT)   # see _ONE_TONE_ACCEPT
