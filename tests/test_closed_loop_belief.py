@@ -79,7 +79,7 @@ def test_the_policy_predicts_with_the_nominal_only(monkeypatch):
     spy("plants", closed_loop_run.kernel_shape, lambda plant, *a: plant.model)
     spy("plants", closed_loop_run.choose_target, lambda shape, plant, *a: plant.model)
     spy("plants", closed_loop_run.predicted_rms, lambda shape, plant, *a: plant.model)
-    spy("modes", closed_loop_run.resolve_time, lambda tone, modes: modes)
+    spy("modes", closed_loop_run.resolve_time, lambda tone, modes, *policy: modes)
     accept = closed_loop_run.Targeting.accept
 
     def accept_spy(self, choice, here, loop, frequency, retarget, excitation=(0.0, 0.0)):
