@@ -54,27 +54,32 @@ class PolicySettings:
         3.0 s. How long a decision waits for a steady window; a confirmation still beating
         after it ends the search (closed_loop.md, "Beating windows").
     max_choices : int
-        3. Loops tried per excitation before the choice is final: the search ends.
+        3. Loops tried per excitation before the choice is final: the search ends
+        (closed_loop.md, "On a family nobody tuned for").
     near_optimal : float
         0.03. Local minima of the predicted span RMS within this fraction of the lowest count as
         equally good, and the robot takes the nearest: equal loops of a resonant mode need no
-        long trip.
+        long trip (closed_loop.md, "On a family nobody tuned for").
     travel_fraction : float
         0.5. A decision spends at most this share of the rest of the run travelling: without
         the travel budget the ``drake-300m`` robot chose a loop 59 m away and never arrived
         (closed_loop.md, "The reach").
     min_gain : float
         0.05. A move must be predicted to lower the span's RMS by at least this fraction: below
-        it a few sensors' phasors cannot tell two positions apart and the robot holds still.
+        it a few sensors' phasors cannot tell two positions apart and the robot holds still
+        (closed_loop.md, "The edge of the reach").
     refine_gain : float
         0.01. A refinement inside the anchor's loop must be predicted to gain at least this: near
-        a minimum the RMS is flat and a small move only restarts the settling.
+        a minimum the RMS is flat and a small move only restarts the settling
+        (closed_loop.md, "On a family nobody tuned for").
     same_loop : float
         0.25 loop. A confirmation's choice within this many loop lengths of the anchor is the
-        same minimum, better estimated (it refines); farther, it is another loop.
+        same minimum, better estimated (it refines); farther, it is another loop
+        (closed_loop.md, "On a family nobody tuned for").
     worse_tolerance : float
         0.5. A move after which both the sensors' vibration at the load frequency and the span
-        RMS estimated there are more than this fraction higher than before it is undone.
+        RMS estimated there are more than this fraction higher than before it is undone
+        (closed_loop.md, "On a family nobody tuned for").
     decision_tone_window : float
         12.0 s. A decision's tone is measured on the excitation's record, at most this long: a
         2 s window's peak lands up to a mode spacing off the load on a long span and swaps nodes
@@ -87,32 +92,35 @@ class PolicySettings:
         8.0 s. The longest that wait.
     tone_wait_fraction : float
         0.25. ... and at most this share of what is left of the run, so the robot keeps time to
-        move and settle.
+        move and settle (closed_loop.md, "On a family nobody tuned for").
     confirm_resolve : float
         0.5. A confirmation waits, with the robot still, for this share of the record that
-        resolves the tone.
+        resolves the tone (closed_loop.md, "On a family nobody tuned for").
     quiet_fraction : float
         0.25. Every move ends before the last this share of the run, the window the result
         judges settling on: of 5 moves started there, 3 made the spot worse and all 5 runs ended
         unsettled (closed_loop.md, "The quiet end").
     min_change_hold : float
         1.0 s. A wind change must hold for the change-detection window and at least this long
-        before the robot chooses anew.
+        before the robot chooses anew (closed_loop.md, "On a family nobody tuned for").
     grid_per_node : int
         4. Candidate parked positions per node of the believed mesh (the predicted RMS is
         evaluated on ``max(grid_per_node * n_nodes, min_grid)`` positions of the free interval).
     min_grid : int
-        200. The fewest candidate positions.
+        200. The fewest candidate positions. (A resolution, not a tuned rule: the parabola
+        through the grid's minimum refines between candidates.)
     prior_damping_floor : float
         1e-3. Damping ratio floor of the modal prior the robot-free shape is fitted with
         (``1 / |omega_n^2 - omega^2 + 2 i floor omega_n omega|^2``): keeps it finite on an
-        undamped line at resonance.
+        undamped line at resonance (a numerical safeguard, not a tuned rule).
     prior_regularization : float
         1e-6. Relative ridge added to the prior's Gram matrix (times its mean diagonal) before
-        the shape's fit solves it: keeps two nearly equal sensor rows solvable.
+        the shape's fit solves it: keeps two nearly equal sensor rows solvable (a numerical
+        safeguard).
     reach_warning_loops : float
         0.25 loop. A ReachWarning says the limits are too slow when, in half the rest of the
-        run, they let the robot travel less than this many loop lengths.
+        run, they let the robot travel less than this many loop lengths (closed_loop.md,
+        "The reach").
     innovation_ratio_limit : float
         3.0. The estimator's recent one-step error over its calibration value above which its
         model no longer fits (``ClosedLoopResult.estimator_valid``): 0.7-0.9 while the load is
@@ -132,7 +140,8 @@ class PolicySettings:
         lost (closed_loop_off_nominal.md, seed 243).
     min_cycles : float
         2.0. The span is calibrated on records of at least this many cycles of the nominal
-        fundamental: shorter ones cannot tell neighbouring modes apart.
+        fundamental: shorter ones cannot tell neighbouring modes apart (a record resolves
+        lines about 2 / duration apart; closed_loop_off_nominal.md).
 
     Raises
     ------
