@@ -259,9 +259,9 @@ def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping) -> Lin
 
 def _checked_obstacles(obstacles, robot: MDR, limits: RobotLimits,
                        span_length: float) -> list[tuple[float, float]]:
-    """The obstacles read by the package's one rule (:func:`~powerline_control.plan.
-    check_obstacles`), with the robot's body free at its start (:func:`~powerline_control.plan.
-    free_interval`: inside the span, touching an obstacle at most)."""
+    """The obstacles read by the package's one rule (``plan.check_obstacles``), with the robot's
+    body free at its start (``plan.free_interval``: inside the span, touching an obstacle at
+    most)."""
     checked = check_obstacles(obstacles, span_length)
     try:
         free_interval(robot.position, limits, span_length, checked)
