@@ -137,3 +137,13 @@ def test_decay_rate_matches_the_net_damping_closed_form():
     expected = np.exp(-(zeta_c - zeta_w) * omega * run.t_envelope)
     assert run.t_envelope[-1] > 1.5
     assert np.allclose(run.envelope / run.envelope[0], expected, rtol=1e-3)
+
+
+def test_scenario_choices_are_the_severity_tables():
+    # The schema imports no numerical module, so it spells the names out: they must stay the
+    # tables' (every wind curve; the self-damping laws that carry a tension exponent).
+    from powerline_control.scenario.config import SELF_DAMPING_NAMES, WIND_CURVE_NAMES
+
+    assert set(WIND_CURVE_NAMES) == set(plc.severity.WIND_POWER_CURVES)
+    laws = plc.severity.SELF_DAMPING_LAWS
+    assert set(SELF_DAMPING_NAMES) == {name for name, law in laws.items() if law.n is not None}

@@ -251,6 +251,12 @@ class RobotConfig:
                                       "(a third, at most 2 s) long enough for the estimator")
 
 
+#: The names of severity.WIND_POWER_CURVES and of the SELF_DAMPING_LAWS that carry a tension
+#: exponent (the schema imports no numerical module; a test keeps these equal to the tables).
+WIND_CURVE_NAMES = ("cigre", "farquharson", "carroll", "rawlins58", "bate", "diana", "pon")
+SELF_DAMPING_NAMES = ("noiseux1991", "tompkins", "claren", "seppa", "kraus", "mocks", "pdm")
+
+
 @dataclass(frozen=True)
 class SeverityConfig:
     """Aeolian severity by the energy balance method (a report section when enabled)."""
@@ -280,6 +286,19 @@ class SeverityConfig:
         None, "N m^2", "Bending stiffness EI_min of the stranded conductor for the severity "
         "study (loop lengths and clamp stress); unset: the conductor's own EI.", kind="real",
         low=0.0, high=1e6, when=("enabled", (True,)))
+    wind_curve: str = _key(
+        "cigre", "", "Wind power curve P_w = f^3 D^4 F(Y/D) of the energy balance and of its "
+        "time-domain check: 'cigre' (the CIGRE cubic, Foti & Martinelli 2018 eqs. 4-5) or a "
+        "digitised curve of rte-france/pallas-dohl's table (from the EPRI Orange Book figure).",
+        choices=WIND_CURVE_NAMES, when=("enabled", (True,)))
+    self_damping: str = _key(
+        "noiseux1991", "", "Conductor self-damping law P_c = k Y^l f^m / T^n (the exponent sets "
+        "of rte-france/pallas-dohl's damping_power_data.yaml; k by the Lilien normalisation "
+        "D / sqrt(m RTS)).", choices=SELF_DAMPING_NAMES, when=("enabled", (True,)))
+    time_domain: bool = _key(
+        True, "", "Check the energy balance at the [forcing] wind speed in the time domain with "
+        "the same two powers (severity.simulate_aeolian), without dampers and with the robot "
+        "parked at the antinode (aeolian forcing only).", when=("enabled", (True,)))
     wind_record: str | None = _key(
         None, "", "A wind record, a CSV file with columns time, wind_speed, direction, "
         "temperature (and optionally turbulence_intensity): adds the fatigue stage to run and "

@@ -239,6 +239,10 @@ class Severity:
     rated_strength : float
         The rated strength of the study's conductor, N (it normalises the self-damping law;
         NaN when the conductor carries none).
+    time_domain : (AeolianRun, AeolianRun) or None
+        The energy balance at the scenario's aeolian wind speed checked in the time domain
+        (:func:`~powerline_control.severity.simulate_aeolian`): without dampers, and with the
+        robot parked at the antinode; None when not asked for or the forcing is not the wind.
     """
 
     bare: Any
@@ -248,6 +252,7 @@ class Severity:
     endurance_applies: bool = True
     assumptions: tuple = ()
     rated_strength: float = float("nan")
+    time_domain: tuple | None = None
 
 
 @dataclass(frozen=True, eq=False)

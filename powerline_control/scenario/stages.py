@@ -482,7 +482,8 @@ def severity_inputs(scenario: Scenario, span) -> tuple[dict, str]:
 paper gives none)")
     """
     sev = scenario.severity
-    kwargs = {"outer_strand_modulus": sev.outer_strand_modulus, "x_b": sev.clamp_distance}
+    kwargs = {"outer_strand_modulus": sev.outer_strand_modulus, "x_b": sev.clamp_distance,
+              "wind_curve": sev.wind_curve, "self_damping": sev.self_damping}
     if sev.outer_strand_diameter is not None:
         kwargs["outer_strand_diameter"] = sev.outer_strand_diameter
         source = "severity.outer_strand_diameter"
@@ -595,7 +596,26 @@ def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
     return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
                     strand_source=source, assumptions=assumptions,
                     endurance_applies=span.conductor.family == ENDURANCE_FAMILY,
-                    rated_strength=float(span.conductor.rated_strength or float("nan")))
+                    rated_strength=float(span.conductor.rated_strength or float("nan")),
+                    time_domain=_time_domain(scenario, span, tuning))
+
+
+def _time_domain(scenario: Scenario, span, tuning: Tuning) -> tuple | None:
+    """The energy balance at the scenario's aeolian wind speed, checked in the time domain with
+    the same powers: (no damper, robot parked at the antinode), or None (not asked for, or the
+    forcing is not the wind)."""
+    import dataclasses
+
+    from ..severity import simulate_aeolian
+
+    sev, forcing = scenario.severity, scenario.forcing
+    if not sev.time_domain or forcing.kind != "aeolian":
+        return None
+    settings = {"bc": scenario.model.bc, "wind_curve": sev.wind_curve,
+                "self_damping": sev.self_damping}
+    robot = dataclasses.replace(tuning.robot, position=tuning.antinode)
+    return (simulate_aeolian(span, forcing.wind_speed, **settings),
+            simulate_aeolian(span, forcing.wind_speed, robot, **settings))
 
 
 def read_wind_record(wind_record) -> tuple:

@@ -100,6 +100,11 @@ def severity_section(r) -> dict:
                      f"{1e6 * bare.strain_pp[i]:.3g} µε peak-to-peak; with the robot "
                      f"{mm(robot.amplitude[i])}, {1e6 * robot.strain_pp[i]:.3g} µε",
                      wind_speed_note(bare, robot, i, sev.endurance_applies)))
+    notes = []
+    if sev.time_domain is not None:
+        row, note = _time_domain_row(*sev.time_domain)
+        rows.append(row)
+        notes.append(note)
     if sev.assumptions:
         rows.append(("assumed", "; ".join(sev.assumptions),
                      "The span gives no such data: the study takes the catalogue conductor it "
@@ -119,7 +124,7 @@ def severity_section(r) -> dict:
             "power input equals the power the conductor's self-damping (and any damper) "
             "dissipates; the clamp strain follows from it (Poffenberger-Swart). With the robot: "
             "its absorber parked at the antinode of each wind speed.",
-            "notes": [note],
+            "notes": [note, *notes],
             "figures": [_figure("severity", draw,
                                 "Antinode amplitude (zero to peak) and peak-to-peak bending "
                                 "strain at the clamp (µε) against wind speed, from the energy "
@@ -127,6 +132,34 @@ def severity_section(r) -> dict:
                                 "strains above the endurance line: those winds fatigue the "
                                 "conductor" if sev.endurance_applies else
                                 "how far the robot lowers the strain at each wind speed")]}
+
+
+def _time_domain_row(bare, robot) -> tuple[tuple, str]:
+    """The time-domain check's row (the same powers, no damper and the robot parked) and the
+    note that says what each number means and why they differ."""
+    def versus(run) -> str:
+        said = "" if run.settled else ", still moving at the end of the run"
+        return (f"simulated {mm(run.amplitude)} against the balance's "
+                f"{mm(run.balance_amplitude)} ({100 * run.relative_error:+.3g} %{said})")
+
+    row = (f"time domain at {bare.wind_speed:g} m/s",
+           f"no damper: {versus(bare)}; robot parked at the antinode: {versus(robot)}",
+           "The same wind power and self-damping in a simulation of the span's modes with the FE "
+           "robot, run until the amplitude settles (severity.simulate_aeolian).")
+    note = ("The time-domain check and the energy balance use the same wind power and "
+            "self-damping, so without dampers they agree up to the locked mode's frequency "
+            "against St V / D. With the robot the balance's damper power is first order: it "
+            "assumes the robot leaves the standing wave as it is, which holds when the robot's "
+            f"impedance is small against the line's wave impedance sqrt(T m); here it is "
+            f"{robot.robot_impedance_ratio:.3g} times that, so "
+            + ("the balance overstates the power the robot takes and the simulated amplitude, "
+               "which carries the robot's effect on the wave, is the one to trust."
+               if robot.robot_impedance_ratio > 0.3 else
+               "the two should agree, and a difference is the simulation's coupling of modes.")
+            + " The closed loop's wind is a lift of fixed amplitude, not self-limiting: its "
+            "amplitudes compare the robot's positions under one load, not the line's steady "
+            "vibration.")
+    return row, note
 
 
 def _endurance(result) -> float:
