@@ -12,6 +12,9 @@ there (:func:`_choose`), by the one rule ``dmd._unmeasured_score``.
 The calibration reads the record at up to :data:`_CALIBRATION_CHANNELS` moving nodes spread
 evenly over the span (what a few field sensors give), in a band around the record's dominant
 frequency; nothing of a simulation's truth enters.
+
+Test seam: ``_scoring_layout``: checked on a standing wave whose vibration nodes the evenly
+spread layout falls on (tests/test_recipe_physics.py).
 """
 
 from __future__ import annotations
@@ -166,20 +169,19 @@ def _physics_candidate(rec: _Record, span: Span, bc: tuple):
     return best[0], best[1], partial_cal, tone
 
 
-def _scoring_layout(rec: _Record) -> np.ndarray:
-    """The provisional layout, or, where its sensors read under :data:`_BLIND_LAYOUT` of the
-    moving nodes' mean square (on the standing wave's vibration nodes: five nodes evenly spread
-    over a pinned span lie at multiples of L / 6, the nodes of every sixth mode), each sensor
-    moved to the node of largest mean square within a quarter of the layout's spacing."""
-    layout = rec.provisional
-    power = np.mean(rec.X**2, axis=1)
-    if rec.given is not None or np.mean(power[layout]) >= _BLIND_LAYOUT * np.mean(
-            power[rec.candidates]):
+def _scoring_layout(X: np.ndarray, layout: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    """The provisional ``layout`` (rows of the record ``X``), or, where its sensors read under
+    :data:`_BLIND_LAYOUT` of the moving nodes' (``candidates``, ascending) mean square (on the
+    standing wave's vibration nodes: five nodes evenly spread over a pinned span lie near
+    multiples of L / 6, the nodes of every sixth mode), each sensor moved to the node of largest
+    mean square within a quarter of the layout's spacing."""
+    power = np.mean(X**2, axis=1)
+    if np.mean(power[layout]) >= _BLIND_LAYOUT * np.mean(power[candidates]):
         return layout
-    reach = max(1, rec.candidates.size // (4 * (layout.size + 1)))
-    where = np.searchsorted(rec.candidates, layout)
-    moved = [int(rec.candidates[lo + np.argmax(power[rec.candidates[lo:hi]])])
-             for lo, hi in ((max(0, w - reach), min(rec.candidates.size, w + reach + 1))
+    reach = max(1, candidates.size // (4 * (layout.size + 1)))
+    where = np.searchsorted(candidates, layout)
+    moved = [int(candidates[lo + np.argmax(power[candidates[lo:hi]])])
+             for lo, hi in ((max(0, w - reach), min(candidates.size, w + reach + 1))
                             for w in where)]
     return np.unique(moved)
 
@@ -207,7 +209,8 @@ def _choose(design: EstimatorDesign | None, rec: _Record, span: Span, bc: tuple
     if rec.positions is None:
         raise InputError("The 'nominal' parameter needs the node positions (m) of the record: "
                          "give 'positions', or Snapshots (with x).")
-    rec = replace(rec, provisional=_scoring_layout(rec))
+    if rec.given is None:
+        rec = replace(rec, provisional=_scoring_layout(rec.X, rec.provisional, rec.candidates))
     other = math.inf if design is None else _held_out_of(design, rec, rec.provisional)
     found = _physics_candidate(rec, span, bc)
     if found is not None and _one_tone_share(rec, span) >= _ONE_TONE_SHARE:
