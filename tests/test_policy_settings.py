@@ -8,6 +8,7 @@ policy's rules say.
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -38,6 +39,30 @@ def test_a_bad_setting_names_itself_its_value_and_what_is_allowed(field, value):
     with pytest.raises(plc.InputError, match=named) as info:
         plc.PolicySettings(**{field: value})
     assert f"Got {value!r}." in str(info.value)
+
+
+def _stated_ends(allowed: str) -> list[tuple[float, bool]]:
+    """(value, accepted) at each end of the range a setting's message states."""
+    ends = []
+    if match := re.search(r"(>=|>) (-?[0-9.]+)", allowed):
+        ends.append((float(match[2]), match[1] == ">="))
+    if match := re.search(r"([\[(])(-?[0-9.]+), (-?[0-9.]+)([\])])", allowed):
+        ends += [(float(match[2]), match[1] == "["), (float(match[3]), match[4] == "]")]
+    return ends
+
+
+@pytest.mark.parametrize("item", dataclasses.fields(plc.PolicySettings), ids=lambda f: f.name)
+def test_each_setting_takes_the_ends_of_its_range_as_its_message_states(item):
+    # "an integer >= 1" takes 1; "a number in [0, 1)" takes 0, not 1; "> 0" not 0.
+    ends = _stated_ends(item.metadata["allowed"])
+    assert ends, item.metadata["allowed"]
+    for value, accepted in ends:
+        value = int(value) if item.metadata["integer"] else value
+        if accepted:
+            assert getattr(plc.PolicySettings(**{item.name: value}), item.name) == value
+        else:
+            with pytest.raises(plc.InputError, match=item.name):
+                plc.PolicySettings(**{item.name: value})
 
 
 def test_settings_are_frozen_and_integers_stay_integers():

@@ -169,7 +169,7 @@ in [0, 1) (the predicted relative drop of the span's RMS a move must bring). Got
                                    0.0)
     max_wait: float = _field(3.0, "a number of seconds >= 0", 0.0, low_inclusive=True)
     max_choices: int = _field(3, "an integer >= 1 (loops tried per excitation)", 1,
-                              integer=True)
+                              low_inclusive=True, integer=True)
     near_optimal: float = _field(0.03, "a number in [0, 1) (a fraction of the lowest RMS)", 0.0,
                                  1.0, low_inclusive=True, high_inclusive=False)
     travel_fraction: float = _field(0.5, "a number in (0, 1] (a share of the rest of the run)",
@@ -193,8 +193,9 @@ in [0, 1) (the predicted relative drop of the span's RMS a move must bring). Got
                                    low_inclusive=True, high_inclusive=False)
     min_change_hold: float = _field(1.0, "a number of seconds >= 0", 0.0, low_inclusive=True)
     grid_per_node: int = _field(4, "an integer >= 1 (candidate positions per node)", 1,
-                                integer=True)
-    min_grid: int = _field(200, "an integer >= 3 (candidate positions)", 3, integer=True)
+                                low_inclusive=True, integer=True)
+    min_grid: int = _field(200, "an integer >= 3 (candidate positions)", 3, low_inclusive=True,
+                           integer=True)
     prior_damping_floor: float = _field(1e-3, "a damping ratio > 0", 0.0)
     prior_regularization: float = _field(1e-6, "a number > 0 (relative to the mean diagonal)",
                                          0.0)
