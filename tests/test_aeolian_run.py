@@ -147,3 +147,25 @@ def test_scenario_choices_are_the_severity_tables():
     assert set(WIND_CURVE_NAMES) == set(plc.severity.WIND_POWER_CURVES)
     laws = plc.severity.SELF_DAMPING_LAWS
     assert set(SELF_DAMPING_NAMES) == {name for name, law in laws.items() if law.n is not None}
+
+
+def test_scenario_severity_reports_the_time_domain_beside_the_balance():
+    from powerline_control.scenario.summary_severity import severity_section
+
+    text = "\n".join([
+        "[span]", 'preset = "conductor"', 'conductor = "drake"', "length = 60.0",
+        "rts_fraction = 0.2", "[model]", 'bc = "clamped"', "[forcing]", 'kind = "aeolian"',
+        "wind_speed = 3.0", "[robot]", "start = 30.0", "body_mass = 5.0",
+        "suspended_mass = 3.0", "[severity]", "enabled = true"])
+    result = plc.run_scenario(plc.load_scenario(text=text), stages=("model", "severity"))
+    runs = result.severity.time_domain
+    balance = plc.severity.aeolian_severity(_span("drake", 60.0), [3.0])
+    assert runs.bare.balance_amplitude == pytest.approx(float(balance.amplitude[0]))
+    assert abs(runs.bare.relative_error) < 0.05
+    # the robot at the antinode does better than parked near the clamp, and both help
+    assert runs.reduction > runs.clamp_reduction > 1
+    assert runs.near_clamp.robot_position == pytest.approx(
+        plc.severity.harmonic_mean_position(_span("drake", 60.0)))
+    rows = {row[0]: row[1] for row in severity_section(result)["rows"]}
+    said = rows["time domain at 3 m/s"]
+    assert f"{runs.reduction:.3g}x lower" in said and f"{runs.clamp_reduction:.3g}x lower" in said

@@ -239,10 +239,9 @@ class Severity:
     rated_strength : float
         The rated strength of the study's conductor, N (it normalises the self-damping law;
         NaN when the conductor carries none).
-    time_domain : (AeolianRun, AeolianRun) or None
-        The energy balance at the scenario's aeolian wind speed checked in the time domain
-        (:func:`~powerline_control.severity.simulate_aeolian`): without dampers, and with the
-        robot parked at the antinode; None when not asked for or the forcing is not the wind.
+    time_domain : SeverityTimeDomain or None
+        The energy balance at the scenario's aeolian wind speed checked in the time domain;
+        None when not asked for or the forcing is not the wind.
     """
 
     bare: Any
@@ -252,7 +251,38 @@ class Severity:
     endurance_applies: bool = True
     assumptions: tuple = ()
     rated_strength: float = float("nan")
-    time_domain: tuple | None = None
+    time_domain: SeverityTimeDomain | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class SeverityTimeDomain:
+    """Self-limiting runs (:func:`~powerline_control.severity.simulate_aeolian`) at the
+    scenario's aeolian wind speed, with the energy balance's powers.
+
+    Attributes
+    ----------
+    bare : AeolianRun
+        No damper.
+    at_antinode : AeolianRun
+        The robot parked at the antinode of the tone.
+    near_clamp : AeolianRun
+        The robot parked, as a fixed damper would be, at the harmonic-mean position of the
+        1-7 m/s loop lengths from the left support (``severity.harmonic_mean_position``).
+    """
+
+    bare: Any
+    at_antinode: Any
+    near_clamp: Any
+
+    @property
+    def reduction(self) -> float:
+        """Steady amplitude without dampers over that with the robot at the antinode."""
+        return self.bare.amplitude / self.at_antinode.amplitude
+
+    @property
+    def clamp_reduction(self) -> float:
+        """Steady amplitude without dampers over that with the robot parked near the clamp."""
+        return self.bare.amplitude / self.near_clamp.amplitude
 
 
 @dataclass(frozen=True, eq=False)

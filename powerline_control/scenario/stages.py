@@ -9,6 +9,7 @@ tuning (:func:`tune_robot`). Which nodes carry sensors is :mod:`.sensing`'s.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 import warnings
 
@@ -24,6 +25,7 @@ from .result import (
     Plan,
     Records,
     Severity,
+    SeverityTimeDomain,
     Tuning,
 )
 from .sensing import closed_loop_sensors, evenly_spaced_nodes, given_sensors
@@ -600,22 +602,26 @@ def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
                     time_domain=_time_domain(scenario, span, tuning))
 
 
-def _time_domain(scenario: Scenario, span, tuning: Tuning) -> tuple | None:
+def _time_domain(scenario: Scenario, span, tuning: Tuning) -> SeverityTimeDomain | None:
     """The energy balance at the scenario's aeolian wind speed, checked in the time domain with
-    the same powers: (no damper, robot parked at the antinode), or None (not asked for, or the
-    forcing is not the wind)."""
+    the same powers: no damper, the robot parked at the antinode, and parked near the clamp as
+    a fixed damper would be; None when not asked for or the forcing is not the wind."""
     import dataclasses
 
-    from ..severity import simulate_aeolian
+    from ..severity import harmonic_mean_position, simulate_aeolian
 
     sev, forcing = scenario.severity, scenario.forcing
     if not sev.time_domain or forcing.kind != "aeolian":
         return None
     settings = {"bc": scenario.model.bc, "wind_curve": sev.wind_curve,
                 "self_damping": sev.self_damping}
-    robot = dataclasses.replace(tuning.robot, position=tuning.antinode)
-    return (simulate_aeolian(span, forcing.wind_speed, **settings),
-            simulate_aeolian(span, forcing.wind_speed, robot, **settings))
+    speed = forcing.wind_speed
+    parked = functools.partial(dataclasses.replace, tuning.robot)
+    return SeverityTimeDomain(
+        bare=simulate_aeolian(span, speed, **settings),
+        at_antinode=simulate_aeolian(span, speed, parked(position=tuning.antinode), **settings),
+        near_clamp=simulate_aeolian(span, speed, parked(position=harmonic_mean_position(span)),
+                                    **settings))
 
 
 def read_wind_record(wind_record) -> tuple:

@@ -102,7 +102,7 @@ def severity_section(r) -> dict:
                      wind_speed_note(bare, robot, i, sev.endurance_applies)))
     notes = []
     if sev.time_domain is not None:
-        row, note = _time_domain_row(*sev.time_domain)
+        row, note = _time_domain_row(sev.time_domain)
         rows.append(row)
         notes.append(note)
     if sev.assumptions:
@@ -134,18 +134,23 @@ def severity_section(r) -> dict:
                                 "how far the robot lowers the strain at each wind speed")]}
 
 
-def _time_domain_row(bare, robot) -> tuple[tuple, str]:
-    """The time-domain check's row (the same powers, no damper and the robot parked) and the
-    note that says what each number means and why they differ."""
+def _time_domain_row(runs) -> tuple[tuple, str]:
+    """The time-domain check's row (the same powers: no damper, the robot parked at the
+    antinode and near the clamp) and the note that says what each number means and why the
+    balance's robot differs."""
     def versus(run) -> str:
         said = "" if run.settled else ", still moving at the end of the run"
-        return (f"simulated {mm(run.amplitude)} against the balance's "
-                f"{mm(run.balance_amplitude)} ({100 * run.relative_error:+.3g} %{said})")
+        return (f"{mm(run.amplitude)} against the balance's {mm(run.balance_amplitude)} "
+                f"({100 * run.relative_error:+.3g} %{said})")
 
+    bare, robot, clamp = runs.bare, runs.at_antinode, runs.near_clamp
     row = (f"time domain at {bare.wind_speed:g} m/s",
-           f"no damper: {versus(bare)}; robot parked at the antinode: {versus(robot)}",
+           f"no damper: {versus(bare)}; robot parked at the antinode: {versus(robot)}, "
+           f"{runs.reduction:.3g}x lower; parked near the clamp as a fixed damper "
+           f"({clamp.robot_position:.3g} m): {versus(clamp)}, {runs.clamp_reduction:.3g}x lower",
            "The same wind power and self-damping in a simulation of the span's modes with the FE "
-           "robot, run until the amplitude settles (severity.simulate_aeolian).")
+           "robot, run until the amplitude settles (severity.simulate_aeolian): the steady "
+           "amplitudes to trust for the robot's value.")
     note = ("The time-domain check and the energy balance use the same wind power and "
             "self-damping, so without dampers they agree up to the locked mode's frequency "
             "against St V / D. With the robot the balance's damper power is first order: it "

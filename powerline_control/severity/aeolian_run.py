@@ -102,6 +102,8 @@ class AeolianRun:
     energy_residual : float
         (wind input - dissipation - energy gained) / wind input over the final window: the
         integration's energy conservation.
+    robot_position : float or None
+        Where the robot is parked, m (None without a robot).
     robot_impedance_ratio : float
         |Z| of the robot at ``frequency`` over the line's wave impedance sqrt(T m) (0 without a
         robot): the energy balance's first-order damper power assumes the robot leaves the
@@ -132,6 +134,7 @@ class AeolianRun:
     self_damping_power: float = 0.0
     robot_power: float = 0.0
     energy_residual: float = 0.0
+    robot_position: float | None = None
     robot_impedance_ratio: float = 0.0
     x: np.ndarray = field(default=None, repr=False)
     field_amplitude: np.ndarray = field(default=None, repr=False)
@@ -378,7 +381,7 @@ self_damping_exponents
         settled=settled, t_envelope=read_only(np.asarray(times)),
         envelope=read_only(np.asarray(envelope)), wind_power=p_wind / span.length,
         self_damping_power=p_self / span.length, robot_power=p_robot / span.length,
-        energy_residual=float(residual),
+        energy_residual=float(residual), robot_position=position,
         robot_impedance_ratio=0.0 if robot is None else abs(damper_impedance(robot, frequency))
         / math.sqrt(span.tension * mass), x=read_only(bare.node_positions.copy()),
         field_amplitude=read_only(field_amplitude))
