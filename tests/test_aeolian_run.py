@@ -169,3 +169,9 @@ def test_scenario_severity_reports_the_time_domain_beside_the_balance():
     rows = {row[0]: row[1] for row in severity_section(result)["rows"]}
     said = rows["time domain at 3 m/s"]
     assert f"{runs.reduction:.3g}x lower" in said and f"{runs.clamp_reduction:.3g}x lower" in said
+    # the command's JSON carries the same numbers
+    from powerline_control.scenario.summary_json import result_json
+
+    data = result_json(result)["severity_time_domain"]
+    assert data["reduction"] == pytest.approx(runs.reduction)
+    assert data["bare_amplitude_m"] == pytest.approx(runs.bare.amplitude)

@@ -156,6 +156,21 @@ def result_json(result) -> dict:
              "robot_amplitude_m": _f(robot.amplitude[i]),
              "robot_strain_pp_microstrain": 1e6 * _f(robot.strain_pp[i])}
             for i in range(bare.wind_speed.size)]
+        runs = r.severity.time_domain
+        if runs is not None:
+            out["severity_time_domain"] = {
+                "wind_speed_m_s": _f(runs.bare.wind_speed),
+                **{f"{name}_amplitude_m": _f(run.amplitude) for name, run in (
+                    ("bare", runs.bare), ("antinode", runs.at_antinode),
+                    ("near_clamp", runs.near_clamp))},
+                **{f"{name}_balance_amplitude_m": _f(run.balance_amplitude) for name, run in (
+                    ("bare", runs.bare), ("antinode", runs.at_antinode),
+                    ("near_clamp", runs.near_clamp))},
+                "near_clamp_position_m": _f(runs.near_clamp.robot_position),
+                "reduction": _f(runs.reduction), "near_clamp_reduction": _f(runs.clamp_reduction),
+                "robot_impedance_ratio": _f(runs.at_antinode.robot_impedance_ratio),
+                "settled": all(run.settled for run in (runs.bare, runs.at_antinode,
+                                                       runs.near_clamp))}
     if r.fatigue is not None:
         life = r.fatigue.life
         out["fatigue"] = {name: {"damage_per_year": _f(life[name].damage_per_year),
