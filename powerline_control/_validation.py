@@ -7,10 +7,12 @@ allowed and the value received, in the style of scikit-learn's parameter validat
 
 from __future__ import annotations
 
+import difflib
+import inspect
 import numbers
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +37,7 @@ __all__ = [
     "check_budget",
     "check_budget_value",
     "check_write_path",
+    "check_forwarded_options",
 ]
 
 # Default budgets for what one public call may commit before it starts (documented in
@@ -420,6 +423,79 @@ os.PathLike). Got 5 of type int instead.
             raise InputError(f"The {name!r} parameter {os.fspath(value)!r} cannot be written: "
                              f"the {what} {target!r} is not writable.")
     return path
+
+
+def _keyword_names(function: Callable) -> list[str]:
+    """The parameters of ``function`` that a caller may give by keyword."""
+    kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    return [name for name, parameter in inspect.signature(function).parameters.items()
+            if parameter.kind in kinds]
+
+
+def check_forwarded_options(
+    where: Callable,
+    options: Mapping[str, object],
+    target: Callable,
+    *,
+    set_here: Sequence[str] = (),
+    why: str = "",
+) -> dict[str, object]:
+    """The one check of the keywords a public ``**options`` function passes on to ``target``.
+
+    Run it first, before any work: a misspelt name (``wind_curv=``) is refused by name with
+    the names that would work (``where``'s own parameters and ``target``'s, less ``set_here``)
+    and the nearest one, instead of escaping later as Python's ``TypeError`` from a function the
+    user did not call. A name in ``set_here`` (``where`` passes it to ``target`` itself) is
+    refused with ``why``.
+
+    Parameters
+    ----------
+    where : callable
+        The public function that takes ``**options`` (named in the message).
+    options : mapping
+        The keywords it received in ``**options``.
+    target : callable
+        The function it passes them on to.
+    set_here : sequence of str
+        ``target``'s parameters that ``where`` sets itself.
+    why : str
+        Why those are set by ``where`` (one clause, for the message).
+
+    Returns
+    -------
+    dict
+        ``options``, as a new dict.
+
+    Examples
+    --------
+    >>> def inner(x, *, curve="cigre", k=1.0):
+    ...     return x
+    >>> def outer(x, *, settle=5.0, **options):
+    ...     return inner(x, **check_forwarded_options(outer, options, inner, set_here=["x"]))
+    >>> outer(1.0, curve="ieee")
+    1.0
+    >>> outer(1.0, curv="ieee")
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: outer got an unknown keyword argument 'curv' (did you \
+mean 'curve'?). Accepted: its own parameters x, settle; and inner's options curve, k.
+    """
+    name = getattr(where, "__qualname__", getattr(where, "__name__", str(where)))
+    target_name = getattr(target, "__name__", str(target))
+    own = [n for n in _keyword_names(where) if n not in ("self", "cls")]
+    forwarded = [n for n in _keyword_names(target) if n not in set_here and n not in own]
+    for key in options:
+        if key in set_here:
+            raise InputError(f"The {key!r} option cannot be passed to {name}: it sets it "
+                             f"itself{' (' + why + ')' if why else ''}.")
+        if key not in forwarded:
+            close = difflib.get_close_matches(str(key), own + forwarded, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise InputError(
+                f"{name} got an unknown keyword argument {key!r}{hint}. Accepted: its own "
+                f"parameters {', '.join(own)}; and {target_name}'s options "
+                f"{', '.join(forwarded)}.")
+    return dict(options)
 
 
 def read_only(array: np.ndarray) -> np.ndarray:

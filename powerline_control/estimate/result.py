@@ -26,6 +26,7 @@ import numpy as np
 from .._results import Result
 from .._validation import (
     check_array,
+    check_forwarded_options,
     check_indices,
     check_int,
     check_real,
@@ -138,6 +139,8 @@ class Estimate(Result):
         >>> KalmanFilter(sys, Q=0.01, R=1.0).filter(y).recovery(1000).nis_samples
         0
         """
+        options = check_forwarded_options(Estimate.recovery, options, recovery_time,
+                                          set_here=("estimate",), why="this estimate")
         return recovery_time(self, change_at, truth, rows, **options)
 
     @property

@@ -29,7 +29,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import check_int, check_real, check_rng, read_only
+from .._validation import (
+    check_forwarded_options,
+    check_int,
+    check_real,
+    check_rng,
+    read_only,
+)
 from ..errors import ExcitationWarning, InputError
 from .design import design_estimator
 from .record import _other_records
@@ -156,6 +162,11 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
     >>> study.k, study.held_out_error.shape
     ((2, 4), (2,))
     """
+    design_options = check_forwarded_options(
+        estimator_count_study, design_options, design_estimator,
+        set_here=("snapshots", "n_sensors", "dt", "positions"),
+        why="the training part of 'snapshots', each count of 'k_values', the record's dt and "
+            "positions")
     # None is fresh entropy (check_rng's rule), drawn once and shared by every count's design;
     # an int is passed on as given, so each count's design sees the same seed.
     rng = check_rng(seed)
@@ -188,6 +199,11 @@ def estimator_count_study(snapshots, k_values: Sequence[int], *, target_error: f
     held = x_all[:, n_fit:]
     positions = getattr(snapshots, "x", None)
     given_noise = {"noise_std": noise} if math.isfinite(noise) and noise > 0 else {}
+    if given_noise and "noise_std" in design_options:
+        raise InputError(
+            f"The 'noise_std' option cannot be passed to estimator_count_study with a record "
+            f"that states its own noise_std ({noise:g}): the record's is used. Drop the option, "
+            "or pass a record without noise_std.")
     checks, check_sigmas = _other_records(check, "check", positions, x_all.shape[0], dt,
                                           noise_std=check_noise_std,
                                           noise_name="check_noise_std")

@@ -18,6 +18,7 @@ from .._riccati import solve_filter_dare
 from .._validation import (
     check_budget,
     check_discrete_system,
+    check_forwarded_options,
     check_int,
     check_psd,
     check_real,
@@ -121,6 +122,9 @@ def sensor_count_study(
     >>> study.k, bool(study.rms_error[1] < study.rms_error[0])
     ((1, 2), True)
     """
+    options = check_forwarded_options(
+        sensor_count_study, options, select_sensors, set_here=("sys", "k", "criterion"),
+        why="the count comes from 'k_values'; the criterion is the Kalman one")
     sys = check_discrete_system("sys", sys)
     if isinstance(k_values, str) or not isinstance(k_values, Sequence | np.ndarray):
         raise InputError(

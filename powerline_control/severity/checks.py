@@ -11,6 +11,7 @@ import numpy as np
 
 from .._spectral import fit_phasors
 from .._validation import (
+    check_forwarded_options,
     check_int,
     check_real,
     read_only,
@@ -144,6 +145,10 @@ def time_domain_check(span: Span, wind_speed: float, *, n_elements: int, bc: str
     >>> check.mode > 1
     True
     """
+    severity_options = check_forwarded_options(
+        time_domain_check, severity_options, aeolian_severity,
+        set_here=("span", "wind_speeds", "dampers"),
+        why="the wind speed is 'wind_speed', the damper is 'damper'")
     span = _check_span(span)
     speed = check_real("wind_speed", wind_speed, low=0.0, high=MAX_WIND_SPEED)
     n_elements = check_int("n_elements", n_elements, low=2)

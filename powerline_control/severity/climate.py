@@ -13,6 +13,7 @@ from .._results import TabularResult
 from .._validation import (
     check_array,
     check_choice,
+    check_forwarded_options,
     check_real,
     read_only,
 )
@@ -368,6 +369,12 @@ def robot_value(
     >>> value.configurations[2], bool(value.time_at_antinode.max() <= 1.0)
     ('robot at antinode', True)
     """
+    severity_options = check_forwarded_options(
+        robot_value, severity_options, aeolian_severity,
+        set_here=("span", "wind_speeds", "dampers", "label"),
+        why="it compares its own three configurations (no damper, the damper parked at x*, the "
+            "robot at the antinode), built from 'damper'; for another set of dampers call "
+            "aeolian_severity(span, wind_speeds, dampers=...) directly")
     span = _check_span(span)
     if isinstance(wind_speeds, np.ndarray):  # before the checks and the sort copy it
         _check_severity_budget(wind_speeds.size)
@@ -381,13 +388,6 @@ def robot_value(
                          f"{type(distribution).__name__}.")
     persistence = check_real("persistence", persistence, low=0.0)
     en_route = check_choice("en_route", en_route, ("average", "undamped"))
-    for reserved in ("dampers", "label"):
-        if reserved in severity_options:
-            raise InputError(
-                f"The '{reserved}' option cannot be passed to robot_value: it compares its own "
-                "three configurations (no damper, the damper parked at x*, the robot at the "
-                "antinode), built from 'damper'. For another set of dampers call "
-                "aeolian_severity(span, wind_speeds, dampers=...) directly.")
     strouhal = severity_options.get("strouhal", DEFAULT_STROUHAL)
     x_star = harmonic_mean_position(span, speeds, strouhal)
     if isinstance(damper, MDR):

@@ -10,7 +10,6 @@ describes the model and its assumptions.
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -18,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._results import TabularResult
-from .._validation import check_choice, check_real, read_only
+from .._validation import check_choice, check_forwarded_options, check_real, read_only
 from ..errors import InputError
 from ..excitation import DEFAULT_STROUHAL
 from ..fem import MDR
@@ -258,21 +257,6 @@ def _nearest_antinode(position: float, loop: float, length: float) -> float:
 _SET_BY_FATIGUE = ("dampers", "label", "turbulence_intensity", "wind_speeds", "span")
 
 
-def _severity_options(options: dict) -> dict:
-    passed_on = set(inspect.signature(aeolian_severity).parameters) - set(_SET_BY_FATIGUE)
-    unknown = sorted(set(options) - passed_on - set(_SET_BY_FATIGUE))
-    if unknown:
-        raise InputError(
-            f"fatigue_over_record got unknown option(s) {unknown}: besides its own parameters it "
-            f"passes only aeolian_severity's options on. Allowed: {sorted(passed_on)}.")
-    for reserved in _SET_BY_FATIGUE:
-        if reserved in options:
-            raise InputError(
-                f"The '{reserved}' option cannot be passed to fatigue_over_record: it sets it "
-                "itself (dampers from damper= and fixed_position=, turbulence from the record).")
-    return options
-
-
 def _record_damage(name: str, o: dict, vibrating: np.ndarray, step: float, years: float,
                    layers: str, endurance: float) -> RecordDamage:
     """Miner damage per record, f x time / N_SBL(sigma), of a configuration parked all along."""
@@ -474,7 +458,9 @@ def fatigue_over_record(
     limits = default_limits if limits is None else limits
     _check_robot_damper(damper)
     _check_limits(limits)
-    options = _severity_options(dict(severity_options))
+    options = check_forwarded_options(
+        fatigue_over_record, severity_options, aeolian_severity, set_here=_SET_BY_FATIGUE,
+        why="dampers from damper= and fixed_position=, turbulence from the record")
     move = check_choice("move", move, ("tracked", "worst"))
     en_route = check_choice("en_route", en_route, ("average", "undamped"))
     try:
