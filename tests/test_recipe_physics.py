@@ -180,3 +180,14 @@ def test_a_layout_on_the_standing_waves_nodes_is_moved_to_its_loops():
     # the mesh step (0.51 m) against a loop of 6.1 m: |sin| >= cos(pi * 0.51 / 6.1 / 2) = 0.991
     assert np.abs(np.sin(36 * np.pi * x[moved] / length)).min() > 0.99
     assert np.array_equal(_scoring_layout(record(35), layout, candidates), layout)
+
+
+def test_a_span_model_is_refused_by_save_model_before_any_file_is_written(lab_calibration,
+                                                                          tmp_path):
+    # Its lock-in noise has no place in the file format: a file written anyway would be
+    # refused as corrupted when read back, so nothing is written.
+    model = span_model(lab_calibration, np.linspace(0.0, lab_calibration.span.length, 31),
+                       1e-3, n_pairs=100, process_noise=1e-12, modes_per_side=1)
+    with pytest.raises(InputError, match="SpanModel"):
+        plc.save_model(tmp_path / "span.npz", model)
+    assert not any(tmp_path.iterdir())

@@ -47,7 +47,7 @@ from numpy.lib import format as npy_format
 
 from .._validation import MEMORY_BUDGET_BYTES, check_budget_value, check_write_path, read_only
 from ..errors import FileFormatError, InputError
-from ..identify import DMDModel, OscillatorModel
+from ..identify import DMDModel, OscillatorModel, SpanModel
 
 __all__ = ["save_model", "load_model"]
 
@@ -134,6 +134,14 @@ def save_model(path: str | os.PathLike[str], model: DMDModel) -> None:
             "The 'model' parameter must be a DMDModel (or an OscillatorModel). Got "
             f"{type(model).__name__} instead."
         )
+    if isinstance(model, SpanModel):
+        # Its lock-in process noise is not what the file's oscillator fields rebuild: a file
+        # written now would be refused as corrupted when read back.
+        raise InputError(
+            "The 'model' parameter is a SpanModel, which save_model cannot write yet (its "
+            "lock-in process noise has no place in the file format). Save the span it was "
+            "built from (model.calibration) and rebuild it with identify.span_model, or save "
+            "the recipe's DMD design instead.")
     if isinstance(path, str | bytes | os.PathLike):
         name = os.fsdecode(path)   # np.savez writes name + ".npz" unless it ends so already
         check_write_path(path, written=[name if name.endswith(".npz") else name + ".npz"])
