@@ -103,3 +103,44 @@ def test_clamp_strain_bad_input():
         sev = plc.aeolian_severity(lab, wind_speeds=[3.0], bc="clamped", self_damping_k=7.0)
     assert est.strain_pp / est.bending_amplitude == pytest.approx(
         sev.strain_pp[0] / sev.bending_amplitude[0], rel=1e-9)
+
+
+def _small_design(supports, *, as_array=False, **options):
+    """A cheap design on the lab span (20 elements, 2 s) trained on a line with these supports."""
+    model = plc.LineModel(plc.Span.paper_lab(), n_elements=20, bc=supports)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        snap = plc.simulate(model, plc.RandomForce(1.0, 0.5, 80.0, seed=1), 2.0, 1e-3,
+                            noise_fraction=0.01, seed=0)
+        data = snap.displacement if as_array else snap
+        design = plc.design_estimator(data, n_sensors=3, delays=4, rank=12, seed=0,
+                                      **({"dt": snap.dt} if as_array else {}), **options)
+    return model, snap, design
+
+
+def test_a_design_trained_on_a_pinned_line_is_refused_with_bare_positions():
+    """The issue-41 sweep's case: a design trained on a pinned model, given node positions
+    (not the model), answered; now its recorded supports are checked, before the filter runs."""
+    span = plc.Span.paper_lab()
+    model, snap, design = _small_design("pinned")
+    assert design.supports == ("pinned", "pinned") == snap.supports
+    y = snap.displacement[design.sensors]
+    with pytest.raises(plc.InputError, match=r"'design'.*supports \('pinned', 'pinned'\).*"
+                                             r"the left one is pinned"):
+        plc.severity.estimate_clamp_strain(design, y, span, model.node_positions)
+    # One clamp: its side answers, the pinned side is refused by name.
+    model, snap, design = _small_design(("clamped", "pinned"))
+    y = snap.displacement[design.sensors]
+    est = plc.severity.estimate_clamp_strain(design, y, span, model.node_positions, discard=100)
+    assert est.side == "left" and est.bending_amplitude > 0
+    with pytest.raises(plc.InputError, match="'design'.*the right one is pinned"):
+        plc.severity.estimate_clamp_strain(design, y, span, model.node_positions, side="right")
+
+
+def test_a_design_records_the_supports_it_was_trained_on():
+    # A bare array says nothing of its supports; the nominal span as told does.
+    _, _, design = _small_design("pinned", as_array=True)
+    assert design.supports is None
+    _, _, design = _small_design("pinned", as_array=True, nominal=plc.Span.paper_lab(),
+                                 bc="clamped", method="dmd")
+    assert design.supports == ("clamped", "clamped")

@@ -27,6 +27,7 @@ does not excite). A DMD model of such a record learns the forced mode and little
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from collections.abc import Sequence
@@ -257,6 +258,11 @@ def design_estimator(
                    process_noise=process_noise, warn_inconsistent=warn_inconsistent,
                    model_error_records=model_error_records, adapt_horizon=adapt_horizon)
     told = _check_nominal(nominal, bc)
+    # The supports of the line trained on, for the checks of those who use the design
+    # (estimate_clamp_strain needs a clamp): the record's own, else the nominal span's.
+    supports = getattr(snapshots, "supports", None)
+    if supports is None and told is not None:
+        supports = tuple(told[1])
     if rec.method == "physics":
         if told is None:
             raise InputError("The 'method' parameter is 'physics', which calibrates the span "
@@ -264,7 +270,7 @@ def design_estimator(
                              "nominal=None.")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SaturationWarning)
-            return _choose(None, rec, *told)
+            return _with_supports(_choose(None, rec, *told), supports)
     # A narrowband record gets one oscillator per spectral line, unless ("auto") its lines
     # leave more than noise unexplained; every other record gets a time-delay DMD model.
     # A clipped node was named above: the held-out filter runs on its rows do not repeat it.
@@ -287,11 +293,18 @@ def design_estimator(
         if design is None:
             design = _dmd_design(rec, alphas)
         if told is None:
-            return design
+            return _with_supports(design, supports)
         design = _choose(design, rec, *told) if rec.method == "auto" else design
     if design.excitation.narrowband:
         warnings.warn(design.excitation.message, ExcitationWarning, stacklevel=2)
-    return design
+    return _with_supports(design, supports)
+
+
+def _with_supports(design: EstimatorDesign, supports: object) -> EstimatorDesign:
+    """``design`` with the supports of the line it was trained on (None: not known)."""
+    if supports is None:
+        return design
+    return dataclasses.replace(design, supports=(str(supports[0]), str(supports[1])))
 
 
 #: A model-error record whose sensor noise std differs from the training record's by more than

@@ -140,6 +140,10 @@ class EstimatorDesign(Result):
         ``model_error_records``) set the level of ``field_variance_scale`` and
         ``field_relative_variance``; 0 when the held-out part of the training record set it
         (or nothing was fitted).
+    supports : (str, str) or None
+        The supports, left and right, of the line the design was trained on: the training
+        Snapshots' (``Snapshots.supports``), else the nominal span's (``design_estimator``'s
+        ``nominal``/``bc``); None when the record does not say (a measured array).
 
     Examples
     --------
@@ -172,6 +176,7 @@ class EstimatorDesign(Result):
     field_relative_variance: float = 0.0
     innovation_growth: tuple[float, float] | None = None
     n_model_error_records: int = 0
+    supports: tuple[str, str] | None = None
 
     @property
     def alpha_curve(self) -> AlphaSweep:

@@ -89,10 +89,20 @@ def _at(values: np.ndarray, positions: np.ndarray, x: float, p: float) -> np.nda
     return (1 - w) * values[j - 1] + w * values[j]
 
 
-def _clamped_nodes(positions: object, side: str) -> object:
-    """The node positions of ``positions``; a LineModel's ``side`` support must be clamped."""
+def _clamped_nodes(positions: object, side: str, design_supports: object) -> object:
+    """The node positions of ``positions``; the ``side`` support must be clamped, in the
+    LineModel given as ``positions`` and in the line the design was trained on (when known)."""
     from ..fem import LineModel
 
+    if design_supports is not None:
+        bc = design_supports[0 if side == "left" else 1]
+        if bc != "clamped":
+            raise InputError(
+                f"The 'design' parameter was trained on a line with supports "
+                f"{tuple(design_supports)} (EstimatorDesign.supports): the {side} one is {bc}, "
+                "but a clamp's bending amplitude needs a clamped support (a pinned end has no "
+                "bending at it). Train the design on LineModel(span, bc='clamped'), or give "
+                "the clamped side.")
     if not isinstance(positions, LineModel):
         return positions
     bc = positions.bc[0 if side == "left" else 1]
@@ -124,7 +134,10 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
     positions : LineModel or array_like, shape (n_nodes,)
         The line model the design was trained on (its supports are then checked: the
         ``side`` must be clamped), or its node positions, m (``model.node_positions``: from 0
-        to the span's length).
+        to the span's length). With bare positions the supports are checked on the design
+        (``EstimatorDesign.supports``: the training Snapshots' or the nominal span's); a design
+        trained on a measured array does not know them, so pass the LineModel to have them
+        checked.
     side : {"left", "right"}
         The clamp: x = 0 or x = L.
     x_b : float
@@ -143,7 +156,8 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
     InputError
         Bad arguments, named: a ``design`` that is not an EstimatorDesign, a ``span`` that is
         not a Span, NaN or infinite measurements, positions of the wrong shape, not ascending
-        or not from 0 to the span's length, a model whose ``side`` is not clamped, ``x_b``
+        or not from 0 to the span's length, a model (or a design's training line) whose
+        ``side`` is not clamped, ``x_b``
         outside the first half of the span, ``discard`` leaving no samples.
 
     Examples
@@ -176,7 +190,8 @@ def estimate_clamp_strain(design, measurements: object, span: Span, positions: o
             f"0.2)). Got {span!r:.60} of type {type(span).__name__} instead."
         )
     side = check_choice("side", side, ("left", "right"))
-    x = check_array("positions", _clamped_nodes(positions, side), ndim=1)
+    x = check_array("positions",
+                    _clamped_nodes(positions, side, getattr(design, "supports", None)), ndim=1)
     if x.size != design.n_nodes or np.any(np.diff(x) <= 0):
         raise InputError(
             f"The 'positions' parameter must hold the design's {design.n_nodes} node positions "

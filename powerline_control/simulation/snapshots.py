@@ -71,6 +71,9 @@ class Snapshots(Result):
         Standard deviation of the added sensor noise, m.
     mode_frequencies : ndarray
         Undamped frequencies (Hz) of the modes kept in the simulation.
+    supports : (str, str) or None
+        The simulated model's supports, left and right (``LineModel.bc``): what a design trained
+        on these snapshots records (``EstimatorDesign.supports``); None when not known.
 
     Examples
     --------
@@ -90,6 +93,7 @@ class Snapshots(Result):
     force_positions: tuple
     noise_std: float
     mode_frequencies: np.ndarray = field(repr=False)
+    supports: tuple[str, str] | None = field(default=None, repr=False)
 
     @property
     def force(self) -> np.ndarray:
@@ -393,6 +397,7 @@ def simulate(
         force_positions=tuple(f.position for f in forces),
         noise_std=noise_std,
         mode_frequencies=read_only(np.array(basis.frequencies)),
+        supports=(str(model.bc[0]), str(model.bc[1])),
     )
 
 
