@@ -110,6 +110,12 @@ class AeolianForce:
     (m omega^2 = EI k^4 + T k^2). This is the simplest load that feeds the resonant loop pattern;
     richer wake-oscillator models are not implemented.
 
+    Its amplitude is fixed: it does not follow the vibration, so a line damped by a fixed modal
+    ratio does not settle where the energy balance says (on real spans it stays one to two
+    orders of magnitude below it over a minute). For the self-limiting vibration, the wind power
+    of the energy balance at the current amplitude on a line damped by the conductor's
+    self-damping, use :func:`powerline_control.severity.simulate_aeolian`.
+
     Parameters
     ----------
     wind_speed : float
