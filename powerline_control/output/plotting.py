@@ -327,6 +327,7 @@ def plot_plan_path(
     *,
     target: float | None = None,
     target_series: np.ndarray | None = None,
+    antinode: float | None = None,
 ) -> Figure:
     """The robot's planned path (position against time) under the amplitude envelope.
 
@@ -343,9 +344,12 @@ def plot_plan_path(
     t, position : ndarray, shape (n_t,)
         Times (s) and robot positions (m).
     target : float, optional
-        The antinode targeted, m.
+        Where the robot is sent: the predicted best parked position, m.
     target_series : ndarray, shape (n_t,), optional
         The target at each time (closed loop), m.
+    antinode : float, optional
+        The estimated antinode nearest the target, m, marked beside it (the best parked position
+        need not be an antinode).
 
     Returns
     -------
@@ -371,12 +375,16 @@ def plot_plan_path(
     if target is not None:
         for ax in (top, bottom):
             ax.axvline(target, color="r", ls="--", lw=1)
-        bottom.plot([], [], "r--", label="targeted antinode")
+        bottom.plot([], [], "r--", label="target (best parked position predicted)")
+    if antinode is not None:
+        for ax in (top, bottom):
+            ax.axvline(antinode, color="0.45", ls=":", lw=1)
+        bottom.plot([], [], ls=":", color="0.45", label="nearest estimated antinode")
     bottom.plot(position[0], t[0], "go", label="start")
     bottom.set(xlabel="x (m)", ylabel="t (s)")
     _legend_off_the_curves(bottom)
-    visited = np.concatenate([position[np.isfinite(position)],
-                              [target] if target is not None else []])
+    marked = [v for v in (target, antinode) if v is not None]
+    visited = np.concatenate([position[np.isfinite(position)], marked])
     reach = np.ptp(visited) if visited.size else 0.0
     margin = max(0.5 * reach, 0.05 * (x[-1] - x[0]) if x[-1] - x[0] < 20 else 5.0)
     low = max(x[0], visited.min() - margin) if visited.size else x[0]

@@ -50,15 +50,18 @@ def plan_section(r) -> dict:
         {"estimated antinodes": [a.position for a in p.antinodes], "sensors": sensors})
     path_draw = functools.partial(_plotting().plot_plan_path, snap.x, p.envelope,
                                   p.trajectory.t, p.trajectory.position,
-                                  target=p.target.position, target_series=None)
+                                  target=p.choice.position, antinode=p.target.position)
     figures = [
         _figure("envelope", envelope_draw,
                 "Vibration amplitude along the span (largest |y| over the held-out record) "
                 "with the estimated antinodes and the sensors.",
                 "the antinode marks on the envelope's peaks"),
         _figure("robot_path", path_draw,
-                "The robot's planned move under the amplitude envelope, zoomed to where it "
-                "travels.", "the path ending under an envelope peak"),
+                "The robot's planned move to the predicted best parked position under the "
+                "amplitude envelope, zoomed to where it travels, with the estimated antinode "
+                "nearest that target.",
+                "the path ending on its target, and how far that target sits from the "
+                "nearest antinode"),
     ]
     return {"title": "Antinodes and motion plan", "rows": rows, "figures": figures}
 
