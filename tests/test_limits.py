@@ -21,6 +21,7 @@ from __future__ import annotations
 import tracemalloc
 import warnings
 
+import control as ct
 import numpy as np
 import pytest
 
@@ -52,7 +53,13 @@ def small():
                 sys=dmd.to_statespace(), big=np.zeros((2000, 3000)),
                 snapshots=rng.standard_normal((11, 400)), limits=plc.RobotLimits(0.5, 1.0),
                 robot=plc.MDR(1.2, 0.02), force=plc.HarmonicForce(1.0, 9.0, 1.1),
-                speeds_1e8=np.broadcast_to(3.0, (10**8,)))  # a 0-byte view of 1e8 speeds
+                speeds_1e8=np.broadcast_to(3.0, (10**8,)),  # a 0-byte view of 1e8 speeds
+                # 2000 states (32 MB, built here): its Gramian over 1e8 samples is 27 doubling
+                # steps of six 2000^3 products, measured 0.66 s each: ~107 s on this machine.
+                sys_2000=ct.ss(0.999 * np.eye(2000), np.ones((2000, 1)), np.ones((2, 2000)), 0,
+                               dt=1e-3),
+                # 20000 elements of Drake carrying the robot (sparse: built in ~0.5 s).
+                drake_20000=plc.LineModel(DRAKE, n_elements=20000, mdr=plc.MDR(100.0, 0.02)))
 
 
 def traced(call, small):
@@ -105,6 +112,20 @@ REFUSALS = [
     ("run_closed_loop dt=1e-9",
      lambda s: plc.run_closed_loop(LAB, s["force"], s["robot"], s["limits"], sensors=[3, 7],
                                    n_elements=10, duration=10.0, dt=1e-9), "dt", "1e-09"),
+    # A Drake span of 20000 elements with the robot: the calibration record (20001 nodes x
+    # 2001 samples) was simulated (9 s) before design_estimator refused it, naming a
+    # 'snapshots' the caller never passed; now refused before anything is built or simulated.
+    ("run_closed_loop 20000 elements with the robot",
+     lambda s: plc.run_closed_loop(DRAKE, plc.HarmonicForce(1.0, 10.0, 50.0),
+                                   plc.MDR(100.0, 0.02), s["limits"], sensors=[2000, 5000],
+                                   n_elements=20000, duration=5.0), "n_elements", "20000"),
+    ("run_closed_loop a 20000-element LineModel with the robot",
+     lambda s: plc.run_closed_loop(s["drake_20000"], plc.HarmonicForce(1.0, 10.0, 50.0), None,
+                                   s["limits"], sensors=[2000, 5000], duration=5.0),
+     "model", "20001 nodes"),
+    ("estimate.observability_gramian 2000 states horizon=1e8",
+     lambda s: plc.estimate.observability_gramian(s["sys_2000"], 10**8), "horizon",
+     "100000000"),
     ("run_closed_loop n_elements=1e7",
      lambda s: plc.run_closed_loop(LAB, s["force"], s["robot"], s["limits"], sensors=[3, 7],
                                    n_elements=10**7), "n_elements", "10000000"),
@@ -166,6 +187,18 @@ def test_budget_refusal_states_the_estimate_and_the_budget(small):
         plc.aeolian_severity(DRAKE, [3.0] * 200_000)
     # 1e7 flops per energy balance x 2e5 speeds = 2e12 > 1e12.
     assert "2e+12" in str(info.value) and "1e+12" in str(info.value), str(info.value)
+
+
+def test_a_refused_gramian_says_which_horizon_fits(small):
+    # 12 n^3 flops per doubling step, n = 2000: 9.6e10; 1e12 affords 10 steps, N <= 2^10 - 1.
+    with pytest.raises(InputError, match="horizons up to 1023 fit") as info:
+        plc.estimate.observability_gramian(small["sys_2000"], 10**8)
+    assert "2.6e+12" in str(info.value), str(info.value)
+    # The boundary: 1024 samples need an 11th step (refused); 1023 would run (~40 s: not here).
+    with pytest.raises(InputError, match="'horizon' parameter is 1024"):
+        plc.estimate.observability_gramian(small["sys_2000"], 1024)
+    # The fast path is unchanged where the model is small (test_huge_size_on_a_fast_path...).
+    assert np.isfinite(plc.estimate.observability_gramian(small["sys"], 10**8)).all()
 
 
 def test_a_raised_budget_lets_the_same_call_through(small):

@@ -142,7 +142,7 @@ def checked_settings(model, robot, limits, sensors, *, n_elements, bc, damping, 
     if motion not in ("closed_form", "mpc"):
         raise InputError(f"The 'motion' parameter must be 'closed_form' or 'mpc'. Got {motion!r}.")
     bare = _bare_model(model, sensors, duration, dt, n_elements=n_elements, bc=bc,
-                       damping=damping)
+                       damping=damping, n_cal=n_cal, calibration=calibration)
     obstacles = tuple(_checked_obstacles(obstacles, robot, limits, span.length))
     policy = checked_policy(policy)
     return Settings(
@@ -220,9 +220,33 @@ def _robot_of(model, robot) -> MDR:
     return robot
 
 
-def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping) -> LineModel:
+def _check_calibration_work(n_nodes: int, n_cal: int, calibration: float, model,
+                            n_elements) -> None:
+    """Refuse, before the calibration run is simulated, a mesh whose calibration record (every
+    node, ``n_cal`` samples) the estimator's recipe would refuse after it: the same estimate as
+    design_estimator's (its spatial Gram matrix, ``2 n_nodes^2 n_cal`` flops), named in this
+    function's terms (a 20 000-element Drake span with the robot: 9 s of simulation, then a
+    refusal naming a 'snapshots' the caller never passed)."""
+    if isinstance(model, LineModel):
+        parameter, value, mesh = "model", f"a LineModel of {n_nodes} nodes", "a coarser model"
+    else:
+        parameter, value = "n_elements", (n_nodes - 1 if n_elements is None else n_elements)
+        mesh = "a coarser mesh (fewer n_elements" + (
+            ", or max_frequency on a LineModel)" if n_elements is None else ")")
+    check_budget(
+        f"run_closed_loop's estimator, identified on the calibration record ({n_nodes} nodes x "
+        f"{n_cal} samples)",
+        nbytes=8.0 * (min(n_nodes, n_cal) ** 2 + n_nodes * n_cal),
+        flops=2.0 * n_nodes * n_nodes * n_cal,
+        parameter=parameter, value=value,
+        fix=f"use {mesh} or a shorter 'calibration' ({calibration:g} s now)")
+
+
+def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping, n_cal,
+                calibration) -> LineModel:
     """The line the loop runs on, without the robot: the LineModel given (its mesh, supports and
-    damping), or one built from the Span; the run's memory checked before it is built."""
+    damping), or one built from the Span; the run's memory and the calibration's work checked
+    before it is built (after, for the mesh the physics chooses: n_elements=None)."""
     if isinstance(model, LineModel):
         given = {name: value for name, value in
                  (("n_elements", n_elements), ("bc", bc), ("damping", damping))
@@ -251,10 +275,15 @@ def _bare_model(model, sensors, duration, dt, *, n_elements, bc, damping) -> Lin
                      + (f": n_elements={n_elements})" if isinstance(n_elements, int) else ")"))
     if len(set(sensors)) != len(sensors):
         raise InputError(f"The 'sensors' parameter must not repeat a node. Got {list(sensors)}.")
+    if n_nodes is not None:
+        _check_calibration_work(n_nodes, n_cal, calibration, model, n_elements)
     if isinstance(model, LineModel):
         return model.with_robot(None) if model.mdr is not None else model
-    return LineModel(model, n_elements, "pinned" if isinstance(bc, _Unset) else bc,
+    bare = LineModel(model, n_elements, "pinned" if isinstance(bc, _Unset) else bc,
                      damping=None if isinstance(damping, _Unset) else damping)
+    if n_nodes is None:
+        _check_calibration_work(bare.n_nodes, n_cal, calibration, model, n_elements)
+    return bare
 
 
 def _checked_obstacles(obstacles, robot: MDR, limits: RobotLimits,

@@ -22,6 +22,7 @@ displacements as outputs), and a sensor set picks rows of ``C``.
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -31,6 +32,7 @@ import numpy as np
 
 from .._riccati import field_variances, gramian_sum, posterior_from_predicted, solve_filter_dare
 from .._validation import (
+    WORK_BUDGET,
     check_budget,
     check_choice,
     check_covariance,
@@ -142,6 +144,28 @@ def observability_rank(
     return int(np.count_nonzero(singular_values > tol))
 
 
+#: Flops of one doubling step of :func:`~powerline_control._riccati.gramian_sum` per n^3: at
+#: most three products of (n, n) matrices to append a block and three to double (2 n^3 each).
+_GRAMIAN_FLOPS_PER_BIT = 12.0
+
+
+def _check_gramian_work(n: int, horizon: int) -> None:
+    """Refuse, before the doubling starts, a Gramian of ``n`` states over ``horizon`` samples
+    whose ``12 n^3 log2(N + 1)`` flops exceed the work budget; the message gives the longest
+    horizon this model affords (a horizon of 1e8 on 2000 states: 2.6e12 flops, minutes)."""
+    bits = max(1, math.ceil(math.log2(horizon + 1)))
+    per_bit = _GRAMIAN_FLOPS_PER_BIT * float(n) ** 3
+    affordable = int(WORK_BUDGET // per_bit)
+    if affordable >= 1:
+        works = (f"with these {n} states horizons up to {2 ** min(affordable, 62) - 1} fit; "
+                 "or use a reduced model (fewer states)")
+    else:
+        works = f"use a reduced model: no horizon fits with {n} states"
+    check_budget(f"The observability Gramian of {n} states over {horizon} samples",
+                 nbytes=8.0 * 6 * n * n, flops=per_bit * bits, parameter="horizon",
+                 value=horizon, fix=works)
+
+
 def observability_gramian(
     sys: ct.StateSpace, horizon: int, sensors: Sequence[int] | None = None
 ) -> np.ndarray:
@@ -169,7 +193,8 @@ def observability_gramian(
     Raises
     ------
     InputError
-        If an argument is invalid.
+        If an argument is invalid, or the work (``O(n^3 log N)``) exceeds the budget (the
+        message gives the longest horizon that fits).
     EstimationError
         If the Gramian overflows (an unstable model over a long horizon: the message gives the
         longest horizon that stays finite).
@@ -191,6 +216,7 @@ def observability_gramian(
     horizon = check_int("horizon", horizon, low=1)
     index = _check_sensors(sensors, sys.noutputs)
     a = np.asarray(sys.A, dtype=float)
+    _check_gramian_work(a.shape[0], horizon)
     c = np.asarray(sys.C, dtype=float)[index]
     total = gramian_sum(a, c.T @ c, horizon)
     if not np.all(np.isfinite(total)) or np.max(np.abs(total)) > 1e300:
