@@ -237,3 +237,20 @@ def test_layout_page_covers_every_part_of_the_package():
     parts = {p.stem if p.is_file() else p.name for p in (ROOT / "powerline_control").iterdir()
              if (p.suffix == ".py" or (p / "__init__.py").exists())}
     assert set(edges) == parts - {"__init__", "__main__"}
+
+
+def test_the_gallery_index_shows_a_thumbnail_of_each_example_that_ran(tmp_path):
+    from matplotlib import image
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(8, 5), dpi=100)
+    figure.add_subplot().plot([0, 1], [1, 0])
+    figure.savefig(tmp_path / "big.png")
+    pages.make_thumbnail(tmp_path / "big.png", tmp_path / "thumbs" / "a.png")
+    assert image.imread(tmp_path / "thumbs" / "a.png").shape[1] == pages.THUMBNAIL_WIDTH
+    scripts = pages.example_scripts()[:2]
+    index = pages.gallery_index(scripts, {scripts[0].stem: "_figures/_thumbnails/x.png"})
+    assert f"| [![{scripts[0].stem}](_figures/_thumbnails/x.png){{.plc-thumbnail width=200px}}]" \
+           f"({scripts[0].stem}.md) | [{scripts[0].name}]" in index
+    assert f"|  | [{scripts[1].name}]({scripts[1].stem}.md) |" in index   # it did not run
+    assert "| | example | what it shows |" not in pages.gallery_index(scripts)

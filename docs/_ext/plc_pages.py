@@ -4,7 +4,8 @@
   package's data-flow order, each name an autosummary entry (numpydoc renders its page); then
   the subpackages' other public names (each module's ``__all__``), one section per module.
 - ``gallery/<example>.md``: one page per script in ``examples/`` (its docstring, how to run it,
-  its source), and ``gallery/index.md`` listing them. The examples named in the
+  its source), and ``gallery/index.md`` listing them, with a thumbnail of the first figure of
+  each example that ran during the build. The examples named in the
   ``plc_gallery_execute`` setting of conf.py (the quick ones) run during the build, in their own
   process, and their pages show the printed output and the figures; the environment variable
   ``PLC_DOCS_EXECUTE`` (``all`` or ``none``) overrides the list. ``tests/test_examples.py`` runs
@@ -269,7 +270,23 @@ def _figure_names(path: Path) -> set[str]:
     return names
 
 
-def gallery_index(scripts: list[Path]) -> str:
+THUMBNAIL_WIDTH = 200  # px: the gallery index's thumbnails
+
+
+def make_thumbnail(png: Path, thumbnail: Path, width: int = THUMBNAIL_WIDTH) -> None:
+    """A ``width``-pixel-wide copy of the figure ``png`` (never wider than it is)."""
+    from PIL import Image  # matplotlib's own dependency
+
+    thumbnail.parent.mkdir(parents=True, exist_ok=True)
+    with Image.open(png) as picture:
+        picture.thumbnail((width, picture.height), Image.Resampling.LANCZOS)
+        picture.save(thumbnail)
+
+
+def gallery_index(scripts: list[Path], thumbnails: dict[str, str] | None = None) -> str:
+    """The gallery's index: a table of the examples; ``thumbnails`` (example stem -> image path
+    relative to the gallery) adds a column with each one's thumbnail, linked to its page."""
+    thumbnails = thumbnails or {}
     lines = [
         "# Examples",
         "",
@@ -277,11 +294,19 @@ def gallery_index(scripts: list[Path]) -> str:
         "span. Every script takes an output folder as its first argument and finishes in under "
         "a minute; the test suite runs each of them (`tests/test_examples.py`).",
         "",
-        "| example | what it shows |",
-        "|---|---|",
     ]
+    if thumbnails:
+        lines += ["| | example | what it shows |", "|---|---|---|"]
+    else:
+        lines += ["| example | what it shows |", "|---|---|"]
     for path in scripts:
-        lines.append(f"| [{path.name}]({path.stem}.md) | {example_title(path)} |")
+        row = f"| [{path.name}]({path.stem}.md) | {example_title(path)} |"
+        if thumbnails:
+            image = thumbnails.get(path.stem)
+            cell = (f"[![{path.stem}]({image}){{.plc-thumbnail width={THUMBNAIL_WIDTH}px}}]({path.stem}.md)"
+                    if image else "")
+            row = f"| {cell} {row}"
+        lines.append(row)
     lines += ["", "```{toctree}", ":hidden:", ""]
     lines += [path.stem for path in scripts]
     lines += ["```", ""]
@@ -327,6 +352,7 @@ def write_pages(docs: Path = DOCS, execute: set[str] = frozenset(), warn=print) 
     unknown = execute - {p.stem for p in scripts}
     if unknown:
         warn(f"plc_gallery_execute names examples that do not exist: {sorted(unknown)}")
+    thumbnails = {}
     for path in scripts:
         executed = None
         if path.stem in execute:
@@ -334,8 +360,12 @@ def write_pages(docs: Path = DOCS, execute: set[str] = frozenset(), warn=print) 
                 executed = run_example(path, gallery / "_figures")
             except (RuntimeError, subprocess.TimeoutExpired) as error:
                 warn(str(error))
+        if executed and executed[1]:   # the first figure it wrote, small, beside its name
+            thumbnail = f"_figures/_thumbnails/{path.stem}.png"
+            make_thumbnail(gallery / "_figures" / path.stem / executed[1][0], gallery / thumbnail)
+            thumbnails[path.stem] = thumbnail
         _write_if_changed(gallery / f"{path.stem}.md", example_page(path, executed))
-    _write_if_changed(gallery / "index.md", gallery_index(scripts))
+    _write_if_changed(gallery / "index.md", gallery_index(scripts, thumbnails))
 
 
 _LITERAL = re.compile(r"(``.+?``|`[^`]+`)")
