@@ -83,7 +83,9 @@ CATEGORIES = (
 CONDUCTORS = tuple(sorted(plc.conductors))
 LAB_ELEMENTS = 100
 MAX_REAL_MODE = 110
-TRAVEL_FRACTION = 0.5  # the reach: half of (duration - calibration) spent travelling
+# the reach: the policy's share of (duration - calibration) spent travelling (one home: its
+# settings)
+TRAVEL_FRACTION = plc.PolicySettings().travel_fraction
 
 
 # ---------------------------------------------------------------------------------- scenarios
