@@ -116,6 +116,10 @@ class Kit:
             csv.write_text("time_s,x_0.9_mm,x_2.4_mm\n0,0.1,0.2\n0.001,,0.3\n0.002,0.2,0.1\n")
         return str(csv)
 
+    def truth_scenario(self):
+        """The lab scenario with a [truth] section (the true tension 3 % below the nominal)."""
+        return self.plc.load_scenario(text="[truth]\ntension_factor = 0.97")
+
     def clamp_design(self):
         """(design, its sensors' record, node positions) on a clamped Drake span (slow: ~2 s)."""
         if not hasattr(self, "_clamp"):
@@ -177,6 +181,15 @@ class Baseline:
 
 def _b(make, **options) -> Baseline:
     return Baseline(make, **options)
+
+
+# run_closed_loop's parameters but nominal (swept once, by the "run_closed_loop" row).
+_RUN_CLOSED_LOOP_PARAMETERS = (
+    "model", "force", "robot", "limits", "sensors", "n_elements", "bc", "damping", "duration",
+    "calibration", "dt", "control_period", "plant_period", "noise_fraction", "delays",
+    "estimator_rank", "antinode_window", "frequency_window", "retarget_threshold",
+    "settle_margin", "n_modes", "clamp_distance", "obstacles", "motion", "planner_time_budget",
+    "seed", "calibrate", "settings")
 
 
 BASELINES: dict[str, Baseline] = {
@@ -315,6 +328,15 @@ BASELINES: dict[str, Baseline] = {
                                      dict(model=k.lab, force=k.force, robot=k.mdr,
                                           limits=k.limits, sensors=[3, 5, 7], n_elements=10,
                                           duration=0.6, calibration=0.3, seed=1)), slow=True),
+    "PolicySettings": _b(lambda k: (k.plc.PolicySettings, {})),
+    # The same call told a nominal span (design.md 4.7): its bad kinds on a Span (the row above
+    # sweeps nominal from its default None); the other parameters are swept above.
+    "run_closed_loop.nominal": _b(lambda k: (k.plc.run_closed_loop,
+                                             dict(model=k.lab, force=k.force, robot=k.mdr,
+                                                  limits=k.limits, sensors=[3, 5, 7],
+                                                  n_elements=10, duration=0.6, calibration=0.3,
+                                                  seed=1, nominal=k.lab)),
+                                  slow=True, skip=_RUN_CLOSED_LOOP_PARAMETERS),
     # ---------------------------------------------------------------- severity
     "aeolian_severity": _b(lambda k: (k.plc.aeolian_severity,
                                       dict(span=k.plc.Span.at_rts_fraction(300.0, "drake", 0.2),
@@ -417,6 +439,11 @@ BASELINES: dict[str, Baseline] = {
     "load_scenario": _b(lambda k: (k.plc.load_scenario, dict(path="paper-lab-20"))),
     "Scenario": _b(lambda k: (k.plc.Scenario, {})),
     "run_scenario": _b(lambda k: (k.plc.run_scenario, dict(scenario="paper-lab-20")), slow=True),
+    # The [truth] section's one home (its keys are swept by test_schema_and_cli_sweep).
+    "true_span": _b(lambda k: (k.plc.scenario.true_span,
+                               dict(scenario=k.truth_scenario(), nominal=None))),
+    "true_model": _b(lambda k: (k.plc.scenario.true_model,
+                                dict(scenario=k.truth_scenario(), nominal=k.model))),
     # ---------------------------------------------------------------- studies
     "parameter_grid": _b(lambda k: (k.plc.parameter_grid, dict(a=[1.0, 2.0], b=["x"]))),
     "point_seed": _b(lambda k: (k.plc.studies.point_seed, dict(seed=3, point={"a": 1.0}))),

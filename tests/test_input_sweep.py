@@ -409,3 +409,38 @@ def test_the_scenario_tunes_the_robot_at_the_driven_modes_antinode_on_a_coarse_m
     tuning = tune_robot(scenario, plc.LineModel(scenario.span.build(), n_elements=n_elements))
     assert tuning.mode == 3
     assert tuning.antinode == pytest.approx(plc.Span.paper_lab().length / 6, abs=2e-3)
+
+
+# The truth of a scenario (design.md 4.7): its [truth] keys are swept by the schema sweep; the
+# sweep above gives true_span / true_model and run_closed_loop(nominal=) the bad kinds of their
+# types. These are the relations: a span or model of another line as the scenario's nominal.
+_TRUTH = plc.load_scenario(text="[truth]\ntension_factor = 0.97")   # the lab span, 3 % slack
+
+
+@pytest.mark.parametrize(("call", "named"), [
+    # Old: answered with the 300 m span at 0.97 of its tension (a truth of another line).
+    (lambda: plc.scenario.true_span(_TRUTH, DRAKE), "'nominal' parameter of true_span"),
+    (lambda: plc.scenario.true_model(_TRUTH, plc.LineModel(DRAKE, 10)),
+     "'nominal' parameter of true_model"),
+    # Old: AttributeError ('Span' object has no attribute 'span'; 'str' ... 'truth').
+    (lambda: plc.scenario.true_model(_TRUTH, plc.Span.paper_lab()), "must be the scenario's "
+                                                                   "nominal LineModel"),
+    (lambda: plc.scenario.true_span("paper-lab-20"), "load_scenario('paper-lab-20')"),
+    # The nominal a controller is told: the same line, within 1 % of its length.
+    (lambda: plc.run_closed_loop(plc.Span.paper_lab(), plc.HarmonicForce(1.0, 9.0, 1.1),
+                                 plc.MDR(1.2, 0.02), plc.RobotLimits(0.5, 1.0), sensors=[3, 5],
+                                 n_elements=10, duration=0.6, calibration=0.3,
+                                 nominal=plc.Span(36.6, 395.0, plc.Span.paper_lab().conductor)),
+     "'nominal' parameter describes a span 36.6 m long"),
+])
+def test_a_nominal_of_another_line_is_refused_by_name(call, named):
+    with pytest.raises(plc.InputError) as info:
+        call()
+    assert named in str(info.value), str(info.value)
+
+
+def test_the_scenarios_own_span_gives_its_truth():
+    nominal = _TRUTH.span.build()
+    assert plc.scenario.true_span(_TRUTH, nominal) == plc.scenario.true_span(_TRUTH)
+    assert plc.scenario.true_span(_TRUTH).tension == pytest.approx(0.97 * nominal.tension,
+                                                                   rel=1e-15)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING
 
+from ..errors import InputError
 from .config import Scenario, TruthConfig
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -35,6 +36,25 @@ __all__ = ["TruthConfig", "true_span", "true_model", "on_nodes"]   # TruthConfig
 
 #: The conductor properties the change of state needs (a ``truth.temperature`` needs them all).
 CHANGE_OF_STATE = ("area", "elastic_modulus", "thermal_expansion")
+
+
+def _check_scenario(scenario: object, where: str) -> None:
+    if not isinstance(scenario, Scenario):
+        hint = (f" (load it first: {where}(load_scenario({scenario!r}), ...))"
+                if isinstance(scenario, str) else "")
+        raise InputError(f"The 'scenario' parameter of {where} must be a Scenario "
+                         f"(load_scenario). Got {type(scenario).__name__}{hint}.")
+
+
+def _check_own_span(scenario: Scenario, span: Span, where: str, what: str) -> None:
+    """``span`` must be the scenario's own ``[span]`` as built: [truth] changes that one."""
+    built = scenario.span.build()
+    if span != built:
+        raise InputError(
+            f"The 'nominal' parameter of {where} must be the scenario's own {what} (its span: "
+            f"scenario.span.build(), {built.length:g} m at {built.tension:.6g} N), which "
+            f"[truth] changes. Got one of another span ({span.length:g} m at "
+            f"{span.tension:.6g} N): build it from the scenario, or change its [span] section.")
 
 
 def true_span(scenario: Scenario, nominal: Span | None = None) -> Span:
@@ -57,6 +77,12 @@ def true_span(scenario: Scenario, nominal: Span | None = None) -> Span:
     -------
     Span
 
+    Raises
+    ------
+    InputError
+        If ``scenario`` is not a Scenario, or ``nominal`` is neither None nor the scenario's
+        own span (a span of another line has no truth here).
+
     Examples
     --------
     >>> from powerline_control.scenario import load_scenario
@@ -67,8 +93,17 @@ def true_span(scenario: Scenario, nominal: Span | None = None) -> Span:
     >>> round(true_span(lab).tension, 2)
     383.15
     """
+    _check_scenario(scenario, "true_span")
+    from ..line import Span
+
     if nominal is None:
         nominal = scenario.span.build()
+    elif not isinstance(nominal, Span):
+        raise InputError(
+            "The 'nominal' parameter of true_span must be None or the scenario's span as built "
+            f"(scenario.span.build()). Got {type(nominal).__name__}.")
+    else:
+        _check_own_span(scenario, nominal, "true_span", "span")
     truth = scenario.truth
     tension = nominal.tension
     if truth.temperature is not None:
@@ -108,6 +143,12 @@ def true_model(scenario: Scenario, nominal: LineModel) -> LineModel:
     -------
     LineModel
 
+    Raises
+    ------
+    InputError
+        If ``scenario`` is not a Scenario, or ``nominal`` is not a LineModel of the scenario's
+        own span.
+
     Examples
     --------
     >>> import numpy as np
@@ -128,6 +169,13 @@ def true_model(scenario: Scenario, nominal: LineModel) -> LineModel:
     from ..errors import TruncationWarning
     from ..fem import LineModel
 
+    _check_scenario(scenario, "true_model")
+    if not isinstance(nominal, LineModel):
+        raise InputError(
+            "The 'nominal' parameter of true_model must be the scenario's nominal LineModel "
+            "(scenario.model.build(scenario.span.build())). Got "
+            f"{type(nominal).__name__}.")
+    _check_own_span(scenario, nominal.span, "true_model", "nominal LineModel")
     span = true_span(scenario, nominal.span)
     ratio = scenario.truth.damping_ratio
     if span == nominal.span and (ratio is None or ratio == scenario.model.damping_ratio):
@@ -157,8 +205,6 @@ def check_truth(check, scenario: Scenario, given: dict) -> None:
         return
     if truth.temperature is None and truth.tension_factor is None:
         return
-    from ..errors import InputError
-
     try:
         nominal = scenario.span.build()
     except (InputError, KeyError):
