@@ -50,7 +50,7 @@ plc_gallery_execute = "all"
 templates_path = ["_templates"]
 
 # Markdown: $...$ and $$...$$ math, ::: fences, anchors for "page.md#section" links, and
-# {width=...} after an image (the gallery index's thumbnails).
+# {.class} after an image (the gallery index's thumbnails).
 myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist", "attrs_inline"]
 myst_heading_anchors = 3
 myst_dmath_double_inline = True
@@ -66,5 +66,5 @@ numpydoc_xref_param_type = False
 html_theme = "alabaster"
 html_title = f"powerline_control {release}"
 html_static_path = ["_static"]
-html_css_files = ["plc.css"]  # the gallery thumbnails' width
+html_css_files = ["plc.css"]  # the gallery thumbnails keep their size in the table
 html_theme_options = {"description": "Vibration of overhead power lines, on python-control"}

@@ -247,10 +247,13 @@ def test_the_gallery_index_shows_a_thumbnail_of_each_example_that_ran(tmp_path):
     figure.add_subplot().plot([0, 1], [1, 0])
     figure.savefig(tmp_path / "big.png")
     pages.make_thumbnail(tmp_path / "big.png", tmp_path / "thumbs" / "a.png")
-    assert image.imread(tmp_path / "thumbs" / "a.png").shape[1] == pages.THUMBNAIL_WIDTH
+    # 800 x 500 px fits in 200 x 150 as 200 x 125
+    assert image.imread(tmp_path / "thumbs" / "a.png").shape[:2] == (125, 200)
+    pages.make_thumbnail(tmp_path / "thumbs" / "a.png", tmp_path / "thumbs" / "b.png", (60, 60))
+    assert image.imread(tmp_path / "thumbs" / "b.png").shape[:2] == (38, 60)
     scripts = pages.example_scripts()[:2]
     index = pages.gallery_index(scripts, {scripts[0].stem: "_figures/_thumbnails/x.png"})
-    assert f"| [![{scripts[0].stem}](_figures/_thumbnails/x.png){{.plc-thumbnail width=200px}}]" \
+    assert f"| [![{scripts[0].stem}](_figures/_thumbnails/x.png){{.plc-thumbnail}}]" \
            f"({scripts[0].stem}.md) | [{scripts[0].name}]" in index
     assert f"|  | [{scripts[1].name}]({scripts[1].stem}.md) |" in index   # it did not run
     assert "| | example | what it shows |" not in pages.gallery_index(scripts)

@@ -270,16 +270,17 @@ def _figure_names(path: Path) -> set[str]:
     return names
 
 
-THUMBNAIL_WIDTH = 200  # px: the gallery index's thumbnails
+THUMBNAIL_BOX = (200, 150)  # px: the gallery index's thumbnails fit in it
 
 
-def make_thumbnail(png: Path, thumbnail: Path, width: int = THUMBNAIL_WIDTH) -> None:
-    """A ``width``-pixel-wide copy of the figure ``png`` (never wider than it is)."""
+def make_thumbnail(png: Path, thumbnail: Path, box: tuple[int, int] = THUMBNAIL_BOX) -> None:
+    """A copy of the figure ``png`` that fits in ``box`` (width, height in pixels), its aspect
+    kept (never larger than it is)."""
     from PIL import Image  # matplotlib's own dependency
 
     thumbnail.parent.mkdir(parents=True, exist_ok=True)
     with Image.open(png) as picture:
-        picture.thumbnail((width, picture.height), Image.Resampling.LANCZOS)
+        picture.thumbnail(box, Image.Resampling.LANCZOS)
         picture.save(thumbnail)
 
 
@@ -303,8 +304,7 @@ def gallery_index(scripts: list[Path], thumbnails: dict[str, str] | None = None)
         row = f"| [{path.name}]({path.stem}.md) | {example_title(path)} |"
         if thumbnails:
             image = thumbnails.get(path.stem)
-            cell = (f"[![{path.stem}]({image}){{.plc-thumbnail width={THUMBNAIL_WIDTH}px}}]({path.stem}.md)"
-                    if image else "")
+            cell = f"[![{path.stem}]({image}){{.plc-thumbnail}}]({path.stem}.md)" if image else ""
             row = f"| {cell} {row}"
         lines.append(row)
     lines += ["", "```{toctree}", ":hidden:", ""]
