@@ -105,7 +105,7 @@ class AeolianRun:
     robot_position : float or None
         Where the robot is parked, m (None without a robot).
     robot_impedance_ratio : float
-        |Z| of the robot at ``frequency`` over the line's wave impedance sqrt(T m) (0 without a
+        ``|Z|`` of the robot at ``frequency`` over the line's wave impedance sqrt(T m) (0 without a
         robot): the energy balance's first-order damper power assumes the robot leaves the
         standing wave as it is, which holds when this is small (well below 1).
     x : ndarray
