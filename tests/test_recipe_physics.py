@@ -191,3 +191,14 @@ def test_a_span_model_is_refused_by_save_model_before_any_file_is_written(lab_ca
     with pytest.raises(InputError, match="SpanModel"):
         plc.save_model(tmp_path / "span.npz", model)
     assert not any(tmp_path.iterdir())
+
+
+def test_a_physics_design_says_what_it_is(lab_broadband):
+    # method='physics' forces the candidate; its summary and message name the calibrated span,
+    # not a DMD fit's alpha and delays.
+    design = plc.design_estimator(lab_broadband, n_sensors=3, delays=4, rank=12, seed=0,
+                                  nominal=plc.Span.paper_lab(), method="physics")
+    assert isinstance(design.model, SpanModel) and design.excitation.method == "physics"
+    text = design.summary()
+    assert "physics model of the calibrated span" in text and "time-delay DMD" not in text
+    assert "physics model" in design.excitation.message

@@ -23,7 +23,7 @@ from ..errors import (
     InputError,
 )
 from ..estimate import KalmanFilter
-from ..identify import DMDModel, OscillatorModel
+from ..identify import DMDModel, OscillatorModel, SpanModel
 from .coverage import Coverage
 from .defaults import _NARROWBAND_OCCUPANCY, _Q_FLOOR_FRACTION
 from .record import _check_noise_std
@@ -324,7 +324,17 @@ class EstimatorDesign(Result):
         report = m.stability_report(warn=False)
         head = (f"Estimator for {m.n_nodes} nodes from {self.sensors.size} sensors "
                 f"(nodes {self.sensors.tolist()}).")
-        if isinstance(m, OscillatorModel):
+        if isinstance(m, SpanModel):
+            lines = [
+                head,
+                f"Model: {m.describe()}: the span calibrated from the training record, one "
+                f"lightly damped oscillator per mode (damping ratio {m.damping_ratio:g}; "
+                f"{2 * m.n_lines} states), trained on {self.n_train} samples at "
+                f"dt = {m.dt:g} s; no alpha.",
+                self.excitation.message,
+                f"Sensor noise std {self.noise_std:.3g} m ({self.noise_source}).",
+            ]
+        elif isinstance(m, OscillatorModel):
             # The model's type says what it is (its alpha and delays are not a DMD fit's).
             lines = [
                 head,
@@ -431,7 +441,8 @@ class ExcitationReport:
         Mean square left after removing those lines, over the noise variance (about 1 when the
         lines explain everything; NaN for broadband records).
     method : str
-        The model built: "modal" (one oscillator per line) or "dmd" (time-delay DMD).
+        The model built: "modal" (one oscillator per line), "dmd" (time-delay DMD) or
+        "physics" (the modes of the span calibrated from the record).
 
     Examples
     --------
@@ -463,6 +474,11 @@ class ExcitationReport:
     @property
     def message(self) -> str:
         """One sentence: what the record excites and what a model of it can know."""
+        if self.method == "physics":
+            kind = "Narrowband" if self.narrowband else "Broadband"
+            return (f"{kind} record ({self.n_lines} spectral lines above the noise): the modes "
+                    "of the span calibrated from it, near those lines (physics model), chosen "
+                    "on the held-out part.")
         if not self.narrowband and self.method == "modal":  # asked for: method="modal"
             return (f"Record not narrowband ({self.n_lines} spectral lines leave "
                     f"{self.residual_ratio:.3g} x the noise variance; "
