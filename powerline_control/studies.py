@@ -306,7 +306,7 @@ class StudyResult(TabularResult):
         path : str or Path, optional
             The file to write; None returns the JSON text instead.
         indent : int
-            Indentation of the text.
+            Spaces of indentation per level, 0-16.
 
         Returns
         -------
@@ -320,6 +320,7 @@ class StudyResult(TabularResult):
         >>> json.loads(study.to_json())["results"]
         [{'square': 1}, {'square': 4}]
         """
+        indent = check_int("indent", indent, low=0, high=16)
         text = json.dumps(self.to_dict(), indent=indent, allow_nan=False) + "\n"
         if path is None:
             return text
