@@ -1,4 +1,4 @@
-"""Benchmark: the recipe's physics candidate on real spans in aeolian lock-in (issue 37, item 1).
+"""Benchmark: the recipe's physics candidate on real spans in aeolian lock-in.
 
 Per case and seed (``tests/lockin_family.py``: Oxlip 220 m pinned and Condor 180 m clamped at
 20 % RTS, the truth's tension off the nominal by up to +-4 %, a wind locked in near mode 30-60,

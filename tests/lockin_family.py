@@ -1,4 +1,4 @@
-"""Real spans in aeolian lock-in, for the recipe's physics candidate (issue 37, item 1).
+"""Real spans in aeolian lock-in, for the recipe's physics candidate.
 
 Used by ``tests/test_recipe_physics.py`` and ``benchmarks/bench_physics_candidate.py``; not a
 test file itself.

@@ -136,13 +136,13 @@ def test_broadband_lab_record_keeps_the_dmd_model(lab_broadband):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(family.CASES))
 def test_lock_in_record_chooses_the_physics_model_and_estimates_a_faster_wind(name):
-    """Issue 37 item 1 on the issue's two unseen real spans (Oxlip 220 m pinned, Condor 180 m
+    """Two real spans the recipe was not tuned on (Oxlip 220 m pinned, Condor 180 m
     clamped; the truth's tension drawn off the nominal, the estimator told the nominal): trained
     on 20 s of wind in lock-in, tested on the same wind 1 % faster, against the noise-free
     simulation. Measured (docs/validation/physics_candidate.md, seed 1): today's recipe 12.4 %
     and 15.1 % at the unmeasured nodes, sigma 0.02x and 0.01x the actual error; with the nominal
     the physics model is chosen, 2.8 % and 2.4 %, sigma 0.55x and 0.59x. The bounds leave about
-    2x on the error (5 % is the issue's target) and cover the sigma ratio it measured."""
+    2x on the error (5 % is the target) and cover the sigma ratio it measured."""
     nominal, bc, model, wind = family.draw(name, 1)
     train, test = family.records(model, wind, 1)
     with warnings.catch_warnings():

@@ -228,8 +228,8 @@ def select_sensors(
         Maximum total cost, finite and ``>= 0``. A budget above the total cost of all candidates
         constrains nothing and is capped at that total.
     error_weight : {"states", "outputs"} or array_like
-        ``H`` in the Kalman criterion ``tr(H P H^T)``: the states (default, the issue's
-        criterion), every candidate output (the displacement field, for FE models whose states
+        ``H`` in the Kalman criterion ``tr(H P H^T)``: the states (default: every state
+        weighted alike), every candidate output (the displacement field, for FE models whose states
         are modal), or a given ``(q, n)`` matrix. Checked whatever the criterion (only
         ``"kalman"`` reads it here; :func:`sensor_count_study` also weights its simulated error).
     basis : array_like, optional
