@@ -95,7 +95,8 @@ class AeolianRun:
         or when the vibration has died out (below :data:`VANISHED` times
         :data:`LOWEST_REDUCED_AMPLITUDE` D).
     t_envelope, envelope : ndarray
-        Block start times, s, and the locked mode's antinode amplitude then, m.
+        Block start times, s, and the line's amplitude then, m: the antinode amplitude of one
+        standing wave at ``frequency`` carrying the line's whole vibration energy.
     wind_power, self_damping_power, robot_power : float
         Powers measured in the final window, W per metre of span: the wind's input, the
         conductor's self-damping and the robot's damper.
@@ -173,7 +174,7 @@ def simulate_aeolian(
     robot, so its power is computed, not imposed. Blocks of the exact linear flow are chained,
     each short enough that the amplitude-dependent ratios change its decay by at most
     :data:`BLOCK_EXPONENT`; the run stops when the amplitude's extrapolated remaining change
-    (Aitken's, over three equally spaced envelope values) is below ``settle_tolerance``, or at
+    (Aitken's, over the envelope's time means in three windows) is below ``settle_tolerance``, or at
     ``max_duration`` with a warning. A final window of ``window_periods`` periods sampled
     ``samples_per_period`` times a period measures the amplitude and the three powers.
 
@@ -318,12 +319,17 @@ self_damping_exponents
 
     z = np.zeros(2 * plant.n_q)
     z[locked] = start / peak[locked]
-    t, times, envelope = 0.0, [], []
-    settled, observed = False, 0.0
+    # (time, amplitude) at each block's start, grown by doubling: the settling test reads the
+    # whole history at every block, as arrays
+    history, n = np.empty((2, 256)), 0
+    t, settled, observed = 0.0, False, 0.0
     energy = plant.energy(z, position)
     while t < max_duration:
-        times.append(t)
-        envelope.append(line_amplitude(z))
+        if n == history.shape[1]:
+            history = np.hstack([history, np.empty_like(history)])
+        history[:, n] = t, line_amplitude(z)
+        n += 1
+        times, envelope = history[0, :n], history[1, :n]
         if _settled(times, envelope, tolerance) or envelope[-1] < VANISHED * floor:
             settled = True
             break
@@ -378,8 +384,8 @@ self_damping_exponents
         wind_speed=speed, frequency=frequency, mode=mode_number,
         amplitude=amplitude, balance_amplitude=reference,
         relative_error=amplitude / reference - 1 if reference > 0 else math.inf,
-        settled=settled, t_envelope=read_only(np.asarray(times)),
-        envelope=read_only(np.asarray(envelope)), wind_power=p_wind / span.length,
+        settled=settled, t_envelope=read_only(times.copy()),
+        envelope=read_only(envelope.copy()), wind_power=p_wind / span.length,
         self_damping_power=p_self / span.length, robot_power=p_robot / span.length,
         energy_residual=float(residual), robot_position=position,
         robot_impedance_ratio=0.0 if robot is None else abs(damper_impedance(robot, frequency))
@@ -394,14 +400,14 @@ def _flow(a: np.ndarray, duration: float, z: np.ndarray) -> np.ndarray:
     return np.real(vectors @ (np.exp(eigenvalues * duration) * np.linalg.solve(vectors, z)))
 
 
-def _settled(times: list[float], envelope: list[float], tolerance: float) -> bool:
+def _settled(times: np.ndarray, envelope: np.ndarray, tolerance: float) -> bool:
     """Aitken's extrapolation over the envelope's time means on the last three quarters of the
     run, in three equal windows: the remaining change of a geometric approach to the steady
     amplitude, relative to it. Means, not samples: where the robot's absorber exchanges energy
     with the line, the amplitude at a block's start carries the beat."""
-    if len(envelope) < 3 * BLOCKS_PER_WINDOW:
+    if envelope.size < 3 * BLOCKS_PER_WINDOW:
         return False
-    t, y = np.asarray(times), np.asarray(envelope)
+    t, y = times, envelope
     edges = t[-1] * np.array([0.25, 0.5, 0.75, 1.0])
     means = []
     for lo, hi in zip(edges[:-1], edges[1:], strict=True):
