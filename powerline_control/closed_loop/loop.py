@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -22,6 +22,7 @@ from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
 from ..simulation.plant import damper_power, load_segments, nodal_field
+from .aeolian_steady import aeolian_steady_state, checked_options, precheck
 from .belief import Belief, BeliefTracker, believe, checked_nominal
 from .evaluation import all_comparisons, settling_of
 from .motion import Motion
@@ -337,6 +338,7 @@ def run_closed_loop(
     nominal: Span | LineModel | None = None,
     calibrate: bool = True,
     settings: PolicySettings | None = None,
+    aeolian_steady: bool | Mapping = False,
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
 
@@ -447,6 +449,15 @@ def run_closed_loop(
     settings : PolicySettings or None
         The policy's settings (:class:`~powerline_control.closed_loop.PolicySettings`: each with
         its value, what it guards and the evidence for it). None (default): the tuned values.
+    aeolian_steady : bool or mapping
+        True: when the run's last load is an :class:`~powerline_control.excitation.AeolianForce`,
+        judge the robot where the loop ended again in the self-limiting wind, in steady state:
+        the energy balance's wind power at the current amplitude on the line damped by the
+        conductor's self-damping (:func:`~powerline_control.severity.simulate_aeolian`), against
+        no robot, a fixed damper at ``clamp_distance`` and the antinode
+        (``ClosedLoopResult.aeolian_steady``; a few CPU seconds on a 300 m span). A mapping
+        does the same with simulate_aeolian's physics options (``wind_curve``,
+        ``self_damping``, ...). False (default): not judged.
 
     Returns
     -------
@@ -504,6 +515,9 @@ def run_closed_loop(
     calibrate = check_bool("calibrate", calibrate)
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
+    steady_options = checked_options(aeolian_steady, segments[-1][1])
+    if steady_options is not None:   # refused now, not after the run
+        precheck(settings.bare, segments[-1][1][0], steady_options)
 
     # ---- the line, its loads, and the estimator calibrated with the robot parked at its start
     setup_start, setup_cpu = time.perf_counter(), time.process_time()
@@ -572,6 +586,12 @@ def run_closed_loop(
     estimated = calibrated.field_map @ records.filter_states.T
     timings["comparisons"] = time.perf_counter() - after_start
     timings["comparisons cpu"] = time.process_time() - after_cpu
+    steady_wind, steady_cpu = None, time.process_time()
+    if steady_options is not None:
+        steady_wind = aeolian_steady_state(settings.bare, segments[-1][1][0], robot,
+                                           float(records.position[-1]),
+                                           clamp_distance=line.clamp_distance, **steady_options)
+        timings["aeolian steady cpu"] = time.process_time() - steady_cpu
     timings["calibration cpu"] = beliefs.cpu
     timings["call cpu"] = time.process_time() - call_cpu
     result = ClosedLoopResult(
@@ -610,6 +630,7 @@ def run_closed_loop(
         calibrations=tuple(beliefs.calibrations),
         misfits=tuple(records.misfits),
         policy=policy,
+        aeolian_steady=steady_wind,
     )
     for text in result.shortfalls:
         warnings.warn(f"The closed loop falls short: {text}.", ShortfallWarning, stacklevel=3)

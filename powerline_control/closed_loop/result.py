@@ -152,6 +152,14 @@ class ClosedLoopResult(Result):
         measured there and those the belief predicted at the decision that sent it.
     policy : PolicySettings
         The policy's settings the run used (``run_closed_loop(settings=...)``).
+    aeolian_steady : AeolianSteady or None
+        With ``run_closed_loop(aeolian_steady=True)`` and an aeolian load: the robot where the
+        loop ended, judged again in the self-limiting wind in steady state (the energy
+        balance's wind power and the conductor's self-damping,
+        :func:`~powerline_control.severity.simulate_aeolian`), against no robot, a fixed damper
+        near the clamp and the antinode (:class:`~.aeolian_steady.AeolianSteady`). The
+        :attr:`comparisons` are under the run's own load, a lift of fixed amplitude: they rank
+        positions under one load; these are where the line settles. None when not asked.
     estimator_consistency : Consistency or None
         The windowed NIS test (:class:`~powerline_control.estimate.Consistency`) of the
         estimator's filter over the calibration record and the loop (None when no window
@@ -164,8 +172,9 @@ class ClosedLoopResult(Result):
         steps), policy and motion, comparisons (parked runs and the steady-state scan); the
         process times (less sensitive to the machine's load) "setup cpu", "loop cpu",
         "comparisons cpu", "calibration cpu" (the span's calibrations and the belief's
-        rebuilds, within the loop's) and "call cpu" (the whole call); and "modes", the number
-        of bare-line modes the plant kept.
+        rebuilds, within the loop's), "aeolian steady cpu" (the self-limiting runs, when asked)
+        and "call cpu" (the whole call); and "modes", the number of bare-line modes the plant
+        kept.
 
     Examples
     --------
@@ -217,6 +226,7 @@ class ClosedLoopResult(Result):
     calibrations: tuple = field(default=(), repr=False)
     misfits: tuple = field(default=(), repr=False)
     policy: PolicySettings = field(default_factory=PolicySettings, repr=False)
+    aeolian_steady: object = field(default=None, repr=False)
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""
@@ -306,8 +316,9 @@ class ClosedLoopResult(Result):
         return tuple(out)
 
     def summary(self) -> str:
-        """A few lines: what the controller believed, the settled window, every comparison and
-        what the run fell short of."""
+        """A few lines: what the controller believed, the settled window, every comparison (under
+        the run's load), what the run fell short of, and the self-limiting steady state when it
+        was judged (:attr:`aeolian_steady`)."""
         lines = [] if self.belief is None else [self._belief_line()]
         lines.append(
             f"settled window {self.settled_window[0]:.2f}-{self.settled_window[1]:.2f} s"
@@ -318,6 +329,8 @@ class ClosedLoopResult(Result):
                 f"peak {1e3 * c.peak:8.4f} mm  damper {1e3 * c.damper_power:8.4f} mW"
             )
         lines += [f"shortfall: {text}" for text in self.shortfalls]
+        if self.aeolian_steady is not None:
+            lines.append(self.aeolian_steady.summary())
         return "\n".join(lines)
 
     def _belief_line(self) -> str:

@@ -298,7 +298,8 @@ class SeverityConfig:
     time_domain: bool = _key(
         True, "", "Check the energy balance at the [forcing] wind speed in the time domain with "
         "the same two powers (severity.simulate_aeolian), without dampers and with the robot "
-        "parked at the antinode (aeolian forcing only).", when=("enabled", (True,)))
+        "parked at the antinode, and judge the closed loop's final position in the same "
+        "self-limiting wind (aeolian forcing only).", when=("enabled", (True,)))
     wind_record: str | None = _key(
         None, "", "A wind record, a CSV file with columns time, wind_speed, direction, "
         "temperature (and optionally turbulence_intensity): adds the fatigue stage to run and "

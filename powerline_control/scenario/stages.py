@@ -33,7 +33,8 @@ from .sensor_count import SensorCountCheck
 from .truth import on_nodes
 
 __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
-           "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing", "driven_mode",
+           "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing", "closed_loop_wind",
+           "driven_mode",
            "layout_filter", "longest_complete_run", "read_wind_record",
            "severity_assumptions", "severity_inputs", "severity_span", "support_intervals",
            "tune_robot"]
@@ -456,9 +457,42 @@ def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, identificatio
         model, force, tuning.robot, RobotLimits(cfg.v_max, cfg.a_max), sensors=list(sensors),
         duration=cfg.closed_loop, calibration=calibration, dt=dt,
         noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed,
-        nominal=model if nominal is None else nominal, calibrate=True)
+        nominal=model if nominal is None else nominal, calibrate=True,
+        aeolian_steady=closed_loop_wind(scenario, model.span))
     return ClosedLoop(tuning=tuning, sensors=tuple(int(i) for i in sensors), result=result,
                       calibration=calibration, sensors_how=how)
+
+
+def closed_loop_wind(scenario: Scenario, span) -> dict | bool:
+    """``run_closed_loop``'s ``aeolian_steady`` for the scenario: in the aeolian wind, with the
+    severity study's time-domain check on, the closed loop's robot is judged again in the
+    self-limiting wind with the severity study's power curve and self-damping law (its k from
+    the severity study's rated strength, :func:`severity_span`); else False.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``forcing`` and ``severity`` sections.
+    span : Span
+        The line the closed loop simulates (the truth).
+
+    Returns
+    -------
+    dict or bool
+
+    Examples
+    --------
+    >>> closed_loop_wind(load_scenario(), None)     # the lab span's shaker: no wind
+    False
+    """
+    from ..severity import SELF_DAMPING_LAWS
+
+    sev = scenario.severity
+    if scenario.forcing.kind != "aeolian" or not (sev.enabled and sev.time_domain):
+        return False
+    law = SELF_DAMPING_LAWS[sev.self_damping]
+    return {"wind_curve": sev.wind_curve, "self_damping": sev.self_damping,
+            "self_damping_k": law.coefficient(severity_span(scenario, span))}
 
 
 def severity_inputs(scenario: Scenario, span) -> tuple[dict, str]:

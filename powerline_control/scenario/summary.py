@@ -581,6 +581,8 @@ def _closed_loop_section(r) -> dict:
             note += (f"; settled window {mm(comparison.window_rms)}"
                      + (" (still ringing)" if comparison.transient else ""))
         rows.append((f"RMS: {label}", f"{mm(comparison.rms)}{where}", note))
+    if getattr(result, "aeolian_steady", None) is not None:
+        rows.append(_closed_loop_wind(r, result))
     figures = [
         _figure("closed_loop", functools.partial(_plotting().plot_closed_loop, result),
                 "The closed loop against time: the robot's position and its target, and the "
@@ -593,6 +595,16 @@ def _closed_loop_section(r) -> dict:
     ]
     return {"title": "Closed loop (robot seeking the best parked position)", "rows": rows,
             "figures": figures}
+
+
+def _closed_loop_wind(r, result) -> tuple:
+    """The closed loop's row in the self-limiting wind, beside the severity section's check
+    (on the nominal span, ``r.span``: the severity study changes its conductor's data, never its
+    tension)."""
+    from .summary_severity import closed_loop_wind_row
+
+    runs = None if r.severity is None else r.severity.time_domain
+    return closed_loop_wind_row(result.aeolian_steady, result.span, runs, r.span)
 
 
 def _steps_note(result) -> str:

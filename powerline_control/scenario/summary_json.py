@@ -22,6 +22,10 @@ UNITS = {
 }
 
 
+#: The closed loop's placements in the self-limiting wind (``AeolianSteady.runs``), as JSON keys.
+_STEADY_NAMES = ("no_robot", "near_clamp", "closed_loop", "antinode")
+
+
 def _f(value) -> float:
     return float(value)
 
@@ -144,6 +148,22 @@ def result_json(result) -> dict:
                        phase: {"above": above, "below": below, "rejected": above + below,
                                "tested": n}
                        for phase, (above, below, n) in consistency_by_phase(res).items()})
+        steady = res.aeolian_steady
+        if steady is not None:   # the same placements in the self-limiting wind
+            out["closed_loop_aeolian_steady"] = {
+                "wind_speed_m_s": _f(steady.wind_speed),
+                **{f"{name}_amplitude_m": _f(run.amplitude)
+                   for name, run in zip(_STEADY_NAMES, steady.runs, strict=True)},
+                **{f"{name}_balance_amplitude_m": _f(run.balance_amplitude)
+                   for name, run in zip(_STEADY_NAMES, steady.runs, strict=True)},
+                "near_clamp_position_m": _f(steady.near_clamp.robot_position),
+                "closed_loop_position_m": _f(steady.closed_loop.robot_position),
+                "antinode_position_m": _f(steady.at_antinode.robot_position),
+                "reduction": _f(steady.reduction),
+                "near_clamp_reduction": _f(steady.clamp_reduction),
+                "antinode_reduction": _f(steady.antinode_reduction),
+                "balance_reduction": _f(steady.balance_reduction),
+                "settled": bool(steady.settled)}
     if r.severity is not None:
         bare, robot = r.severity.bare, r.severity.robot
         out["outer_strand_diameter_m"] = _f(r.severity.outer_strand_diameter)

@@ -12,7 +12,8 @@ import functools
 from ..severity import ENDURANCE_FAMILY, ENDURANCE_STRAIN_PP
 from .summary_format import _figure, _plotting, mm
 
-__all__ = ["severity_section", "fatigue_section", "wind_speed_note", "FATIGUE_DAYS"]
+__all__ = ["severity_section", "fatigue_section", "wind_speed_note", "closed_loop_wind_row",
+           "FATIGUE_DAYS"]
 
 #: The fatigue figure shows the robot's positions over this many days of the record's start.
 FATIGUE_DAYS = 7.0
@@ -102,7 +103,9 @@ def severity_section(r) -> dict:
                      wind_speed_note(bare, robot, i, sev.endurance_applies)))
     notes = []
     if sev.time_domain is not None:
-        row, note = _time_domain_row(sev.time_domain)
+        judged = r.closed_loop is not None and \
+            getattr(r.closed_loop.result, "aeolian_steady", None) is not None
+        row, note = _time_domain_row(sev.time_domain, judged)
         rows.append(row)
         notes.append(note)
     if sev.assumptions:
@@ -134,10 +137,11 @@ def severity_section(r) -> dict:
                                 "how far the robot lowers the strain at each wind speed")]}
 
 
-def _time_domain_row(runs) -> tuple[tuple, str]:
+def _time_domain_row(runs, judged: bool = False) -> tuple[tuple, str]:
     """The time-domain check's row (the same powers: no damper, the robot parked at the
     antinode and near the clamp) and the note that says what each number means and why the
-    balance's robot differs."""
+    balance's robot differs; ``judged``: the closed loop's final position was judged in the
+    same wind (its section says so beside its own load's numbers)."""
     def versus(run) -> str:
         said = "" if run.settled else ", still moving at the end of the run"
         return (f"{mm(run.amplitude)} against the balance's {mm(run.balance_amplitude)} "
@@ -161,10 +165,90 @@ def _time_domain_row(runs) -> tuple[tuple, str]:
                "which carries the robot's effect on the wave, is the one to trust."
                if robot.robot_impedance_ratio > 0.3 else
                "the two should agree, and a difference is the simulation's coupling of modes.")
-            + " The closed loop's wind is a lift of fixed amplitude, not self-limiting: its "
-            "amplitudes compare the robot's positions under one load, not the line's steady "
-            "vibration.")
+            + " The closed loop's own load is a lift of fixed amplitude, not self-limiting: its "
+            "RMS rows compare the robot's positions under one load, not the line's steady "
+            "vibration"
+            + ("; the closed-loop section judges where the robot ended in this self-limiting "
+               "wind, beside this check." if judged else "."))
     return row, note
+
+
+def closed_loop_wind_row(steady, span, severity_runs=None, severity_span=None) -> tuple:
+    """The closed-loop section's row of the self-limiting wind: where the loop ended, no robot,
+    the fixed damper and the antinode in steady state, and what each number means beside the
+    closed loop's own load, the energy balance and the severity study's time-domain check.
+
+    Parameters
+    ----------
+    steady : AeolianSteady
+        ``ClosedLoopResult.aeolian_steady``.
+    span : Span
+        The line the closed loop simulated.
+    severity_runs : SeverityTimeDomain or None
+        The severity section's time-domain check at the same wind, when it ran.
+    severity_span : Span or None
+        The span it ran on.
+
+    Returns
+    -------
+    (str, str, str)
+        Label, value and note.
+    """
+    closed, bare, clamp, antinode = (steady.closed_loop, steady.no_robot, steady.near_clamp,
+                                     steady.at_antinode)
+    unsettled = [name for name, run in zip(("no robot", "near the clamp", "where it ended",
+                                            "at the antinode"), steady.runs, strict=True)
+                 if not run.settled]
+    value = (f"robot where the loop ended ({closed.robot_position:.4g} m): {mm(closed.amplitude)}"
+             f", {steady.reduction:.3g}x below no robot ({mm(bare.amplitude)}) and "
+             f"{steady.clamp_reduction:.3g}x below a fixed damper near the clamp "
+             f"({clamp.robot_position:.3g} m: {mm(clamp.amplitude)}); at the antinode "
+             f"{antinode.robot_position:.4g} m: {mm(antinode.amplitude)}, "
+             f"{steady.antinode_reduction:.3g}x"
+             + (f" (not settled: {', '.join(unsettled)})" if unsettled else ""))
+    note = ("Steady antinode amplitudes (zero to peak) of the line simulated in the "
+            "self-limiting wind: the energy balance's wind power at the current amplitude and "
+            "the conductor's self-damping, run until the amplitude settles "
+            "(severity.simulate_aeolian). This is where the line settles, and the robot's value "
+            "to trust. The RMS rows above are under the closed loop's own load, a lift of fixed "
+            "amplitude on a fixed modal damping: they rank positions under one load, and do not "
+            "settle where wind and conductor balance. The energy balance at the same position "
+            f"says {steady.balance_reduction:.3g}x: its damper power is first order in the "
+            f"robot's impedance, here {closed.robot_impedance_ratio:.3g} times the line's wave "
+            "impedance sqrt(T m), so it overstates what the robot takes.")
+    if severity_runs is not None:
+        note += " " + _against_severity(steady, span, severity_runs, severity_span)
+    return (f"self-limiting wind {steady.wind_speed:g} m/s, steady state", value, note)
+
+
+def _against_severity(steady, span, runs, severity_span) -> str:
+    """The closed loop's self-limiting reduction against the severity section's, and what
+    makes them differ: the line (tension) and the robot's position."""
+    theirs = runs.reduction
+    differ = 100 * (steady.reduction / theirs - 1)
+    text = (f"The severity section's time-domain check, the same physics with the robot at its "
+            f"antinode ({runs.at_antinode.robot_position:.4g} m), says {theirs:.3g}x: "
+            f"{differ:+.0f} % from the closed loop's {steady.reduction:.3g}x.")
+    causes = []
+    if severity_span is not None and abs(severity_span.tension / span.tension - 1) > 1e-3:
+        causes.append(
+            f"the severity study runs on the nominal span ({severity_span.tension:.5g} N), the "
+            f"closed loop on the line simulated ({span.tension:.5g} N), whose self-damping and "
+            f"locked mode differ (no robot: {mm(runs.bare.amplitude)} against "
+            f"{mm(steady.no_robot.amplitude)}; at its own antinode the robot gives "
+            f"{steady.antinode_reduction:.3g}x)")
+    apart = abs(steady.closed_loop.robot_position - steady.at_antinode.robot_position)
+    if apart > 1e-6:
+        loop = float(span.loop_length(steady.no_robot.frequency))
+        causes.append(
+            f"the loop ended {100 * apart / loop:.2g} % of a loop ({apart:.3g} m) from the "
+            f"antinode, where the robot gives {steady.antinode_reduction:.3g}x against "
+            f"{steady.reduction:.3g}x: the closed loop chose its position under its own load, "
+            "a sine at St V / D that drives the modes around it off resonance, not in the "
+            "self-limiting wind, which locks into one mode at that mode's frequency")
+    if causes:
+        text += " They differ because " + "; and ".join(causes) + "."
+    return text
 
 
 def _endurance(result) -> float:

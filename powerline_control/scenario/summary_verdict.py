@@ -183,6 +183,9 @@ def _robot(r) -> tuple:
     closed = res.comparison("closed_loop")
     names = {c.name for c in res.comparisons}
     how = "steady state" if closed.steady else "settled window"
+    steady = getattr(res, "aeolian_steady", None)
+    if steady is not None:
+        how += " under the simulation's fixed-amplitude lift"
     ended = f" The robot ended at {closed.position:.4g} m."
     out = []
     for name, label, words in _AGAINST:
@@ -198,7 +201,24 @@ def _robot(r) -> tuple:
         out.append(Headline(label, ratio,
                             f"{ratio:.2f}x" if ratio >= 1 else f"{1 / ratio:.2f}x worse",
                             verdict, SECTION_IDS["closed_loop"]))
+    if steady is not None:
+        out.append(_robot_in_wind(steady))
     return tuple(out)
+
+
+def _robot_in_wind(steady) -> Headline:
+    """The robot where the loop ended, in the self-limiting wind (``aeolian_steady``)."""
+    ratio = steady.reduction
+    clamp = steady.near_clamp
+    verdict = (f"lower steady antinode amplitude than with no robot in the {steady.wind_speed:g} "
+               f"m/s self-limiting wind ({mm(steady.no_robot.amplitude)} -> "
+               f"{mm(steady.closed_loop.amplitude)}), and {steady.clamp_reduction:.3g}x "
+               f"{'lower' if steady.clamp_reduction >= 1 else 'HIGHER'} than a fixed damper "
+               f"near the clamp at {clamp.robot_position:.3g} m ({mm(clamp.amplitude)}): the "
+               "energy balance's wind power and the conductor's self-damping, simulated until "
+               "the amplitude settles.")
+    return Headline("robot in the self-limiting wind", ratio, f"{ratio:.3g}x", verdict,
+                    SECTION_IDS["closed_loop"])
 
 
 def _severity(r) -> tuple:

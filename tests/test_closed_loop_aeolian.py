@@ -1,0 +1,183 @@
+"""The closed loop judged in the self-limiting aeolian wind (``run_closed_loop(aeolian_steady=)``).
+
+Independent truths: ``simulate_aeolian`` called directly for the same line, wind and robot
+position (the judgement must be that function's answer, not a copy of its physics); the energy
+balance without a robot (a root of P_w = P_c found by bracketing, no time integration); the
+conservation of energy in steady state (wind input = self-damping + robot); and the closed-form
+antinodes of a pinned span's mode, (j + 1/2) L / n, and of a clamped taut beam's standing wave
+(``Span.standing_wave_shape``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import powerline_control as plc
+from powerline_control.closed_loop.aeolian_steady import antinode_near
+from powerline_control.errors import InputError
+from powerline_control.severity import simulate_aeolian
+
+WIND = 3.0
+# Drake at 20 % RTS, 30 m, pinned: the wind at 3 m/s locks into mode 9 (19.6 Hz, loops 3.33 m)
+SPAN = plc.Span.at_rts_fraction(30.0, "drake", 0.2)
+
+
+@pytest.fixture(scope="module")
+def run():
+    """A closed loop in a 3 m/s wind, started 1.1 m (a third of a loop) off the antinode at
+    15 m, judged in the self-limiting wind (about 2 s)."""
+    model = plc.LineModel(SPAN, bc="pinned", damping=plc.ModalDamping(0.0005))
+    robot = dataclasses.replace(plc.tune_damper(model, 9, 15.0, 3.0, body_mass=5.0),
+                                position=13.9)
+    n = model.n_nodes
+    return model, robot, plc.run_closed_loop(
+        model, plc.AeolianForce(WIND), robot, sensors=[n // 5, 2 * n // 5, 3 * n // 5 + 3,
+                                                       4 * n // 5],
+        duration=8.0, calibration=2.0, aeolian_steady=True)
+
+
+def test_the_judgement_is_simulate_aeolian_at_the_final_position(run):
+    model, robot, result = run
+    steady = result.aeolian_steady
+    final = float(result.robot_position[-1])
+    direct = simulate_aeolian(SPAN, WIND, dataclasses.replace(robot, position=final),
+                              bc="pinned")
+    assert steady.closed_loop.robot_position == pytest.approx(final)
+    # the same function on the same line: the same amplitude (to the integrator's round-off)
+    assert steady.closed_loop.amplitude == pytest.approx(direct.amplitude, rel=1e-9)
+    assert steady.reduction == pytest.approx(
+        simulate_aeolian(SPAN, WIND, bc="pinned").amplitude / direct.amplitude, rel=1e-9)
+    # the fixed damper sits where the closed loop's own near-clamp comparison parks it
+    assert steady.near_clamp.robot_position == pytest.approx(
+        result.comparison("near_clamp").position)
+    assert steady.settled
+
+
+def test_without_the_robot_the_line_settles_at_the_energy_balance(run):
+    steady = run[2].aeolian_steady
+    balance = plc.severity.aeolian_severity(SPAN, [WIND], bc="pinned")
+    # the run locks to mode 9 at 19.64 Hz, the balance works at St V / D = 19.72 Hz: 0.5 %
+    assert steady.no_robot.amplitude == pytest.approx(float(balance.amplitude[0]), rel=0.02)
+
+
+def test_the_robot_takes_what_the_wind_puts_in(run):
+    closed = run[2].aeolian_steady.closed_loop
+    # energy over the final window: the wind's input is the conductor's and the robot's
+    # dissipation plus the energy the line gained (the absorber beats with the line, so the
+    # window's gain is not zero); conserved to 1 %
+    assert abs(closed.energy_residual) < 0.01
+    assert closed.robot_power > 0.5 * closed.wind_power
+
+
+def test_the_antinode_is_the_locked_modes(run):
+    steady = run[2].aeolian_steady
+    loop = SPAN.length / steady.no_robot.mode     # pinned: mode n has loops of L / n
+    assert steady.no_robot.mode == 9
+    antinodes = (np.arange(9) + 0.5) * loop
+    nearest = antinodes[np.argmin(np.abs(antinodes - steady.closed_loop.robot_position))]
+    # parabolic refinement of the nodal amplitude: within 1 % of a loop
+    assert steady.at_antinode.robot_position == pytest.approx(nearest, abs=0.01 * loop)
+    # the robot damps best at the antinode of the mode the wind feeds, better than at the clamp
+    assert steady.antinode_reduction >= 0.98 * steady.reduction
+    assert steady.reduction > 10 and steady.clamp_reduction > 1
+
+
+def test_the_summary_states_the_self_limiting_numbers(run):
+    result = run[2]
+    text = result.summary()
+    assert "self-limiting wind 3 m/s" in text
+    assert f"reduction {result.aeolian_steady.reduction:.3g}x against no robot" in text
+
+
+def test_antinode_of_a_clamped_span_is_the_standing_waves():
+    span = plc.Span.at_rts_fraction(40.0, "drake", 0.2)
+    bare = simulate_aeolian(span, WIND, bc="clamped")
+    x = np.linspace(18.0, 22.0, 40001)
+    shape = np.abs(span.standing_wave_shape(bare.frequency, x, "clamped"))
+    peaks = x[1:-1][(shape[1:-1] >= shape[:-2]) & (shape[1:-1] >= shape[2:])]
+    expected = peaks[np.argmin(np.abs(peaks - 20.0))]
+    loop = float(span.loop_length(bare.frequency))
+    # the FE mode's frequency, the closed form's wave: within 1 % of a loop
+    assert antinode_near(bare, 20.0) == pytest.approx(expected, abs=0.01 * loop)
+
+
+def _lab_call(**options):
+    model = plc.LineModel(plc.Span.paper_lab(), 20)
+    robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
+    return lambda: plc.run_closed_loop(model, options.pop("force", plc.AeolianForce(1.0)),
+                                       robot, sensors=[4, 9, 15], duration=3.0,
+                                       calibration=1.0, **options)
+
+
+@pytest.mark.parametrize(("options", "words"), [
+    ({"aeolian_steady": "yes"}, ["'aeolian_steady'", "'yes'", "True, False or a mapping"]),
+    ({"aeolian_steady": {"wind_curv": "cigre"}},
+     ["'aeolian_steady'", "wind_curv", "wind_curve"]),
+    ({"aeolian_steady": True, "force": plc.HarmonicForce(1.0, 24.0, 0.5)},
+     ["'aeolian_steady'", "HarmonicForce", "one AeolianForce"]),
+    # the lab span's conductor has no rated strength for the Lilien k: refused before the run
+    ({"aeolian_steady": True}, ["self_damping_k", "rated_strength"]),
+])
+def test_bad_requests_are_refused_before_the_run(options, words):
+    with pytest.raises(InputError) as caught:
+        _lab_call(**options)()
+    for word in words:
+        assert word in str(caught.value)
+
+
+def test_supports_that_differ_are_refused():
+    model = plc.LineModel(SPAN, bc=("clamped", "pinned"))
+    robot = plc.tune_damper(model, 9, 15.0, 3.0, body_mass=5.0)
+    with pytest.raises(InputError, match=r"same support at both ends.*\('clamped', 'pinned'\)"):
+        plc.run_closed_loop(model, plc.AeolianForce(WIND), robot, sensors=[20, 40],
+                            duration=3.0, calibration=1.0, aeolian_steady=True)
+
+
+SCENARIO = "\n".join([
+    "[span]", 'preset = "conductor"', 'conductor = "drake"', "length = 30.0",
+    "rts_fraction = 0.2", "[model]", 'bc = "pinned"', "damping_ratio = 0.0005", "[forcing]",
+    'kind = "aeolian"', "wind_speed = 3.0", "[robot]", "start = 13.9", "body_mass = 5.0",
+    "suspended_mass = 3.0", "closed_loop = 8.0", "[severity]", "enabled = true"])
+
+
+def test_scenario_reports_the_closed_loop_in_the_self_limiting_wind():
+    from powerline_control.scenario.summary import result_sections
+    from powerline_control.scenario.summary_json import result_json
+    from powerline_control.scenario.summary_verdict import result_verdict
+
+    result = plc.run_scenario(plc.load_scenario(text=SCENARIO),
+                              stages=("model", "closed_loop", "severity"))
+    steady = result.closed_loop.result.aeolian_steady
+    # the severity study's physics (its curve and law) on the line the closed loop simulated
+    mesh = result.closed_loop.result.x.size - 1     # the scenario's equal elements
+    direct = simulate_aeolian(SPAN, WIND, bc="pinned", n_elements=mesh)
+    assert steady.no_robot.amplitude == pytest.approx(direct.amplitude, rel=1e-9)
+    section = next(s for s in result_sections(result) if s["title"].startswith("Closed loop"))
+    label, value, note = next(row for row in section["rows"] if row[0].startswith("self-lim"))
+    assert f"{steady.reduction:.3g}x below no robot" in value
+    assert f"{steady.clamp_reduction:.3g}x below a fixed damper" in value
+    # each number's meaning beside the others: the fixed lift, the balance, severity's check
+    assert "fixed amplitude" in note and f"says {steady.balance_reduction:.3g}x" in note
+    assert f"says {result.severity.time_domain.reduction:.3g}x" in note
+    assert result_json(result)["closed_loop_aeolian_steady"]["reduction"] == pytest.approx(
+        steady.reduction)
+    headline = next(h for h in result_verdict(result).headlines
+                    if h.label == "robot in the self-limiting wind")
+    assert headline.value == pytest.approx(steady.reduction)
+
+
+@pytest.mark.parametrize(("extra", "asked"), [
+    ("", True), ("time_domain = false", False)])
+def test_scenario_asks_for_the_judgement_with_the_time_domain_check(extra, asked):
+    from powerline_control.scenario.stages import closed_loop_wind
+
+    scenario = plc.load_scenario(text=SCENARIO + "\n" + extra)
+    options = closed_loop_wind(scenario, SPAN)
+    assert bool(options) is asked
+    if asked:   # the severity study's curve and law, with the Lilien k of the conductor
+        law = plc.severity.SELF_DAMPING_LAWS["noiseux1991"]
+        assert options == {"wind_curve": "cigre", "self_damping": "noiseux1991",
+                           "self_damping_k": pytest.approx(law.coefficient(SPAN))}
