@@ -178,10 +178,11 @@ def _supports(model: LineModel) -> str:
 
 def _mesh(model: LineModel) -> int | None:
     """The elements simulate_aeolian meshes the span with to build ``model``'s mesh again: its
-    count when the elements are equal (``LineModel(span, n)``), else None (the physics mesh,
-    graded toward clamps, that ``LineModel(span)`` builds)."""
-    lengths = np.asarray(model.element_lengths)
-    return int(model.n_elements) if np.all(lengths == lengths[0]) else None
+    count when the elements are equal (to round-off: ``LineModel(span, n)``, or a physics mesh
+    without clamps), else None (the physics mesh, graded toward clamps, that
+    ``LineModel(span)`` builds)."""
+    equal = np.ptp(np.asarray(model.element_lengths)) <= 1e-12 * model.span.length
+    return int(model.n_elements) if equal else None
 
 
 def precheck(model: LineModel, wind: AeolianForce, options: dict) -> None:

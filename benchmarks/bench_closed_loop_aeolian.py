@@ -1,0 +1,110 @@
+"""Benchmark: the closed loop in the aeolian wind, with and without the self-limiting judgement.
+
+Per real span in a 3 m/s wind (the drake-300m scenario's robot, a 30 s run, dt = 2 ms, the
+default physics mesh), ``run_closed_loop`` twice, alternately, in one process:
+
+- today's linear load alone: the ``AeolianForce`` lift of fixed amplitude (C_L 0.3) on a line
+  with 0.05 % modal damping (``aeolian_steady=False``, the default);
+- the same run judged afterwards in the self-limiting wind (``aeolian_steady=True``: four
+  ``severity.simulate_aeolian`` runs with the energy balance's wind power at the current
+  amplitude and the conductor's self-damping: no robot, near the clamp, where the loop ended,
+  at the antinode).
+
+Columns: the real-time factor of the whole call (simulated time / CPU time of
+``run_closed_loop``: setup, calibration, loop, comparisons and, when asked, the judgement;
+target >= 2 on the 400 m span), the loop's own (unchanged by the judgement, which runs after the
+loop), the judgement's CPU seconds, their ratio, and the reductions each physics reports: under
+the fixed lift (RMS over the span, no robot / where the loop ended), in the self-limiting wind
+(steady antinode amplitude, no robot / where the loop ended, the fixed damper / where it ended,
+no robot / the antinode) and the energy balance's at the loop's position. CPU time from
+``time.process_time``; the fastest of ``--repeats`` runs.
+
+Run: python benchmarks/bench_closed_loop_aeolian.py [--repeats N]
+BLAS is pinned to one thread (``_common`` is imported before numpy).
+"""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import os  # noqa: E402
+import time  # noqa: E402
+
+import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
+import numpy as np  # noqa: E402
+
+import powerline_control as plc  # noqa: E402
+
+WIND = 3.0
+DURATION = 30.0
+
+
+def case(name: str, length: float, bc: str, start: float):
+    """The line (default physics mesh, 0.05 % modal damping), the drake-300m robot (5 kg body,
+    3 kg absorber) tuned to the mode the wind locks into, five sensors."""
+    span = plc.Span.at_rts_fraction(length, name, 0.2)
+    model = plc.LineModel(span, bc=bc, damping=plc.ModalDamping(0.0005))
+    frequency = plc.AeolianForce(WIND).frequency_for(span.conductor)
+    mode = int(round(span.length / float(span.loop_length(frequency))))
+    robot = dataclasses.replace(plc.tune_damper(model, mode, None, 3.0, body_mass=5.0),
+                                position=start)
+    sensors = [int(i) for i in np.linspace(0, model.n_nodes - 1, 7).round()[1:-1] + 3]
+    return model, robot, sensors
+
+
+def measure(model, robot, sensors, judged: bool):
+    run = plc.run_closed_loop   # the package imports its subpackages lazily: not timed
+    cpu = time.process_time()
+    result = run(model, plc.AeolianForce(WIND), robot, plc.RobotLimits(1.0, 2.0),
+                 sensors=sensors, duration=DURATION, calibration=2.0, dt=0.002,
+                 aeolian_steady=judged)
+    return result, time.process_time() - cpu
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=2,
+                        help="runs per case and load; the fastest is reported (default 2)")
+    options = parser.parse_args()
+    print(_common.PINNED)
+    cases = (("Drake 300 m pinned", ("drake", 300.0, "pinned", 150.5)),
+             ("Cardinal 400 m clamped", ("cardinal", 400.0, "clamped", 180.0)))
+    header = (f"{'case':24s} {'modes':>5s} {'RTF call':>8s} {'RTF call':>8s} {'ratio':>6s} "
+              f"{'RTF loop':>8s} {'judge s':>7s} | {'lift':>6s} {'self-lim':>8s} "
+              f"{'vs clamp':>8s} {'antinode':>8s} {'balance':>8s} {'load':>9s}")
+    print(f"{'':24s} {'':5s} {'linear':>8s} {'+ judged':>8s} {'':6s}")
+    print(header)
+    print("-" * len(header))
+    for label, spec in cases:
+        model, robot, sensors = case(*spec)
+        load_before = os.getloadavg()[0]
+        plain, judged = [], []
+        for _ in range(max(options.repeats, 1)):   # alternate: the load falls on both
+            plain.append(measure(model, robot, sensors, False))
+            judged.append(measure(model, robot, sensors, True))
+        base, base_cpu = min(plain, key=lambda run: run[1])
+        result, cpu = min(judged, key=lambda run: run[1])
+        steady = result.aeolian_steady
+        simulated = float(result.t[-1])
+        lift = base.comparison("no_robot").rms / base.comparison("closed_loop").rms
+        print(f"{label:24s} {base.timings['modes']:5d} {simulated / base_cpu:8.1f} "
+              f"{simulated / cpu:8.1f} {base_cpu / cpu:6.2f} {base.real_time_factor:8.1f} "
+              f"{result.timings['aeolian steady cpu']:7.2f} | {lift:5.2f}x "
+              f"{steady.reduction:7.2f}x {steady.clamp_reduction:7.2f}x "
+              f"{steady.antinode_reduction:7.2f}x {steady.balance_reduction:7.1f}x "
+              f"{load_before:4.1f}-{os.getloadavg()[0]:<4.1f}", flush=True)
+        print(f"{'':24s} ended at {result.robot_position[-1]:.4g} m, antinode "
+              f"{steady.at_antinode.robot_position:.4g} m; amplitudes (mm) no robot "
+              f"{1e3 * steady.no_robot.amplitude:.4g}, clamp "
+              f"{1e3 * steady.near_clamp.amplitude:.4g}, loop "
+              f"{1e3 * steady.closed_loop.amplitude:.4g}, antinode "
+              f"{1e3 * steady.at_antinode.amplitude:.4g}; settled {steady.settled}", flush=True)
+    print("RTF = simulated time / CPU time; 'ratio' = linear load's CPU / judged run's CPU; "
+          f"load: 1-minute load average before-after each case, on {os.cpu_count()} cores")
+
+
+if __name__ == "__main__":
+    main()
