@@ -128,6 +128,36 @@ def test_bad_requests_are_refused_before_the_run(options, words):
         assert word in str(caught.value)
 
 
+def test_a_wind_beyond_the_power_curves_data_is_refused_before_the_run():
+    # Drake 30 m at 20 % RTS in 3 m/s: the Farquharson curve's data end before the wind's power
+    # falls to the self-damping's (the energy balance's status "above curve range")
+    model = plc.LineModel(SPAN, bc="pinned")
+    robot = plc.tune_damper(model, 9, 15.0, 3.0, body_mass=5.0)
+    assert plc.severity.aeolian_severity(SPAN, [WIND], bc="pinned", wind_curve="farquharson"
+                                         ).status[0] == "above curve range"
+    with pytest.raises(InputError, match=r"'force' wind speed 3 m/s.*'farquharson'.*wind_curve"):
+        plc.run_closed_loop(model, plc.AeolianForce(WIND), robot, sensors=[20, 40],
+                            duration=3.0, calibration=1.0,
+                            aeolian_steady={"wind_curve": "farquharson"})
+
+
+@pytest.mark.parametrize(("arguments", "name"), [
+    ({"wind": plc.HarmonicForce(1.0, 19.6, 1.0)}, "'wind'"),
+    ({"position": 31.0}, "'position'"),
+    ({"clamp_distance": -1.0}, "'clamp_distance'"),
+    ({"model": SPAN}, "'model'"),
+])
+def test_the_judgement_refuses_what_it_cannot_place(arguments, name):
+    from powerline_control.closed_loop import aeolian_steady_state
+
+    model = plc.LineModel(SPAN, bc="pinned")
+    call = {"model": model, "wind": plc.AeolianForce(WIND),
+            "robot": plc.tune_damper(model, 9, 15.0, 3.0, body_mass=5.0), "position": 15.0,
+            "clamp_distance": 1.0, **arguments}
+    with pytest.raises(InputError, match=name):
+        aeolian_steady_state(**call)
+
+
 def test_supports_that_differ_are_refused():
     model = plc.LineModel(SPAN, bc=("clamped", "pinned"))
     robot = plc.tune_damper(model, 9, 15.0, 3.0, body_mass=5.0)

@@ -141,9 +141,9 @@ def checked_options(value: object, wind: object) -> dict | None:
     :func:`~powerline_control.severity.simulate_aeolian` options it names (True: none, the
     severity study's defaults). ``wind``: the run's last load segment, which must be one
     :class:`~powerline_control.excitation.AeolianForce` when the judgement is asked for."""
-    if value is False or value is None:
-        return None
-    if value is True:
+    if isinstance(value, bool | np.bool_):
+        if not value:
+            return None
         options = {}
     elif isinstance(value, Mapping):
         unknown = [key for key in value if key not in PHYSICS_OPTIONS]
@@ -189,9 +189,15 @@ def precheck(model: LineModel, wind: AeolianForce, options: dict) -> None:
     """The energy balance at the run's wind on its line: what simulate_aeolian would refuse (no
     rated strength for the self-damping law, a wind beyond the power curve's data, an unknown
     curve or law) is refused before the run, not after it."""
-    aeolian_severity(model.span, [wind.wind_speed], bc=_supports(model), strouhal=wind.strouhal,
-                     **{k: v for k, v in options.items()
-                        if k not in ("settle_tolerance", "max_duration")})
+    powers = {k: v for k, v in options.items() if k not in ("settle_tolerance", "max_duration")}
+    balance = aeolian_severity(model.span, [wind.wind_speed], bc=_supports(model),
+                               strouhal=wind.strouhal, **powers)
+    if balance.status[0] == "above curve range":
+        curve = powers.get("wind_curve", "cigre")
+        raise InputError(
+            f"The 'force' wind speed {wind.wind_speed:g} m/s drives the span past the {curve!r} "
+            "power curve's data, so the 'aeolian_steady' judgement has no steady amplitude to "
+            "find: choose a wind_curve whose data reach further, or leave aeolian_steady False.")
 
 
 def antinode_near(run: AeolianRun, position: float) -> float:
@@ -258,9 +264,16 @@ def aeolian_steady_state(model: LineModel, wind: AeolianForce, robot: MDR, posit
     >>> steady.settled, round(steady.no_robot.amplitude / steady.no_robot.balance_amplitude, 2)
     (True, 1.0)
     """
-    if not isinstance(position, numbers.Real) or not 0 <= position <= model.span.length:
-        raise InputError(f"The 'position' parameter must lie on the span [0, "
-                         f"{model.span.length:g}] m. Got {position!r}.")
+    if not isinstance(model, LineModel):
+        raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
+    if not isinstance(wind, AeolianForce):
+        raise InputError("The 'wind' parameter must be an AeolianForce (its wind speed and "
+                         f"Strouhal number). Got {type(wind).__name__}.")
+    for name, value in (("position", position), ("clamp_distance", clamp_distance)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) \
+                or not 0 <= value <= model.span.length:
+            raise InputError(f"The '{name}' parameter must lie on the span [0, "
+                             f"{model.span.length:g}] m. Got {value!r}.")
     common = {"bc": _supports(model), "n_elements": _mesh(model), "strouhal": wind.strouhal,
               **physics}
     span, speed = model.span, wind.wind_speed
