@@ -211,3 +211,16 @@ def test_scenario_asks_for_the_judgement_with_the_time_domain_check(extra, asked
         law = plc.severity.SELF_DAMPING_LAWS["noiseux1991"]
         assert options == {"wind_curve": "cigre", "self_damping": "noiseux1991",
                            "self_damping_k": pytest.approx(law.coefficient(SPAN))}
+
+
+def test_a_closed_loop_under_another_load_says_it_is_not_the_severity_sections():
+    from powerline_control.scenario.summary import result_sections
+
+    result = plc.run_scenario(plc.load_scenario(
+        text="[model]\nn_elements = 20\n[robot]\nclosed_loop = 4.0\n[severity]\nenabled = true"),
+        stages=("model", "closed_loop", "severity"))
+    assert result.closed_loop.result.aeolian_steady is None
+    section = next(s for s in result_sections(result) if s["title"].startswith("Closed loop"))
+    rows = {row[0]: row for row in section["rows"]}
+    assert rows["against the severity section"][1] == \
+        "not comparable: the [forcing] is harmonic, not the wind"

@@ -583,6 +583,8 @@ def _closed_loop_section(r) -> dict:
         rows.append((f"RMS: {label}", f"{mm(comparison.rms)}{where}", note))
     if getattr(result, "aeolian_steady", None) is not None:
         rows.append(_closed_loop_wind(r, result))
+    elif r.severity is not None:
+        rows.append(_not_the_wind(r))
     figures = [
         _figure("closed_loop", functools.partial(_plotting().plot_closed_loop, result),
                 "The closed loop against time: the robot's position and its target, and the "
@@ -605,6 +607,20 @@ def _closed_loop_wind(r, result) -> tuple:
 
     runs = None if r.severity is None else r.severity.time_domain
     return closed_loop_wind_row(result.aeolian_steady, result.span, runs, r.span)
+
+
+def _not_the_wind(r) -> tuple:
+    """Why the closed loop's reduction is not the severity section's, when the closed loop was
+    not judged in the self-limiting wind."""
+    kind = r.scenario.forcing.kind
+    how = ("the [forcing] is aeolian, but [severity] time_domain is off" if kind == "aeolian"
+           else f"the [forcing] is {kind}, not the wind")
+    return ("against the severity section", "not comparable: " + how,
+            "The closed loop's RMS rows are under the scenario's own load on the line's modal "
+            "damping; the severity section's amplitudes are where the wind's power balances the "
+            "conductor's self-damping at each wind speed, with the robot at the antinode. With "
+            "aeolian forcing and the time-domain check on, the closed loop's final position is "
+            "judged in that self-limiting wind as well.")
 
 
 def _steps_note(result) -> str:
