@@ -8,6 +8,7 @@ allowed and the value received, in the style of scikit-learn's parameter validat
 from __future__ import annotations
 
 import difflib
+import functools
 import inspect
 import numbers
 import os
@@ -38,6 +39,7 @@ __all__ = [
     "check_budget_value",
     "check_write_path",
     "check_forwarded_options",
+    "checked_keywords",
 ]
 
 # Default budgets for what one public call may commit before it starts (documented in
@@ -489,13 +491,59 @@ mean 'curve'?). Accepted: its own parameters x, settle; and inner's options curv
             raise InputError(f"The {key!r} option cannot be passed to {name}: it sets it "
                              f"itself{' (' + why + ')' if why else ''}.")
         if key not in forwarded:
-            close = difflib.get_close_matches(str(key), own + forwarded, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise InputError(
-                f"{name} got an unknown keyword argument {key!r}{hint}. Accepted: its own "
-                f"parameters {', '.join(own)}; and {target_name}'s options "
+                f"{name} got an unknown keyword argument {key!r}{_nearest(key, own + forwarded)}"
+                f". Accepted: its own parameters {', '.join(own)}; and {target_name}'s options "
                 f"{', '.join(forwarded)}.")
     return dict(options)
+
+
+def _nearest(key: object, names: Sequence[str]) -> str:
+    """`` (did you mean 'name'?)`` for the accepted name nearest a misspelt one, or ``''``."""
+    close = difflib.get_close_matches(str(key), list(names), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def checked_keywords(function: Callable) -> Callable:
+    """Decorator: a keyword ``function`` does not take is an ``InputError``, before any work.
+
+    Python's own refusal of a misspelt keyword (``calibrat=True``) is a ``TypeError`` that
+    names neither what is accepted nor the nearest name; this one names the keyword, the nearest
+    accepted name and every accepted one, like :func:`check_forwarded_options` (which serves the
+    functions that take ``**options``; a function with ``**`` parameters cannot be decorated).
+    Positional arguments and everything else are left to the call itself.
+
+    Examples
+    --------
+    >>> @checked_keywords
+    ... def run(model, *, duration=10.0, calibration=2.0):
+    ...     return duration + calibration
+    >>> run(None, calibration=1.0)
+    11.0
+    >>> run(None, calibrat=1.0)
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: run got an unknown keyword argument 'calibrat' (did \
+you mean 'calibration'?). Accepted: model, duration, calibration.
+    """
+    parameters = inspect.signature(function).parameters.values()
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
+        raise TypeError(f"{function.__qualname__} takes **options: check them with "
+                        "check_forwarded_options instead.")
+    accepted = _keyword_names(function)
+    known = frozenset(accepted)
+    name = function.__qualname__
+
+    @functools.wraps(function)
+    def checked(*args, **kwargs):
+        for key in kwargs:
+            if key not in known:
+                raise InputError(
+                    f"{name} got an unknown keyword argument {key!r}"
+                    f"{_nearest(key, accepted)}. Accepted: {', '.join(accepted)}.")
+        return function(*args, **kwargs)
+
+    return checked
 
 
 def read_only(array: np.ndarray) -> np.ndarray:

@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ._spectral import dominant_frequency, fit_harmonic
-from ._validation import check_array, check_choice, check_real
+from ._validation import check_array, check_choice, check_real, checked_keywords
 from .errors import InputError
 
 __all__ = ["Antinode", "locate_antinodes", "nearest_antinode", "largest_antinode"]
@@ -476,6 +476,7 @@ def _refine(
 # ----------------------------------------------------------------------------------------------
 
 
+@checked_keywords
 def locate_antinodes(
     field: np.ndarray,
     x: np.ndarray,
@@ -693,6 +694,7 @@ def _check_antinodes(antinodes: Sequence[Antinode]) -> list[Antinode]:
     return items
 
 
+@checked_keywords
 def nearest_antinode(antinodes: Sequence[Antinode], position: float) -> Antinode:
     """The antinode closest to ``position`` (e.g. the robot's).
 

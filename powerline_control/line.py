@@ -14,7 +14,14 @@ from importlib import resources
 import numpy as np
 
 from ._constants import GRAVITY
-from ._validation import check_array, check_budget, check_choice, check_int, check_real
+from ._validation import (
+    check_array,
+    check_budget,
+    check_choice,
+    check_int,
+    check_real,
+    checked_keywords,
+)
 from .errors import InputError, PresetNotFoundError
 
 __all__ = ["Conductor", "Span", "conductors", "tension_at_temperature",
@@ -406,6 +413,7 @@ _ABSOLUTE_ZERO = -273.15
 _ALUMINIUM_MELTING = 660.3
 
 
+@checked_keywords
 def tension_at_temperature(span: Span, temperature: float | np.ndarray,
                            reference_temperature: float = 15.0, *,
                            load: float | None = None,

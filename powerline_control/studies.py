@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ._results import TabularResult, to_dataframe
-from ._validation import check_budget, check_int, check_real, check_write_path
+from ._validation import check_budget, check_int, check_real, check_write_path, checked_keywords
 from .errors import FileFormatError, InputError
 
 __all__ = ["parameter_grid", "point_seed", "run_study", "StudyResult"]
@@ -518,6 +518,7 @@ def _call(
     return {str(key): _plain(value, f"The result {key!r}") for key, value in result.items()}
 
 
+@checked_keywords
 def run_study(
     func: Callable[..., Mapping],
     grid: Sequence[Mapping],

@@ -11,6 +11,7 @@ passed on to nothing.
 from __future__ import annotations
 
 import functools
+import inspect
 
 import control as ct
 import numpy as np
@@ -133,3 +134,56 @@ def test_the_helper_returns_a_copy_and_takes_no_unknown_name():
     assert out == given and out is not given
     with pytest.raises(plc.InputError, match="'x' option cannot be passed to .*outer"):
         _validation.check_forwarded_options(outer, {"x": 1}, inner, set_here=("x",))
+
+
+# ------------------------------------------------- functions with many keywords, no **options
+def _keyword_functions():
+    """Every public function of the top level without ``**`` parameters, by name."""
+    for name in plc.__all__:
+        obj = getattr(plc, name)
+        if not inspect.isfunction(obj):
+            continue
+        kinds = [p.kind for p in inspect.signature(obj).parameters.values()]
+        if inspect.Parameter.VAR_KEYWORD not in kinds:
+            yield name
+
+
+# Not decorated yet: their modules (severity.balance, identify.calibration) were being changed
+# in parallel; strict, so decorating them turns these into failures that ask to drop the mark.
+_NOT_YET = {"aeolian_severity", "calibrate_span"}
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(name, marks=pytest.mark.xfail(strict=True, raises=TypeError,
+                                               reason="not yet @checked_keywords"))
+    if name in _NOT_YET else name for name in _keyword_functions()])
+def test_every_public_function_refuses_a_misspelt_keyword_by_name(name):
+    """Called with nothing but an unknown keyword, each public function refuses it by name,
+    with every name it accepts (read from its own signature, independently of the check),
+    before it binds its arguments (so before any work: no argument was given)."""
+    function = getattr(plc, name)
+    accepted = [p.name for p in inspect.signature(inspect.unwrap(function)).parameters.values()
+                if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    with pytest.raises(plc.InputError) as info:
+        function(no_such_keyword=1)
+    assert str(info.value) == (f"{name} got an unknown keyword argument 'no_such_keyword'. "
+                               f"Accepted: {', '.join(accepted)}.")
+
+
+def test_run_closed_loop_names_a_misspelt_calibrate_and_the_nearest_name():
+    """``calibrat=True`` escaped as Python's TypeError; now an InputError naming the keyword,
+    the nearest accepted name and the accepted ones, before the span is meshed."""
+    with pytest.raises(plc.InputError) as info:
+        plc.run_closed_loop(DRAKE, plc.HarmonicForce(1.0, 9.0, 100.0), ROBOT,
+                            sensors=[20, 50, 80], calibrat=True)
+    message = str(info.value)
+    assert message.startswith("run_closed_loop got an unknown keyword argument 'calibrat' "
+                              "(did you mean 'calibrate'?). Accepted: model, force, robot, "
+                              "limits, sensors, n_elements, ")
+    assert message.endswith(", nominal, calibrate, settings, aeolian_steady.")
+    assert not isinstance(info.value, TypeError)
+
+
+def test_a_valid_keyword_still_reaches_the_decorated_function():
+    assert plc.tension_at_temperature(DRAKE, 15.0, reference_temperature=15.0) == \
+        pytest.approx(DRAKE.tension)

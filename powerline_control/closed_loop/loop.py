@@ -16,7 +16,7 @@ import numpy as np
 
 from .._spectral import dominant_frequency, fit_phasors
 from .._threads import on_one_blas_thread
-from .._validation import check_bool, check_rng, read_only
+from .._validation import check_bool, check_rng, checked_keywords, read_only
 from ..errors import ReachWarning, ShortfallWarning
 from ..fem import MDR, LineModel
 from ..line import Span
@@ -306,6 +306,7 @@ def _move_robot(motion: Motion, records: Records, t: np.ndarray, k: int, end: in
 
 # Thousands of small products per simulated second: one BLAS thread is several times faster than
 # two contending ones. The limit applies inside this call only.
+@checked_keywords
 @on_one_blas_thread
 def run_closed_loop(
     model: LineModel | Span,

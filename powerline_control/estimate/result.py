@@ -30,6 +30,7 @@ from .._validation import (
     check_indices,
     check_int,
     check_real,
+    checked_keywords,
     read_only,
 )
 from ..errors import (
@@ -368,6 +369,7 @@ class Accuracy(Result):
     n_samples: int
 
 
+@checked_keywords
 def estimation_accuracy(
     estimate: Estimate | object,
     truth: object,

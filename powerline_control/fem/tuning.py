@@ -13,7 +13,7 @@ import numbers
 
 import numpy as np
 
-from .._validation import check_bare_line, check_int, check_real
+from .._validation import check_bare_line, check_int, check_real, checked_keywords
 from ..errors import InputError
 from .damper import MDR, den_hartog_optimum
 from .model import LineModel
@@ -26,6 +26,7 @@ NODE_TOLERANCE = 1e-3
 
 
 
+@checked_keywords
 def tune_damper(
     model: LineModel, mode: int, position: float | None, mass: float, *, body_mass: float = 0.0
 ) -> MDR:

@@ -15,7 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import check_array, check_choice, check_int, check_real, read_only
+from .._validation import (
+    check_array,
+    check_choice,
+    check_int,
+    check_real,
+    checked_keywords,
+    read_only,
+)
 from ..errors import InputError
 from ._ridge import _ridge_svd
 from .fit import (
@@ -130,6 +137,7 @@ def _relative_error(prediction: np.ndarray, truth: np.ndarray) -> float:
     return num / den
 
 
+@checked_keywords
 def select_alpha(
     X: np.ndarray,
     dt: float,

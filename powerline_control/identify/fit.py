@@ -24,6 +24,7 @@ from .._validation import (
     check_int,
     check_real,
     check_snapshot_matrix,
+    checked_keywords,
     read_only,
 )
 from ..errors import IdentificationError, IllConditionedWarning, InputError
@@ -326,6 +327,7 @@ def _absolute_alpha(
 
 
 
+@checked_keywords
 def fit_dmd(
     X: np.ndarray,
     dt: float,

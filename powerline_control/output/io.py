@@ -45,7 +45,13 @@ from typing import Any
 import numpy as np
 from numpy.lib import format as npy_format
 
-from .._validation import MEMORY_BUDGET_BYTES, check_budget_value, check_write_path, read_only
+from .._validation import (
+    MEMORY_BUDGET_BYTES,
+    check_budget_value,
+    check_write_path,
+    checked_keywords,
+    read_only,
+)
 from ..errors import FileFormatError, InputError
 from ..identify import DMDModel, OscillatorModel, SpanModel
 
@@ -95,6 +101,7 @@ def _dmd_to_arrays(model: DMDModel) -> tuple[dict[str, np.ndarray], dict[str, An
     return arrays, metadata
 
 
+@checked_keywords
 def save_model(path: str | os.PathLike[str], model: DMDModel) -> None:
     """Write a model to ``path`` as ``.npz`` (no pickle) with JSON metadata.
 
@@ -353,6 +360,7 @@ def _check_contents(name: str, arrays: dict[str, np.ndarray]) -> None:
             raise FileFormatError(f"{name!r}: 'field_map' is not the leading rows of 'basis'.")
 
 
+@checked_keywords
 def load_model(path: str | os.PathLike[str], *, max_bytes: float | None = None) -> DMDModel:
     """Read a model written by :func:`save_model`; the round trip is exact.
 

@@ -21,6 +21,7 @@ from .._validation import (
     check_array,
     check_real,
     check_write_path,
+    checked_keywords,
     read_only,
     warn_if_saturated,
 )
@@ -254,6 +255,7 @@ def _infinite(positions, values) -> str | None:
             "finite (mark a missing sample with NaN, an empty CSV cell).")
 
 
+@checked_keywords
 def save_record(path: str | os.PathLike[str], record: Record) -> list:
     """Write a record as ``PATH.npz`` (arrays + JSON metadata) and ``PATH.csv`` (text).
 
@@ -316,6 +318,7 @@ def save_record(path: str | os.PathLike[str], record: Record) -> list:
     return [npz, csv_path]
 
 
+@checked_keywords
 def load_record(path: str | os.PathLike[str], *, sample_rate: float | None = None,
                 units: str | None = None) -> Record:
     """Read a measured (or saved) record: positions, sample rate, units, missing samples.

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .._validation import check_choice, check_int, check_real, read_only
+from .._validation import check_choice, check_int, check_real, checked_keywords, read_only
 from ..errors import InputError, PlanningError
 from .closed_form import (
     Trajectory,
@@ -284,6 +284,7 @@ def _trajectory_from(
     )
 
 
+@checked_keywords
 def plan_motion(
     start: float,
     target: float,

@@ -13,6 +13,7 @@ from importlib import resources
 from os import PathLike
 from pathlib import Path
 
+from .._validation import checked_keywords
 from ..errors import InputError
 from .config import _SECTIONS, Scenario, _check_scenario, _Checker, _read_section, default_scenario
 from .truth import check_truth
@@ -144,6 +145,7 @@ def override_scenario_text(text: str, overrides: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+@checked_keywords
 def load_scenario(path: str | Path | None = None, *, text: str | None = None,
                   source: str | None = None) -> Scenario:
     """Read and fully validate a scenario from a TOML file, a shipped name, or ``text``.

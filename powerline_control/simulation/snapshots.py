@@ -36,6 +36,7 @@ from .._validation import (
     check_int,
     check_real,
     check_rng,
+    checked_keywords,
     read_only,
 )
 from ..errors import InputError, ModelError, TruncationWarning
@@ -170,6 +171,7 @@ def _initial_dofs(model: LineModel, name: str, value: object) -> np.ndarray:
     return dofs
 
 
+@checked_keywords
 def simulate(
     model: LineModel,
     force: object = None,
