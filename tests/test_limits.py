@@ -336,3 +336,69 @@ def test_finiteness_check_allocates_nothing_the_size_of_the_input():
     # A conversion that would copy a broadcast view past the budget is refused by name first.
     with pytest.raises(InputError, match="'x' parameter's 1e\\+10 entries"):
         _validation.check_array("x", np.broadcast_to(3, (10**10,)))
+
+
+# ------------------------------------------------ the scenario's records, before they exist
+class _Simulated(Exception):
+    """Raised by a stand-in ``simulate``: the records stage got as far as simulating."""
+
+
+def _no_simulation(*args, **kwargs):
+    raise _Simulated
+
+
+@pytest.mark.parametrize(("duration", "n_train", "refused"), [
+    (2.0, 1200, False),   # 2 x 20001^2 x 1200 = 0.96e12 operations: within 1e12
+    (2.1, 1260, True),    # 2 x 20001^2 x 1260 = 1.008e12: over
+])
+def test_scenario_records_refuse_what_identification_would_before_simulating(
+        monkeypatch, duration, n_train, refused):
+    """The records stage applies design_estimator's own budget to the training part it will
+    hand the recipe (60 % of floor(duration / dt) + 1 samples of every node), before it
+    simulates: a 20000-element line was simulated for 37 s, then refused by a budget naming
+    'snapshots'. The boundary is computed here by hand from the recipe's documented estimate
+    (2 n_nodes^2 n_samples operations against a 1e12 budget)."""
+    from types import SimpleNamespace
+
+    import powerline_control.simulation
+    from powerline_control.scenario import pipeline
+
+    monkeypatch.setattr(_validation, "WORK_BUDGET", 1e12)
+    monkeypatch.setattr(powerline_control.simulation, "simulate", _no_simulation)
+    scenario = config.load_scenario(text=f"[model]\nn_elements = 20000\n[simulation]\n"
+                                         f"duration = {duration}\n[robot]\nclosed_loop = 0\n")
+    line = SimpleNamespace(n_nodes=20001)   # only its size is read before the refusal
+    expected = 2.0 * 20001**2 * n_train
+    assert (expected > 1e12) is refused
+    if not refused:
+        with pytest.raises(_Simulated):
+            pipeline._records(scenario, line, None, identify=True)
+        return
+    with pytest.raises(InputError) as info:
+        pipeline._records(scenario, line, None, identify=True)
+    message = str(info.value)
+    assert f"(20001 nodes x {n_train} samples)" in message
+    assert f"about {expected:.2g} floating-point operations" in message
+    assert "the 'model.n_elements' parameter is 20000" in message
+    assert "simulation.duration" in message
+    with pytest.raises(_Simulated):   # without identification, the same records are simulated
+        pipeline._records(scenario, line, None)
+
+
+@pytest.mark.parametrize(("stages", "identify"), [
+    (("model", "records"), False), (("model", "records", "identification"), True)])
+def test_the_pipeline_asks_the_records_for_the_check_only_when_it_identifies(
+        monkeypatch, stages, identify):
+    from powerline_control.scenario import pipeline
+
+    seen = {}
+
+    def spy(*args, **kwargs):
+        seen.update(kwargs)
+        raise _Simulated
+
+    monkeypatch.setattr(pipeline, "_records", spy)
+    scenario = config.load_scenario(text="[model]\nn_elements = 8\n[robot]\nclosed_loop = 0\n")
+    with pytest.raises(_Simulated):
+        pipeline.run_scenario(scenario, stages=stages)
+    assert seen == {"identify": identify}

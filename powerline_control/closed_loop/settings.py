@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, check_obstacles, free_interval
-from ..recipe.defaults import DEFAULT_DELAYS, shortest_record
+from ..recipe.defaults import DEFAULT_DELAYS, check_record_work, shortest_record
 from .policy_settings import PolicySettings, checked_policy
 
 # A robot heavier than this fraction of the span's own mass is no longer a small attachment: the
@@ -223,8 +223,8 @@ def _robot_of(model, robot) -> MDR:
 def _check_calibration_work(n_nodes: int, n_cal: int, calibration: float, model,
                             n_elements) -> None:
     """Refuse, before the calibration run is simulated, a mesh whose calibration record (every
-    node, ``n_cal`` samples) the estimator's recipe would refuse after it: the same estimate as
-    design_estimator's (its spatial Gram matrix, ``2 n_nodes^2 n_cal`` flops), named in this
+    node, ``n_cal`` samples) the estimator's recipe would refuse after it: design_estimator's own
+    estimate (recipe.defaults.check_record_work, ``2 n_nodes^2 n_cal`` flops), named in this
     function's terms (a 20 000-element Drake span with the robot: 9 s of simulation, then a
     refusal naming a 'snapshots' the caller never passed)."""
     if isinstance(model, LineModel):
@@ -233,12 +233,9 @@ def _check_calibration_work(n_nodes: int, n_cal: int, calibration: float, model,
         parameter, value = "n_elements", (n_nodes - 1 if n_elements is None else n_elements)
         mesh = "a coarser mesh (fewer n_elements" + (
             ", or max_frequency on a LineModel)" if n_elements is None else ")")
-    check_budget(
-        f"run_closed_loop's estimator, identified on the calibration record ({n_nodes} nodes x "
-        f"{n_cal} samples)",
-        nbytes=8.0 * (min(n_nodes, n_cal) ** 2 + n_nodes * n_cal),
-        flops=2.0 * n_nodes * n_nodes * n_cal,
-        parameter=parameter, value=value,
+    check_record_work(
+        n_nodes, n_cal, what=f"run_closed_loop's estimator, identified on the calibration "
+        f"record ({n_nodes} nodes x {n_cal} samples)", parameter=parameter, value=value,
         fix=f"use {mesh} or a shorter 'calibration' ({calibration:g} s now)")
 
 

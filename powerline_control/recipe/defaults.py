@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._validation import check_budget
+
 #: Default number of stacked snapshots (the model state spans delays * dt of history).
 DEFAULT_DELAYS = 8
 #: Default POD rank of the delay-embedded model.
@@ -82,3 +84,52 @@ def shortest_record(delays: int = DEFAULT_DELAYS,
     while parts_too_short(n, delays, train_fraction):
         n += 1
     return n
+
+
+def check_record_work(n_nodes: int, n_samples: int, *, parameter: str, value: object, fix: str,
+                      what: str = "design_estimator's spatial Gram matrix and projection",
+                      spatial_rank: int = DEFAULT_SPATIAL_RANK,
+                      delays: int = DEFAULT_DELAYS) -> None:
+    """Refuse a record of ``n_nodes`` x ``n_samples`` that the recipe's budget would refuse.
+
+    The one estimate of :func:`~powerline_control.recipe.design_estimator`'s first step (the
+    spatial Gram matrix of the record, ``2 n_nodes^2 n_samples`` operations, and its
+    projection), checked by :func:`design_estimator` itself and, before the record exists, by
+    whoever would simulate a record only to hand it to the recipe (the closed loop's calibration
+    run, the scenario's records), each naming its own parameter.
+
+    Parameters
+    ----------
+    n_nodes, n_samples : int
+        The record's size: nodes (rows) and samples (columns) the recipe will receive.
+    parameter, value, fix : str, object, str
+        The caller's parameter that sets the size, its value, and how to reduce it.
+    what : str
+        What would do the work, for the message.
+    spatial_rank, delays : int
+        The recipe's ``spatial_rank`` and ``delays`` (its defaults unless given).
+
+    Raises
+    ------
+    InputError
+        The estimate exceeds the memory or work budget (see ``docs/conventions.md``).
+
+    Examples
+    --------
+    >>> check_record_work(101, 2000, parameter="snapshots", value="shape (101, 2000)",
+    ...                   fix="use fewer nodes or a shorter record")
+    >>> check_record_work(20001, 1800, parameter="n_elements", value=20000,
+    ...                   fix="use a coarser mesh")
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: design_estimator's spatial Gram matrix and projection \
+would need about 1.4e+12 floating-point operations (the 'n_elements' parameter is 20000), over \
+the budget of 1e+12. To fix: use a coarser mesh, or raise the budget (the environment variable \
+POWERLINE_CONTROL_WORK_BUDGET, set before importing powerline_control).
+    """
+    check_budget(
+        what,
+        nbytes=8.0 * (min(n_nodes, n_samples) ** 2 + 3 * spatial_rank * delays * n_samples),
+        flops=2.0 * n_nodes * n_nodes * n_samples,
+        parameter=parameter, value=value, fix=fix,
+    )

@@ -37,11 +37,11 @@ import numpy as np
 from .._spectral import line_occupancy
 from .._validation import (
     check_array,
-    check_budget,
     check_choice,
     check_indices,
     check_int,
     check_real,
+    checked_keywords,
     read_only,
     warn_if_saturated,
 )
@@ -62,6 +62,7 @@ from .defaults import (
     DEFAULT_RANK,
     DEFAULT_SPATIAL_RANK,
     DEFAULT_TRAIN_FRACTION,
+    check_record_work,
     parts_too_short,
     record_parts,
 )
@@ -81,6 +82,7 @@ from .results import EstimatorDesign, ExcitationReport
 __all__ = ["design_estimator"]
 
 
+@checked_keywords
 def design_estimator(
     snapshots: object,
     n_sensors: int = 5,
@@ -371,13 +373,9 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
             f"terms, which the modal model has none of. Got {len(others)} record(s) with "
             "method='modal'; leave them out, or use method='dmd' (or 'auto')."
         )
-    check_budget(
-        "design_estimator's spatial Gram matrix and projection",
-        nbytes=8.0 * (min(n_nodes, n_samples) ** 2 + 3 * spatial_rank * delays * n_samples),
-        flops=2.0 * n_nodes * n_nodes * n_samples,
-        parameter="snapshots", value=f"shape {X.shape}",
-        fix="use fewer nodes or a shorter record",
-    )
+    check_record_work(n_nodes, n_samples, parameter="snapshots", value=f"shape {X.shape}",
+                      fix="use fewer nodes or a shorter record", spatial_rank=spatial_rank,
+                      delays=delays)
     if not np.any(X):
         raise IdentificationError(
             "The 'snapshots' are all zeros: there are no dynamics to identify."

@@ -34,6 +34,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from .._validation import checked_keywords
 from ..errors import InputError
 from .config import Scenario
 from .files import load_scenario
@@ -177,6 +178,7 @@ def given_sensors_declared(scenario: Scenario) -> bool:
     return est.sensors is not None or est.sensor_positions is not None
 
 
+@checked_keywords
 def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, record=None,
                  wind_record=None, progress=None, keep_partial: bool = False) -> ScenarioResult:
     """Run a scenario's stages and return everything they produced as one frozen result.
@@ -289,7 +291,7 @@ def _run_stage(stage: str, scenario: Scenario, state: dict, record, plan) -> Non
     elif stage == "records":
         # the data are the true line's (the nominal's own model without a [truth] section)
         state["records"] = _records(scenario, _need(state, "true_model", stage), state["force"],
-                                    record)
+                                    record, identify="identification" in plan)
     elif stage == "identification":
         state["identification"] = _identification(
             scenario, _need(state, "records", stage), state["model"],

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 import time
 import warnings
 
@@ -61,11 +62,14 @@ def _model(scenario: Scenario) -> dict:
             "force": scenario.forcing.build()}
 
 
-def _records(scenario: Scenario, model, force, record=None) -> Records:
+def _records(scenario: Scenario, model, force, record=None, *, identify: bool = False
+             ) -> Records:
     from ..excitation import RandomForce
     from ..simulation import simulate
 
     sim, ident = scenario.simulation, scenario.identification
+    if identify:
+        _check_identification_work(scenario, model)
     start = time.perf_counter()
     test = simulate(model, force, duration=sim.duration, dt=sim.dt,
                     noise_fraction=sim.noise_fraction, seed=sim.seed)
@@ -81,6 +85,28 @@ def _records(scenario: Scenario, model, force, record=None) -> Records:
                          noise_fraction=sim.noise_fraction, seed=sim.seed + 1)
     return Records(test=test, train=train, n_train=n_train, shaker=shaker, shaker_position=where,
                    measured=record, simulation_s=time.perf_counter() - start)
+
+
+def _check_identification_work(scenario: Scenario, model) -> None:
+    """Refuse, before the line is simulated, records that the identification stage's
+    design_estimator would refuse: its own estimate (recipe.defaults.check_record_work) on the
+    training part it will receive, named in the scenario's keys (a 20 000-element line was
+    simulated for 37 s, then refused by a budget naming 'snapshots')."""
+    from ..recipe.defaults import DEFAULT_DELAYS, check_record_work
+
+    sim, ident = scenario.simulation, scenario.identification
+    n_t = int(math.floor(sim.duration / sim.dt + 1e-9)) + 1   # simulate's own sample count
+    n_train = int(TRAIN_FRACTION * n_t)
+    n_elements = scenario.model.n_elements
+    value = n_elements if n_elements != "auto" else f'"auto" ({model.n_nodes - 1} elements)'
+    check_record_work(
+        model.n_nodes, n_train,
+        what=f"The identification stage's design_estimator, on the training record "
+             f"({model.n_nodes} nodes x {n_train} samples)",
+        parameter="model.n_elements", value=value,
+        fix=f"use a coarser mesh (model.n_elements) or a shorter simulation.duration "
+            f"({sim.duration:g} s now)",
+        delays=DEFAULT_DELAYS if ident.delays is None else ident.delays)
 
 
 def support_intervals(x) -> tuple:
