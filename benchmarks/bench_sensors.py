@@ -15,12 +15,25 @@ Cases
    (SSPOR): objective reached and time, n = 101 and n = 1,001.
 5. Reduced coordinates (issue 10 item 3): ``select_sensors(k=5)`` on rank-20 / rank-80 DMD models
    with 101 / 1,001 candidate outputs; target < 20 s at 1,001 candidates; log-log slopes.
+6. The Gramian criterion on 200-state models, this tree against an earlier commit (``--before
+   REV``, default 76b7399, the last one before the per-candidate Gramians became matrix
+   products and the Frank-Wolfe line search a Cholesky per point): ``select_sensors(k,
+   "gramian")`` on the 20- and 100-mode modal models of the lab span (40 and 200 states, 101
+   candidates) and, with ``--large``, on a rank-200 DMD model of 1,001 candidates; each side in
+   its own process (``git archive REV`` on the path), alternately, with the layouts compared
+   (and the earlier commit's own layout with R scaled by 1 + 1e-12, to show where round-off
+   decides it) and ``"kalman"`` on the same model for scale.
 
-``--reduced`` runs section 5 only.
+``--reduced`` runs section 5 only, ``--gramian`` section 6 only.
 """
 
 import argparse
+import json
+import os
+import subprocess
 import sys
+import tarfile
+import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -80,13 +93,96 @@ def reduced_table(repeats: int = 1) -> None:
     print()
 
 
+# ------------------------------------------------------------- the Gramian criterion, 200 states
+def gramian_model(name: str):
+    """(sys, Q, R): the lab span's 20- or 100-mode modal model (40 or 200 states, 101
+    candidates) or a rank-200 DMD model of 1,001 candidates (``_common.reduced_model``)."""
+    if name.startswith("modal-"):
+        model = plc.LineModel(plc.Span.paper_lab(), n_elements=100, bc="pinned",
+                              damping=plc.ModalDamping(0.01))
+        n_modes = int(name.split()[0].removeprefix("modal-")) // 2
+        sys_ = model.to_statespace(dt=1e-3, force_positions=[0.5], n_modes=n_modes)
+        b = np.asarray(sys_.B)
+        return sys_, b @ b.T + 1e-6 * np.trace(b @ b.T) * np.eye(sys_.nstates), 1e-10
+    return reduced_model(1001, 200)
+
+
+def gramian_child(name: str, k: int, criterion: str, r_factor: float) -> None:
+    """One timed select_sensors call, printed as JSON (run in a child process)."""
+    sys_, q, r = gramian_model(name)
+    t, sel = timed(lambda: plc.select_sensors(sys_, k=k, criterion=criterion, Q=q,
+                                              R=r * r_factor), 1)
+    print(json.dumps({"seconds": t, "nodes": list(sel.nodes), "objective": sel.objective,
+                      "exact": sel.n_exact_evaluations, "package": plc.__file__}))
+
+
+def _child(path: str | None, name: str, k: int, criterion: str, r_factor: float = 1.0) -> dict:
+    env = dict(os.environ)
+    if path is not None:
+        env["PYTHONPATH"] = path + os.pathsep + env.get("PYTHONPATH", "")
+    out = subprocess.run([sys.executable, __file__, "--child", name, str(k), criterion,
+                          repr(r_factor)],
+                         env=env, capture_output=True, text=True, check=True, cwd="/")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def gramian_table(before: str, large: bool) -> None:
+    root = Path(__file__).resolve().parents[1]
+    cases = [("modal-40 / 101", 3), ("modal-40 / 101", 5), ("modal-200 / 101", 3),
+             ("modal-200 / 101", 5)]
+    if large:
+        cases.append(("DMD-200 / 1001", 5))
+    print(f"\n## 6. select_sensors(criterion='gramian') on 200-state models: {before} against "
+          f"this tree ({_common.code_version()}), one run each, alternately\n")
+    print("'before, R x (1 + 1e-12)': the earlier commit again with every noise variance scaled "
+          "by 1 + 1e-12, which shifts every log det by one constant: where its layout changes, "
+          "the layout is decided by round-off (the Gramians' condition numbers reach 1e15-1e50 "
+          "at 200 states).\n")
+    print("| model / candidates | k | before (s) | after (s) | before / after | same layout | "
+          "before, R x (1 + 1e-12) | 'kalman' (s) | gramian / kalman |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        archive = subprocess.run(["git", "archive", before, "powerline_control"], cwd=root,
+                                 capture_output=True, check=True).stdout
+        with tarfile.open(fileobj=__import__("io").BytesIO(archive)) as tar:
+            tar.extractall(tmp, filter="data")
+        for name, k in cases:
+            old = _child(tmp, name, k, "gramian")
+            new = _child(None, name, k, "gramian")
+            assert old["package"].startswith(tmp) and not new["package"].startswith(tmp)
+            shifted = _child(tmp, name, k, "gramian", 1.0 + 1e-12)
+            kalman = _child(None, name, k, "kalman")
+
+            def same(other, reference=old):
+                return "yes" if other["nodes"] == reference["nodes"] else (
+                    f"no: {reference['nodes']} ({reference['objective']:.6g}) -> "
+                    f"{other['nodes']} ({other['objective']:.6g})")
+
+            print(f"| {name} | {k} | {old['seconds']:.2f} | {new['seconds']:.2f} | "
+                  f"{old['seconds'] / new['seconds']:.1f}x | {same(new)} | {same(shifted)} | "
+                  f"{kalman['seconds']:.2f} | {new['seconds'] / kalman['seconds']:.2f} |",
+                  flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--reduced", action="store_true", help="section 5 only")
+    parser.add_argument("--gramian", action="store_true", help="section 6 only")
+    parser.add_argument("--before", default="76b7399",
+                        help="commit the Gramian section compares with (default 76b7399)")
+    parser.add_argument("--large", action="store_true",
+                        help="section 6 also on 1,001 candidates (minutes before the fix)")
+    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    print(f"{_common.PINNED}; median of {REPEATS} runs (1 in section 5)\n")
+    if args.child:
+        gramian_child(args.child[0], int(args.child[1]), args.child[2], float(args.child[3]))
+        return
+    print(f"{_common.PINNED}; median of {REPEATS} runs (1 in sections 5 and 6)\n")
     if args.reduced:
         reduced_table()
+        return
+    if args.gramian:
+        gramian_table(args.before, args.large)
         return
     model, snap, dmd, noise_var = paper_model()
     sys, q = dmd.to_statespace(), dmd.residual_covariance
@@ -168,6 +264,7 @@ def main() -> None:
             ratio = f"{t / rows[-1][3]:.0f}" if len(rows) > 1 else "-"
             print(f"| {n} | {name} | {value:.2f} | {bound} | {1e3 * t:.1f} | {ratio} |")
     reduced_table()
+    gramian_table(args.before, args.large)
 
 
 if __name__ == "__main__":

@@ -57,7 +57,8 @@ def _solve_relaxation(crit, poly: Polytope, m: int, requested: str):
             continue
         attempts.append(f"{name}: {problem.status}")
         weights = np.clip(value, 0.0, 1.0)
-        relaxed_cost = float(problem.value) * crit.relaxation_scale
+        relaxed_cost = float(problem.value) * crit.relaxation_scale + getattr(
+            crit, "relaxation_offset", 0.0)
         return (weights, relaxed_cost, name, str(problem.status)), attempts
     return None, attempts
 

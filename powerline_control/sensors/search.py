@@ -1,8 +1,13 @@
 """The integer searches of sensor selection, each judged on the exact criterion.
 
 Rounding of the relaxed weights, the greedy layout, the swap search that improves either (for
-``"kalman"`` a surrogate ranks the swaps and only the most promising are solved exactly) and the
+``"kalman"`` a surrogate ranks the swaps and only the most promising are solved exactly; for the
+log det criteria every move is judged, in order of a lower bound on its cost, and the moves whose
+bound exceeds the best cost found are skipped: the same move, fewer exact evaluations) and the
 enumeration of every feasible layout when there are few.
+
+Test seam: ``_pruned_argmin``: the bound-pruned choice of a move, compared with the argmin over
+every move's exact cost (tests/test_sensors.py).
 """
 
 from __future__ import annotations
@@ -53,6 +58,21 @@ def _swap_search(crit, feas: _Feasibility, layout: list[int], cost: float,
         if len(moves) == 0:
             break
         ranked = not _exhaustive(crit, len(moves))
+        if not ranked and hasattr(crit, "bound_swaps"):
+            # Every move judged, but only those whose lower bound could beat the best found:
+            # the same move as the full evaluation, at a fraction of the exact evaluations.
+            bounds = crit.bound_swaps(np.array(layout))[moves[:, 0], moves[:, 1]]
+
+            def build(part, layout=layout):
+                cands = np.tile(np.array(layout), (len(part), 1))
+                cands[np.arange(len(part)), part[:, 0]] = part[:, 1]
+                return cands
+
+            best, value = _pruned_argmin(crit, moves, bounds, build, cost)
+            if best is None or not _improves(value, cost):
+                break
+            layout, cost = build(moves[best:best + 1])[0].tolist(), value
+            continue
         if ranked:
             scores = crit.rank_swaps(np.array(layout))[moves[:, 0], moves[:, 1]]
             moves = moves[np.argsort(scores, kind="stable")][: chunk * max_chunks]
@@ -74,6 +94,29 @@ def _swap_search(crit, feas: _Feasibility, layout: list[int], cost: float,
     return layout, cost
 
 
+def _pruned_argmin(crit, moves: np.ndarray, bounds: np.ndarray, build, ceiling: float,
+                   chunk: int = 32) -> tuple[int | None, float]:
+    """The first move of least exact cost, judging moves in order of their lower bounds.
+
+    Returns ``(index into moves, its cost)``, as ``argmin`` over every move's exact cost would
+    (ties to the earliest move), or ``(None, inf)`` when no move's bound is below ``ceiling``
+    (then none can improve on it). Moves are judged a chunk at a time, lowest bound first, and
+    the rest skipped once the next bound exceeds the best cost found (their costs are higher)
+    or reaches ``ceiling`` (none of them improves on it).
+    """
+    order = np.argsort(bounds, kind="stable")
+    best, best_value = None, np.inf
+    for start in range(0, len(order), chunk):
+        part = order[start:start + chunk]
+        if bounds[part[0]] > best_value or bounds[part[0]] >= ceiling:
+            break
+        values = crit.exact(build(moves[part]))
+        for index, value in zip(part.tolist(), values.tolist(), strict=True):
+            if best is None or value < best_value or (value == best_value and index < best):
+                best, best_value = index, value
+    return best, best_value
+
+
 def _greedy(crit, feas: _Feasibility, k: int, chunk: int = 4) -> list[int] | None:
     """Add the sensor that most improves the exact criterion (surrogate-ranked when large)."""
     layout = feas.required.tolist()
@@ -81,6 +124,15 @@ def _greedy(crit, feas: _Feasibility, k: int, chunk: int = 4) -> list[int] | Non
         adds = feas.additions(layout)
         if len(adds) == 0:
             return None
+        if hasattr(crit, "bound_additions"):
+            # The same addition as judging all of them exactly, pruned by lower bounds.
+            bounds = crit.bound_additions(np.array(layout, dtype=int))[adds]
+            found, _ = _pruned_argmin(
+                crit, adds, bounds,
+                lambda part, layout=layout: np.array([layout + [int(j)] for j in part]), np.inf)
+            if found is not None:
+                layout.append(int(adds[found]))
+                continue
         scores = crit.rank_additions(np.array(layout, dtype=int)) if hasattr(
             crit, "rank_additions") else None
         if scores is not None and not _exhaustive(crit, len(adds)):
