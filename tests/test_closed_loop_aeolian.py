@@ -5,7 +5,8 @@ position (the judgement must be that function's answer, not a copy of its physic
 balance without a robot (a root of P_w = P_c found by bracketing, no time integration); the
 conservation of energy in steady state (wind input = self-damping + robot); and the closed-form
 antinodes of a pinned span's mode, (j + 1/2) L / n, and of a clamped taut beam's standing wave
-(``Span.standing_wave_shape``).
+(``Span.standing_wave_shape``). Also the report's words that link the closed loop's numbers
+to the severity section's.
 """
 
 from __future__ import annotations
@@ -224,3 +225,22 @@ def test_a_closed_loop_under_another_load_says_it_is_not_the_severity_sections()
     rows = {row[0]: row for row in section["rows"]}
     assert rows["against the severity section"][1] == \
         "not comparable: the [forcing] is harmonic, not the wind"
+
+
+def test_the_severity_section_says_when_its_winds_miss_the_robots_tuning():
+    # The lab span's robot is tuned near its third mode (about 21 Hz); its 10.5 mm conductor
+    # sheds at 17.6 Hz per m/s, so 1-7 m/s drive 17.6-123 Hz and the robot does nearly nothing
+    from powerline_control.scenario.summary_severity import severity_section
+
+    result = plc.run_scenario(plc.load_scenario(text="[severity]\nenabled = true"),
+                              stages=("model", "severity"))
+    sev = result.severity
+    tuned = result.severity.robot_frequency
+    assert 15.0 < tuned < 30.0
+    idle = sev.robot.amplitude > 0.95 * sev.bare.amplitude
+    assert idle.all()
+    note = next(n for n in severity_section(result)["notes"] if "absorber is tuned" in n)
+    assert f"tuned to {tuned:.3g} Hz" in note
+    # St V / D = f: the wind speed that would drive the tuning
+    speed = tuned * result.span.conductor.diameter / sev.bare.parameters["strouhal"]
+    assert f"at about {speed:.3g} m/s" in note

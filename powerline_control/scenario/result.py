@@ -242,6 +242,9 @@ class Severity:
     time_domain : SeverityTimeDomain or None
         The energy balance at the scenario's aeolian wind speed checked in the time domain;
         None when not asked for or the forcing is not the wind.
+    robot_frequency : float
+        The frequency the robot's absorber is tuned to, sqrt(k / m_d) / 2 pi, Hz (NaN when
+        unknown): it takes power from the wind speeds whose Strouhal frequency lies near it.
     """
 
     bare: Any
@@ -252,6 +255,7 @@ class Severity:
     assumptions: tuple = ()
     rated_strength: float = float("nan")
     time_domain: SeverityTimeDomain | None = None
+    robot_frequency: float = float("nan")
 
 
 @dataclass(frozen=True, eq=False)

@@ -659,7 +659,9 @@ def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
                     strand_source=source, assumptions=assumptions,
                     endurance_applies=span.conductor.family == ENDURANCE_FAMILY,
                     rated_strength=float(span.conductor.rated_strength or float("nan")),
-                    time_domain=_time_domain(scenario, span, tuning))
+                    time_domain=_time_domain(scenario, span, tuning),
+                    robot_frequency=float(np.sqrt(robot.stiffness / robot.suspended_mass)
+                                          / (2 * np.pi)))
 
 
 def _time_domain(scenario: Scenario, span, tuning: Tuning) -> SeverityTimeDomain | None:

@@ -108,6 +108,9 @@ def severity_section(r) -> dict:
         row, note = _time_domain_row(sev.time_domain, judged)
         rows.append(row)
         notes.append(note)
+    missed = _tuning_note(sev, r.span.conductor.diameter)
+    if missed:
+        notes.append(missed)
     if sev.assumptions:
         rows.append(("assumed", "; ".join(sev.assumptions),
                      "The span gives no such data: the study takes the catalogue conductor it "
@@ -135,6 +138,37 @@ def severity_section(r) -> dict:
                                 "strains above the endurance line: those winds fatigue the "
                                 "conductor" if sev.endurance_applies else
                                 "how far the robot lowers the strain at each wind speed")]}
+
+
+#: A robot that changes the amplitude by less than this fraction at a wind speed does nothing
+#: there worth a row of its own: the note says why (its absorber's tuning).
+NEGLIGIBLE_CHANGE = 0.05
+
+
+def _tuning_note(sev, diameter: float) -> str:
+    """Why the robot changes (nearly) nothing at some wind speeds: those winds drive the line at
+    frequencies away from its absorber's tuning ("" when it helps at every speed)."""
+    import math
+
+    bare, robot, tuned = sev.bare, sev.robot, sev.robot_frequency
+    if not math.isfinite(tuned):
+        return ""
+    idle = [i for i in range(bare.wind_speed.size)
+            if bare.amplitude[i] > 0 and robot.amplitude[i] > (1 - NEGLIGIBLE_CHANGE)
+            * bare.amplitude[i]]
+    if not idle:
+        return ""
+    strouhal = float(bare.parameters.get("strouhal", float("nan")))
+    speeds = ", ".join(f"{bare.wind_speed[i]:g} m/s ({bare.frequency[i]:.3g} Hz, "
+                       f"{100 * (bare.frequency[i] / tuned - 1):+.0f} %)" for i in idle)
+    text = (f"The robot's absorber is tuned to {tuned:.3g} Hz, and an absorber takes power only "
+            f"near its tuning: at {speeds} it changes the antinode amplitude by less than "
+            f"{100 * NEGLIGIBLE_CHANGE:.0f} %.")
+    if len(idle) == bare.wind_speed.size and math.isfinite(strouhal):
+        text += (" None of the wind speeds studied drives the line near it; the wind locks into "
+                 f"its tuning at about {tuned * diameter / strouhal:.3g} m/s (St V / D = "
+                 f"{tuned:.3g} Hz).")
+    return text
 
 
 def _time_domain_row(runs, judged: bool = False) -> tuple[tuple, str]:
