@@ -254,3 +254,20 @@ def test_the_severity_section_says_when_its_winds_miss_the_robots_tuning():
     # St V / D = f: the wind speed that would drive the tuning
     speed = tuned * result.span.conductor.diameter / sev.bare.parameters["strouhal"]
     assert f"at about {speed:.3g} m/s" in note
+
+
+def test_losing_to_the_fixed_damper_in_the_wind_is_a_shortfall(run):
+    # The same runs with the placements swapped: the robot where the loop ended then sits where
+    # the fixed damper was, and the fixed damper's amplitude is the loop's
+    result = run[2]
+    steady = result.aeolian_steady
+    assert not any("self-limiting" in text for text in result.shortfalls)
+    swapped = dataclasses.replace(steady, near_clamp=steady.closed_loop,
+                                  closed_loop=steady.near_clamp)
+    worse = dataclasses.replace(result, aeolian_steady=swapped)
+    said = [text for text in worse.shortfalls if "self-limiting" in text]
+    assert said == [f"in the self-limiting wind the line settles {steady.clamp_reduction:.2f}x "
+                    f"as high (antinode amplitude {1e3 * steady.near_clamp.amplitude:.4g} mm) as "
+                    f"with a fixed damper parked near the clamp at "
+                    f"{steady.closed_loop.robot_position:.4g} m "
+                    f"({1e3 * steady.closed_loop.amplitude:.4g} mm)"]

@@ -287,8 +287,9 @@ class ClosedLoopResult(Result):
     def shortfalls(self) -> tuple:
         """What the run fell short of, in words: ending (in the settled window) more than 5 %
         worse than the robot parked at its start, or worse than a fixed damper parked near the
-        clamp; empty when it did neither, or when the robot had not settled (a run that ends
-        with the robot still moving is no verdict) or the run lacks those comparisons.
+        clamp, under the run's load or, when it was judged (:attr:`aeolian_steady`), in the
+        self-limiting wind; empty when it did neither, or when the robot had not settled (a run
+        that ends with the robot still moving is no verdict) or the run lacks those comparisons.
 
         Examples
         --------
@@ -313,6 +314,14 @@ class ClosedLoopResult(Result):
                 out.append(f"the line ends {closed.rms / other.rms:.2f}x as high (RMS "
                            f"{1e3 * closed.rms:.4g} mm) as with the robot parked at "
                            f"{other.position:.4g} m, {what} ({1e3 * other.rms:.4g} mm)")
+        steady = self.aeolian_steady
+        if steady is not None and steady.clamp_reduction < 1.0:
+            ended, clamp = steady.closed_loop, steady.near_clamp
+            ratio = 1 / steady.clamp_reduction
+            out.append(f"in the self-limiting wind the line settles {ratio:.2f}x as high "
+                       f"(antinode amplitude {1e3 * ended.amplitude:.4g} mm) as with "
+                       f"a fixed damper parked near the clamp at {clamp.robot_position:.4g} m "
+                       f"({1e3 * clamp.amplitude:.4g} mm)")
         return tuple(out)
 
     def summary(self) -> str:
