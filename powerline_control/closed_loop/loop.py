@@ -486,7 +486,8 @@ def run_closed_loop(
         When the mesh does not resolve a load's frequency.
     ShortfallWarning
         When the run ends worse than the robot parked at its start or than a fixed damper near
-        the clamp (``ClosedLoopResult.shortfalls``).
+        the clamp, under its load or, with ``aeolian_steady``, in the self-limiting wind
+        (``ClosedLoopResult.shortfalls``).
 
     Examples
     --------
