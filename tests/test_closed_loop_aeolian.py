@@ -3,10 +3,10 @@
 Independent truths: ``simulate_aeolian`` called directly for the same line, wind and robot
 position (the judgement must be that function's answer, not a copy of its physics); the energy
 balance without a robot (a root of P_w = P_c found by bracketing, no time integration); the
-conservation of energy in steady state (wind input = self-damping + robot); and the closed-form
-antinodes of a pinned span's mode, (j + 1/2) L / n, and of a clamped taut beam's standing wave
-(``Span.standing_wave_shape``). Also the report's words that link the closed loop's numbers
-to the severity section's.
+conservation of energy over the final window (wind input = self-damping + robot + energy
+gained); and the closed-form antinodes of a pinned span's mode, (j + 1/2) L / n, and of a clamped
+taut beam's standing wave (``Span.standing_wave_shape``). Also the report's words that link the
+closed loop's numbers to the severity section's.
 """
 
 from __future__ import annotations
