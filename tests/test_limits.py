@@ -402,3 +402,19 @@ def test_the_pipeline_asks_the_records_for_the_check_only_when_it_identifies(
     with pytest.raises(_Simulated):
         pipeline.run_scenario(scenario, stages=stages)
     assert seen == {"identify": identify}
+
+
+def test_run_scenario_refuses_a_known_mesh_before_any_stage():
+    """model.n_elements = 20000 with a 3 s record (1800 training samples, 1.4e12 operations):
+    refused before the model is built (the progress callback never hears of a stage); the same
+    refusal as the records stage's, which checks a mesh the physics chooses."""
+    from powerline_control.scenario import pipeline
+
+    heard = []
+    scenario = config.load_scenario(text="[model]\nn_elements = 20000\n[simulation]\n"
+                                         "duration = 3.0\n[robot]\nclosed_loop = 0\n")
+    with pytest.raises(InputError, match=r"\(20001 nodes x 1800 samples\) would need about "
+                                         r"1\.4e\+12 floating-point operations \(the "
+                                         r"'model\.n_elements' parameter is 20000\)"):
+        pipeline.run_scenario(scenario, progress=heard.append)
+    assert heard == []

@@ -62,6 +62,7 @@ from .stages import (  # noqa: F401  (re-exported: the pipeline's stage helpers)
     _records,
     _severity,
     _with_record_sensors,
+    check_identification_work,
     closed_loop_timing,
     driven_mode,
     layout_filter,
@@ -217,8 +218,9 @@ def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, 
     Raises
     ------
     InputError
-        Bad scenario or stages, or a bad wind record (the message names the file, the column
-        and the row).
+        Bad scenario or stages, a bad wind record (the message names the file, the column
+        and the row), or records the identification stage's estimator would refuse as over its
+        budget (before any stage runs when ``model.n_elements`` is a number).
     PowerlineControlError
         The failing stage's own error (unless ``keep_partial``).
 
@@ -247,6 +249,11 @@ def run_scenario(scenario: Scenario | str | Path | None = None, *, stages=None, 
         wind_record = scenario.severity.wind_record
     wind = None if wind_record is None else read_wind_record(wind_record)
     plan = stage_plan(scenario, asked, wind_record=wind)
+    if {"records", "identification"} <= set(plan) and scenario.model.n_elements != "auto":
+        # The mesh is known before it is built (the true line is meshed alike): refuse records
+        # the identification would refuse before any stage (a mesh the physics chooses is
+        # checked by the records stage, before it simulates).
+        check_identification_work(scenario, scenario.model.n_elements + 1)
     state: dict[str, Any] = {"scenario": scenario, "stages": asked, "elapsed": {},
                              "_wind": wind}
     say = progress or (lambda text: None)

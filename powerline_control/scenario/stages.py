@@ -69,7 +69,7 @@ def _records(scenario: Scenario, model, force, record=None, *, identify: bool = 
 
     sim, ident = scenario.simulation, scenario.identification
     if identify:
-        _check_identification_work(scenario, model)
+        check_identification_work(scenario, model.n_nodes)
     start = time.perf_counter()
     test = simulate(model, force, duration=sim.duration, dt=sim.dt,
                     noise_fraction=sim.noise_fraction, seed=sim.seed)
@@ -87,22 +87,50 @@ def _records(scenario: Scenario, model, force, record=None, *, identify: bool = 
                    measured=record, simulation_s=time.perf_counter() - start)
 
 
-def _check_identification_work(scenario: Scenario, model) -> None:
-    """Refuse, before the line is simulated, records that the identification stage's
-    design_estimator would refuse: its own estimate (recipe.defaults.check_record_work) on the
-    training part it will receive, named in the scenario's keys (a 20 000-element line was
-    simulated for 37 s, then refused by a budget naming 'snapshots')."""
+def check_identification_work(scenario: Scenario, n_nodes: int) -> None:
+    """Refuse, before the line is simulated, records that the identification stage would refuse.
+
+    The identification stage's :func:`~powerline_control.recipe.design_estimator` receives the
+    training part of the record (:data:`TRAIN_FRACTION` of ``floor(duration / dt) + 1``
+    samples) at every node; its own estimate (``recipe.defaults.check_record_work``) is applied
+    to that size here, named in the scenario's keys (a 20 000-element line was simulated for
+    37 s, then refused by a budget naming 'snapshots').
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``simulation`` and ``identification`` sections.
+    n_nodes : int
+        Nodes of the line the records are simulated on.
+
+    Raises
+    ------
+    InputError
+        The training record is over the recipe's budget; the message names
+        ``model.n_elements`` and ``simulation.duration``.
+
+    Examples
+    --------
+    >>> check_identification_work(load_scenario(), 21)
+    >>> check_identification_work(load_scenario(text="[model]\\nn_elements = 20000\\n"
+    ...                                              "[simulation]\\nduration = 3.0"), 20001)
+    Traceback (most recent call last):
+    ...
+    powerline_control.errors.InputError: The identification stage's design_estimator, on the \
+training record (20001 nodes x 1800 samples) would need about 1.4e+12 floating-point \
+operations...
+    """
     from ..recipe.defaults import DEFAULT_DELAYS, check_record_work
 
     sim, ident = scenario.simulation, scenario.identification
     n_t = int(math.floor(sim.duration / sim.dt + 1e-9)) + 1   # simulate's own sample count
     n_train = int(TRAIN_FRACTION * n_t)
     n_elements = scenario.model.n_elements
-    value = n_elements if n_elements != "auto" else f'"auto" ({model.n_nodes - 1} elements)'
+    value = n_elements if n_elements != "auto" else f'"auto" ({n_nodes - 1} elements)'
     check_record_work(
-        model.n_nodes, n_train,
+        n_nodes, n_train,
         what=f"The identification stage's design_estimator, on the training record "
-             f"({model.n_nodes} nodes x {n_train} samples)",
+             f"({n_nodes} nodes x {n_train} samples)",
         parameter="model.n_elements", value=value,
         fix=f"use a coarser mesh (model.n_elements) or a shorter simulation.duration "
             f"({sim.duration:g} s now)",
