@@ -495,10 +495,10 @@ def calibrate_span(
         Bending stiffnesses considered, as multiples of the catalogue's (default 0.25 to 4).
     tension_prior : float
         Standard deviation of the log-normal prior on the tension (default 0.10: 10 %, a
-        temperature swing of tens of degrees).
+        temperature swing of tens of degrees; at least 1e-4).
     ei_prior : float
         Standard deviation of the log-normal prior on EI (default 0.7: a stranded conductor's EI
-        lies between its strands' and the solid section's).
+        lies between its strands' and the solid section's; at least 1e-4).
     band : (float, float) or None
         Frequencies the lines are looked for in, Hz; default from half the nominal fundamental
         to 0.4 / dt.
@@ -550,8 +550,9 @@ def calibrate_span(
     positions, values, dt = _record_arrays(record, length)
     t_lo, t_hi = _check_range("tension_range", tension_range)
     e_lo, e_hi = _check_range("ei_range", ei_range)
-    tension_prior = check_real("tension_prior", tension_prior, low=0.0)
-    ei_prior = check_real("ei_prior", ei_prior, low=0.0)
+    # a prior narrower than 1e-4 (0.01 %) squares log-ratios past the float range
+    tension_prior = check_real("tension_prior", tension_prior, low=1e-4, low_inclusive=True)
+    ei_prior = check_real("ei_prior", ei_prior, low=1e-4, low_inclusive=True)
     max_lines = check_int("max_lines", max_lines, low=1, high=64)
     shape_error = check_real("shape_error", shape_error, low=0.0, high=1.0)
     span0 = nominal.span if isinstance(nominal, LineModel) else nominal
@@ -635,10 +636,13 @@ def calibrate_span(
 
 def _check_range(name: str, value: object) -> tuple[float, float]:
     try:
-        lo, hi = (float(v) for v in value)   # type: ignore[union-attr]
+        pair = np.asarray(value)
     except (TypeError, ValueError):
+        pair = np.zeros(0)
+    if pair.shape != (2,) or pair.dtype.kind not in "iuf":   # text and booleans are no numbers
         raise InputError(f"The '{name}' parameter must be a pair (low, high) of multiples of "
-                         f"the nominal. Got {value!r}.") from None
+                         f"the nominal. Got {value!r}.")
+    lo, hi = (float(v) for v in pair)
     if not (0 < lo < 1 < hi < 100):
         raise InputError(f"The '{name}' parameter must satisfy 0 < low < 1 < high < 100 "
                          f"(multiples of the nominal). Got {value!r}.")
