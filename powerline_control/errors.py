@@ -120,6 +120,13 @@ class ShortfallWarning(UserWarning):
     than a fixed damper parked near the clamp."""
 
 
-__all__ += ["CalibrationWarning", "ShortfallWarning", "UndetectableModeWarning",
+class BeliefContradictedWarning(UserWarning):
+    """What the closed loop's sensors measured after a move contradicts what its belief (the
+    span it was told or calibrated) predicted: the vibration rose far more than predicted, so
+    the robot went back, or held where it was when no time was left to go back."""
+
+
+__all__ += ["CalibrationWarning", "ShortfallWarning", "BeliefContradictedWarning",
+            "UndetectableModeWarning",
             "ExcitationWarning", "ReachWarning", "EstimatorInconsistentWarning",
             "SaturationWarning", "ModelErrorRecordsWarning"]

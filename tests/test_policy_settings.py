@@ -128,3 +128,50 @@ def test_a_wider_same_loop_confirms_where_the_default_tries_another():
     wide = Targeting(settings=plc.PolicySettings(same_loop=1.5))
     wide.accept(_choice(0.5), 1.2, 1.0, 24.0, True)
     assert wide.accept(_choice(1.5), 0.5, 1.0, 24.0, False).startswith("confirm")
+
+
+def _after_a_move(predicted_rise, settings=None):
+    """A targeting that decided at 1.2 m (the sensors measured power 1.0 there, steady) and
+    sent the robot to 0.5 m, its belief predicting the sensors' power x ``predicted_rise``."""
+    targeting = Targeting() if settings is None else Targeting(settings=settings)
+    targeting.check_measured(1.0, 1e-4, 1.2, True, True)             # the reference
+    targeting.accept(_choice(0.5), 1.2, 1.0, 24.0, True)
+    targeting.remember(1.2, 1.0, True, predicted_rise)
+    return targeting
+
+
+def test_a_move_whose_measured_rise_contradicts_the_prediction_is_undone():
+    # measured 5x the power where 0.2x was predicted: 5 > 2 (rise) and 5 > 4 * 0.2 (factor)
+    targeting = _after_a_move(0.2)
+    note = targeting.check_measured(5.0, 1e-4, 0.5, False, True, return_reach=1.0)
+    assert note.startswith("return to 1.2 m") and "contradict" in note
+    assert targeting.goal == 1.2 and targeting.phase is Phase.FINAL
+    assert targeting.contradictions == 1
+
+
+def test_a_contradicted_move_too_far_to_undo_is_final_where_it_is():
+    targeting = _after_a_move(0.2)
+    note = targeting.check_measured(5.0, 1e-4, 0.5, False, True, return_reach=0.5)
+    assert note.startswith("final at 0.5 m") and "longer than the rest of the run" in note
+    assert targeting.goal == 0.5 and targeting.phase is Phase.FINAL
+    assert targeting.contradictions == 1
+
+
+@pytest.mark.parametrize(("measured", "predicted", "steady"), [
+    (5.0, 2.0, True),      # the rise was predicted (5 < 4 x 2): the belief holds
+    (1.9, 0.1, True),      # below contradiction_rise (2)
+    (5.0, 0.2, False),     # a window still beating is no measurement of the move
+])
+def test_a_rise_that_was_predicted_or_small_or_unsteady_is_no_contradiction(
+        measured, predicted, steady):
+    targeting = _after_a_move(predicted)
+    assert targeting.check_measured(measured, 1e-4, 0.5, False, steady) is None
+    assert targeting.contradictions == 0 and targeting.goal == 0.5
+
+
+def test_the_contradiction_thresholds_are_the_settings():
+    lenient = plc.PolicySettings(contradiction_rise=6.0)
+    assert _after_a_move(0.2, lenient).check_measured(5.0, 1e-4, 0.5, False, True) is None
+    strict = plc.PolicySettings(contradiction_factor=1.0)
+    assert _after_a_move(2.0, strict).check_measured(
+        5.0, 1e-4, 0.5, False, True).startswith("return to 1.2 m")

@@ -17,7 +17,7 @@ import numpy as np
 from .._spectral import dominant_frequency, fit_phasors
 from .._threads import on_one_blas_thread
 from .._validation import check_bool, check_rng, checked_keywords, read_only
-from ..errors import ReachWarning, ShortfallWarning
+from ..errors import BeliefContradictedWarning, ReachWarning, ShortfallWarning
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
@@ -199,17 +199,26 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
         records.retarget_times.append(float(t[k]))
         records.target_starts.append(k)
     measured = _sensed_power(seen, k, tone, settings.window)
-    decision = targeting.check_measured(measured, choice.predicted_here, motion.position,
-                                        retarget, unsteady <= policy.unsteady_limit, reach)
+    steady = unsteady <= policy.unsteady_limit
+    contradictions = targeting.contradictions
+    decision = targeting.check_measured(
+        measured, choice.predicted_here, motion.position, retarget, steady, reach,
+        reach_within(settings.limits, policy.travel_fraction * (t[-1] - t[k])))
+    if targeting.contradictions > contradictions:
+        records.contradictions.append((float(t[k]), decision))
     if decision is None:
         decision = targeting.accept(choice, motion.position, belief.loop_length(tone), watched,
                                     retarget, excitation)
     records.decisions.append((float(t[k]), decision))
     # what the sensors should measure once the robot has settled at its goal: the next decision
     # checks the belief against it (:func:`_check_prediction`)
-    records.expected = (float(targeting.goal), tone, predicted_sensors(
-        shape, belief.plant, robot, 2 * np.pi * tone, belief.inside(targeting.goal),
-        belief.sensor_positions, belief.rows))
+    at_goal, at_here = (predicted_sensors(shape, belief.plant, robot, 2 * np.pi * tone,
+                                          belief.inside(x), belief.sensor_positions, belief.rows)
+                        for x in (targeting.goal, motion.position))
+    records.expected = (float(targeting.goal), tone, at_goal)
+    targeting.remember(motion.position, measured, steady,
+                       float(np.vdot(at_goal, at_goal).real)
+                       / max(float(np.vdot(at_here, at_here).real), 1e-300))
     if targeting.goal != motion.goal:
         motion.send(targeting.goal, float(t[k]))
 
@@ -631,9 +640,13 @@ def run_closed_loop(
         belief=beliefs.belief.span,
         calibrations=tuple(beliefs.calibrations),
         misfits=tuple(records.misfits),
+        contradictions=tuple(records.contradictions),
         policy=policy,
         aeolian_steady=steady_wind,
     )
+    for when, text in result.contradictions:
+        warnings.warn(f"The robot's measurements contradict its belief at {when:.4g} s: {text}.",
+                      BeliefContradictedWarning, stacklevel=3)
     for text in result.shortfalls:
         warnings.warn(f"The closed loop falls short: {text}.", ShortfallWarning, stacklevel=3)
     return result

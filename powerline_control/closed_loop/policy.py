@@ -405,6 +405,19 @@ class Targeting:
     reference_power: float = np.nan     # what the sensors measured before this excitation's move
     reference_position: float = np.nan  # ... and where the robot was then
     reference_estimate: float = np.nan  # ... and the span RMS estimated there
+    last_position: float = np.nan       # where the robot was at the last decision
+    last_power: float = np.nan          # ... what the sensors measured there (steady windows)
+    predicted_rise: float = np.nan      # ... and the rise of it the belief predicted at the goal
+    contradictions: int = 0             # moves whose measured effect contradicted the belief
+
+    def remember(self, here: float, power: float, steady: bool, predicted_rise: float) -> None:
+        """Keep what a decision saw, for the next one to check the move against: the robot's
+        position ``here``, the sensors' ``power`` measured there (only a ``steady`` window's is
+        a reference) and ``predicted_rise``, the sensors' power the belief predicts with the
+        robot parked at the goal over that with it parked here."""
+        self.last_position = here
+        self.last_power = power if steady else np.nan
+        self.predicted_rise = predicted_rise
 
     def update_clocks(self, now: float, robot_still: bool, frequency: float,
                       threshold: float) -> None:
@@ -474,7 +487,8 @@ class Targeting:
         return retarget, confirm, None
 
     def check_measured(self, power: float, estimate: float, here: float, retarget: bool,
-                       steady: bool, reach: float = np.inf) -> str | None:
+                       steady: bool, reach: float = np.inf,
+                       return_reach: float = np.inf) -> str | None:
         """Check a move against the run itself. ``power``: the sensors' mean square amplitude at
         the load frequency over the last window; ``estimate``: the span RMS with the robot
         where it is, estimated from that same window (``Choice.predicted_here``). At a new
@@ -483,8 +497,11 @@ class Targeting:
         either alone misleads: a few sensors can sit where the robot's move raised the
         vibration while the span's fell, and the estimate is the prediction that chose the
         move. A way back longer than ``reach`` (the travel budget left) is not taken: a return
-        cut off by the end of the run is worse than either end. Returns the decision in words
-        when it overrides the prediction, else None."""
+        cut off by the end of the run is worse than either end. Before that, a move whose
+        measured effect contradicts the belief's prediction (:meth:`_contradiction`) is undone
+        within ``return_reach`` (the limits' reach in the travel share of the rest of the run,
+        the quiet end included: the way back leads to a place measured better). Returns the
+        decision in words when it overrides the prediction, else None."""
         if retarget:
             # Only a steady window is a reference: a line still building up its response from
             # rest (tens of seconds on a lightly damped long span) would make every later window
@@ -492,6 +509,9 @@ class Targeting:
             self.reference_power = power if steady else np.nan
             self.reference_position, self.reference_estimate = here, estimate
             return None
+        contradicted = self._contradiction(power, here, steady, return_reach)
+        if contradicted is not None:
+            return contradicted
         moved = 1e-6 < abs(here - self.reference_position) <= reach
         tolerance = self.settings.worse_tolerance
         worse = (power > (1 + tolerance) * self.reference_power
@@ -505,6 +525,34 @@ class Targeting:
                     f"{100 * (estimate / self.reference_estimate - 1):.0f} % worse than before "
                     "the move")
         return None
+
+    def _contradiction(self, power: float, here: float, steady: bool,
+                       return_reach: float) -> str | None:
+        """At a confirmation after a move: whether what the sensors measure contradicts what
+        the belief predicted for it. The sensors' power rose more than
+        ``settings.contradiction_rise`` times over the last decision's (both steady windows) and
+        more than ``settings.contradiction_factor`` times the rise the belief predicted: the
+        belief that chose the move is wrong here (a bending stiffness or tension off by more
+        than its calibration says), and its next prediction is no better. The robot goes back
+        to where it measured less, if it can within ``return_reach``, and the choice is final
+        either way. Returns the decision in words (None: no contradiction)."""
+        policy = self.settings
+        rise = power / self.last_power if self.last_power > 0 else np.nan
+        moved = abs(here - self.last_position) > 1e-6
+        if not (moved and steady and rise > policy.contradiction_rise
+                and rise > policy.contradiction_factor * self.predicted_rise):
+            return None
+        self.phase = Phase.FINAL
+        self.contradictions += 1
+        measured = (f"at {here:.4g} m the sensors measure {rise:.3g}x the vibration power "
+                    f"they measured at {self.last_position:.4g} m, where the belief predicted "
+                    f"{self.predicted_rise:.3g}x: the measurements contradict the belief")
+        if abs(here - self.last_position) > return_reach:
+            return (f"final at {here:.4g} m: {measured}, and the way back "
+                    f"({abs(here - self.last_position):.3g} m) is longer than the rest of the "
+                    f"run allows ({return_reach:.3g} m)")
+        self.goal = self.anchor = self.last_position
+        return f"return to {self.last_position:.4g} m: {measured}"
 
     def accept(self, choice: Choice, here: float, loop: float, frequency: float,
                retarget: bool, excitation: tuple[float, float] = (0.0, 0.0)) -> str:

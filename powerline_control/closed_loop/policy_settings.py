@@ -80,6 +80,17 @@ class PolicySettings:
         0.5. A move after which both the sensors' vibration at the load frequency and the span
         RMS estimated there are more than this fraction higher than before it is undone
         (closed_loop.md, "On a family nobody tuned for").
+    contradiction_rise : float
+        2.0. At a confirmation, the sensors' power at the load frequency measured after a move
+        over the power measured before it: a move after which it rose more than this (the
+        sensors' RMS by 41 %) ...
+    contradiction_factor : float
+        4.0. ... and more than this many times what the belief predicted for the move
+        contradicts the belief: the robot goes back to where it was (when the rest of the run
+        lets it) and trusts no further prediction for this excitation. On the family's moves
+        the ratio of measured to predicted rise was 0.5-3.4 after every move that helped and
+        33-44 after the two that made the span 2.2-2.5x worse (closed_loop_off_nominal.md,
+        "Measurements that contradict the belief").
     decision_tone_window : float
         12.0 s. A decision's tone is measured on the excitation's record, at most this long: a
         2 s window's peak lands up to a mode spacing off the load on a long span and swaps nodes
@@ -182,6 +193,10 @@ in [0, 1) (the predicted relative drop of the span's RMS a move must bring). Got
     same_loop: float = _field(0.25, "a number of loop lengths > 0", 0.0)
     worse_tolerance: float = _field(0.5, "a number >= 0 (a relative increase)", 0.0,
                                     low_inclusive=True)
+    contradiction_rise: float = _field(2.0, "a number >= 1 (a ratio of measured powers)", 1.0,
+                                       low_inclusive=True)
+    contradiction_factor: float = _field(4.0, "a number >= 1 (a ratio of measured to predicted "
+                                         "rises)", 1.0, low_inclusive=True)
     decision_tone_window: float = _field(12.0, "a number of seconds > 0", 0.0)
     tone_resolution: float = _field(2.0, "a number > 0 (mode spacings times seconds)", 0.0)
     max_tone_wait: float = _field(8.0, "a number of seconds >= 0", 0.0, low_inclusive=True)

@@ -150,6 +150,13 @@ class ClosedLoopResult(Result):
         Each check of the belief against the measurements: the time (s), where the robot had
         settled (m) and the misfit of shapes (sqrt(1 - MAC)) between the sensors' phasors
         measured there and those the belief predicted at the decision that sent it.
+    contradictions : tuple of (float, str)
+        Each move whose measured effect contradicted the belief (the sensors measured a rise of
+        vibration many times what the belief predicted,
+        :class:`~powerline_control.closed_loop.PolicySettings` ``contradiction_rise`` and
+        ``contradiction_factor``): the time (s) and what the robot did, in words (went back, or
+        held when the run left no time to go back). Each is also a
+        :class:`~powerline_control.errors.BeliefContradictedWarning`.
     policy : PolicySettings
         The policy's settings the run used (``run_closed_loop(settings=...)``).
     aeolian_steady : AeolianSteady or None
@@ -225,6 +232,7 @@ class ClosedLoopResult(Result):
     belief: object = field(default=None, repr=False)
     calibrations: tuple = field(default=(), repr=False)
     misfits: tuple = field(default=(), repr=False)
+    contradictions: tuple = ()
     policy: PolicySettings = field(default_factory=PolicySettings, repr=False)
     aeolian_steady: object = field(default=None, repr=False)
 

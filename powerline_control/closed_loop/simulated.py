@@ -214,6 +214,7 @@ class Records:
     predictions: list = field(default_factory=list)
     decisions: list = field(default_factory=list)       # (time, what the policy decided)
     misfits: list = field(default_factory=list)   # (time, position, measured vs predicted)
+    contradictions: list = field(default_factory=list)  # (time, what the policy did about it)
     expected: tuple | None = None   # (goal, tone, the sensors' phasors predicted there)
 
     @classmethod
