@@ -24,8 +24,6 @@ made; the robot's force is computed from the plant's true states (what its absor
 cell and body accelerometer would measure, plus their noise).
 """
 
-from benchmarks import _common  # noqa: F401 - pins BLAS before numpy
-
 import sys  # noqa: E402
 import warnings  # noqa: E402
 
@@ -34,6 +32,7 @@ import scipy.linalg  # noqa: E402
 import scipy.stats  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
+from benchmarks import _common  # noqa: F401 - pins BLAS before numpy
 from powerline_control.closed_loop import loop as loop_module  # noqa: E402
 from powerline_control.simulation.plant import ModalPlant  # noqa: E402
 

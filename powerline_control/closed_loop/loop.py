@@ -17,7 +17,7 @@ import numpy as np
 from .._spectral import dominant_frequency, fit_phasors
 from .._threads import on_one_blas_thread
 from .._validation import check_bool, check_rng, checked_keywords, read_only
-from ..errors import BeliefContradictedWarning, ReachWarning, ShortfallWarning
+from ..errors import BeliefContradictedWarning, InputError, ReachWarning, ShortfallWarning
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
@@ -44,7 +44,14 @@ from .policy import (
 from .policy_settings import PolicySettings
 from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
-from .simulated import Calibration, Measurements, Records, advance_plant, build_line
+from .simulated import (
+    ESTIMATORS,
+    Calibration,
+    Measurements,
+    Records,
+    advance_plant,
+    build_line,
+)
 from .simulated import calibrate as calibrate_estimator  # 'calibrate' is the span's option
 
 #: Relative half-width of the band of lines around the tone the span is calibrated on.
@@ -61,6 +68,14 @@ def _sensor_tone(seen: Measurements, lo: int, k: int, dt: float) -> float:
     displacement the fundamental's start-up ringing (or the ringing the robot's own motion
     excites) can outweigh a load three times higher and send the robot after it."""
     return dominant_frequency(np.diff(seen.sensors[:, lo : k + 1], axis=1), dt)
+
+
+def _checked_estimator(estimator: object) -> str:
+    """The 'estimator' argument, one of :data:`.simulated.ESTIMATORS`."""
+    if estimator not in ESTIMATORS:
+        raise InputError(f"The 'estimator' parameter must be one of {', '.join(ESTIMATORS)}. "
+                         f"Got {estimator!r}.")
+    return estimator
 
 
 def _observe(records: Records, seen: Measurements, calibration: Calibration,
@@ -349,6 +364,7 @@ def run_closed_loop(
     calibrate: bool = True,
     settings: PolicySettings | None = None,
     aeolian_steady: bool | Mapping = False,
+    estimator: str = "recipe",
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
 
@@ -468,6 +484,15 @@ def run_closed_loop(
         (``ClosedLoopResult.aeolian_steady``; a few CPU seconds on a 300 m span). A mapping
         does the same with simulate_aeolian's physics options (``wind_curve``,
         ``self_damping``, ...). False (default): not judged.
+    estimator : {"recipe", "robot_input"}
+        The estimator's model. "recipe" (default): the recipe's
+        (:func:`~powerline_control.recipe.design_estimator`), identified on the calibration
+        window with the robot parked at its start and kept so while it moves. "robot_input":
+        the bare line's modes (of the span the controller is told) with the robot's measured
+        force on the line (its absorber's force and its body's inertia) as a known input at its
+        current position, and the load as one oscillator per mode at the tone the sensors
+        measured (docs/closed_loop.md, "The robot in the estimator's model"). Either way
+        ``ClosedLoopResult.estimator_consistency`` tests it over the whole run.
 
     Returns
     -------
@@ -524,6 +549,7 @@ def run_closed_loop(
     span = settings.bare.span
     told = checked_nominal(nominal, settings.bare)
     calibrate = check_bool("calibrate", calibrate)
+    estimator = _checked_estimator(estimator)
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
     steady_options = checked_options(aeolian_steady, segments[-1][1])
@@ -534,7 +560,9 @@ def run_closed_loop(
     setup_start, setup_cpu = time.perf_counter(), time.process_time()
     line = build_line(robot, segments, settings, sensors, n_modes=n_modes,
                       clamp_distance=clamp_distance)
-    calibrated = calibrate_estimator(line, robot, settings, rng)
+    calibrated = calibrate_estimator(line, robot, settings, rng,
+                                     estimator=estimator,
+                                     told=told if isinstance(told, LineModel) else None)
     n_cal, t = settings.n_cal, line.t
     records = Records.after_calibration(line, calibrated, robot, n_cal)
     # What the controller is told (the nominal span, meshed as the line is) and all it sees
@@ -643,6 +671,7 @@ def run_closed_loop(
         contradictions=tuple(records.contradictions),
         policy=policy,
         aeolian_steady=steady_wind,
+        estimator=estimator,
     )
     for when, text in result.contradictions:
         warnings.warn(f"The robot's measurements contradict its belief at {when:.4g} s: {text}.",

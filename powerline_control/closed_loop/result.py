@@ -170,9 +170,14 @@ class ClosedLoopResult(Result):
     estimator_consistency : Consistency or None
         The windowed NIS test (:class:`~powerline_control.estimate.Consistency`) of the
         estimator's filter over the calibration record and the loop (None when no window
-        completed): ``consistent`` False says the DMD model identified with the robot parked at
-        its start no longer fits (the robot's own damping changes the line). The policy does not
-        act on that estimate; it targets from the sensors' phasors and the line's modes.
+        completed): with the "recipe" estimator, ``consistent`` False says the model identified
+        with the robot parked at its start no longer fits (the robot's own damping changes the
+        line); with "robot_input", whose model carries the robot wherever it is, that the line
+        or its load changed. The policy does not act on that estimate; it targets from the
+        sensors' phasors and the line's modes.
+    estimator : str
+        The estimator's model (``run_closed_loop``'s ``estimator``): "recipe" or
+        "robot_input".
     timings : dict
         Wall-clock seconds spent in: setup (modes, calibration, identification), plant (sample
         stepping and sensing), plant update (re-discretising after a move), filter (Kalman
@@ -235,6 +240,7 @@ class ClosedLoopResult(Result):
     contradictions: tuple = ()
     policy: PolicySettings = field(default_factory=PolicySettings, repr=False)
     aeolian_steady: object = field(default=None, repr=False)
+    estimator: str = field(default="recipe", repr=False)
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""

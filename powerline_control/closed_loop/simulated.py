@@ -25,7 +25,13 @@ from ..simulation.plant import (
     nodal_field,
     run_parked,
 )
+from .robot_input import RobotInputModel, robot_input_filter
 from .settings import Settings
+
+#: The closed loop's estimators: the recipe's, identified with the robot parked at its start,
+#: and the bare line's modal model with the robot's measured force as an input
+#: (:mod:`.robot_input`).
+ESTIMATORS = ("recipe", "robot_input")
 
 
 def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
@@ -148,24 +154,72 @@ class Calibration:
     warm_states: np.ndarray     # (n_cal, n_states) the filter's states over the record
     innovation_rms: float       # RMS one-step prediction error of the sensors over the record
     innovation_power: np.ndarray  # (n_cal,) its mean square per sample (0 for the first two)
+    robot_force: np.ndarray     # (n_cal,) the robot's measured force on the line, N (zeros
+    #                             for the recipe's estimator, which does not use it)
+    input_model: RobotInputModel | None = None   # the robot's force as an input, or None
+    force_noise: tuple = (0.0, None)   # (std, N; its own generator): the robot's force sensor
 
 
-def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng) -> Calibration:
-    """Simulate the parked start, add sensor noise, identify the estimator and warm it up."""
+def robot_force(plant: ModalPlant, states: np.ndarray, modal_force: np.ndarray,
+                x: float) -> np.ndarray:
+    """The robot's force on the line (N) at each of the plant's ``states`` ``(n, 2 n_q)`` with
+    the robot at ``x``: its body's inertia and its absorber's spring and damper force, what the
+    robot's own accelerometer and absorber measure (the plant's accelerations, exact)."""
+    if plant.robot is None:
+        return np.zeros(states.shape[0])
+    mass, damp, stiff = plant.matrices(x)
+    nq, r = plant.n_q, plant.r
+    load = np.zeros((states.shape[0], nq))
+    load[:, :r] = modal_force
+    acceleration = np.linalg.solve(
+        mass, (load - states[:, nq:] @ damp.T - states[:, :nq] @ stiff.T).T).T
+    n = plant.coupling(x)
+    body, spring, damper = plant.robot_parameters(x)
+    force = -body * (acceleration[:, :r] @ n)
+    if plant.absorber:
+        force -= spring * (states[:, :r] @ n - states[:, r])
+        force -= damper * (states[:, nq : nq + r] @ n - states[:, nq + r])
+    return force
+
+
+def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng, *,
+              estimator: str = "recipe", told: LineModel | None = None) -> Calibration:
+    """Simulate the parked start, add sensor noise, identify the estimator and warm it up.
+
+    ``estimator`` is one of :data:`ESTIMATORS`; "robot_input" builds its model from ``told``
+    (what the controller is told of the line; None: the simulated line's own mesh, the
+    controller told the truth) and the robot's force record."""
     n_cal, sensor_list = settings.n_cal, list(line.sensors)
     start_states = run_parked(line.plant, robot.position, line.modal_force, line.t.size)
     calib_true = nodal_field(line.plant, start_states[:n_cal], line.residual[:, :n_cal])
     calib_rms = float(np.sqrt(np.mean(calib_true**2)))
     noise_std = settings.noise_fraction * calib_rms
     record = calib_true + noise_std * rng.standard_normal(calib_true.shape)
-    kf, field_map, predict_sensors = _calibrated_filter(
-        record, settings.dt, sensor_list, settings.delays, noise_std, settings.estimator_rank
-    )
-    # C order, as the run's state history it is copied into (the same BLAS calls below)
-    warm_states = np.ascontiguousarray(
-        np.asarray(kf.filter(record[sensor_list], update_state=True).states).T
-    )
-    innovation = record[sensor_list, 2:] - predict_sensors @ warm_states[1 : n_cal - 1].T
+    forces, force_noise, input_model = np.zeros(n_cal), (0.0, None), None
+    if estimator == "robot_input":
+        forces, force_noise = _robot_force_record(line, start_states[:n_cal], robot.position,
+                                                  settings.noise_fraction, rng)
+        kf, input_model, states = robot_input_filter(
+            line.bare if told is None else told, settings.dt,
+            line.sensor_positions, line.bare.node_positions, record[sensor_list],
+            np.full(n_cal, robot.position), forces, noise_std)
+        field_map = input_model.field_map
+        predict_sensors = np.asarray(input_model.system.C) @ np.asarray(input_model.system.A)
+        warm_states = np.ascontiguousarray(states.T)
+        driven = forces[1 : n_cal - 1, None] * input_model.plant.coupling(robot.position)
+        input_rows = np.asarray(input_model.system.C) @ np.asarray(input_model.system.B)
+        innovation = (record[sensor_list, 2:] - predict_sensors @ warm_states[1 : n_cal - 1].T
+                      - input_rows @ driven.T)
+    else:
+        kf, field_map, predict_sensors = _calibrated_filter(
+            record, settings.dt, sensor_list, settings.delays, noise_std,
+            settings.estimator_rank
+        )
+        # C order, as the run's state history it is copied into (the same BLAS calls below)
+        warm_states = np.ascontiguousarray(
+            np.asarray(kf.filter(record[sensor_list], update_state=True).states).T
+        )
+        innovation = record[sensor_list, 2:] - predict_sensors @ warm_states[1 : n_cal - 1].T
     innovation_power = np.zeros(n_cal)
     innovation_power[2:] = np.mean(innovation**2, axis=0)
     robot_record = start_states[:n_cal, : line.plant.r] @ line.plant.coupling(robot.position) + (
@@ -175,8 +229,21 @@ def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng) -> Calib
         start_states=start_states, noise_std=noise_std, record=record,
         robot_record=robot_record, kf=kf, field_map=field_map, predict_sensors=predict_sensors,
         warm_states=warm_states, innovation_rms=float(np.sqrt(np.mean(innovation**2))),
-        innovation_power=innovation_power,
+        innovation_power=innovation_power, robot_force=forces, input_model=input_model,
+        force_noise=force_noise,
     )
+
+
+def _robot_force_record(line: SimulatedLine, states: np.ndarray, x: float,
+                        noise_fraction: float, rng) -> tuple[np.ndarray, tuple]:
+    """The robot's noisy force record over the parked calibration window, and its sensor's
+    (noise std, generator): the same relative noise as the line's sensors, from a generator of
+    its own (spawned: the sensors' noise stays what it is without the force)."""
+    n = states.shape[0]
+    true = robot_force(line.plant, states, line.modal_force[:n], x)
+    std = noise_fraction * float(np.sqrt(np.mean(true**2)))
+    force_rng = rng.spawn(1)[0]
+    return true + std * force_rng.standard_normal(n), (std, force_rng)
 
 
 @dataclass(frozen=True, eq=False)
@@ -206,6 +273,8 @@ class Records:
     measured: np.ndarray        # (p, n_t) noisy sensor displacements
     robot_measured: np.ndarray  # (n_t,) noisy line displacement under the robot
     innovation_power: np.ndarray  # (n_t,) mean square one-step prediction error of the sensors
+    robot_force: np.ndarray     # (n_t,) the robot's measured force on the line, N (zeros
+    #                             unless the estimator uses it)
     statuses: list = field(default_factory=list)
     frequencies: list = field(default_factory=list)
     innovation_ratio: list = field(default_factory=list)
@@ -231,12 +300,14 @@ class Records:
             measured=np.zeros((len(line.sensors), n_t)),
             robot_measured=np.zeros(n_t),
             innovation_power=np.zeros(n_t),
+            robot_force=np.zeros(n_t),
         )
         records.plant_states[:n_cal] = calibration.start_states[:n_cal]
         records.filter_states[:n_cal] = calibration.warm_states
         records.measured[:, :n_cal] = calibration.record[list(line.sensors)]
         records.robot_measured[:n_cal] = calibration.robot_record
         records.innovation_power[:n_cal] = calibration.innovation_power
+        records.robot_force[:n_cal] = calibration.robot_force
         return records
 
     def measurements(self, line: SimulatedLine) -> Measurements:
@@ -263,6 +334,8 @@ def advance_plant(plant_state: np.ndarray, records: Records, line: SimulatedLine
         plant_state = _step_plant(plant_state, (phi, g0, g1), records, line.modal_force, j,
                                   block_end)
         _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
+        if calibration.input_model is not None:
+            _sense_force(records, line, calibration.force_noise, x_mid, j, block_end)
         timings["plant"] += time.perf_counter() - tic
         j = block_end
     tic = time.perf_counter()
@@ -299,9 +372,30 @@ def _sense(records: Records, line: SimulatedLine, at_robot: np.ndarray, noise_st
     records.robot_measured[j + 1 : block_end + 1] = robot_block
 
 
+def _sense_force(records: Records, line: SimulatedLine, force_noise: tuple, x: float, j: int,
+                 block_end: int) -> None:
+    """The robot's noisy force on the line over samples j+1..block_end, recorded."""
+    std, force_rng = force_noise
+    true = robot_force(line.plant, records.plant_states[j + 1 : block_end + 1],
+                       line.modal_force[j + 1 : block_end + 1], x)
+    records.robot_force[j + 1 : block_end + 1] = true + std * force_rng.standard_normal(
+        true.size)
+
+
 def _kalman_steps(records: Records, calibration: Calibration, y_block: np.ndarray, j: int,
                   block_end: int) -> None:
-    """The Kalman filter's steps on the block's measurements, and its one-step innovations."""
-    records.filter_states[j + 1 : block_end + 1] = calibration.kf.step_block(y_block.T).T
-    predicted = records.filter_states[j:block_end] @ calibration.predict_sensors.T
+    """The Kalman filter's steps on the block's measurements (with the robot's force as an
+    input when the estimator takes it), and its one-step innovations."""
+    model = calibration.input_model
+    if model is None:
+        records.filter_states[j + 1 : block_end + 1] = calibration.kf.step_block(y_block.T).T
+        predicted = records.filter_states[j:block_end] @ calibration.predict_sensors.T
+    else:
+        inputs = model.inputs(records.position[j : block_end + 1],
+                              records.robot_force[j : block_end + 1])
+        records.filter_states[j + 1 : block_end + 1] = calibration.kf.step_block(
+            y_block.T, inputs[:, 1:]).T
+        input_rows = np.asarray(model.system.C) @ np.asarray(model.system.B)
+        predicted = (records.filter_states[j:block_end] @ calibration.predict_sensors.T
+                     + inputs[:, :-1].T @ input_rows.T)
     records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)

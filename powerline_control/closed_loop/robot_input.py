@@ -1,0 +1,125 @@
+"""The closed loop's estimator with the robot in its model: the bare line's modes (the span the
+controller is told) driven by the robot's measured force at its current position, and the load
+as one slowly decaying oscillator per mode at the tone the sensors measured.
+
+The recipe's estimator (:func:`~powerline_control.recipe.design_estimator`) learns the line
+with the robot parked at its start; once the robot moves, its model is wrong. Here the robot is
+not part of the learned dynamics at all: its force on the line ``f`` (its absorber's spring and
+damper force and its body's inertia, the robot's own measurements) enters the bare line's model
+as a known input through the modes' shapes at its position, ``B n(x_r) f``. The input matrix
+``B`` is fixed (one column per mode) and the robot's position moves only the input vector
+``n(x_r) f``, so the Kalman filter's gain converges as it does for a fixed model and a step costs
+one extra matrix-vector product. docs/validation/closed_loop.md measures it against the recipe's
+estimator while parked, moving and settled.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import control as ct
+import numpy as np
+
+from .._spectral import dominant_frequency
+from ..errors import EstimatorInconsistentWarning
+from ..estimate import KalmanFilter
+from ..fem import LineModel
+from ..simulation.plant import ModalPlant, default_modes
+
+#: Time constant of the load's oscillators, s: a load that holds its tone for seconds (a
+#: sine, a wind in lock-in) is carried; a stable pole keeps the filter's steady state defined
+#: when a mode lies at every sensor's node.
+LOAD_MEMORY = 5.0
+#: Steps of the bisection on the process noise's scale (decades from 1e-30 to 1e5: 0.03 decade).
+MATCHING_STEPS = 11
+
+
+@dataclass(frozen=True, eq=False)
+class RobotInputModel:
+    """The bare line's modal model with the robot's force as a measured input.
+
+    States ``(q, q', p_c, p_s)``: the modal coordinates and velocities of the told span's modes
+    in the band, and each mode's load as an oscillator at ``tone``. Inputs: one modal force per
+    mode (``inputs`` maps the robot's position and force to them).
+    """
+
+    plant: ModalPlant           # the told bare line's modes (no robot, no load Ritz vectors)
+    system: ct.StateSpace       # discrete, outputs the sensors, inputs the modal forces
+    field_map: np.ndarray       # (n_nodes, n_states): states -> nodal displacements
+    tone: float                 # Hz, the load's oscillators
+
+    def inputs(self, positions: np.ndarray, forces: np.ndarray) -> np.ndarray:
+        """Modal forces ``(r, n_t)`` of the robot's force ``forces`` (N) at ``positions`` (m)."""
+        return (self.plant.couplings(np.asarray(positions, dtype=float))
+                * np.asarray(forces, dtype=float)[:, None]).T
+
+
+def robot_input_model(told: LineModel, modes, dt: float, sensor_positions, node_positions,
+                      tone: float) -> RobotInputModel:
+    """The model of :class:`RobotInputModel`: its outputs the sensors at ``sensor_positions``,
+    its field at ``node_positions`` (m; the told mesh may differ from the line's)."""
+    plant = ModalPlant(told, None, modes, dt)
+    r = plant.r
+    phi, g0, g1 = plant.discretise(None)
+    n_z = phi.shape[0]
+    g = g0 + g1                      # the force held over the sample
+    decay = np.exp(-dt / LOAD_MEMORY)
+    c, s = decay * np.cos(2 * np.pi * tone * dt), decay * np.sin(2 * np.pi * tone * dt)
+    n = n_z + 2 * r
+    a = np.zeros((n, n))
+    a[:n_z, :n_z] = phi
+    a[:n_z, n_z : n_z + r] = g       # this sample's load drives the line
+    eye = np.eye(r)
+    a[n_z:, n_z:] = np.block([[c * eye, s * eye], [-s * eye, c * eye]])
+    b = np.zeros((n, r))
+    b[:n_z] = g
+    field_map = np.zeros((len(node_positions), n))
+    field_map[:, :r] = plant.couplings(np.asarray(node_positions, dtype=float))
+    c_rows = np.zeros((len(sensor_positions), n))
+    c_rows[:, :r] = plant.couplings(np.asarray(sensor_positions, dtype=float))
+    system = ct.ss(a, b, c_rows, np.zeros((len(sensor_positions), r)), dt)
+    return RobotInputModel(plant=plant, system=system, field_map=field_map, tone=float(tone))
+
+
+def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positions,
+                       record: np.ndarray, positions: np.ndarray, forces: np.ndarray,
+                       noise_std: float):
+    """The filter on the calibration record: (filter, model, its states over the record).
+
+    The tone is the sensors' dominant one over the record (their velocities' spectrum); the
+    modes those the simulated line's plant keeps for a load at that tone
+    (:func:`~powerline_control.simulation.plant.default_modes`). The process noise drives the
+    load's oscillators alike, scaled (covariance matching, once) so that the mean NIS over the
+    record's last three quarters equals the number of sensors. The gain is the steady-state one
+    (a fixed model: the robot moves only the input).
+    ``record`` is the sensors' noisy record ``(p, n_cal)``, ``positions`` and ``forces`` the
+    robot's own record of its position (m) and its force on the line (N).
+    """
+    tone = dominant_frequency(np.diff(record, axis=1), dt)
+    modes = default_modes(told.span, told, [tone], dt)   # the plant's rule, at the tone seen
+    model = robot_input_model(told, modes, dt, sensor_positions, node_positions, tone)
+    n, r, p = model.system.nstates, model.plant.r, len(sensor_positions)
+    shape = np.zeros((n, n))
+    shape[2 * r :, 2 * r :] = np.eye(2 * r)
+    noise = max(noise_std, 1e-12 * float(np.max(np.abs(record))), 1e-300) ** 2
+    u = model.inputs(positions, forces)
+    head = record.shape[1] // 4
+
+    def build(scale: float) -> KalmanFilter:
+        return KalmanFilter(model.system, scale * shape, noise * np.eye(p), steady_state=True,
+                            field_map=model.field_map, P0=np.eye(n) * noise)
+
+    def mean_nis(scale: float) -> float:
+        with warnings.catch_warnings():   # the matching's own trials test nothing
+            warnings.simplefilter("ignore", EstimatorInconsistentWarning)
+            nis = np.asarray(build(scale).filter(record, u).nis)
+        return float(np.mean(nis[head:]))
+
+    lo, hi = -30.0, 5.0
+    for _ in range(MATCHING_STEPS):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if mean_nis(10.0**mid) > p else (lo, mid)
+    kf = build(10.0 ** (0.5 * (lo + hi)))
+    states = np.asarray(kf.filter(record, u, update_state=True).states)
+    return kf, model, states
