@@ -17,27 +17,30 @@ robot's phase (parked at its start, moving, settled after a move):
 Both (a) and (b) scale their process noise once, on the calibration window (covariance
 matching: the mean NIS there equals the number of sensors), and never again. Usage::
 
-    .venv/bin/python -m benchmarks.measure_robot_in_model [seed ...]
+    .venv/bin/python benchmarks/measure_robot_in_model.py [seed ...]
 
 This is a measurement, not a controller: (a) and (b) are filtered offline on records the run
 made; the robot's force is computed from the plant's true states (what its absorber's load
 cell and body accelerometer would measure, plus their noise).
 """
 
-import sys  # noqa: E402
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))
+
 import warnings  # noqa: E402
 
+import _common  # noqa: E402, F401  (pins BLAS to one thread before numpy loads)
+import closed_loop_family as fam  # noqa: E402
 import numpy as np  # noqa: E402
-import scipy.linalg  # noqa: E402
 import scipy.stats  # noqa: E402
 
 import powerline_control as plc  # noqa: E402
-from benchmarks import _common  # noqa: F401 - pins BLAS before numpy
 from powerline_control.closed_loop import loop as loop_module  # noqa: E402
 from powerline_control.simulation.plant import ModalPlant  # noqa: E402
-
-sys.path.insert(0, "tests")
-import closed_loop_family as fam  # noqa: E402
 
 WINDOW = 200
 LEVEL = 0.01

@@ -15,6 +15,7 @@ estimator while parked, moving and settled.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -22,7 +23,7 @@ import control as ct
 import numpy as np
 
 from .._spectral import dominant_frequency
-from ..errors import EstimatorInconsistentWarning
+from ..errors import EstimationError, EstimatorInconsistentWarning
 from ..estimate import KalmanFilter
 from ..fem import LineModel
 from ..simulation.plant import ModalPlant, default_modes
@@ -31,7 +32,9 @@ from ..simulation.plant import ModalPlant, default_modes
 #: sine, a wind in lock-in) is carried; a stable pole keeps the filter's steady state defined
 #: when a mode lies at every sensor's node.
 LOAD_MEMORY = 5.0
-#: Steps of the bisection on the process noise's scale (decades from 1e-30 to 1e5: 0.03 decade).
+#: Decades of the process noise over the sensors' noise variance the matching searches, and the
+#: steps of its bisection (0.02 decade).
+MATCHING_RANGE = (-12.0, 6.0)
 MATCHING_STEPS = 11
 
 
@@ -40,8 +43,9 @@ class RobotInputModel:
     """The bare line's modal model with the robot's force as a measured input.
 
     States ``(q, q', p_c, p_s)``: the modal coordinates and velocities of the told span's modes
-    in the band, and each mode's load as an oscillator at ``tone``. Inputs: one modal force per
-    mode (``inputs`` maps the robot's position and force to them).
+    in the band, and each mode's load as an oscillator at ``tone``. Inputs: the robot's modal
+    forces at this sample and the previous one (``inputs`` maps the robot's record of its
+    position and force to them).
     """
 
     plant: ModalPlant           # the told bare line's modes (no robot, no load Ritz vectors)
@@ -50,9 +54,12 @@ class RobotInputModel:
     tone: float                 # Hz, the load's oscillators
 
     def inputs(self, positions: np.ndarray, forces: np.ndarray) -> np.ndarray:
-        """Modal forces ``(r, n_t)`` of the robot's force ``forces`` (N) at ``positions`` (m)."""
-        return (self.plant.couplings(np.asarray(positions, dtype=float))
-                * np.asarray(forces, dtype=float)[:, None]).T
+        """The model's inputs ``(2 r, n_t - 1)`` at samples 1..n_t-1 of the robot's record of
+        its position ``positions`` (m) and its force ``forces`` (N), ``(n_t,)`` each: each
+        sample's modal forces ``n(x_r) f`` over the previous sample's."""
+        modal = (self.plant.couplings(np.asarray(positions, dtype=float))
+                 * np.asarray(forces, dtype=float)[:, None])
+        return np.hstack([modal[1:], modal[:-1]]).T
 
 
 def robot_input_model(told: LineModel, modes, dt: float, sensor_positions, node_positions,
@@ -63,22 +70,28 @@ def robot_input_model(told: LineModel, modes, dt: float, sensor_positions, node_
     r = plant.r
     phi, g0, g1 = plant.discretise(None)
     n_z = phi.shape[0]
-    g = g0 + g1                      # the force held over the sample
+    g = g0 + g1                      # the load held over the sample (a slow envelope)
     decay = np.exp(-dt / LOAD_MEMORY)
     c, s = decay * np.cos(2 * np.pi * tone * dt), decay * np.sin(2 * np.pi * tone * dt)
     n = n_z + 2 * r
     a = np.zeros((n, n))
     a[:n_z, :n_z] = phi
-    a[:n_z, n_z : n_z + r] = g       # this sample's load drives the line
+    # this sample's load drives the line; the load's states in units of the displacement one
+    # sample of it makes (a well-scaled Riccati equation: a force in N is ~1/dt^2 larger)
+    a[:n_z, n_z : n_z + r] = g / np.max(np.abs(g))
     eye = np.eye(r)
     a[n_z:, n_z:] = np.block([[c * eye, s * eye], [-s * eye, c * eye]])
-    b = np.zeros((n, r))
-    b[:n_z] = g
+    # The robot's force is the line's own motion (it turns with the tone): held over a sample
+    # it would lag by half a sample (8 % of a 24 Hz force's increment at 1 ms). First-order
+    # hold, G0 f_k + G1 f_k+1, with f_k+1 extrapolated from f_k and f_k-1 (second order).
+    b = np.zeros((n, 2 * r))
+    b[:n_z, :r] = g0 + 2 * g1
+    b[:n_z, r:] = -g1
     field_map = np.zeros((len(node_positions), n))
     field_map[:, :r] = plant.couplings(np.asarray(node_positions, dtype=float))
     c_rows = np.zeros((len(sensor_positions), n))
     c_rows[:, :r] = plant.couplings(np.asarray(sensor_positions, dtype=float))
-    system = ct.ss(a, b, c_rows, np.zeros((len(sensor_positions), r)), dt)
+    system = ct.ss(a, b, c_rows, np.zeros((len(sensor_positions), 2 * r)), dt)
     return RobotInputModel(plant=plant, system=system, field_map=field_map, tone=float(tone))
 
 
@@ -103,7 +116,7 @@ def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positi
     shape = np.zeros((n, n))
     shape[2 * r :, 2 * r :] = np.eye(2 * r)
     noise = max(noise_std, 1e-12 * float(np.max(np.abs(record))), 1e-300) ** 2
-    u = model.inputs(positions, forces)
+    u = model.inputs(np.r_[positions[0], positions], np.r_[forces[0], forces])
     head = record.shape[1] // 4
 
     def build(scale: float) -> KalmanFilter:
@@ -111,15 +124,18 @@ def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positi
                             field_map=model.field_map, P0=np.eye(n) * noise)
 
     def mean_nis(scale: float) -> float:
-        with warnings.catch_warnings():   # the matching's own trials test nothing
-            warnings.simplefilter("ignore", EstimatorInconsistentWarning)
-            nis = np.asarray(build(scale).filter(record, u).nis)
+        try:
+            with warnings.catch_warnings():   # the matching's own trials test nothing
+                warnings.simplefilter("ignore", EstimatorInconsistentWarning)
+                nis = np.asarray(build(scale).filter(record, u).nis)
+        except EstimationError:   # too little process noise for a steady state: more
+            return math.inf
         return float(np.mean(nis[head:]))
 
-    lo, hi = -30.0, 5.0
+    lo, hi = MATCHING_RANGE
     for _ in range(MATCHING_STEPS):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if mean_nis(10.0**mid) > p else (lo, mid)
-    kf = build(10.0 ** (0.5 * (lo + hi)))
+        lo, hi = (mid, hi) if mean_nis(noise * 10.0**mid) > p else (lo, mid)
+    kf = build(noise * 10.0 ** (0.5 * (lo + hi)))
     states = np.asarray(kf.filter(record, u, update_state=True).states)
     return kf, model, states

@@ -206,10 +206,10 @@ def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng, *,
         field_map = input_model.field_map
         predict_sensors = np.asarray(input_model.system.C) @ np.asarray(input_model.system.A)
         warm_states = np.ascontiguousarray(states.T)
-        driven = forces[1 : n_cal - 1, None] * input_model.plant.coupling(robot.position)
+        driven = input_model.inputs(np.full(n_cal, robot.position), forces)[:, : n_cal - 2]
         input_rows = np.asarray(input_model.system.C) @ np.asarray(input_model.system.B)
         innovation = (record[sensor_list, 2:] - predict_sensors @ warm_states[1 : n_cal - 1].T
-                      - input_rows @ driven.T)
+                      - input_rows @ driven)
     else:
         kf, field_map, predict_sensors = _calibrated_filter(
             record, settings.dt, sensor_list, settings.delays, noise_std,
@@ -391,11 +391,11 @@ def _kalman_steps(records: Records, calibration: Calibration, y_block: np.ndarra
         records.filter_states[j + 1 : block_end + 1] = calibration.kf.step_block(y_block.T).T
         predicted = records.filter_states[j:block_end] @ calibration.predict_sensors.T
     else:
-        inputs = model.inputs(records.position[j : block_end + 1],
-                              records.robot_force[j : block_end + 1])
+        inputs = model.inputs(records.position[j - 1 : block_end + 1],
+                              records.robot_force[j - 1 : block_end + 1])
         records.filter_states[j + 1 : block_end + 1] = calibration.kf.step_block(
             y_block.T, inputs[:, 1:]).T
         input_rows = np.asarray(model.system.C) @ np.asarray(model.system.B)
         predicted = (records.filter_states[j:block_end] @ calibration.predict_sensors.T
-                     + inputs[:, :-1].T @ input_rows.T)
+                     + inputs[:, :-1].T @ input_rows.T)   # samples j..block_end - 1
     records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
