@@ -1,0 +1,95 @@
+"""The cost of the robot in the estimator's model: ``KalmanFilter.step`` of the closed loop's
+filter with ``estimator="robot_input"`` (the bare line's modes, the load's oscillators and the
+robot's force as an input) against today's ``"recipe"`` filter, on the same run.
+
+Both filters are the ones ``run_closed_loop`` builds (kept by a hook on the loop), each stepped
+on the run's own sensor record: one sample per call (``step``, with the robot's modal forces as
+the input) and in the loop's 10-sample packets (``step_block``). The issue's bound: at most 1.5x
+today's cost per step. BLAS is pinned to one thread (``_common`` is imported before numpy).
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_robot_input.py [seed ...]   # tests/closed_loop_family
+"""
+
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))
+
+import time  # noqa: E402
+import warnings  # noqa: E402
+
+import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
+import closed_loop_family as fam  # noqa: E402
+import numpy as np  # noqa: E402
+
+import powerline_control as plc  # noqa: E402
+from powerline_control.closed_loop import loop as loop_module  # noqa: E402
+
+SAMPLES = 2000
+PACKET = 10
+REPEATS = 5
+
+
+def captured(scenario, estimator):
+    """The run's calibration (its filter) and records, from a hook on the loop."""
+    kept = {}
+    original = loop_module.advance_plant
+
+    def hook(plant_state, records, line, calibration, *args):
+        kept.update(records=records, calibration=calibration)
+        return original(plant_state, records, line, calibration, *args)
+
+    loop_module.advance_plant = hook
+    try:
+        args = scenario.run_arguments()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            plc.run_closed_loop(args.pop("span"), args.pop("force"), args.pop("robot"),
+                                args.pop("limits"), estimator=estimator, **args)
+    finally:
+        loop_module.advance_plant = original
+    return kept["calibration"], kept["records"]
+
+
+def per_sample(calibration, records):
+    """Median seconds per sample of step and of step_block on the run's record after its
+    calibration window."""
+    kf, model = calibration.kf, calibration.input_model
+    n_cal = calibration.warm_states.shape[0]
+    y = records.measured[:, n_cal : n_cal + SAMPLES]
+    u = (None if model is None else
+         model.inputs(records.position[n_cal - 1 : n_cal + SAMPLES],
+                      records.robot_force[n_cal - 1 : n_cal + SAMPLES]))
+    steps, blocks = [], []
+    for _ in range(REPEATS):
+        start = time.perf_counter()
+        for k in range(y.shape[1]):
+            kf.step(y[:, k]) if u is None else kf.step(y[:, k], u[:, k])
+        steps.append((time.perf_counter() - start) / y.shape[1])
+        start = time.perf_counter()
+        for k in range(0, y.shape[1], PACKET):
+            block = slice(k, k + PACKET)
+            kf.step_block(y[:, block]) if u is None else kf.step_block(y[:, block], u[:, block])
+        blocks.append((time.perf_counter() - start) / y.shape[1])
+    return float(np.median(steps)), float(np.median(blocks)), kf.n_states
+
+
+def main(seeds):
+    print(_common.PINNED)
+    print(f"{'scenario':58s} {'n today':>7s} {'n robot':>7s} {'step us':>15s} {'ratio':>6s} "
+          f"{'block us':>15s} {'ratio':>6s}")
+    for seed in seeds:
+        scenario = fam.scenario(seed)
+        today = per_sample(*captured(scenario, "recipe"))
+        robot = per_sample(*captured(scenario, "robot_input"))
+        print(f"{scenario.description[:58]:58s} {today[2]:7d} {robot[2]:7d} "
+              f"{1e6 * today[0]:6.1f} -> {1e6 * robot[0]:6.1f} {robot[0] / today[0]:6.2f} "
+              f"{1e6 * today[1]:6.1f} -> {1e6 * robot[1]:6.1f} {robot[1] / today[1]:6.2f}")
+
+
+if __name__ == "__main__":
+    main([int(s) for s in sys.argv[1:]] or [1, 3, 7])
