@@ -249,6 +249,11 @@ class RobotConfig:
                               low=0.0, low_inclusive=True, high=600.0,
                               allowed="0 (no closed loop), or up to 600 s with a calibration "
                                       "(a third, at most 2 s) long enough for the estimator")
+    estimator: str = _key(
+        "recipe", "", "The closed loop's estimator: the recipe's, identified with the robot "
+        "parked at its start, or the bare line's modes with the robot's measured force as an "
+        "input at its position (run_closed_loop's estimator).",
+        choices=("recipe", "robot_input"))
 
 
 #: The names of severity.WIND_POWER_CURVES and of the SELF_DAMPING_LAWS that carry a tension

@@ -512,7 +512,7 @@ def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, identificatio
         duration=cfg.closed_loop, calibration=calibration, dt=dt,
         noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed,
         nominal=model if nominal is None else nominal, calibrate=True,
-        aeolian_steady=closed_loop_wind(scenario, model.span))
+        aeolian_steady=closed_loop_wind(scenario, model.span), estimator=cfg.estimator)
     return ClosedLoop(tuning=tuning, sensors=tuple(int(i) for i in sensors), result=result,
                       calibration=calibration, sensors_how=how)
 
