@@ -42,7 +42,7 @@ import numpy as np
 from .._constants import GRAVITY
 from .._results import Result
 from .._spectral import interpolated_peak
-from .._validation import check_int, check_real, read_only
+from .._validation import check_int, check_real, checked_keywords, read_only
 from ..errors import CalibrationWarning, IdentificationError, InputError
 from ..fem import MDR, LineModel
 from ..fem.mesh import parse_bc
@@ -451,6 +451,7 @@ def _line_loglik(omega2: np.ndarray, modes: _ScaledModes, u: np.ndarray, frequen
 
 
 # ------------------------------------------------------------------------------- the answer
+@checked_keywords
 def calibrate_span(
     record: object,
     nominal: Span | LineModel,

@@ -34,6 +34,7 @@ from .._validation import (
     check_budget,
     check_choice,
     check_real,
+    checked_keywords,
     read_only,
 )
 from ..errors import InputError
@@ -283,6 +284,7 @@ def _solve_balance(balance, y_high: float, scale: float, on_grid=None) -> tuple[
     return float(root), "balanced"
 
 
+@checked_keywords
 def aeolian_severity(
     span: Span,
     wind_speeds: Sequence[float] | np.ndarray = np.arange(1.0, 8.0),  # noqa: B008 (read only)
