@@ -126,11 +126,10 @@ def robot_force(line, states, positions):
     return force
 
 
-def modal_filter_model(line, robot, tone, with_robot):
-    """(model plant, load-augmented builder): bare modes of the told span in the band."""
-    model_plant = ModalPlant(line.bare, robot if with_robot else None, line.plant.n_band,
-                             line.plant.dt)
-    return model_plant
+def modal_filter_model(line, robot, with_robot):
+    """The bare line's modes in the plant's band (the controller told the truth: the family's
+    scenarios here carry no nominal), with the robot coupled in for (a)."""
+    return ModalPlant(line.bare, robot if with_robot else None, line.plant.n_band, line.plant.dt)
 
 
 def augmented(phi, g, n_z, r, omega, dt):
@@ -146,7 +145,7 @@ def augmented(phi, g, n_z, r, omega, dt):
 
 def run_filter(kind, line, records, robot, n_cal, tone, q_scale=None):
     """Filter the run's sensor record with (a) or (b); per-sample NIS."""
-    mp = modal_filter_model(line, robot, tone, with_robot=kind == "a")
+    mp = modal_filter_model(line, robot, with_robot=kind == "a")
     r, nq = mp.r, mp.n_q
     n_z = 2 * nq
     dt = line.plant.dt
@@ -157,8 +156,7 @@ def run_filter(kind, line, records, robot, n_cal, tone, q_scale=None):
     y = records.measured
     n_t = y.shape[1]
     positions = records.position
-    noise = float(np.std(y[:, :n_cal]) * 0.0)  # placeholder; R from the run's noise below
-    r_cov = np.eye(len(sensors)) * line_noise_std(records, line, n_cal) ** 2 + noise
+    r_cov = np.eye(len(sensors)) * line_noise_std(records, line, n_cal) ** 2
     force = robot_force(line, records.plant_states, positions) if kind == "b" else None
     force_noise = 0.01 * np.std(force) if force is not None else 0.0
     rng = np.random.default_rng(0)
