@@ -507,9 +507,12 @@ def _consistency_text(result) -> str:
     moved = float(np.ptp(result.robot_position)) > 0
     # Said only when the model fits while the robot is parked at its start (no more windows
     # above than chance allows there): otherwise it does not fit the line at all.
+    # The robot_input model carries the robot wherever it is: it does not explain a misfit.
+    robot_in_model = getattr(result, "estimator", "recipe") == "robot_input"
     cause = ("; the model fits while the robot is parked at its start, where it was "
              "identified: the robot damps the line differently elsewhere"
              if moved_above and moved and parked and parked_above <= allowed_rejections(parked)
+             and not robot_in_model
              else "")
     return (("consistent" if test.consistent else "INCONSISTENT")
             + f" over the run (windowed NIS); windows above their bound (larger innovations "

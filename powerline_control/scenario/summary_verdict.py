@@ -292,9 +292,12 @@ def _robot_caveats(r) -> tuple:
                              if res.comparison("closed_loop").steady else
                              "; run longer before trusting the ratios above."), at))
     if res.estimator_consistency is not None and not res.estimator_consistency.consistent:
+        why = ("its model (the robot's force as an input) no longer fits: the line or its "
+               "load changed" if getattr(res, "estimator", "recipe") == "robot_input" else
+               "its model no longer fits the line the robot changed (robot.estimator = "
+               "\"robot_input\" carries the robot in the model)")
         out.append(Caveat("The closed loop's estimator was flagged INCONSISTENT (windowed NIS): "
-                          "its model no longer fits the line the robot changed; the robot's "
-                          "targeting does not use it, but its estimate is not to be trusted.",
-                          at))
+                          f"{why}; the robot's targeting does not use it, but its estimate is "
+                          "not to be trusted.", at))
     out += [Caveat(f"Shortfall: {text}.", at) for text in res.shortfalls]
     return tuple(out)
