@@ -4,6 +4,9 @@ The scenario's decisions that no other stage owns live here, named: the share of
 that trains (:data:`TRAIN_FRACTION`), where the identification run's shaker acts
 (:data:`SHAKER_POSITION`), the closed loop's calibration (:func:`closed_loop_timing`), the robot's
 tuning (:func:`tune_robot`). Which nodes carry sensors is :mod:`.sensing`'s.
+
+Test seam: ``_closed_loop``, called with a stand-in ``run_closed_loop`` to show which of the
+scenario's keys reach it without running the stages before it.
 """
 
 from __future__ import annotations
