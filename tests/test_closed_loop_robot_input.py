@@ -126,7 +126,7 @@ def test_the_estimate_at_the_sensors_is_within_the_noise(runs):
 
 
 def test_an_unknown_estimator_is_refused_by_name():
-    with pytest.raises(InputError, match="'estimator'.*recipe, robot_input.*'kalman'"):
+    with pytest.raises(InputError, match="'estimator'.*'recipe', 'robot_input'.*'kalman'"):
         plc.run_closed_loop(LINE, plc.HarmonicForce(1.0, 24.0, 0.5), ROBOT, sensors=[4, 9, 15],
                             duration=2.0, calibration=1.0, estimator="kalman")
 

@@ -16,8 +16,8 @@ import numpy as np
 
 from .._spectral import dominant_frequency, fit_phasors
 from .._threads import on_one_blas_thread
-from .._validation import check_bool, check_rng, checked_keywords, read_only
-from ..errors import BeliefContradictedWarning, InputError, ReachWarning, ShortfallWarning
+from .._validation import check_bool, check_choice, check_rng, checked_keywords, read_only
+from ..errors import BeliefContradictedWarning, ReachWarning, ShortfallWarning
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
@@ -68,14 +68,6 @@ def _sensor_tone(seen: Measurements, lo: int, k: int, dt: float) -> float:
     displacement the fundamental's start-up ringing (or the ringing the robot's own motion
     excites) can outweigh a load three times higher and send the robot after it."""
     return dominant_frequency(np.diff(seen.sensors[:, lo : k + 1], axis=1), dt)
-
-
-def _checked_estimator(estimator: object) -> str:
-    """The 'estimator' argument, one of :data:`.simulated.ESTIMATORS`."""
-    if estimator not in ESTIMATORS:
-        raise InputError(f"The 'estimator' parameter must be one of {', '.join(ESTIMATORS)}. "
-                         f"Got {estimator!r}.")
-    return estimator
 
 
 def _observe(records: Records, seen: Measurements, calibration: Calibration,
@@ -549,7 +541,7 @@ def run_closed_loop(
     span = settings.bare.span
     told = checked_nominal(nominal, settings.bare)
     calibrate = check_bool("calibrate", calibrate)
-    estimator = _checked_estimator(estimator)
+    estimator = check_choice("estimator", estimator, ESTIMATORS)
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
     steady_options = checked_options(aeolian_steady, segments[-1][1])
