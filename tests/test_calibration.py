@@ -117,13 +117,15 @@ def test_nan_gaps_leave_the_calibration_as_it_was():
     assert abs(cal.tension / truth.tension - 1) < 3e-3
 
 
-# Six held-out records of the family that simulate in a few seconds each (every kind of load,
-# both supports, the lab span and real spans); the full family of 40 runs in
-# benchmarks/bench_calibrate.py.
-HELD_OUT_FAST = (1, 3, 5, 11, 13, 23)
+# Six held-out records of the family (every kind of load, both supports, the lab span and real
+# spans); the full family of 40 runs in benchmarks/bench_calibrate.py. Seeds 11 and 23 take
+# 35-70 s each (long real-span records): they run with the slow tests, outside CI.
+HELD_OUT_FAST = (1, 3, 5, 13)
+HELD_OUT_SLOW = (11, 23)
 
 
-@pytest.mark.parametrize("seed", HELD_OUT_FAST)
+@pytest.mark.parametrize("seed", [*HELD_OUT_FAST,
+                                  *(pytest.param(s, marks=pytest.mark.slow) for s in HELD_OUT_SLOW)])
 def test_held_out_records_are_calibrated_within_two_sigma(seed):
     case = family.case(seed)
     assert seed % 2 == 1   # held out: the calibration's settings were tuned on even seeds

@@ -218,6 +218,7 @@ def test_records_with_the_modal_model():
                for w in caught)
 
 
+@pytest.mark.slow   # six estimator designs: 70 s; the held-out level's rules run above
 def test_a_2_s_record_matches_its_covariance_from_two_held_out_windows():
     """A 2 s record holds out 600 samples: two consistency windows after the first, too few
     for a spread (``nis_dof_fraction`` stays 1) but enough for the scale. Truth: on new 2 s
