@@ -139,7 +139,8 @@ def test_a_scenario_chooses_the_estimator_of_its_closed_loop(monkeypatch):
 
     scenario = plc.load_scenario(text='[robot]\nestimator = "robot_input"')
     assert scenario.robot.estimator == "robot_input"
-    assert plc.load_scenario(text="").robot.estimator == "recipe"
+    assert plc.load_scenario(text="").robot.estimator == "robot_input"   # the default
+    assert plc.load_scenario(text='[robot]\nestimator = "recipe"').robot.estimator == "recipe"
     with pytest.raises(InputError, match="robot.estimator"):
         plc.load_scenario(text='[robot]\nestimator = "kalman"')
     seen = {}

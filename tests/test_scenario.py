@@ -496,3 +496,20 @@ def test_check_span_and_without_supports_check_the_length_and_a_channel_of_nan()
 def test_run_scenario_refuses_an_empty_stage_list():
     with pytest.raises(InputError, match="'stages' parameter must name at least one stage"):
         run_scenario(load_scenario(text="[model]\nn_elements = 12"), stages=())
+
+
+def test_the_aeolian_lift_coefficient_scales_the_simulated_line_linearly():
+    # truth: the line is linear and the lift per metre is 0.5 rho V^2 d C_L, so doubling C_L
+    # doubles every displacement of the noise-free record
+    def record(lift):
+        text = ("[model]\nn_elements = 20\n[forcing]\nkind = 'aeolian'\nwind_speed = 1.0\n"
+                f"lift_coefficient = {lift}\n[simulation]\nduration = 1.0\nnoise_fraction = 0.0\n"
+                "[robot]\nclosed_loop = 0.0")
+        scenario = load_scenario(text=text)
+        assert f"C_L = {lift:g}" in scenario.forcing.describe(scenario.span.build())
+        return run_scenario(scenario, stages=("model", "records")).records.test.displacement
+
+    default, doubled = record(0.3), record(0.6)
+    np.testing.assert_allclose(doubled, 2 * default, rtol=1e-9, atol=1e-12 * np.abs(default).max())
+    with pytest.raises(InputError, match="forcing.lift_coefficient"):
+        load_scenario(text="[forcing]\nkind = 'aeolian'\nlift_coefficient = -0.1")

@@ -27,6 +27,7 @@ from ..errors import EstimationError, EstimatorInconsistentWarning
 from ..estimate import KalmanFilter
 from ..fem import LineModel
 from ..simulation.plant import ModalPlant, default_modes
+from .belief import ASSUMED_DAMPING, meshed_like
 
 #: Time constant of the load's oscillators, s: a load that holds its tone for seconds (a
 #: sine, a wind in lock-in) is carried; a stable pole keeps the filter's steady state defined
@@ -100,7 +101,8 @@ def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positi
                        noise_std: float):
     """The filter on the calibration record: (filter, model, its states over the record).
 
-    The tone is the sensors' dominant one over the record (their velocities' spectrum); the
+    A ``told`` line without damping is given ``belief.ASSUMED_DAMPING``. The tone is the
+    sensors' dominant one over the record (their velocities' spectrum); the
     modes those the simulated line's plant keeps for a load at that tone
     (:func:`~powerline_control.simulation.plant.default_modes`). The process noise drives the
     load's oscillators alike, scaled (covariance matching, once) so that the mean NIS over the
@@ -109,6 +111,10 @@ def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positi
     ``record`` is the sensors' noisy record ``(p, n_cal)``, ``positions`` and ``forces`` the
     robot's own record of its position (m) and its force on the line (N).
     """
+    if told.damping is None:
+        # A real line always has self-damping, and the filter needs every mode stable: an
+        # undamped mode at every sensor's node would be undetectable (no steady-state gain).
+        told = meshed_like(told.span, told, damping=ASSUMED_DAMPING)
     tone = dominant_frequency(np.diff(record, axis=1), dt)
     modes = default_modes(told.span, told, [tone], dt)   # the plant's rule, at the tone seen
     model = robot_input_model(told, modes, dt, sensor_positions, node_positions, tone)

@@ -129,6 +129,12 @@ class ForcingConfig:
                            allowed="0 < position < span length")
     wind_speed: float = _key(3.0, "m/s", "Wind speed of the aeolian load (shedding at "
                              "f = 0.185 V / d).", low=0.0, high=30.0, when=("kind", ("aeolian",)))
+    lift_coefficient: float = _key(
+        0.3, "", "Fluctuating lift coefficient C_L of the simulated aeolian load: a lift of "
+        "0.5 rho V^2 d C_L per metre, fixed in amplitude (0.2-0.4 for a cylinder at aeolian "
+        "Reynolds numbers: Blevins, Flow-Induced Vibration, 2nd ed., 1990, ch. 3). The energy "
+        "balance (severity, the closed loop in the self-limiting wind) reads its wind power "
+        "curve instead.", low=0.0, high=5.0, when=("kind", ("aeolian",)))
     bandwidth: float = _key(100.0, "Hz", "Highest frequency of the random force.", low=0.0,
                             high=1e4, when=("kind", ("random",)))
     seed: int = _key(0, "", "Seed of the random force.", low=0, when=("kind", ("random",)))
@@ -140,7 +146,8 @@ class ForcingConfig:
         if self.kind == "harmonic":
             return HarmonicForce(self.amplitude, self.frequency, self.position)
         if self.kind == "aeolian":
-            return AeolianForce(wind_speed=self.wind_speed)
+            return AeolianForce(wind_speed=self.wind_speed,
+                                lift_coefficient=self.lift_coefficient)
         return RandomForce(self.amplitude, self.position, self.bandwidth, self.seed)
 
     def load_frequency(self, span) -> float:
@@ -166,7 +173,7 @@ class ForcingConfig:
             return (f"aeolian vortex shedding in a {self.wind_speed:g} m/s wind: a lift force "
                     f"distributed along the whole span at the Strouhal frequency "
                     f"{self.load_frequency(span):.3g} Hz (St = 0.185, d = "
-                    f"{1e3 * span.conductor.diameter:g} mm)")
+                    f"{1e3 * span.conductor.diameter:g} mm, C_L = {self.lift_coefficient:g})")
         return (f"random point force (Gaussian, std {self.amplitude:g} N, band 0-"
                 f"{self.bandwidth:g} Hz, seed {self.seed}) at x = {self.position:g} m")
 
@@ -250,9 +257,10 @@ class RobotConfig:
                               allowed="0 (no closed loop), or up to 600 s with a calibration "
                                       "(a third, at most 2 s) long enough for the estimator")
     estimator: str = _key(
-        "recipe", "", "The closed loop's estimator: the recipe's, identified with the robot "
-        "parked at its start, or the bare line's modes with the robot's measured force as an "
-        "input at its position (run_closed_loop's estimator).",
+        "robot_input", "", "The closed loop's estimator: the bare line's modes with the robot's "
+        "measured force as an input at its position, so that it stays consistent while the "
+        "robot moves, or the recipe's, identified with the robot parked at its start "
+        "(run_closed_loop's estimator).",
         choices=("recipe", "robot_input"))
 
 
