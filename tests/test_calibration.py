@@ -124,8 +124,8 @@ HELD_OUT_FAST = (1, 3, 5, 13)
 HELD_OUT_SLOW = (11, 23)
 
 
-@pytest.mark.parametrize("seed", [*HELD_OUT_FAST,
-                                  *(pytest.param(s, marks=pytest.mark.slow) for s in HELD_OUT_SLOW)])
+@pytest.mark.parametrize("seed", [
+    *HELD_OUT_FAST, *(pytest.param(seed, marks=pytest.mark.slow) for seed in HELD_OUT_SLOW)])
 def test_held_out_records_are_calibrated_within_two_sigma(seed):
     case = family.case(seed)
     assert seed % 2 == 1   # held out: the calibration's settings were tuned on even seeds
