@@ -118,3 +118,32 @@ def code_version() -> str:
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return head + (f"+dirty:{hashlib.sha1(diff).hexdigest()[:10]}" if diff else "")
+
+
+def run_captured(scenario, **run_kwargs):
+    """Run the closed loop of a family scenario (``tests/closed_loop_family.py``) and keep what
+    the loop's plant step sees: (result, {"records", "line", "calibration"}), through a hook on
+    ``closed_loop.loop.advance_plant`` (removed again afterwards). Warnings are silenced: the
+    benchmarks measure, the tests judge."""
+    import warnings
+
+    import powerline_control as plc
+    from powerline_control.closed_loop import loop
+
+    kept = {}
+    original = loop.advance_plant
+
+    def hook(plant_state, records, line, calibration, *args):
+        kept.update(records=records, line=line, calibration=calibration)
+        return original(plant_state, records, line, calibration, *args)
+
+    loop.advance_plant = hook
+    try:
+        args = scenario.run_arguments()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = plc.run_closed_loop(args.pop("span"), args.pop("force"), args.pop("robot"),
+                                         args.pop("limits"), **args, **run_kwargs)
+    finally:
+        loop.advance_plant = original
+    return result, kept

@@ -20,14 +20,10 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 import time  # noqa: E402
-import warnings  # noqa: E402
 
 import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import closed_loop_family as fam  # noqa: E402
 import numpy as np  # noqa: E402
-
-import powerline_control as plc  # noqa: E402
-from powerline_control.closed_loop import loop as loop_module  # noqa: E402
 
 SAMPLES = 2000
 PACKET = 10
@@ -35,23 +31,8 @@ REPEATS = 5
 
 
 def captured(scenario, estimator):
-    """The run's calibration (its filter) and records, from a hook on the loop."""
-    kept = {}
-    original = loop_module.advance_plant
-
-    def hook(plant_state, records, line, calibration, *args):
-        kept.update(records=records, calibration=calibration)
-        return original(plant_state, records, line, calibration, *args)
-
-    loop_module.advance_plant = hook
-    try:
-        args = scenario.run_arguments()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            plc.run_closed_loop(args.pop("span"), args.pop("force"), args.pop("robot"),
-                                args.pop("limits"), estimator=estimator, **args)
-    finally:
-        loop_module.advance_plant = original
+    """The run's calibration (its filter) and records."""
+    _, kept = _common.run_captured(scenario, estimator=estimator)
     return kept["calibration"], kept["records"]
 
 

@@ -31,40 +31,16 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-import warnings  # noqa: E402
 
-import _common  # noqa: E402, F401  (pins BLAS to one thread before numpy loads)
+import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import closed_loop_family as fam  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.stats  # noqa: E402
 
-import powerline_control as plc  # noqa: E402
-from powerline_control.closed_loop import loop as loop_module  # noqa: E402
 from powerline_control.simulation.plant import ModalPlant  # noqa: E402
 
 WINDOW = 200
 LEVEL = 0.01
-
-
-def capture_run(scenario):
-    """Run the closed loop, keeping the run's records and simulated line (monkeypatched hook)."""
-    kept = {}
-    original = loop_module.advance_plant
-
-    def hook(plant_state, records, line, calibration, *args):
-        kept.update(records=records, line=line, calibration=calibration)
-        return original(plant_state, records, line, calibration, *args)
-
-    loop_module.advance_plant = hook
-    try:
-        args = scenario.run_arguments()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            result = plc.run_closed_loop(args.pop("span"), args.pop("force"),
-                                         args.pop("robot"), args.pop("limits"), **args)
-    finally:
-        loop_module.advance_plant = original
-    return result, kept
 
 
 def phases(result, n_t, n_cal):
@@ -223,7 +199,7 @@ class _head:
 def main(seeds):
     for seed in seeds:
         scenario = fam.scenario(seed)
-        result, kept = capture_run(scenario)
+        result, kept = _common.run_captured(scenario)
         records, line = kept["records"], kept["line"]
         n_t = line.t.size
         n_cal = int(round(scenario.calibration / scenario.dt)) + 1
