@@ -193,21 +193,3 @@ def test_a_run_that_ends_worse_than_its_start_or_a_clamp_damper_says_so():
     with warnings.catch_warnings():
         warnings.simplefilter("error", plc.errors.ShortfallWarning)
         plc.run_closed_loop(TRUTH, FORCE, ROBOT, **RUN)   # no warning for a run that did well
-
-
-@pytest.mark.parametrize("conductor", ["drake", "oxlip"])
-def test_the_wave_uncertainty_is_the_taut_string_nodes_shift(conductor):
-    # truth: the taut string's nodes lie at x_n = n sqrt(T / m) / (2 f) from a support, so a
-    # tension T (1 + e) moves the node near x by x (sqrt(1 + e) - 1) (exact), ~ x e / 2
-    span = plc.Span(300.0, 0.2 * plc.conductors[conductor].rated_strength,
-                    plc.conductors[conductor])
-    m, f = span.conductor.mass_per_length, 15.0
-    for error in (-0.02, 0.01, 0.04):
-        for near_support in (120.0, 270.0):
-            nodes = np.arange(1, 400) * np.sqrt(span.tension / m) / (2 * f)
-            n = int(np.argmin(np.abs(np.minimum(nodes, span.length - nodes) - near_support)))
-            node = min(nodes[n], span.length - nodes[n])
-            exact = node * abs(np.sqrt(1 + error) - 1)
-            first_order = closed_loop_belief.wave_uncertainty(nodes[n], span,
-                                                              error * span.tension)
-            assert first_order == pytest.approx(exact, rel=abs(error))

@@ -218,23 +218,6 @@ def believe(span_or_model: Span | LineModel, *, like: LineModel, robot: MDR,
     )
 
 
-def wave_uncertainty(position: float, span: Span, tension_error: float) -> float:
-    """How far (m) a standing wave at ``position`` moves when the tension is ``tension_error``
-    (N) off ``span.tension``, to first order: the wavelength scales as sqrt(T), so a relative
-    error e moves the wave by ``d e / 2`` at a distance d from the nearest support, where every
-    mode's shape is pinned.
-
-    Examples
-    --------
-    >>> import powerline_control as plc
-    >>> span = plc.Span(300.0, 28000.0, plc.conductors["drake"])
-    >>> round(wave_uncertainty(100.0, span, 560.0), 3)     # 2 % of the tension, 100 m in
-    1.0
-    """
-    distance = max(min(position, span.length - position), 0.0)
-    return distance * abs(tension_error) / (2.0 * span.tension)
-
-
 def _within_nyquist(band, dt: float):
     """``band`` cut to what calibrate_span accepts (0.4 / dt); None stays None."""
     if band is None:
@@ -284,7 +267,6 @@ class BeliefTracker:
         self._frequencies = tuple(frequencies)
         self._last = -1                    # the sample the last update read up to
         self._believed_std = np.inf        # the std of the calibration believed, N
-        self.believed = None               # the calibration believed (SpanCalibration or None)
 
     @property
     def waiting(self) -> bool:
@@ -293,15 +275,6 @@ class BeliefTracker:
         per cent off lands loops away on a long span (a 330 m span told 1 % low: 2.9x worse than
         where the robot started), so the robot holds until its records tell the tension."""
         return self.calibrate and not self.trusted
-
-    def wave_uncertainty(self, position: float) -> float:
-        """:func:`wave_uncertainty` at ``position`` (m) for the calibration believed, at
-        ``settings.locate_sigmas`` of its standard deviations; 0 when none is believed (the
-        nominal, or the truth, taken as told)."""
-        if self.believed is None:
-            return 0.0
-        return wave_uncertainty(position, self.belief.span,
-                                self.settings.locate_sigmas * self._believed_std)
 
     def update(self, seen, k: int, band: tuple[float, float] | None = None) -> str | None:
         """Calibrate on the measurements ``seen`` up to sample ``k`` and rebuild the belief if
@@ -365,7 +338,6 @@ class BeliefTracker:
                     f"certain than the one believed (+- {self._believed_std:.2g} N)")
         self.trusted = True
         self._believed_std = calibration.tension_std
-        self.believed = calibration
         if abs(calibration.tension - believed) <= policy.belief_tolerance * believed:
             return None
         self.belief = believe(calibration.span, like=self.nominal.bare, robot=self._robot,

@@ -186,8 +186,6 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
                 "hold until the records tell the span's tension: a target predicted with the "
                 "nominal span may lie loops from the best position")))
         return
-    if retarget and targeting.unlocated is not None and targeting.unlocated is beliefs.believed:
-        return   # held on this calibration already: wait for the next one
     _check_prediction(records, seen, motion.position, k, tone, shape_window)
     low, high = motion.bounds()
     reach = reach_within(settings.limits, travel_budget(t[k], t[0], t[-1], policy))
@@ -197,19 +195,6 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
                            policy)
     records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape),
                                 tone))
-    if retarget and choice.gain >= policy.min_gain:
-        spread, loop = beliefs.wave_uncertainty(choice.position), belief.loop_length(tone)
-        if spread > policy.locate_loops * loop:
-            # the calibration cannot tell whether the target is an antinode or a node
-            targeting.unlocated = beliefs.believed
-            records.decisions.append((float(t[k]), (
-                f"hold at {motion.position:.4g} m: {choice.position:.4g} m is predicted "
-                f"{100 * choice.gain:.0f} % lower, but the calibrated tension "
-                f"(+- {100 * beliefs.believed.tension_std / belief.span.tension:.2g} %) places "
-                f"the standing wave there only within {spread:.3g} m "
-                f"({spread / loop:.2g} loop, > {policy.locate_loops:g}): waiting for a surer "
-                "calibration")))
-            return
     if retarget:
         note = _out_of_reach(choice, shape, belief, motion, robot, settings, 2 * np.pi * tone,
                              (reach, reach_within(settings.limits,

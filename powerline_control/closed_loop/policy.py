@@ -409,7 +409,6 @@ class Targeting:
     last_power: float = np.nan          # ... what the sensors measured there (steady windows)
     predicted_rise: float = np.nan      # ... and the rise of it the belief predicted at the goal
     contradictions: int = 0             # moves whose measured effect contradicted the belief
-    unlocated: object = None            # the calibration a new target was held on, if any
 
     def remember(self, here: float, power: float, steady: bool, predicted_rise: float) -> None:
         """Keep what a decision saw, for the next one to check the move against: the robot's

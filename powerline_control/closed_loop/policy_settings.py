@@ -150,14 +150,6 @@ class PolicySettings:
         2.0. A calibration this many times less certain than the one believed moves nothing (a
         record over which the robot moved tells less); 1 was measured on the tuning seeds and
         lost (closed_loop_off_nominal.md, seed 243).
-    locate_loops : float
-        0.25 loop. A new target is taken only when the calibration believed places the standing
-        wave there within this many loop lengths (at ``locate_sigmas`` standard deviations of
-        its tension): a quarter loop lies between an antinode and a node, so a wave placed
-        less surely may put the robot where the line does not move; the robot holds for a
-        surer calibration (closed_loop_off_nominal.md, "Where the calibration places the wave").
-    locate_sigmas : float
-        2.0. ... at this many standard deviations (0: the believed tension is taken as exact).
     min_cycles : float
         2.0. The span is calibrated on records of at least this many cycles of the nominal
         fundamental: shorter ones cannot tell neighbouring modes apart (a record resolves
@@ -232,9 +224,6 @@ in [0, 1) (the predicted relative drop of the span's RMS a move must bring). Got
                                   low_inclusive=True)
     less_certain: float = _field(2.0, "a number >= 1 (a ratio of standard deviations)", 1.0,
                                  low_inclusive=True)
-    locate_loops: float = _field(0.25, "a number of loop lengths > 0", 0.0)
-    locate_sigmas: float = _field(2.0, "a number >= 0 (standard deviations of the calibrated "
-                                  "tension)", 0.0, low_inclusive=True)
     min_cycles: float = _field(2.0, "a number >= 0 (cycles of the fundamental)", 0.0,
                                low_inclusive=True)
 
