@@ -39,8 +39,8 @@ def captured(scenario, estimator):
 def per_sample(calibration, records):
     """Median seconds per sample of step and of step_block on the run's record after its
     calibration window."""
-    kf, model = calibration.kf, calibration.input_model
-    n_cal = calibration.warm_states.shape[0]
+    kf, model = calibration.estimator.kf, calibration.estimator.input_model
+    n_cal = calibration.record.shape[1]
     y = records.measured[:, n_cal : n_cal + SAMPLES]
     u = (None if model is None else
          model.inputs(records.position[n_cal - 1 : n_cal + SAMPLES],

@@ -156,3 +156,79 @@ def test_a_scenario_chooses_the_estimator_of_its_closed_loop(monkeypatch):
     with pytest.raises(RuntimeError, match="stop"):
         stages._closed_loop(scenario, model, plc.HarmonicForce(1.0, 24.0, 0.5), tuning)
     assert seen["estimator"] == "robot_input"
+
+
+def _window_inside(result):
+    """Whether each window's mean NIS lies inside its two-sided 1 % chi-square bounds (scipy
+    here), and each window's end time."""
+    c = result.estimator_consistency
+    lo, hi = scipy.stats.chi2.ppf([0.005, 0.995], c.window * len(result.sensors)) / c.window
+    ends = result.t[np.minimum(c.window_start + c.window - 1, result.t.size - 1)]
+    return (c.window_nis >= lo) & (c.window_nis <= hi), ends
+
+
+def test_the_estimator_follows_a_wind_change(monkeypatch):
+    """The wind moves the load from 24 Hz to 40 Hz at 3 s: the filter's load oscillators no
+    longer fit and the windowed NIS leaves its bounds (scipy's) by two orders of magnitude, as
+    it should; once the new tone has stood for a wind change the estimator is rebuilt at it
+    and every later window lies inside. Without the rebuild none does."""
+    from powerline_control.closed_loop import loop
+
+    def run():
+        return plc.run_closed_loop(
+            LINE, [(0.0, plc.HarmonicForce(1.0, 24.0, 0.5)),
+                   (3.0, plc.HarmonicForce(1.0, 40.0, 0.5))],
+            ROBOT, sensors=[4, 9, 15], duration=8.0, calibration=1.0, estimator="robot_input")
+
+    followed = run()
+    [(when, why)] = followed.estimator_updates
+    assert why == "tone" and 3.0 < when < 5.0   # measured 4.75 s
+    inside, ends = _window_inside(followed)
+    assert not inside[(ends > 3.0) & (ends < when)].any()   # the change is seen
+    window = followed.estimator_consistency.window * 1e-3   # s (dt 1 ms)
+    later = ends > when + window
+    assert later.sum() >= 10 and inside[later].all()
+    assert not followed.estimator_consistency.consistent   # the load changed: it says so
+
+    monkeypatch.setattr(loop, "rebuild_estimator", lambda *args, **kwargs: None)
+    kept = run()
+    inside, ends = _window_inside(kept)
+    assert not inside[ends > when + window].any()
+
+
+def test_the_run_consistency_takes_each_window_from_the_filter_running_at_its_end():
+    """Two filters in turn on one record: the first from sample 0, the second warmed from
+    sample 400 (a window's start) and running after sample 650. Each 200-sample window of the
+    run's test is the mean NIS of the filter running at the window's end, here from each
+    filter's own per-sample NIS (``KalmanFilter.filter`` on the same samples)."""
+    import control as ct
+
+    from powerline_control.closed_loop.simulated import Estimator, run_consistency
+
+    rng = np.random.default_rng(5)
+    theta, dt, n_t = 2 * np.pi * 0.02, 1.0, 1400
+    a = 0.999 * np.array([[np.cos(theta), np.sin(theta)], [-np.sin(theta), np.cos(theta)]])
+    system = ct.ss(a, np.zeros((2, 1)), [[1.0, 0.0], [0.3, 1.0]], np.zeros((2, 1)), dt)
+    x, y = np.zeros(2), np.empty((2, n_t))
+    for k in range(n_t):
+        x = a @ x + 0.1 * rng.standard_normal(2)
+        y[:, k] = system.C @ x + 0.05 * rng.standard_normal(2)
+
+    def new(q):
+        return plc.KalmanFilter(system, q * np.eye(2), 0.05**2 * np.eye(2), steady_state=True)
+
+    first, second = new(0.01), new(0.02)
+    first.filter(y[:, :651], update_state=True)
+    first.step_block(y[:, 651:])
+    second.filter(y[:, 400:651], update_state=True)
+    second.step_block(y[:, 651:])
+    estimators = [Estimator(kf=kf, field_map=np.eye(2), predict_sensors=np.eye(2),
+                            input_model=None, innovation_rms=1.0, first=start, windows_from=warm,
+                            states=np.zeros((n_t - start, 2)))
+                  for kf, start, warm in ((first, 0, 0), (second, 650, 400))]
+    c = run_consistency(estimators)
+    nis_first = np.asarray(new(0.01).filter(y).nis)
+    nis_second = np.asarray(new(0.02).filter(y[:, 400:]).nis)
+    expected = [nis_first[s : s + 200].mean() if s + 199 <= 650
+                else nis_second[s - 400 : s - 200].mean() for s in range(0, 1400, 200)]
+    np.testing.assert_allclose(c.window_nis, expected, rtol=1e-9)

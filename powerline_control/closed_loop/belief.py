@@ -276,6 +276,12 @@ class BeliefTracker:
         where the robot started), so the robot holds until its records tell the tension."""
         return self.calibrate and not self.trusted
 
+    @property
+    def believed_std(self) -> float:
+        """The standard deviation (N) of the calibrated tension believed (inf before one is
+        trusted)."""
+        return self._believed_std
+
     def update(self, seen, k: int, band: tuple[float, float] | None = None) -> str | None:
         """Calibrate on the measurements ``seen`` up to sample ``k`` and rebuild the belief if
         the tension moved (on the lines within ``band``, Hz: all by default); returns what

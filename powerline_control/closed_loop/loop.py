@@ -46,14 +46,19 @@ from .result import ClosedLoopResult
 from .settings import UNSET_BC, UNSET_DAMPING, UNSET_ELEMENTS, Settings, checked_settings
 from .simulated import (
     ESTIMATORS,
-    Calibration,
     Measurements,
     Records,
     advance_plant,
     build_line,
+    rebuild_estimator,
+    run_consistency,
+    run_estimate,
 )
 from .simulated import calibrate as calibrate_estimator  # 'calibrate' is the span's option
 
+#: Standard deviations of the calibrated tension by which the belief must differ from the
+#: estimator's line before the estimator is rebuilt on it (:func:`_estimator_stale`).
+ESTIMATOR_SIGMAS = 2.0
 #: Relative half-width of the band of lines around the tone the span is calibrated on.
 CALIBRATION_BAND = 0.2
 # ------------------------------------------------------------------------------------ the run
@@ -70,16 +75,15 @@ def _sensor_tone(seen: Measurements, lo: int, k: int, dt: float) -> float:
     return dominant_frequency(np.diff(seen.sensors[:, lo : k + 1], axis=1), dt)
 
 
-def _observe(records: Records, seen: Measurements, calibration: Calibration,
-             settings: Settings, k: int) -> float:
+def _observe(records: Records, seen: Measurements, settings: Settings, k: int) -> float:
     """The dominant frequency the sensors show up to sample k; logs it and the innovation ratio
-    (the estimator's recent one-step error over its calibration value)."""
+    (the running estimator's recent one-step error over its value on its own record)."""
     lo = max(k + 1 - settings.window, 0)
     frequency = _sensor_tone(seen, max(k + 1 - settings.frequency_samples, 0), k, settings.dt)
     records.frequencies.append(frequency)
     records.innovation_ratio.append(
         float(np.sqrt(np.mean(records.innovation_power[lo + 1 : k + 1])))
-        / max(calibration.innovation_rms, 1e-300)
+        / max(records.estimators[-1].innovation_rms, 1e-300)
     )
     return frequency
 
@@ -309,6 +313,25 @@ def _out_of_reach(choice, shape: np.ndarray, belief: Belief, motion: Motion, rob
             f"in half the rest of the {settings.duration:g} s run ('duration'): raise the "
             "limits or lengthen the run.", ReachWarning, stacklevel=4)
     return f"beyond the travel budget ({reach:.3g} m): {found}"
+
+
+def _estimator_stale(records: Records, beliefs: BeliefTracker, estimated_on: Belief,
+                     settings: Settings) -> str | None:
+    """Why the "robot_input" estimator is rebuilt now, or None. "line": the belief's tension
+    lies more than ESTIMATOR_SIGMAS of the calibration's uncertainty from that of the line the
+    estimator models (``estimated_on``; within them the records cannot tell the two lines
+    apart, and a rebuild would only trade one model error for another). "tone": the sensors'
+    dominant tone has stood more than ``retarget_threshold`` (the policy's wind change) from
+    the tone the model's load oscillates at over the last antinode window of control steps."""
+    believed = beliefs.belief.span.tension
+    if abs(believed - estimated_on.span.tension) > ESTIMATOR_SIGMAS * beliefs.believed_std:
+        return "line"
+    steps = max(int(np.ceil(settings.window / settings.steps_per_period)), 1)
+    recent = np.asarray(records.frequencies[-steps:])
+    tone = records.estimators[-1].input_model.tone
+    if recent.size == steps and np.all(np.abs(recent - tone) > settings.retarget_threshold * tone):
+        return "tone"
+    return None
 
 
 def _move_robot(motion: Motion, records: Records, t: np.ndarray, k: int, end: int) -> None:
@@ -579,16 +602,27 @@ def run_closed_loop(
                               settings.planner_time_budget)
     timings = {"setup": time.perf_counter() - setup_start,
                "setup cpu": time.process_time() - setup_cpu, "plant": 0.0, "plant update": 0.0,
-               "filter": 0.0, "modes": line.plant.r}
+               "filter": 0.0, "modes": line.plant.r, "estimator updates cpu": 0.0}
+    estimated_on = belief
     wall_start, cpu_start = time.perf_counter(), time.process_time()
     k = n_cal - 1
     while k < t.size - 1:
         end = min(k + settings.steps_per_period, t.size - 1)
-        frequency = _observe(records, seen, calibrated, settings, k)
+        frequency = _observe(records, seen, settings, k)
         if k == n_cal - 1:   # the calibration window's record: the first calibration
             _recalibrate(beliefs, records, seen, k, measured_tone)
         _update_target(targeting, motion_state, records, seen, beliefs, robot, settings, k,
                        frequency)
+        stale = (_estimator_stale(records, beliefs, estimated_on, settings)
+                 if estimator == "robot_input" else None)
+        if stale is not None:
+            tic = time.process_time()
+            rebuild_estimator(records, beliefs.belief.bare, settings, k, calibrated.noise_std,
+                              seen.sensor_positions, line.bare.node_positions,
+                              new_load=stale == "tone")
+            estimated_on = beliefs.belief
+            records.estimator_updates.append((float(t[k]), stale))
+            timings["estimator updates cpu"] += time.process_time() - tic
         _move_robot(motion_state, records, t, k, end)
         plant_state = advance_plant(plant_state, records, line, calibrated, rng, timings, k,
                                     end)
@@ -614,7 +648,7 @@ def run_closed_loop(
     scan_positions = scan.positions if scan is not None else np.zeros(0)
     scan_rms = scan.rms if scan is not None else np.zeros(0)
     best_position = scan.best_position if scan is not None else float("nan")
-    estimated = calibrated.field_map @ records.filter_states.T
+    estimated = run_estimate(records.estimators)
     timings["comparisons"] = time.perf_counter() - after_start
     timings["comparisons cpu"] = time.process_time() - after_cpu
     steady_wind, steady_cpu = None, time.process_time()
@@ -654,7 +688,8 @@ def run_closed_loop(
         timings=timings,
         follow_times=settling.follow_times,
         decisions=tuple(records.decisions),
-        estimator_consistency=calibrated.kf.consistency,
+        estimator_consistency=run_consistency(records.estimators),
+        estimator_updates=tuple(records.estimator_updates),
         span=span,
         nominal=span if told is None else belief.span,
         belief=beliefs.belief.span,

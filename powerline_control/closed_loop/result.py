@@ -169,22 +169,31 @@ class ClosedLoopResult(Result):
         positions under one load; these are where the line settles. None when not asked.
     estimator_consistency : Consistency or None
         The windowed NIS test (:class:`~powerline_control.estimate.Consistency`) of the
-        estimator's filter over the calibration record and the loop (None when no window
-        completed): with the "recipe" estimator, ``consistent`` False says the model identified
-        with the robot parked at its start no longer fits (the robot's own damping changes the
-        line); with "robot_input", whose model carries the robot wherever it is, that the line
-        or its load changed. The policy does not act on that estimate; it targets from the
-        sensors' phasors and the line's modes.
+        estimator's filters over the calibration record and the loop (each window from the
+        filter running at its end; None when no window completed): with the "recipe"
+        estimator, ``consistent`` False says the model identified with the robot parked at its
+        start no longer fits (the robot's own damping changes the line); with "robot_input",
+        whose model carries the robot wherever it is and follows the controller's belief of
+        the line and the load's tone (:attr:`estimator_updates`), that the line or its load
+        changed in a way the model does not follow. The policy does not act on that
+        estimate; it targets from the sensors' phasors and the line's modes.
     estimator : str
         The estimator's model (``run_closed_loop``'s ``estimator``): "recipe" or
         "robot_input".
+    estimator_updates : tuple of (float, str)
+        When (s) and why the "robot_input" estimator was rebuilt, warmed on the last
+        calibration window's length of the records (the new filter runs from the next sample):
+        "line", a calibration moved the belief beyond twice its uncertainty from the line the
+        estimator modelled; "tone", the sensors' tone moved away from the one its load
+        oscillates at as far and as long as a wind change the policy acts on.
     timings : dict
         Wall-clock seconds spent in: setup (modes, calibration, identification), plant (sample
         stepping and sensing), plant update (re-discretising after a move), filter (Kalman
         steps), policy and motion, comparisons (parked runs and the steady-state scan); the
         process times (less sensitive to the machine's load) "setup cpu", "loop cpu",
         "comparisons cpu", "calibration cpu" (the span's calibrations and the belief's
-        rebuilds, within the loop's), "aeolian steady cpu" (the self-limiting runs, when asked)
+        rebuilds, within the loop's), "estimator updates cpu" (the estimator's rebuilds on the
+        belief, within the loop's), "aeolian steady cpu" (the self-limiting runs, when asked)
         and "call cpu" (the whole call); and "modes", the number of bare-line modes the plant
         kept.
 
@@ -241,6 +250,7 @@ class ClosedLoopResult(Result):
     policy: PolicySettings = field(default_factory=PolicySettings, repr=False)
     aeolian_steady: object = field(default=None, repr=False)
     estimator: str = field(default="recipe", repr=False)
+    estimator_updates: tuple = field(default=(), repr=False)
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""

@@ -37,6 +37,10 @@ LOAD_MEMORY = 5.0
 #: steps of its bisection (0.02 decade).
 MATCHING_RANGE = (-12.0, 6.0)
 MATCHING_STEPS = 11
+#: Decades around an earlier match that a new one searches first, and its steps (0.03 decade):
+#: a line believed better leaves less model error to match, a new load may be stronger.
+NEAR_RANGE = (-3.0, 1.0)
+NEAR_STEPS = 7
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,7 +102,8 @@ def robot_input_model(told: LineModel, modes, dt: float, sensor_positions, node_
 
 def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positions,
                        record: np.ndarray, positions: np.ndarray, forces: np.ndarray,
-                       noise_std: float):
+                       noise_std: float, *, process_noise: float | None = None,
+                       near: float | None = None):
     """The filter on the calibration record: (filter, model, its states over the record).
 
     A ``told`` line without damping is given ``belief.ASSUMED_DAMPING``. The tone is the
@@ -110,6 +115,10 @@ def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positi
     (a fixed model: the robot moves only the input).
     ``record`` is the sensors' noisy record ``(p, n_cal)``, ``positions`` and ``forces`` the
     robot's own record of its position (m) and its force on the line (N).
+    ``process_noise``: the load's process noise over the sensors' noise variance, instead of
+    matching it on the record (:func:`process_noise_of` reads it from a filter). ``near``: one
+    matched before on the same sensors, around which the matching searches first
+    (:data:`NEAR_RANGE`; the whole range only when the match lies outside).
     """
     if told.damping is None:
         # A real line always has self-damping, and the filter needs every mode stable: an
@@ -138,10 +147,26 @@ def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positi
             return math.inf
         return float(np.mean(nis[head:]))
 
-    lo, hi = MATCHING_RANGE
-    for _ in range(MATCHING_STEPS):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if mean_nis(noise * 10.0**mid) > p else (lo, mid)
-    kf = build(noise * 10.0 ** (0.5 * (lo + hi)))
+    scale = process_noise
+    if scale is None:
+        search, steps = MATCHING_RANGE, MATCHING_STEPS
+        if near is not None:
+            search = (math.log10(near) + NEAR_RANGE[0], math.log10(near) + NEAR_RANGE[1])
+            steps = NEAR_STEPS
+        lo, hi = search
+        for _ in range(steps):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if mean_nis(noise * 10.0**mid) > p else (lo, mid)
+        if near is not None and (lo == search[0] or hi == search[1]):   # outside: all of it
+            return robot_input_filter(told, dt, sensor_positions, node_positions, record,
+                                      positions, forces, noise_std)
+        scale = 10.0 ** (0.5 * (lo + hi))
+    kf = build(noise * scale)
     states = np.asarray(kf.filter(record, u, update_state=True).states)
     return kf, model, states
+
+
+def process_noise_of(kf: KalmanFilter) -> float:
+    """The load's process noise of a :func:`robot_input_filter` over its sensors' noise
+    variance (what ``process_noise`` takes)."""
+    return float(np.max(np.diag(kf.Q))) / float(kf.R[0, 0])

@@ -13,7 +13,7 @@ import numpy as np
 
 from .._validation import check_indices, check_int, check_real, read_only
 from ..errors import InputError
-from ..estimate import KalmanFilter
+from ..estimate import KalmanFilter, windowed_consistency
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..recipe import design_estimator
@@ -25,7 +25,7 @@ from ..simulation.plant import (
     nodal_field,
     run_parked,
 )
-from .robot_input import RobotInputModel, robot_input_filter
+from .robot_input import RobotInputModel, process_noise_of, robot_input_filter
 from .settings import Settings
 
 #: The closed loop's estimators: the recipe's, identified with the robot parked at its start,
@@ -36,16 +36,14 @@ ESTIMATORS = ("recipe", "robot_input")
 
 def _calibrated_filter(record, dt, sensors, delays, noise_std, rank):
     """The estimator recipe (:func:`~powerline_control.recipe.design_estimator`) on the
-    calibration record with the given sensors: filter, field map and the one-step sensor
-    predictor C A (for the innovation check)."""
+    calibration record with the given sensors: filter, field map and state-space model."""
     options = {} if delays is None else {"delays": delays}
     if rank is not None:
         options["rank"] = rank
     design = design_estimator(record, len(sensors), dt=dt, sensors=list(sensors),
                               noise_std=noise_std if noise_std > 0 else None, **options)
-    sys = design.model.to_statespace(measured=list(sensors))
     return (design.filter, np.asarray(design.model.field_map),
-            np.asarray(sys.C) @ np.asarray(sys.A))
+            design.model.to_statespace(measured=list(sensors)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,16 +146,35 @@ class Calibration:
     noise_std: float            # the sensors' noise, m
     record: np.ndarray          # (n_nodes, n_cal) noisy calibration field
     robot_record: np.ndarray    # (n_cal,) noisy line displacement under the robot
-    kf: KalmanFilter            # warmed up on the record; it keeps stepping in the loop
-    field_map: np.ndarray       # estimator states -> nodal displacements
-    predict_sensors: np.ndarray  # one-step sensor predictor C A (the innovation check)
-    warm_states: np.ndarray     # (n_cal, n_states) the filter's states over the record
-    innovation_rms: float       # RMS one-step prediction error of the sensors over the record
-    innovation_power: np.ndarray  # (n_cal,) its mean square per sample (0 for the first two)
+    estimator: Estimator        # warmed up on the record; it keeps stepping in the loop
+    innovation_power: np.ndarray  # (n_cal,) its one-step errors' mean square per sample (0
+    #                               for the first two)
     robot_force: np.ndarray     # (n_cal,) the robot's measured force on the line, N (zeros
     #                             for the recipe's estimator, which does not use it)
-    input_model: RobotInputModel | None = None   # the robot's force as an input, or None
     force_noise: tuple = (0.0, None)   # (std, N; its own generator): the robot's force sensor
+
+
+@dataclass(frozen=True, eq=False)
+class Estimator:
+    """One estimator of the run and the states it estimated.
+
+    The run starts with the calibration's; with ``estimator="robot_input"`` a new one takes
+    over when the line believed or the load's tone changes (:func:`rebuild_estimator`).
+    ``states`` holds its states from sample ``first`` on (row 0: sample ``first``); it owns the
+    run's estimate after ``first`` (from sample 0 for the first), until the next one's
+    ``first``. Its filter's consistency windows start at sample ``windows_from``; its process
+    noise was matched on the samples ``matched_on`` (start, stop).
+    """
+
+    kf: KalmanFilter
+    field_map: np.ndarray       # its states -> nodal displacements
+    predict_sensors: np.ndarray  # one-step sensor predictor C A (the innovation check)
+    input_model: RobotInputModel | None   # the robot's force as an input, or None
+    innovation_rms: float       # RMS one-step error of the sensors over its own record
+    first: int
+    windows_from: int
+    states: np.ndarray          # (n_t - first, n_states)
+    matched_on: tuple = (0, 0)
 
 
 def robot_force(plant: ModalPlant, states: np.ndarray, modal_force: np.ndarray,
@@ -195,7 +212,7 @@ def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng, *,
     calib_rms = float(np.sqrt(np.mean(calib_true**2)))
     noise_std = settings.noise_fraction * calib_rms
     record = calib_true + noise_std * rng.standard_normal(calib_true.shape)
-    forces, force_noise, input_model = np.zeros(n_cal), (0.0, None), None
+    forces, force_noise, driven = np.zeros(n_cal), (0.0, None), None
     if estimator == "robot_input":
         forces, force_noise = _robot_force_record(line, start_states[:n_cal], robot.position,
                                                   settings.noise_fraction, rng)
@@ -203,35 +220,114 @@ def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng, *,
             line.bare if told is None else told, settings.dt,
             line.sensor_positions, line.bare.node_positions, record[sensor_list],
             np.full(n_cal, robot.position), forces, noise_std)
-        field_map = input_model.field_map
-        predict_sensors = np.asarray(input_model.system.C) @ np.asarray(input_model.system.A)
-        warm_states = np.ascontiguousarray(states.T)
-        driven = input_model.inputs(np.full(n_cal, robot.position), forces)[:, : n_cal - 2]
-        input_rows = np.asarray(input_model.system.C) @ np.asarray(input_model.system.B)
-        innovation = (record[sensor_list, 2:] - predict_sensors @ warm_states[1 : n_cal - 1].T
-                      - input_rows @ driven)
+        field_map, system = input_model.field_map, input_model.system
+        driven = input_model.inputs(np.full(n_cal, robot.position), forces)
     else:
-        kf, field_map, predict_sensors = _calibrated_filter(
+        kf, field_map, system = _calibrated_filter(
             record, settings.dt, sensor_list, settings.delays, noise_std,
             settings.estimator_rank
         )
-        # C order, as the run's state history it is copied into (the same BLAS calls below)
-        warm_states = np.ascontiguousarray(
-            np.asarray(kf.filter(record[sensor_list], update_state=True).states).T
-        )
-        innovation = record[sensor_list, 2:] - predict_sensors @ warm_states[1 : n_cal - 1].T
-    innovation_power = np.zeros(n_cal)
-    innovation_power[2:] = np.mean(innovation**2, axis=0)
+        input_model = None
+        states = np.asarray(kf.filter(record[sensor_list], update_state=True).states)
+    first, innovation_power = _warmed(kf, field_map, system, input_model, record[sensor_list],
+                                      states, driven, first=0, windows_from=0,
+                                      n_t=line.t.size, matched_on=(0, n_cal))
     robot_record = start_states[:n_cal, : line.plant.r] @ line.plant.coupling(robot.position) + (
         noise_std * rng.standard_normal(n_cal)
     )
     return Calibration(
         start_states=start_states, noise_std=noise_std, record=record,
-        robot_record=robot_record, kf=kf, field_map=field_map, predict_sensors=predict_sensors,
-        warm_states=warm_states, innovation_rms=float(np.sqrt(np.mean(innovation**2))),
-        innovation_power=innovation_power, robot_force=forces, input_model=input_model,
-        force_noise=force_noise,
+        robot_record=robot_record, estimator=first, innovation_power=innovation_power,
+        robot_force=forces, force_noise=force_noise,
     )
+
+
+def _warmed(kf: KalmanFilter, field_map: np.ndarray, system, input_model, record: np.ndarray,
+            states: np.ndarray, driven: np.ndarray | None, *, first: int, windows_from: int,
+            n_t: int, matched_on: tuple) -> tuple[Estimator, np.ndarray]:
+    """The :class:`Estimator` of a filter warmed on ``record`` ``(p, n)`` (its states over it
+    ``(n_states, n)``, from sample ``windows_from``; the robot's modal forces ``driven``
+    ``(m, n - 1)`` at samples 1..n-1, or None), and its one-step errors' mean square per
+    sample of the record (0 for the first two)."""
+    n = record.shape[1]
+    warm = np.ascontiguousarray(states.T)   # C order, as the run's state history
+    c = np.asarray(system.C)
+    predict_sensors = c @ np.asarray(system.A)
+    innovation = record[:, 2:] - predict_sensors @ warm[1 : n - 1].T
+    if driven is not None:
+        innovation -= (c @ np.asarray(system.B)) @ driven[:, : n - 2]
+    power = np.zeros(n)
+    power[2:] = np.mean(innovation**2, axis=0)
+    history = np.empty((n_t - first, warm.shape[1]))
+    history[: windows_from + n - first] = warm[first - windows_from :]
+    return Estimator(kf=kf, field_map=field_map, predict_sensors=predict_sensors,
+                     input_model=input_model,
+                     innovation_rms=float(np.sqrt(np.mean(innovation**2))), first=first,
+                     windows_from=windows_from, states=history, matched_on=matched_on), power
+
+
+def rebuild_estimator(records: Records, told: LineModel, settings: Settings, k: int,
+                      noise_std: float, sensor_positions, node_positions, *,
+                      new_load: bool) -> None:
+    """A new "robot_input" estimator on the line the controller believes (``told``) and the
+    tone the sensors show, warmed on the sensors' and the robot's records of the last
+    calibration window's length up to sample k (from the start of a consistency window, so
+    that the run's windows stay whole); it takes over from sample k + 1 (:class:`Estimator`).
+
+    Its process noise is matched on that record when the load is new (``new_load``: the tone
+    changed, and its strength with it); else on the record the running estimator's was
+    matched on, with the new model (a line believed better leaves less model error to be
+    taken for load)."""
+    running = records.estimators[-1]
+    window = running.kf.consistency_window or 1
+    start = max((k + 1 - settings.n_cal) // window * window, 0)
+    matched_on = (start, k + 1) if new_load else running.matched_on
+    span = slice(*matched_on)
+    matched, _, _ = robot_input_filter(told, settings.dt, sensor_positions, node_positions,
+                                       records.measured[:, span], records.position[span],
+                                       records.robot_force[span], noise_std,
+                                       near=process_noise_of(running.kf))
+    record = records.measured[:, start : k + 1]
+    positions, forces = records.position[start : k + 1], records.robot_force[start : k + 1]
+    kf, model, states = robot_input_filter(told, settings.dt, sensor_positions, node_positions,
+                                           record, positions, forces, noise_std,
+                                           process_noise=process_noise_of(matched))
+    estimator, _ = _warmed(kf, model.field_map, model.system, model, record, states,
+                           model.inputs(positions, forces), first=k, windows_from=start,
+                           n_t=records.position.size, matched_on=matched_on)
+    records.estimators.append(estimator)
+
+
+def run_estimate(estimators: list[Estimator]) -> np.ndarray:
+    """The run's estimated field ``(n_nodes, n_t)``: each estimator's after its ``first``
+    sample (the first's from sample 0), to the next one's."""
+    n_t = estimators[0].first + estimators[0].states.shape[0]
+    ends = [e.first for e in estimators[1:]] + [n_t - 1]
+    pieces = []
+    for i, (estimator, end) in enumerate(zip(estimators, ends, strict=True)):
+        lo = 0 if i == 0 else 1
+        pieces.append(estimator.field_map @ estimator.states[lo : end + 1 - estimator.first].T)
+    return np.hstack(pieces)
+
+
+def run_consistency(estimators: list[Estimator]):
+    """The windowed NIS test over the run
+    (:func:`~powerline_control.estimate.windowed_consistency`): each window from the estimator
+    that owns its last sample (:class:`Estimator`)."""
+    window = estimators[0].kf.consistency_window
+    if window is None:
+        return None
+    n_t = estimators[0].first + estimators[0].states.shape[0]
+    firsts = np.array([e.first for e in estimators[1:]])
+    rows = []
+    for j in range(n_t // window):
+        owner = estimators[int(np.sum(firsts < (j + 1) * window - 1))]
+        closed = owner.kf.consistency_windows
+        local = j - owner.windows_from // window
+        if not 0 <= local < closed.shape[0]:
+            break
+        rows.append(closed[local])
+    return windowed_consistency(np.array(rows), window, estimators[-1].kf.nis_dof_fraction)
 
 
 def _robot_force_record(line: SimulatedLine, states: np.ndarray, x: float,
@@ -266,7 +362,7 @@ class Records:
     window first) and a log of every control step."""
 
     plant_states: np.ndarray    # (n_t, 2 n_q) true plant states
-    filter_states: np.ndarray   # (n_t, n_states) the Kalman filter's
+    estimators: list            # the run's Estimators, in turn (the last one steps)
     position: np.ndarray        # (n_t,) robot position, m
     velocity: np.ndarray        # (n_t,) robot velocity, m/s
     target: np.ndarray          # (n_t,) the goal steered to (NaN before the first)
@@ -284,6 +380,7 @@ class Records:
     decisions: list = field(default_factory=list)       # (time, what the policy decided)
     misfits: list = field(default_factory=list)   # (time, position, measured vs predicted)
     contradictions: list = field(default_factory=list)  # (time, what the policy did about it)
+    estimator_updates: list = field(default_factory=list)  # times the estimator was rebuilt
     expected: tuple | None = None   # (goal, tone, the sensors' phasors predicted there)
 
     @classmethod
@@ -293,7 +390,7 @@ class Records:
         n_t = line.t.size
         records = cls(
             plant_states=np.empty((n_t, calibration.start_states.shape[1])),
-            filter_states=np.empty((n_t, calibration.field_map.shape[1])),
+            estimators=[calibration.estimator],
             position=np.full(n_t, robot.position),
             velocity=np.zeros(n_t),
             target=np.full(n_t, np.nan),
@@ -303,7 +400,6 @@ class Records:
             robot_force=np.zeros(n_t),
         )
         records.plant_states[:n_cal] = calibration.start_states[:n_cal]
-        records.filter_states[:n_cal] = calibration.warm_states
         records.measured[:, :n_cal] = calibration.record[list(line.sensors)]
         records.robot_measured[:n_cal] = calibration.robot_record
         records.innovation_power[:n_cal] = calibration.innovation_power
@@ -334,12 +430,12 @@ def advance_plant(plant_state: np.ndarray, records: Records, line: SimulatedLine
         plant_state = _step_plant(plant_state, (phi, g0, g1), records, line.modal_force, j,
                                   block_end)
         _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
-        if calibration.input_model is not None:
+        if calibration.estimator.input_model is not None:
             _sense_force(records, line, calibration.force_noise, x_mid, j, block_end)
         timings["plant"] += time.perf_counter() - tic
         j = block_end
     tic = time.perf_counter()
-    _kalman_steps(records, calibration, records.measured[:, k + 1 : end + 1].T, k, end)
+    _kalman_steps(records, records.measured[:, k + 1 : end + 1].T, k, end)
     timings["filter"] += time.perf_counter() - tic
     return plant_state
 
@@ -382,20 +478,23 @@ def _sense_force(records: Records, line: SimulatedLine, force_noise: tuple, x: f
         true.size)
 
 
-def _kalman_steps(records: Records, calibration: Calibration, y_block: np.ndarray, j: int,
-                  block_end: int) -> None:
-    """The Kalman filter's steps on the block's measurements (with the robot's force as an
-    input when the estimator takes it), and its one-step innovations."""
-    model = calibration.input_model
+def _kalman_steps(records: Records, y_block: np.ndarray, j: int, block_end: int) -> None:
+    """The running estimator's steps on the block's measurements (with the robot's force as an
+    input when it takes it), and its one-step innovations."""
+    estimator = records.estimators[-1]
+    model, rows = estimator.input_model, slice(j + 1 - estimator.first,
+                                               block_end + 1 - estimator.first)
+    history = estimator.states
     if model is None:
-        records.filter_states[j + 1 : block_end + 1] = calibration.kf.step_block(y_block.T).T
-        predicted = records.filter_states[j:block_end] @ calibration.predict_sensors.T
+        history[rows] = estimator.kf.step_block(y_block.T).T
+        predicted = history[j - estimator.first : block_end - estimator.first] @ (
+            estimator.predict_sensors.T)
     else:
         inputs = model.inputs(records.position[j - 1 : block_end + 1],
                               records.robot_force[j - 1 : block_end + 1])
-        records.filter_states[j + 1 : block_end + 1] = calibration.kf.step_block(
-            y_block.T, inputs[:, 1:]).T
+        history[rows] = estimator.kf.step_block(y_block.T, inputs[:, 1:]).T
         input_rows = np.asarray(model.system.C) @ np.asarray(model.system.B)
-        predicted = (records.filter_states[j:block_end] @ calibration.predict_sensors.T
+        predicted = (history[j - estimator.first : block_end - estimator.first]
+                     @ estimator.predict_sensors.T
                      + inputs[:, :-1].T @ input_rows.T)   # samples j..block_end - 1
     records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)

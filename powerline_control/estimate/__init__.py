@@ -22,6 +22,7 @@ from ._spectrum import whitening_factor as whitening_factor
 from .consistency import DEFAULT_CONSISTENCY_WINDOW as DEFAULT_CONSISTENCY_WINDOW
 from .consistency import Consistency as Consistency
 from .consistency import filter_consistency as filter_consistency
+from .consistency import windowed_consistency as windowed_consistency
 from .filter import KalmanFilter as KalmanFilter
 from .observability import ObservabilityReport as ObservabilityReport
 from .observability import SensorSetComparison as SensorSetComparison
@@ -44,6 +45,7 @@ __all__ = [
     "estimation_accuracy",
     "Consistency",
     "filter_consistency",
+    "windowed_consistency",
     "Recovery",
     "recovery_time",
     *_observability_all,

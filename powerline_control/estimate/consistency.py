@@ -24,7 +24,8 @@ from ..errors import (
 )
 from .result import Consistency, Estimate
 
-__all__ = ["Consistency", "filter_consistency", "DEFAULT_CONSISTENCY_WINDOW"]
+__all__ = ["Consistency", "filter_consistency", "windowed_consistency",
+           "DEFAULT_CONSISTENCY_WINDOW"]
 
 # Covariance eigenvalues below this fraction of the largest count as zero in the NEES: a
 # rank-truncated model claims near-certainty in directions it does not model, and the true error
@@ -98,6 +99,52 @@ def _window_sums(values: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarra
     valid = ~np.isnan(block)
     sums = np.where(valid, block, 0.0).sum(axis=1)
     return sums, valid.sum(axis=1), np.arange(n_windows) * window
+
+
+def windowed_consistency(windows: np.ndarray, window: int,
+                         dof_fraction: float = 1.0) -> Consistency | None:
+    """The windowed NIS test of a real-time filter from its closed windows.
+
+    ``windows`` holds one row per consecutive window of ``window`` samples: the NIS summed over
+    its valid samples, the valid samples, and the scalar innovations (sensors summed over the
+    window), as :attr:`KalmanFilter.consistency_windows` gives them. Windows taken from
+    several filters that followed one another (each window from the filter running at its
+    end) are tested as one run. None when no window holds a measurement.
+
+    Parameters
+    ----------
+    windows : array_like, shape (n_windows, 3)
+        NIS sum, valid samples and scalar innovations per window.
+    window : int
+        Samples per window.
+    dof_fraction : float
+        Degrees of freedom per scalar innovation (1 for the plain NIS).
+
+    Returns
+    -------
+    Consistency or None
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> sums = [1000.0, 1010.0, 3000.0]     # 200 samples of 5 sensors each
+    >>> c = windowed_consistency(np.array([[s, 200, 1000] for s in sums]), 200)
+    >>> c.rejected.tolist(), round(c.mean_nis, 2)     # the first window is never tested
+    ([2], 8.35)
+    """
+    windows = np.asarray(windows, dtype=float).reshape(-1, 3)
+    sums, counts, used = windows.T
+    if not counts.sum():
+        return None
+    total, n_valid = float(used.sum()), int(counts.sum())
+    bounds = _chi2_band(total, n_valid)
+    mean = float(sums.sum() / n_valid)
+    return Consistency(
+        mean_nis=mean, nis_dof=total / n_valid, nis_bounds=bounds,
+        nis_consistent=bool(bounds[0] <= mean <= bounds[1]),
+        window_start=read_only(np.arange(sums.size) * window),
+        **_window_test(sums, counts, used, window, dof_fraction),
+    )
 
 
 def _chi2_band(total_dof: float, n_samples: int) -> tuple[float, float]:

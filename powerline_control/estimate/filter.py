@@ -67,9 +67,8 @@ from ._spectrum import check_spectral_arguments
 from .consistency import (
     DEFAULT_CONSISTENCY_WINDOW,
     Consistency,
-    _chi2_band,
-    _window_test,
     filter_consistency,
+    windowed_consistency,
 )
 from .result import Estimate
 
@@ -439,21 +438,18 @@ class KalmanFilter:
         or when the test is off. :meth:`step` itself never warns (it runs inside control
         loops): read ``consistency.consistent`` there.
         """
-        closed = self._running.closed
-        if self._spec.window is None or not closed:
+        if self._spec.window is None or not self._running.closed:
             return None
-        sums, counts, used = (np.array(v, dtype=float) for v in zip(*closed, strict=True))
-        if not counts.sum():
-            return None
-        total, n_valid = float(used.sum()), int(counts.sum())
-        bounds = _chi2_band(total, n_valid)
-        mean = float(sums.sum() / n_valid)
-        return Consistency(
-            mean_nis=mean, nis_dof=total / n_valid, nis_bounds=bounds,
-            nis_consistent=bool(bounds[0] <= mean <= bounds[1]),
-            window_start=read_only(np.arange(sums.size) * self._spec.window),
-            **_window_test(sums, counts, used, self._spec.window, self._dof_fraction),
-        )
+        return windowed_consistency(self.consistency_windows, self._spec.window,
+                                    self._dof_fraction)
+
+    @property
+    def consistency_windows(self) -> np.ndarray:
+        """The closed windows of :attr:`consistency`, ``(n_windows, 3)``: per window the NIS
+        summed over its valid samples, the valid samples and the scalar innovations (what
+        :func:`windowed_consistency` tests; filters that follow one another in a run are
+        tested as one from their windows)."""
+        return read_only(np.array(self._running.closed, dtype=float).reshape(-1, 3))
 
     @property
     def steady_gain(self) -> np.ndarray:
