@@ -281,17 +281,24 @@ def rebuild_estimator(records: Records, told: LineModel, settings: Settings, k: 
     running = records.estimators[-1]
     window = running.kf.consistency_window or 1
     start = max((k + 1 - settings.n_cal) // window * window, 0)
-    matched_on = (start, k + 1) if new_load else running.matched_on
-    span = slice(*matched_on)
-    matched, _, _ = robot_input_filter(told, settings.dt, sensor_positions, node_positions,
-                                       records.measured[:, span], records.position[span],
-                                       records.robot_force[span], noise_std,
-                                       near=process_noise_of(running.kf))
     record = records.measured[:, start : k + 1]
     positions, forces = records.position[start : k + 1], records.robot_force[start : k + 1]
-    kf, model, states = robot_input_filter(told, settings.dt, sensor_positions, node_positions,
-                                           record, positions, forces, noise_std,
-                                           process_noise=process_noise_of(matched))
+    built = {"told": told, "dt": settings.dt, "sensor_positions": sensor_positions,
+             "node_positions": node_positions, "noise_std": noise_std}
+    near = process_noise_of(running.kf)
+    if new_load:
+        matched_on = (start, k + 1)
+        kf, model, states = robot_input_filter(record=record, positions=positions,
+                                               forces=forces, near=near, **built)
+    else:
+        matched_on = running.matched_on
+        span = slice(*matched_on)
+        matched, _, _ = robot_input_filter(record=records.measured[:, span],
+                                           positions=records.position[span],
+                                           forces=records.robot_force[span], near=near, **built)
+        kf, model, states = robot_input_filter(record=record, positions=positions,
+                                               forces=forces,
+                                               process_noise=process_noise_of(matched), **built)
     estimator, _ = _warmed(kf, model.field_map, model.system, model, record, states,
                            model.inputs(positions, forces), first=k, windows_from=start,
                            n_t=records.position.size, matched_on=matched_on)
