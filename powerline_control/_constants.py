@@ -11,3 +11,7 @@ AIR_DENSITY = 1.225
 #: Strouhal number of a stranded conductor: PLP's f = 3.26 V/d (mph, inches) is St = 0.185
 #: (EPRI Orange Book, ch. 3; domain.md 1).
 STROUHAL = 0.185
+#: Least sensor noise a Kalman filter assumes, as a fraction of its record's RMS: noise-free data
+#: (a simulation with ``noise_fraction = 0``) still needs a well-posed Riccati equation. Its
+#: consistency test then measures the model's error against this floor.
+NOISE_FLOOR_FRACTION = 1e-4

@@ -265,3 +265,25 @@ def test_the_estimator_follows_the_line_its_records_tell():
     error = result.estimated_field[unmeasured, half:] - result.displacement[unmeasured, half:]
     assert np.sqrt(np.mean(error**2)) < 0.3 * np.sqrt(np.mean(
         result.displacement[unmeasured, half:] ** 2))   # measured 0.21
+
+
+@pytest.mark.parametrize("near", [None, 1e-1, 10**2.37, 1e5, 1e-14, 1e9])
+def test_the_process_noise_search_finds_the_crossing_from_anywhere(near):
+    """The matching's search on a known crossing (2.37 decades): from the whole range, or
+    stepping from an earlier match below it, at it, above it or outside the range, it lands
+    within 0.03 decade; from an earlier match it needs at most the decades walked plus seven
+    Riccati solutions instead of eleven."""
+    from powerline_control.closed_loop.robot_input import MATCHING_RANGE, _matched_decades
+
+    asked = []
+
+    def too_little(decades):
+        asked.append(decades)
+        return decades < 2.37
+
+    found = _matched_decades(too_little, near)
+    assert abs(found - 2.37) <= 0.03
+    assert all(MATCHING_RANGE[0] - 1 <= x <= MATCHING_RANGE[1] + 1 for x in asked)
+    if near is not None:
+        start = min(max(np.log10(near), MATCHING_RANGE[0]), MATCHING_RANGE[1])
+        assert len(asked) <= np.ceil(abs(start - 2.37)) + 7

@@ -463,7 +463,7 @@ def test_consistency_row_names_the_robot_as_the_cause_only_when_the_model_fits_p
         run = SimpleNamespace(estimator_consistency=test, t=np.arange(1000) * 0.01,
                               calibration_time=3.0, settled_window=(7.0, 9.99),
                               robot_position=position)
-        return _consistency_text(run)
+        return _consistency_text(run, noise_fraction=0.01)
 
     blamed = "the robot damps the line differently elsewhere"
     assert blamed in row([8, 9], moved=True)
@@ -472,3 +472,24 @@ def test_consistency_row_names_the_robot_as_the_cause_only_when_the_model_fits_p
     assert blamed not in row([1, 2, 8, 9], moved=True)   # both parked above: the model
     assert blamed not in row([8, 9], moved=False)        # the robot never moved
     assert blamed not in row([], moved=True)
+
+
+def test_consistency_row_says_when_the_estimator_was_rebuilt_and_the_sensors_are_noiseless():
+    """The row names each rebuild of the robot_input estimator with its time and reason, and a
+    noiseless record's assumed noise floor (the test then weighs the model's error)."""
+    from types import SimpleNamespace
+
+    from powerline_control.scenario.summary import _consistency_text
+
+    test = SimpleNamespace(window=100, window_start=np.arange(10) * 100,
+                           tested=np.arange(10) > 0, rejected=np.zeros(0, dtype=int),
+                           above=np.zeros(10, dtype=bool), consistent=True)
+    run = SimpleNamespace(estimator_consistency=test, t=np.arange(1000) * 0.01,
+                          calibration_time=3.0, settled_window=(7.0, 9.99),
+                          robot_position=np.full(1000, 1.2), estimator="robot_input",
+                          estimator_updates=((3.5, "line"), (6.25, "tone")))
+    text = _consistency_text(run, noise_fraction=0.0)
+    assert "rebuilt at 3.5 s (on the calibrated line)" in text
+    assert "rebuilt at 6.25 s (at the load's new tone)" in text
+    assert "noiseless" in text and "0.0001 of its record's RMS" in text
+    assert "noiseless" not in _consistency_text(run, noise_fraction=0.01)

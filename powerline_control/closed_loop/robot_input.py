@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import control as ct
 import numpy as np
 
+from .._constants import NOISE_FLOOR_FRACTION
 from .._spectral import dominant_frequency
 from ..errors import EstimationError, EstimatorInconsistentWarning
 from ..estimate import KalmanFilter
@@ -37,10 +38,8 @@ LOAD_MEMORY = 5.0
 #: steps of its bisection (0.02 decade).
 MATCHING_RANGE = (-12.0, 6.0)
 MATCHING_STEPS = 11
-#: Decades around an earlier match that a new one searches first, and its steps (0.03 decade):
-#: a line believed better leaves less model error to match, a new load may be stronger.
-NEAR_RANGE = (-3.0, 1.0)
-NEAR_STEPS = 7
+#: Bisection steps within the decade found by stepping from an earlier match (0.03 decade).
+NEAR_STEPS = 5
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,8 +116,8 @@ def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positi
     robot's own record of its position (m) and its force on the line (N).
     ``process_noise``: the load's process noise over the sensors' noise variance, instead of
     matching it on the record (:func:`process_noise_of` reads it from a filter). ``near``: one
-    matched before on the same sensors, around which the matching searches first
-    (:data:`NEAR_RANGE`; the whole range only when the match lies outside).
+    matched before on the same sensors, from which the matching searches
+    (:func:`_matched_decades`).
     """
     if told.damping is None:
         # A real line always has self-damping, and the filter needs every mode stable: an
@@ -130,7 +129,8 @@ def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positi
     n, r, p = model.system.nstates, model.plant.r, len(sensor_positions)
     shape = np.zeros((n, n))
     shape[2 * r :, 2 * r :] = np.eye(2 * r)
-    noise = max(noise_std, 1e-12 * float(np.max(np.abs(record))), 1e-300) ** 2
+    rms = float(np.sqrt(np.mean(record**2)))
+    noise = max(noise_std, NOISE_FLOOR_FRACTION * rms, 1e-300) ** 2
     u = model.inputs(np.r_[positions[0], positions], np.r_[forces[0], forces])
     head = record.shape[1] // 4
 
@@ -149,21 +149,40 @@ def robot_input_filter(told: LineModel, dt: float, sensor_positions, node_positi
 
     scale = process_noise
     if scale is None:
-        search, steps = MATCHING_RANGE, MATCHING_STEPS
-        if near is not None:
-            search = (math.log10(near) + NEAR_RANGE[0], math.log10(near) + NEAR_RANGE[1])
-            steps = NEAR_STEPS
-        lo, hi = search
-        for _ in range(steps):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if mean_nis(noise * 10.0**mid) > p else (lo, mid)
-        if near is not None and (lo == search[0] or hi == search[1]):   # outside: all of it
-            return robot_input_filter(told, dt, sensor_positions, node_positions, record,
-                                      positions, forces, noise_std)
-        scale = 10.0 ** (0.5 * (lo + hi))
+        def too_little(decades: float) -> bool:
+            return mean_nis(noise * 10.0**decades) > p
+
+        scale = 10.0 ** _matched_decades(too_little, near)
     kf = build(noise * scale)
     states = np.asarray(kf.filter(record, u, update_state=True).states)
     return kf, model, states
+
+
+def _matched_decades(too_little, near: float | None) -> float:
+    """The process noise's decades (over the sensors' noise variance) at which the mean NIS
+    crosses the number of sensors, ``too_little(decades)`` telling the side. Without ``near``
+    a bisection of :data:`MATCHING_RANGE`; from an earlier match ``near``, whole decades up or
+    down until the side changes (a line believed better leaves less model error to match, a new
+    load may be decades stronger), then a bisection of that decade: a few Riccati solutions
+    instead of eleven."""
+    bottom, top = MATCHING_RANGE
+    if near is None:
+        lo, hi, steps = bottom, top, MATCHING_STEPS
+    else:
+        start = min(max(math.log10(near), bottom), top)
+        if too_little(start):
+            lo, hi = start, start + 1.0
+            while hi < top and too_little(hi):
+                lo, hi = hi, hi + 1.0
+        else:
+            lo, hi = start - 1.0, start
+            while lo > bottom and not too_little(lo):
+                lo, hi = lo - 1.0, lo
+        steps = NEAR_STEPS
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if too_little(mid) else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 def process_noise_of(kf: KalmanFilter) -> float:

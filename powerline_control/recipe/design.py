@@ -34,6 +34,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .._constants import NOISE_FLOOR_FRACTION
 from .._spectral import line_occupancy
 from .._validation import (
     check_array,
@@ -420,7 +421,7 @@ def _prepare(snapshots, n_sensors, *, dt, delays, rank, spatial_rank, noise_std,
     rms = float(np.sqrt(np.mean(X**2)))
     data_noise = noise  # what the held-out measurements actually carry
     q_floor = _Q_FLOOR_FRACTION * rms**2
-    noise = max(noise, 1e-4 * rms)  # noise-free data still needs a well-posed Riccati equation
+    noise = max(noise, NOISE_FLOOR_FRACTION * rms)
     _warn_noise_mismatch(others_noise, data_noise, source)
 
     # 3. Candidates: every node that moves; a provisional layout for the alpha sweep.

@@ -20,6 +20,7 @@ import functools
 import math
 from pathlib import Path
 
+from .._constants import NOISE_FLOOR_FRACTION
 from .summary_format import _figure, _plotting, mm, percent, positions_text
 from .summary_truth import calibration_rows, truth_rows
 
@@ -491,10 +492,15 @@ def consistency_by_phase(result) -> dict:
             for name in ("calibration", "moving", "settled")}
 
 
-def _consistency_text(result) -> str:
+def _consistency_text(result, noise_fraction: float) -> str:
     test = result.estimator_consistency
     if test is None:
         return "no complete window"
+    updates = "".join(f"; the estimator rebuilt at {when:.3g} s ({_REBUILT[why]})"
+                      for when, why in getattr(result, "estimator_updates", ()))
+    noiseless = ("; the sensors are noiseless (simulation.noise_fraction = 0): the filter "
+                 f"assumes a noise of {NOISE_FLOOR_FRACTION:g} of its record's RMS, and the "
+                 "test weighs the model's error against that" if noise_fraction == 0 else "")
     phases = {name: counts for name, counts in consistency_by_phase(result).items() if counts[2]}
     above = ", ".join(f"{name} {n_above} of {n}" for name, (n_above, _, n) in phases.items())
     below = ", ".join(f"{name} {n_below} of {n}" for name, (_, n_below, n) in phases.items())
@@ -517,7 +523,26 @@ def _consistency_text(result) -> str:
     return (("consistent" if test.consistent else "INCONSISTENT")
             + f" over the run (windowed NIS); windows above their bound (larger innovations "
             f"than the model predicts): {above}; below it (the filter pessimistic): {below}"
-            + cause)
+            + cause + updates + noiseless)
+
+
+#: Why the closed loop's estimator was rebuilt (``ClosedLoopResult.estimator_updates``), in words.
+_REBUILT = {"line": "on the calibrated line", "tone": "at the load's new tone"}
+
+
+def _consistency_note(result) -> str:
+    """What the estimator's consistency test says, for the estimator the run used."""
+    if getattr(result, "estimator", "recipe") == "robot_input":
+        return ("The filter's model is the line the controller believes, with the robot's "
+                "measured force as an input wherever it is, and is rebuilt when the belief or "
+                "the load's tone moves: windows above their bound say the line or its load "
+                "changed in a way the model does not follow (for a while after a wind change, "
+                "as expected). The robot's targeting does not use that estimate.")
+    return ("The filter's model was identified with the robot parked at its start: windows "
+            "above their bound there say the model does not fit the line; after the robot "
+            "moved they may also say that it changed the line (it damps it differently at "
+            "every position), and are expected while it moves. The robot's targeting does not "
+            "use that estimate.")
 
 
 def _closed_loop_section(r) -> dict:
@@ -556,11 +581,9 @@ def _closed_loop_section(r) -> dict:
          "the same with the robot where the closed loop left it (> 1: moving helps)."),
         ("decisions", "; ".join(f"{t:.3g} s: {what}" for t, what in result.decisions)
          or "none", "What the robot decided, and when."),
-        ("estimator consistency", _consistency_text(result),
-         "The filter's model was identified with the robot parked at its start: windows above "
-         "their bound there say the model does not fit the line; after the robot moved they "
-         "may also say that it changed the line (it damps it differently at every position), "
-         "and are expected while it moves. The robot's targeting does not use that estimate."),
+        ("estimator consistency",
+         _consistency_text(result, r.scenario.simulation.noise_fraction),
+         _consistency_note(result)),
         ("planner steps", f"{len(result.statuses)} ({result.statuses.count('safe_stop')} "
          "safe stops)", _steps_note(result)),
         ("real-time factor", f"{float(result.real_time_factor):.2f}",
