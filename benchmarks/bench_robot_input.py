@@ -27,7 +27,7 @@ import numpy as np  # noqa: E402
 
 SAMPLES = 2000
 PACKET = 10
-REPEATS = 5
+REPEATS = 9
 
 
 def captured(scenario, estimator):
@@ -36,27 +36,33 @@ def captured(scenario, estimator):
     return kept["calibration"], kept["records"]
 
 
-def per_sample(calibration, records):
-    """Median seconds per sample of step and of step_block on the run's record after its
-    calibration window."""
+def _timed(calibration, records):
+    """One timing of step and of step_block per sample on the run's record after its
+    calibration window: (step s, step_block s, states)."""
     kf, model = calibration.estimator.kf, calibration.estimator.input_model
     n_cal = calibration.record.shape[1]
     y = records.measured[:, n_cal : n_cal + SAMPLES]
     u = (None if model is None else
          model.inputs(records.position[n_cal - 1 : n_cal + SAMPLES],
                       records.robot_force[n_cal - 1 : n_cal + SAMPLES]))
-    steps, blocks = [], []
-    for _ in range(REPEATS):
-        start = time.perf_counter()
-        for k in range(y.shape[1]):
-            kf.step(y[:, k]) if u is None else kf.step(y[:, k], u[:, k])
-        steps.append((time.perf_counter() - start) / y.shape[1])
-        start = time.perf_counter()
-        for k in range(0, y.shape[1], PACKET):
-            block = slice(k, k + PACKET)
-            kf.step_block(y[:, block]) if u is None else kf.step_block(y[:, block], u[:, block])
-        blocks.append((time.perf_counter() - start) / y.shape[1])
-    return float(np.median(steps)), float(np.median(blocks)), kf.n_states
+    start = time.perf_counter()
+    for k in range(y.shape[1]):
+        kf.step(y[:, k]) if u is None else kf.step(y[:, k], u[:, k])
+    step = (time.perf_counter() - start) / y.shape[1]
+    start = time.perf_counter()
+    for k in range(0, y.shape[1], PACKET):
+        block = slice(k, k + PACKET)
+        kf.step_block(y[:, block]) if u is None else kf.step_block(y[:, block], u[:, block])
+    return step, (time.perf_counter() - start) / y.shape[1], kf.n_states
+
+
+def per_sample(*runs):
+    """Median seconds per sample of step and of step_block for each run's filter, the runs
+    timed in turn within each repeat (a shared machine's load drifts between repeats)."""
+    timings = [[_timed(*run) for run in runs] for _ in range(REPEATS)]
+    return [(float(np.median([t[i][0] for t in timings])),
+             float(np.median([t[i][1] for t in timings])), timings[0][i][2])
+            for i in range(len(runs))]
 
 
 def main(seeds):
@@ -65,8 +71,8 @@ def main(seeds):
           f"{'block us':>15s} {'ratio':>6s}")
     for seed in seeds:
         scenario = fam.scenario(seed)
-        today = per_sample(*captured(scenario, "recipe"))
-        robot = per_sample(*captured(scenario, "robot_input"))
+        today, robot = per_sample(captured(scenario, "recipe"),
+                                  captured(scenario, "robot_input"))
         print(f"{scenario.description[:58]:58s} {today[2]:7d} {robot[2]:7d} "
               f"{1e6 * today[0]:6.1f} -> {1e6 * robot[0]:6.1f} {robot[0] / today[0]:6.2f} "
               f"{1e6 * today[1]:6.1f} -> {1e6 * robot[1]:6.1f} {robot[1] / today[1]:6.2f}")

@@ -413,13 +413,17 @@ class _Recursion:
         closed loop ``x[k] = F x[k-1] + K y[k] + (I - K C) B u[k-1] - K D u[k]`` with
         ``F = (I - K C) A`` (the batch form of :func:`_build_batch`, stepped
         here, not diagonalised): one product per sample, the drives of the block and its
-        innovations in one product each; equal to :meth:`advance` per sample to round-off.
+        innovations (``C A x[k-1] + C B u[k-1]``) in one product each; equal to
+        :meth:`advance` per sample to round-off.
         """
         spec = self.spec
         if self.closed_loop is None:
             i_kc = np.eye(spec.n) - self.gain_ss @ spec.C
-            self.closed_loop = (i_kc @ spec.A, i_kc @ spec.B if spec.m else None)
-        closed, input_map = self.closed_loop
+            # the one-step predictions of the outputs straight from the states: C A is p x n,
+            # a block's (A x) would cost n x n per sample
+            self.closed_loop = (i_kc @ spec.A, i_kc @ spec.B if spec.m else None,
+                                spec.C @ spec.A, spec.C @ spec.B if spec.m else None)
+        closed, input_map, predict_output, predict_input = self.closed_loop
         n_t = y.shape[1]
         drive = self.gain_ss @ y
         previous = np.empty((spec.n, n_t))      # x[k-1] per column
@@ -432,12 +436,9 @@ class _Recursion:
             previous[:, k] = x
             x = closed @ x + drive[:, k]
             states[:, k] = x
-        predicted = spec.A @ previous
+        innovations = y - predict_output @ previous
         if spec.m:
-            predicted += spec.B @ u_prev
-        innovations = y - (predicted[spec.sel] if spec.sel is not None else spec.C @ predicted)
-        if spec.m:
-            innovations -= spec.D @ u
+            innovations -= predict_input @ u_prev + spec.D @ u
         self.x, self.P, self.k = x, self.posterior_ss, self.k + n_t
         if n_t:
             self.u_prev = u[:, -1]
