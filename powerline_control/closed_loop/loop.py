@@ -506,8 +506,11 @@ def run_closed_loop(
         the bare line's modes (of the span the controller is told) with the robot's measured
         force on the line (its absorber's force and its body's inertia) as a known input at its
         current position, and the load as one oscillator per mode at the tone the sensors
-        measured (docs/closed_loop.md, "The robot in the estimator's model"). Either way
-        ``ClosedLoopResult.estimator_consistency`` tests it over the whole run.
+        measured, rebuilt when a calibration moves the belief beyond twice its uncertainty
+        from the estimator's line or the load's tone changes
+        (``ClosedLoopResult.estimator_updates``; docs/closed_loop.md, "The robot in the
+        estimator's model"). Either way ``ClosedLoopResult.estimator_consistency`` tests it
+        over the whole run.
 
     Returns
     -------

@@ -11,6 +11,8 @@ as a known input through the modes' shapes at its position, ``B n(x_r) f``. The 
 ``n(x_r) f``, so the Kalman filter's gain converges as it does for a fixed model and a step costs
 one extra matrix-vector product. docs/validation/closed_loop.md measures it against the recipe's
 estimator while parked, moving and settled.
+
+Test seam: ``_matched_decades``, the process noise's search, checked on a known crossing.
 """
 
 from __future__ import annotations
