@@ -174,7 +174,7 @@ class Estimator:
     first: int
     windows_from: int
     states: np.ndarray          # (n_t - first, n_states)
-    matched_on: tuple = (0, 0)
+    matched_on: tuple = (0, 0)  # (start, stop) samples
 
 
 def robot_force(plant: ModalPlant, states: np.ndarray, modal_force: np.ndarray,
@@ -229,15 +229,15 @@ def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng, *,
         )
         input_model = None
         states = np.asarray(kf.filter(record[sensor_list], update_state=True).states)
-    first, innovation_power = _warmed(kf, field_map, system, input_model, record[sensor_list],
-                                      states, driven, first=0, windows_from=0,
-                                      n_t=line.t.size, matched_on=(0, n_cal))
+    warmed, innovation_power = _warmed(kf, field_map, system, input_model, record[sensor_list],
+                                       states, driven, first=0, windows_from=0,
+                                       n_t=line.t.size, matched_on=(0, n_cal))
     robot_record = start_states[:n_cal, : line.plant.r] @ line.plant.coupling(robot.position) + (
         noise_std * rng.standard_normal(n_cal)
     )
     return Calibration(
         start_states=start_states, noise_std=noise_std, record=record,
-        robot_record=robot_record, estimator=first, innovation_power=innovation_power,
+        robot_record=robot_record, estimator=warmed, innovation_power=innovation_power,
         robot_force=forces, force_noise=force_noise,
     )
 
@@ -387,7 +387,7 @@ class Records:
     decisions: list = field(default_factory=list)       # (time, what the policy decided)
     misfits: list = field(default_factory=list)   # (time, position, measured vs predicted)
     contradictions: list = field(default_factory=list)  # (time, what the policy did about it)
-    estimator_updates: list = field(default_factory=list)  # times the estimator was rebuilt
+    estimator_updates: list = field(default_factory=list)  # (time, why) of each rebuild
     expected: tuple | None = None   # (goal, tone, the sensors' phasors predicted there)
 
     @classmethod
