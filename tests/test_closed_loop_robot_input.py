@@ -225,7 +225,8 @@ def test_the_run_consistency_takes_each_window_from_the_filter_running_at_its_en
     second.filter(y[:, 400:651], update_state=True)
     second.step_block(y[:, 651:])
     estimators = [Estimator(kf=kf, field_map=np.eye(2), predict_sensors=np.eye(2),
-                            input_model=None, innovation_rms=1.0, first=start, windows_from=warm,
+                            input_model=None, predict_inputs=None, innovation_rms=1.0,
+                            first=start, windows_from=warm,
                             states=np.zeros((n_t - start, 2)))
                   for kf, start, warm in ((first, 0, 0), (second, 650, 400))]
     c = run_consistency(estimators)

@@ -170,6 +170,7 @@ class Estimator:
     field_map: np.ndarray       # its states -> nodal displacements
     predict_sensors: np.ndarray  # one-step sensor predictor C A (the innovation check)
     input_model: RobotInputModel | None   # the robot's force as an input, or None
+    predict_inputs: np.ndarray | None     # C B of the input model (None without one)
     innovation_rms: float       # RMS one-step error of the sensors over its own record
     first: int
     windows_from: int
@@ -253,15 +254,16 @@ def _warmed(kf: KalmanFilter, field_map: np.ndarray, system, input_model, record
     warm = np.ascontiguousarray(states.T)   # C order, as the run's state history
     c = np.asarray(system.C)
     predict_sensors = c @ np.asarray(system.A)
+    predict_inputs = None if driven is None else c @ np.asarray(system.B)
     innovation = record[:, 2:] - predict_sensors @ warm[1 : n - 1].T
     if driven is not None:
-        innovation -= (c @ np.asarray(system.B)) @ driven[:, : n - 2]
+        innovation -= predict_inputs @ driven[:, : n - 2]
     power = np.zeros(n)
     power[2:] = np.mean(innovation**2, axis=0)
     history = np.empty((n_t - first, warm.shape[1]))
     history[: windows_from + n - first] = warm[first - windows_from :]
     return Estimator(kf=kf, field_map=field_map, predict_sensors=predict_sensors,
-                     input_model=input_model,
+                     input_model=input_model, predict_inputs=predict_inputs,
                      innovation_rms=float(np.sqrt(np.mean(innovation**2))), first=first,
                      windows_from=windows_from, states=history, matched_on=matched_on), power
 
@@ -500,8 +502,7 @@ def _kalman_steps(records: Records, y_block: np.ndarray, j: int, block_end: int)
         inputs = model.inputs(records.position[j - 1 : block_end + 1],
                               records.robot_force[j - 1 : block_end + 1])
         history[rows] = estimator.kf.step_block(y_block.T, inputs[:, 1:]).T
-        input_rows = np.asarray(model.system.C) @ np.asarray(model.system.B)
         predicted = (history[j - estimator.first : block_end - estimator.first]
                      @ estimator.predict_sensors.T
-                     + inputs[:, :-1].T @ input_rows.T)   # samples j..block_end - 1
+                     + inputs[:, :-1].T @ estimator.predict_inputs.T)   # samples j..block_end - 1
     records.innovation_power[j + 1 : block_end + 1] = np.mean((y_block - predicted) ** 2, axis=1)
