@@ -1,12 +1,14 @@
 """Benchmark: the closed loop judged on a family of scenarios nobody tuned for (issue 18).
 
 Run: python benchmarks/bench_closed_loop_family.py [--split tune] [--quick] [--n N]
-     [--seeds 1,3,5] [--json rows.json] [--workers 2] [--off-nominal [--no-calibration]]
+     [--seeds 1,3,5] [--json rows.json] [--workers 2]
+     [--off-nominal [--no-calibration | --told-truth]]
 
 ``--off-nominal`` runs each scenario with the line off what the controller is told
 (``closed_loop_family.off_nominal``: tension +-10 %, EI x0.7-1.3, damping x0.3-3, mass +-2 %),
 the controller calibrating its span from its records (``--no-calibration``: predicting with the
-nominal as told).
+nominal as told; ``--told-truth``: told the true line itself, so the two controllers face the
+same lines and the difference is what not knowing the line costs).
 
 The scenarios and the judge are ``tests/closed_loop_family.py`` (even seeds: the tuning split,
 odd seeds: held out). Each scenario runs ``run_closed_loop`` in a worker of a
@@ -61,12 +63,16 @@ def main() -> None:
                         help="the truth off the nominal the controller is told")
     parser.add_argument("--no-calibration", action="store_true",
                         help="with --off-nominal: the controller predicts with the nominal")
+    parser.add_argument("--told-truth", action="store_true",
+                        help="with --off-nominal: the controller is told the true line")
     options = parser.parse_args()
     print(_common.PINNED)
     options.version = _common.code_version()
     print(f"code: {options.version} (started {time.strftime('%H:%M:%S')})")
     seeds = _seeds(options)
     mode = ("truth off the nominal, " + ("nominal as told" if options.no_calibration
+                                         else "controller told the true line"
+                                         if options.told_truth
                                          else "calibrated from the records")
             if options.off_nominal else "controller told the truth")
     print(f"split {options.split}: {len(seeds)} scenarios ({mode}), seeds {seeds}", flush=True)
@@ -74,7 +80,8 @@ def main() -> None:
     wall = time.perf_counter()
     with ProcessPoolExecutor(options.workers) as pool:
         futures = {pool.submit(fam.run_seed, seed, options.off_nominal,
-                               not options.no_calibration): seed for seed in seeds}
+                               not options.no_calibration, options.told_truth): seed
+                   for seed in seeds}
         for future in as_completed(futures):
             seed = futures[future]
             try:

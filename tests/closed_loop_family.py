@@ -682,10 +682,12 @@ def pin_threads() -> None:
     _THREAD_LIMIT.append(threadpool_limits(limits=1))
 
 
-def run_seed(seed: int, truth_off_nominal: bool = False, calibrate: bool = True) -> Outcome:
+def run_seed(seed: int, truth_off_nominal: bool = False, calibrate: bool = True,
+             told_truth: bool = False) -> Outcome:
     """Build scenario ``seed`` (:func:`off_nominal` with ``truth_off_nominal``, the controller
-    calibrating its span from the records unless ``calibrate`` is False) and run it (for
-    process pools: only an int crosses over)."""
+    calibrating its span from the records unless ``calibrate`` is False, or told that true line
+    with ``told_truth``: the same line, what knowing it is worth) and run it (for process
+    pools: only an int crosses over)."""
     from threadpoolctl import threadpool_limits
 
     try:
@@ -693,6 +695,8 @@ def run_seed(seed: int, truth_off_nominal: bool = False, calibrate: bool = True)
             sc = off_nominal(seed) if truth_off_nominal else scenario(seed)
             if not calibrate:
                 sc = dataclasses.replace(sc, calibrate=False)
+            if told_truth:
+                sc = dataclasses.replace(sc, nominal=None)
     except Exception as exc:  # noqa: BLE001
         nan = float("nan")
         return Outcome(seed=seed, split=split_of(seed),

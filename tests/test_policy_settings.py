@@ -115,6 +115,32 @@ def test_targeting_moves_from_first_target_through_confirming_to_final():
     assert targeting.due(9.0, True, 1.0, 1.0, 0.0) == (False, False)  # final: nothing is due
 
 
+def _small_gain(position, gain):
+    """A choice predicted ``gain`` lower at ``position`` than where the robot is."""
+    return policy.Choice(position, np.array([position]), np.array([1e-4]), 1e-4 / (1 - gain))
+
+
+def test_a_hold_is_confirmed_on_a_window_recorded_after_it():
+    targeting = Targeting()                                   # min_gain 5 %, refine_gain 1 %
+    targeting.update_clocks(0.0, True, 24.0, 0.05)            # parked, still from the start
+    note = targeting.accept(_small_gain(1.25, 0.03), 1.2, 1.0, 24.0, True, (0.0, 0.0))
+    assert note.startswith("hold at 1.2")
+    targeting.decided_at = 5.0                                # the hold was decided at 5 s
+    # the robot has been still for 5 s, but the window that decided the hold would only decide
+    # it again, by the refinement's smaller bar: the confirmation waits for a new window
+    assert targeting.due(5.05, True, 1.0, 1.0, 0.0) == (False, False)
+    assert targeting.due(6.0, True, 1.0, 1.0, 0.0) == (False, True)
+
+
+def test_a_refinement_pays_refine_gain():
+    targeting = Targeting()
+    targeting.accept(_choice(0.5), 1.2, 1.0, 24.0, True)      # moved to 0.5 m
+    assert targeting.accept(_small_gain(0.55, 0.03), 0.5, 1.0, 24.0, False).startswith(
+        "confirm 0.55")
+    assert targeting.accept(_small_gain(0.56, 0.005), 0.55, 1.0, 24.0, False).startswith(
+        "confirm 0.55 m (the refinement")
+
+
 def test_a_confirmation_elsewhere_tries_another_loop_until_max_choices():
     targeting = Targeting(settings=plc.PolicySettings(max_choices=2))
     targeting.accept(_choice(0.5), 1.2, 1.0, 24.0, True)

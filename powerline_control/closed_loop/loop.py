@@ -221,6 +221,7 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
         decision = targeting.accept(choice, motion.position, belief.loop_length(tone), watched,
                                     retarget, excitation)
     records.decisions.append((float(t[k]), decision))
+    targeting.decided_at = float(t[k])
     # what the sensors should measure once the robot has settled at its goal: the next decision
     # checks the belief against it (:func:`_check_prediction`)
     at_goal, at_here = (predicted_sensors(shape, belief.plant, robot, 2 * np.pi * tone,

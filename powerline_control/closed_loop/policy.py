@@ -401,6 +401,7 @@ class Targeting:
     excitation_seen: float = 0.0        # ... and when it was seen (at the latest)
     still_since: float | None = None    # since when the robot is still at its steer point
     last_moving: float = 0.0            # when it was last seen moving (0: parked from the start)
+    decided_at: float = -np.inf         # when the last decision was made
     choices: int = 0                    # loops tried for this excitation
     reference_power: float = np.nan     # what the sensors measured before this excitation's move
     reference_position: float = np.nan  # ... and where the robot was then
@@ -440,19 +441,23 @@ class Targeting:
         """(retarget, confirm): a first target or a wind change held for a window (at least
         ``settings.min_change_hold`` s) with the robot still; else, while confirming, a
         confirmation once the robot has been still for a window (and for
-        ``settings.confirm_resolve`` of ``resolve``, the record that resolves the tone, s)."""
+        ``settings.confirm_resolve`` of ``resolve``, the record that resolves the tone, s),
+        counted from the last decision (``decided_at``) if that came later."""
         policy = self.settings
         retarget = self.phase is Phase.FIRST_TARGET or (
             self.pending_since is not None
             and now - self.pending_since >= max(window_time, policy.min_change_hold)
             and robot_still
         )
+        # A confirmation reads a window recorded after the decision it confirms: after a hold
+        # (the robot never moved) the window that decided it would only decide again, with the
+        # refinement's smaller bar in place of the hold's.
         confirm = (
             not retarget
             and self.phase is Phase.CONFIRMING
             and self.still_since is not None
-            and now - self.still_since >= max(window_time, settle_margin,
-                                              policy.confirm_resolve * resolve)
+            and now - max(self.still_since, self.decided_at) >= max(
+                window_time, settle_margin, policy.confirm_resolve * resolve)
         )
         return retarget, confirm
 

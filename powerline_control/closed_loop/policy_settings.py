@@ -71,7 +71,8 @@ class PolicySettings:
     refine_gain : float
         0.01. A refinement inside the anchor's loop must be predicted to gain at least this: near
         a minimum the RMS is flat and a small move only restarts the settling
-        (closed_loop.md, "On a family nobody tuned for").
+        (closed_loop.md, "On a family nobody tuned for"). After a hold it is decided on a
+        window recorded after the hold.
     same_loop : float
         0.25 loop. A confirmation's choice within this many loop lengths of the anchor is the
         same minimum, better estimated (it refines); farther, it is another loop
