@@ -17,7 +17,12 @@ import numpy as np
 from .._spectral import dominant_frequency, fit_phasors
 from .._threads import on_one_blas_thread
 from .._validation import check_bool, check_choice, check_rng, checked_keywords, read_only
-from ..errors import BeliefContradictedWarning, ReachWarning, ShortfallWarning
+from ..errors import (
+    BeliefContradictedWarning,
+    ReachWarning,
+    ShortfallWarning,
+    TruncationWarning,
+)
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
@@ -55,6 +60,7 @@ from .simulated import (
     run_estimate,
 )
 from .simulated import calibrate as calibrate_estimator  # 'calibrate' is the span's option
+from .wind import checked_wind
 
 #: Standard deviations of the calibrated tension by which the belief must differ from the
 #: estimator's line before the estimator is rebuilt on it (:func:`_estimator_stale`).
@@ -343,6 +349,20 @@ def _move_robot(motion: Motion, records: Records, t: np.ndarray, k: int, end: in
     records.target[k + 1 : end + 1] = motion.goal
 
 
+def _warn_unsettled(result: ClosedLoopResult, duration: float) -> None:
+    """TruncationWarning when a placement's vibration in the self-limiting wind still changes
+    by more than 10 % between the settled window's halves (``Comparison.transient``)."""
+    ringing = [c.name for c in result.comparisons if c.transient]
+    if ringing:
+        start, end = result.settled_window
+        warnings.warn(
+            f"The 'duration' {duration:g} s is too short for the line to settle in the "
+            f"self-limiting wind: over the settled window {start:.4g}-{end:.4g} s the vibration "
+            f"of {ringing} changes by more than 10 % between its halves. Lengthen 'duration' "
+            f"(e.g. to {2 * duration:g} s) so that the window starts after the amplitude has "
+            "settled.", TruncationWarning, stacklevel=3)
+
+
 # Thousands of small products per simulated second: one BLAS thread is several times faster than
 # two contending ones. The limit applies inside this call only.
 @checked_keywords
@@ -380,6 +400,7 @@ def run_closed_loop(
     settings: PolicySettings | None = None,
     aeolian_steady: bool | Mapping = False,
     estimator: str = "recipe",
+    wind: str | Mapping = "fixed_lift",
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
 
@@ -511,6 +532,18 @@ def run_closed_loop(
         (``ClosedLoopResult.estimator_updates``; docs/closed_loop.md, "The robot in the
         estimator's model"). Either way ``ClosedLoopResult.estimator_consistency`` tests it
         over the whole run.
+    wind : {"fixed_lift", "self_limiting"} or mapping
+        What an :class:`~powerline_control.excitation.AeolianForce` does to the simulated line.
+        "fixed_lift" (default): a lift of fixed amplitude on the line's own damping. "self_limiting":
+        the energy balance's physics (:mod:`.wind`): the wind's power from the power curve at
+        the locked mode's current amplitude as a negative modal damping on that mode, and the
+        conductor's self-damping on every mode at its own amplitude (the line's own damping is
+        not used), recomputed at every plant block by the functions
+        :func:`~powerline_control.severity.simulate_aeolian` calls; the line starts vibrating
+        at the energy balance's amplitude without the robot. A mapping does the same with the
+        physics' options (``wind_curve``, ``turbulence_intensity``, ``self_damping``,
+        ``self_damping_k``, ``self_damping_exponents``). The comparisons are then over the
+        settled window (no exact steady state of a sine); the controller is given nothing new.
 
     Returns
     -------
@@ -540,6 +573,10 @@ def run_closed_loop(
         When the run ends worse than the robot parked at its start or than a fixed damper near
         the clamp, under its load or, with ``aeolian_steady``, in the self-limiting wind
         (``ClosedLoopResult.shortfalls``).
+    TruncationWarning
+        When the mesh does not resolve a load's frequency, or (``wind="self_limiting"``) when a
+        placement's vibration still changes by more than 10 % between the settled window's
+        halves: the run is too short to settle.
 
     Examples
     --------
@@ -570,6 +607,7 @@ def run_closed_loop(
     estimator = check_choice("estimator", estimator, ESTIMATORS)
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
+    wind_options = checked_wind(wind, segments, settings.bare)
     steady_options = checked_options(aeolian_steady, segments[-1][1])
     if steady_options is not None:   # refused now, not after the run
         precheck(settings.bare, segments[-1][1][0], steady_options)
@@ -577,7 +615,7 @@ def run_closed_loop(
     # ---- the line, its loads, and the estimator calibrated with the robot parked at its start
     setup_start, setup_cpu = time.perf_counter(), time.process_time()
     line = build_line(robot, segments, settings, sensors, n_modes=n_modes,
-                      clamp_distance=clamp_distance)
+                      clamp_distance=clamp_distance, wind=wind_options)
     calibrated = calibrate_estimator(line, robot, settings, rng,
                                      estimator=estimator,
                                      told=told if isinstance(told, LineModel) else None)
@@ -660,6 +698,8 @@ def run_closed_loop(
                                            float(records.position[-1]),
                                            clamp_distance=line.clamp_distance, **steady_options)
         timings["aeolian steady cpu"] = time.process_time() - steady_cpu
+    if line.wind is not None:   # the self-limiting wind's exponentials, every run of the call
+        timings["damping rebuilds"] = line.wind.held.rebuilds + line.wind.free_held.rebuilds
     timings["calibration cpu"] = beliefs.cpu
     timings["call cpu"] = time.process_time() - call_cpu
     result = ClosedLoopResult(
@@ -702,7 +742,10 @@ def run_closed_loop(
         policy=policy,
         aeolian_steady=steady_wind,
         estimator=estimator,
+        wind="fixed_lift" if wind_options is None else "self_limiting",
     )
+    if wind_options is not None:
+        _warn_unsettled(result, settings.duration)
     for when, text in result.contradictions:
         warnings.warn(f"The robot's measurements contradict its belief at {when:.4g} s: {text}.",
                       BeliefContradictedWarning, stacklevel=3)
