@@ -1,4 +1,4 @@
-"""Benchmark: the closed loop in the aeolian wind: the fixed lift, the judgement, the self-limiting plant.
+"""Benchmark: the closed loop in the aeolian wind: the fixed lift, the judgement, the wind's plant.
 
 Per real span in a 3 m/s wind (the drake-300m scenario's robot, a 30 s run, dt = 2 ms, the
 default physics mesh), ``run_closed_loop`` twice, alternately, in one process:

@@ -8,6 +8,7 @@ not steered by.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -29,7 +30,7 @@ from ..plan import RobotLimits, free_interval
 from ..simulation.plant import damper_power, load_segments, nodal_field
 from .aeolian_steady import aeolian_steady_state, checked_options, precheck
 from .belief import Belief, BeliefTracker, believe, checked_nominal
-from .evaluation import all_comparisons, settling_of
+from .evaluation import Settling, all_comparisons, settling_of
 from .motion import Motion
 from .policy import (
     Targeting,
@@ -349,6 +350,16 @@ def _move_robot(motion: Motion, records: Records, t: np.ndarray, k: int, end: in
     records.target[k + 1 : end + 1] = motion.goal
 
 
+def _later_half(settling: Settling, t: np.ndarray) -> Settling:
+    """The settled window's later half: in the self-limiting wind the line's amplitude takes
+    seconds to settle after the robot stops (the robot damps it down from the balance's
+    amplitude, and the wind's ratio grows as it falls), so the window the robot's arrival
+    starts still holds the decay."""
+    start = 0.5 * (settling.window[0] + float(t[-1]))
+    mask = t >= start - 1e-12
+    return dataclasses.replace(settling, mask=mask, window=(float(t[mask][0]), float(t[-1])))
+
+
 def _warn_unsettled(result: ClosedLoopResult, duration: float) -> None:
     """TruncationWarning when a placement's vibration in the self-limiting wind still changes
     by more than 10 % between the settled window's halves (``Comparison.transient``)."""
@@ -534,9 +545,9 @@ def run_closed_loop(
         over the whole run.
     wind : {"fixed_lift", "self_limiting"} or mapping
         What an :class:`~powerline_control.excitation.AeolianForce` does to the simulated line.
-        "fixed_lift" (default): a lift of fixed amplitude on the line's own damping. "self_limiting":
-        the energy balance's physics (:mod:`.wind`): the wind's power from the power curve at
-        the locked mode's current amplitude as a negative modal damping on that mode, and the
+        "fixed_lift" (default): a lift of fixed amplitude on the line's own damping.
+        "self_limiting": the energy balance's physics (:mod:`.wind`): the wind's power from the
+        power curve at the locked mode's current amplitude as a negative damping on it, and the
         conductor's self-damping on every mode at its own amplitude (the line's own damping is
         not used), recomputed at every plant block by the functions
         :func:`~powerline_control.severity.simulate_aeolian` calls; the line starts vibrating
@@ -678,6 +689,8 @@ def run_closed_loop(
     frequencies = records.frequencies
     loop_length = float(span.loop_length(frequencies[-1])) if frequencies else float("nan")
     settling = settling_of(records, t, segments, n_cal, loop_length, settings.settle_margin)
+    if wind_options is not None:
+        settling = _later_half(settling, t)
     loop_power = damper_power(line.plant, robot, records.plant_states, records.position)
     travel_time = travel_budget(t[n_cal - 1], t[0], t[-1], policy)
     bounds = free_interval(robot.position, limits, span.length, settings.obstacles)
