@@ -74,14 +74,19 @@ def test_the_parked_and_bare_line_settle_where_simulate_aeolian_does(length, bc,
     assert bare.amplitude == pytest.approx(balance, rel=0.03)
     # the robot brought the line down from the balance's amplitude it started at
     assert parked.amplitude < 0.2 * balance
+    truth_parked = simulate_aeolian(span, WIND, dataclasses.replace(
+        robot, position=float(result.robot_position[-1])), bc=bc, n_elements=100)
     if parked_settles:
-        # simulate_aeolian settles in 10 s here (measured 4.3 % apart); on the clamped 40 m
-        # span with the robot 1.6 m off the antinode it needs 220 s: the 16 s run is 2.2x
-        # above it, still falling (docs/validation/closed_loop.md)
-        truth_parked = simulate_aeolian(span, WIND, dataclasses.replace(
-            robot, position=float(result.robot_position[-1])), bc=bc, n_elements=100)
+        # simulate_aeolian settles in 10 s here (measured 4.3 % apart)
         assert not parked.transient
         assert parked.amplitude == pytest.approx(truth_parked.amplitude, rel=0.10)
+    else:
+        # on the clamped 40 m span with the robot 1.6 m off the antinode simulate_aeolian
+        # needs 220 s: the 16 s run is still falling, and says so (its amplitude's approach,
+        # extrapolated, has more than 10 % to go)
+        assert truth_parked.t_envelope[-1] > 100.0
+        assert parked.transient
+        assert parked.amplitude > 1.1 * truth_parked.amplitude
 
 
 def test_energy_is_conserved_with_the_amplitude_dependent_damping():

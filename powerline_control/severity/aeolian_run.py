@@ -39,7 +39,8 @@ from .balance import _check_dampers, aeolian_severity
 from .self_damping import FotiMartinelli
 from .wind import SelfDampingLaw, _curve, _resolve_law, wind_power
 
-__all__ = ["AeolianDamping", "AeolianRun", "aeolian_damping", "simulate_aeolian"]
+__all__ = ["AeolianDamping", "AeolianRun", "aeolian_damping", "envelope_settled",
+           "simulate_aeolian"]
 
 #: The wind's negative damping is evaluated at no less than this reduced amplitude Y/D: the
 #: CIGRE cubic's constant term gives the wind a finite power at Y = 0 (which the energy balance
@@ -219,13 +220,14 @@ class AeolianDamping:
         q, v = z[: self.band], z[self.n_q : self.n_q + self.band]
         return self.peak * np.sqrt(q**2 + (v / self.omega) ** 2)
 
-    def line_amplitude(self, z: np.ndarray) -> float:
+    def line_amplitude(self, z: np.ndarray) -> float | np.ndarray:
         """The antinode amplitude of one standing wave at the locked frequency carrying the
-        band's whole vibration energy, E = m omega^2 Y^2 L / 4, m."""
-        q, v = z[: self.band], z[self.n_q : self.n_q + self.band]
-        energy = 0.5 * float(np.sum(v**2 + self.omega**2 * q**2))
-        return math.sqrt(4 * energy / (self.span.conductor.mass_per_length
-                                       * self.omega[self.locked] ** 2 * self.span.length))
+        band's whole vibration energy, E = m omega^2 Y^2 L / 4, m (one per row of a 2-D z)."""
+        q, v = z[..., : self.band], z[..., self.n_q : self.n_q + self.band]
+        energy = 0.5 * np.sum(v**2 + self.omega**2 * q**2, axis=-1)
+        amplitude = np.sqrt(4 * energy / (self.span.conductor.mass_per_length
+                                          * self.omega[self.locked] ** 2 * self.span.length))
+        return float(amplitude) if np.ndim(amplitude) == 0 else amplitude
 
     def coefficients(self, z: np.ndarray) -> tuple[np.ndarray, float]:
         """(own, wind): each band mode's self-damping coefficient 2 zeta_c omega (band,) and the
@@ -470,7 +472,7 @@ self_damping_exponents
         history[:, n] = t, line_amplitude(z)
         n += 1
         times, envelope = history[0, :n], history[1, :n]
-        if _settled(times, envelope, tolerance) or envelope[-1] < VANISHED * floor:
+        if envelope_settled(times, envelope, tolerance) or envelope[-1] < VANISHED * floor:
             settled = True
             break
         matrix, own, wind = line_damping(z)
@@ -540,15 +542,49 @@ def _flow(a: np.ndarray, duration: float, z: np.ndarray) -> np.ndarray:
     return np.real(vectors @ (np.exp(eigenvalues * duration) * np.linalg.solve(vectors, z)))
 
 
-def _settled(times: np.ndarray, envelope: np.ndarray, tolerance: float) -> bool:
-    """Aitken's extrapolation over the envelope's time means on the last three quarters of the
-    run, in three equal windows: the remaining change of a geometric approach to the steady
-    amplitude, relative to it. Means, not samples: where the robot's absorber exchanges energy
-    with the line, the amplitude at a block's start carries the beat."""
+def envelope_settled(times: np.ndarray, envelope: np.ndarray, tolerance: float, *,
+                     converging: bool = False) -> bool:
+    """Whether an amplitude history has settled: Aitken's extrapolation of its approach.
+
+    The envelope's time means over the last three quarters of the history, in three equal
+    windows, extrapolated as a geometric approach to the steady amplitude: settled when the
+    remaining change, relative to the last mean, is at most ``tolerance`` (and both windows'
+    changes are too). Means, not samples: where the robot's absorber exchanges energy with the
+    line, the amplitude at one instant carries the beat. Each window needs
+    :data:`BLOCKS_PER_WINDOW` samples.
+
+    Parameters
+    ----------
+    times : ndarray
+        Ascending sample times, s.
+    envelope : ndarray
+        The amplitude at those times.
+    tolerance : float
+        Largest relative remaining change of a settled history.
+    converging : bool
+        Also require a settled look over the history itself: a second window that changes as
+        much as the first, or more (an accelerating fall, where the extrapolation means
+        nothing), by more than a tenth of ``tolerance``, or a change over the three windows
+        of more than a quarter of ``tolerance`` (a history short against the approach's time
+        scale sees a nearly straight fall, whose extrapolation understates what remains),
+        has not settled. False (simulate_aeolian's runs, which stop at the first block that
+        settles, with the whole approach in view): the extrapolation alone.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0.0, 20.0, 201)
+    >>> envelope_settled(t, 1 + np.exp(-t), 0.01), envelope_settled(t, 1 + np.exp(-t / 20), 0.01)
+    (True, False)
+    """
     if envelope.size < 3 * BLOCKS_PER_WINDOW:
         return False
     t, y = times, envelope
-    edges = t[-1] * np.array([0.25, 0.5, 0.75, 1.0])
+    edges = t[0] + (t[-1] - t[0]) * np.array([0.25, 0.5, 0.75, 1.0])
     means = []
     for lo, hi in zip(edges[:-1], edges[1:], strict=True):
         inside = (t >= lo) & (t <= hi)
@@ -559,6 +595,9 @@ def _settled(times: np.ndarray, envelope: np.ndarray, tolerance: float) -> bool:
     if y3 <= 0:
         return False
     d1, d2 = y2 - y1, y3 - y2
+    if converging and ((abs(d2) >= abs(d1) and abs(d2) > 0.1 * tolerance * y3)
+                       or abs(y3 - y1) > 0.25 * tolerance * y3):
+        return False
     if max(abs(d1), abs(d2)) > tolerance * y3:   # both windows still: no fast transient left
         return False
     denominator = d2 - d1
