@@ -92,7 +92,7 @@ def test_the_parked_and_bare_line_settle_where_simulate_aeolian_does(length, bc,
 def test_energy_is_conserved_with_the_amplitude_dependent_damping():
     span, model, robot, _ = _case(30.0, "pinned")
     dt = 1e-3
-    plant = ModalPlant(model, robot, 14, dt, loads=(plc.AeolianForce(WIND),))
+    plant = ModalPlant(model, robot, 14, dt, loads=(plc.AeolianForce(WIND),), ritz=False)
     damping = aeolian_damping(plant, span, WIND)
     held = HeldDamping(plant, damping.matrix)
     block, n_t = 10, 3001

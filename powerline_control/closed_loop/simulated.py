@@ -117,7 +117,9 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
     else:
         n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
     loads = [load for _, items in segments for load in items]
-    plant = ModalPlant(bare, robot, n_modes, settings.dt, loads=loads)
+    # the self-limiting wind applies no load: no Ritz vectors of it (the robot is still re-tuned
+    # for the flexibility the band misses at the wind's frequency)
+    plant = ModalPlant(bare, robot, n_modes, settings.dt, loads=loads, ritz=wind is None)
     plant_steps = settings.plant_steps
     if plant_steps is None:
         # 10 ms blocks, or one block per control period for a long span's band of ~100 modes
@@ -127,16 +129,17 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
             if plant.r > SMALL_PLANT_MODES
             else max(1, min(settings.steps_per_period, int(round(0.01 / settings.dt))))
         )
-    free_plant = ModalPlant(bare, None, n_modes, settings.dt, loads=loads)
-    modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
+    free_plant = ModalPlant(bare, None, n_modes, settings.dt, loads=loads, ritz=wind is None)
     self_limiting = None
     if wind is not None:
         # the wind acts as the plant's negative damping only: no lift, no load residual, and
         # no exact steady state of a sine to compare placements in
-        modal_force, residual, harmonic = (np.zeros_like(modal_force), np.zeros_like(residual),
-                                           None)
+        modal_force, residual, harmonic = (np.zeros((t.size, plant.r)),
+                                           np.zeros((bare.n_nodes, t.size)), None)
         self_limiting = self_limiting_wind(wind, plant, free_plant, plant_steps)
-    elif not (np.any(modal_force) or np.any(residual)):
+    else:
+        modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
+    if wind is None and not (np.any(modal_force) or np.any(residual)):
         given = [load for _, items in segments for load in items]
         raise InputError(
             "The 'force' parameter puts no load on the line: it is empty or acts only at a "
