@@ -567,8 +567,11 @@ def envelope_settled(times: np.ndarray, envelope: np.ndarray, tolerance: float, 
         nothing), by more than a tenth of ``tolerance``, or a change over the three windows
         of more than a quarter of ``tolerance`` (a history short against the approach's time
         scale sees a nearly straight fall, whose extrapolation understates what remains),
-        has not settled. False (simulate_aeolian's runs, which stop at the first block that
-        settles, with the whole approach in view): the extrapolation alone.
+        has not settled; one that moves by less than a hundredth of ``tolerance`` over the
+        three windows has (a drift that slow defeats the extrapolation, which divides by the
+        difference of two nearly equal changes). False (simulate_aeolian's runs, which stop at
+        the first block that settles, with the whole approach in view): the extrapolation
+        alone.
 
     Returns
     -------
@@ -595,9 +598,12 @@ def envelope_settled(times: np.ndarray, envelope: np.ndarray, tolerance: float, 
     if y3 <= 0:
         return False
     d1, d2 = y2 - y1, y3 - y2
-    if converging and ((abs(d2) >= abs(d1) and abs(d2) > 0.1 * tolerance * y3)
-                       or abs(y3 - y1) > 0.25 * tolerance * y3):
-        return False
+    if converging:
+        if abs(y3 - y1) <= 0.01 * tolerance * y3:
+            return True
+        if (abs(d2) >= abs(d1) and abs(d2) > 0.1 * tolerance * y3) \
+                or abs(y3 - y1) > 0.25 * tolerance * y3:
+            return False
     if max(abs(d1), abs(d2)) > tolerance * y3:   # both windows still: no fast transient left
         return False
     denominator = d2 - d1
