@@ -18,7 +18,8 @@ import pytest
 import powerline_control as plc
 from powerline_control.errors import InputError, ShortfallWarning, TruncationWarning
 from powerline_control.severity import aeolian_damping, aeolian_severity, simulate_aeolian
-from powerline_control.simulation.plant import HeldDamping, ModalPlant, run_held
+from powerline_control.simulation.held_damping import HeldDamping, run_held
+from powerline_control.simulation.plant import ModalPlant
 
 WIND = 3.0
 

@@ -17,6 +17,7 @@ from ..estimate import KalmanFilter, windowed_consistency
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..recipe import design_estimator
+from ..simulation.held_damping import step_unforced
 from ..simulation.plant import (
     SMALL_PLANT_MODES,
     ModalPlant,
@@ -24,7 +25,6 @@ from ..simulation.plant import (
     load_histories,
     nodal_field,
     run_parked,
-    step_unforced,
 )
 from .robot_input import RobotInputModel, process_noise_of, robot_input_filter
 from .settings import Settings

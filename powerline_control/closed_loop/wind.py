@@ -25,7 +25,8 @@ from ..errors import InputError
 from ..excitation import AeolianForce
 from ..fem import LineModel
 from ..severity import AeolianDamping, aeolian_damping, aeolian_severity
-from ..simulation.plant import HeldDamping, ModalPlant, run_held
+from ..simulation.held_damping import HeldDamping, run_held
+from ..simulation.plant import ModalPlant
 from .aeolian_steady import PHYSICS_OPTIONS
 
 #: The aeolian loads of the closed loop's line: the lift of fixed amplitude on the model's
