@@ -101,7 +101,7 @@ def checked_wind(value: object, segments: list, model: LineModel) -> dict | None
 @dataclass(frozen=True, eq=False)
 class SelfLimitingWind:
     """The line's self-limiting wind: the modal damping of the plant with and without the
-    robot (held between blocks, :class:`~powerline_control.simulation.plant.HeldDamping`),
+    robot (held between blocks, :class:`~powerline_control.simulation.held_damping.HeldDamping`),
     and the energy balance's amplitude the line starts at."""
 
     damping: AeolianDamping     # the modal damping of the plant with the robot
