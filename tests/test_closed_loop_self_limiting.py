@@ -172,3 +172,13 @@ def test_a_run_too_short_to_settle_says_so():
             plc.run_closed_loop(model, plc.AeolianForce(WIND), robot,
                                 plc.RobotLimits(1e-6, 1e-6), sensors=sensors, duration=4.0,
                                 calibration=1.0, wind="self_limiting")
+
+
+def test_a_conductor_without_self_damping_data_is_refused():
+    # the lab span's conductor has no rated strength, which the Noiseux law's k needs
+    model = plc.LineModel(plc.Span.paper_lab(), 20)
+    robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
+    with pytest.raises(InputError) as caught:
+        plc.run_closed_loop(model, plc.AeolianForce(1.0), robot, sensors=[4, 9, 15],
+                            duration=3.0, calibration=1.0, wind="self_limiting")
+    assert "self_damping_k" in str(caught.value) and "rated_strength" in str(caught.value)
