@@ -1,4 +1,4 @@
-"""Benchmark: the closed loop in the aeolian wind, with and without the self-limiting judgement.
+"""Benchmark: the closed loop in the aeolian wind: the fixed lift, the judgement, the wind's plant.
 
 Per real span in a 3 m/s wind (the drake-300m scenario's robot, a 30 s run, dt = 2 ms, the
 default physics mesh), ``run_closed_loop`` twice, alternately, in one process:
@@ -19,6 +19,16 @@ the fixed lift (RMS over the span, no robot / where the loop ended), in the self
 no robot / the antinode) and the energy balance's at the loop's position. CPU time from
 ``time.process_time``; the fastest of ``--repeats`` runs.
 
+A second table runs the closed loop's own plant in the self-limiting wind
+(``wind="self_limiting"``: the locked mode's negative damping and every mode's self-damping
+recomputed at each plant block, the line started at the energy balance's amplitude) with the
+judgement, and gives: the whole call's real-time factor without the judgement (its CPU less the
+judgement's) beside the fixed lift's and their ratio, the loop's own, the discretisations the
+held damping rebuilt, the closed loop's steady reduction in that wind (antinode amplitude over
+the settled window, no robot / where the loop ended) against the judgement's
+(``simulate_aeolian`` at the position where this loop ended: severity's time-domain reduction),
+and the no-robot amplitude against ``simulate_aeolian``'s.
+
 Run: python benchmarks/bench_closed_loop_aeolian.py [--repeats N]
 BLAS is pinned to one thread (``_common`` is imported before numpy).
 """
@@ -32,6 +42,7 @@ import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import os  # noqa: E402
 import time  # noqa: E402
+import warnings  # noqa: E402
 
 import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import numpy as np  # noqa: E402
@@ -55,12 +66,16 @@ def case(name: str, length: float, bc: str, start: float):
     return model, robot, sensors
 
 
-def measure(model, robot, sensors, judged: bool):
+def measure(model, robot, sensors, judged: bool, wind: str = "fixed_lift"):
     run = plc.run_closed_loop   # the package imports its subpackages lazily: not timed
     cpu = time.process_time()
-    result = run(model, plc.AeolianForce(WIND), robot, plc.RobotLimits(1.0, 2.0),
-                 sensors=sensors, duration=DURATION, calibration=2.0, dt=0.002,
-                 aeolian_steady=judged)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = run(model, plc.AeolianForce(WIND), robot, plc.RobotLimits(1.0, 2.0),
+                     sensors=sensors, duration=DURATION, calibration=2.0, dt=0.002,
+                     aeolian_steady=judged, wind=wind)
+    for item in caught:
+        print(f"    warning: {item.category.__name__}: {str(item.message)[:160]}")
     return result, time.process_time() - cpu
 
 
@@ -104,6 +119,47 @@ def main() -> None:
               f"{1e3 * steady.at_antinode.amplitude:.4g}; settled {steady.settled}", flush=True)
     print("RTF = simulated time / CPU time; 'ratio' = linear load's CPU / judged run's CPU; "
           f"load: 1-minute load average before-after each case, on {os.cpu_count()} cores")
+    self_limiting(cases, options.repeats)
+
+
+def self_limiting(cases, repeats: int) -> None:
+    """The closed loop's own plant in the self-limiting wind, against the fixed lift."""
+    print()
+    header = (f"{'case':24s} {'RTF call':>8s} {'RTF call':>8s} {'ratio':>6s} {'RTF loop':>8s} "
+              f"{'rebuilds':>8s} | {'loop':>7s} {'severity':>8s} {'diff':>6s} | "
+              f"{'no robot':>8s} {'sim_aeol':>8s} {'load':>9s}")
+    print(f"{'':24s} {'lift':>8s} {'self-lim':>8s}")
+    print(header)
+    print("-" * len(header))
+    for label, spec in cases:
+        model, robot, sensors = case(*spec)
+        load_before = os.getloadavg()[0]
+        lift, limited = [], []
+        for _ in range(max(repeats, 1)):   # alternate: the load falls on both
+            lift.append(measure(model, robot, sensors, False))
+            limited.append(measure(model, robot, sensors, True, "self_limiting"))
+        _, lift_cpu = min(lift, key=lambda run: run[1])
+        result, cpu = min(limited, key=lambda run: run[1])
+        cpu -= result.timings["aeolian steady cpu"]
+        steady = result.aeolian_steady
+        simulated = float(result.t[-1])
+        bare, ended = result.comparison("no_robot"), result.comparison("closed_loop")
+        loop = bare.amplitude / ended.amplitude
+        print(f"{label:24s} {simulated / lift_cpu:8.1f} {simulated / cpu:8.1f} "
+              f"{lift_cpu / cpu:6.2f} {result.real_time_factor:8.1f} "
+              f"{result.timings.get('damping rebuilds', 0):8d} | {loop:6.2f}x "
+              f"{steady.reduction:7.2f}x {loop / steady.reduction - 1:+6.1%} | "
+              f"{1e3 * bare.amplitude:6.3f}mm {1e3 * steady.no_robot.amplitude:6.3f}mm "
+              f"{load_before:4.1f}-{os.getloadavg()[0]:<4.1f}", flush=True)
+        print(f"{'':24s} ended at {result.robot_position[-1]:.4g} m; amplitudes (mm) parked "
+              f"at the start {1e3 * result.comparison('start').amplitude:.4g}, near the clamp "
+              f"{1e3 * result.comparison('near_clamp').amplitude:.4g}, where it ended "
+              f"{1e3 * ended.amplitude:.4g} (simulate_aeolian there "
+              f"{1e3 * steady.closed_loop.amplitude:.4g}); transient "
+              f"{[c.name for c in result.comparisons if c.transient]}", flush=True)
+    print("'RTF call self-lim': the whole call less the judgement; 'loop': the closed loop's "
+          "steady reduction in the self-limiting wind; 'severity': simulate_aeolian's at the "
+          "position where the loop ended (no robot / robot there)")
 
 
 if __name__ == "__main__":

@@ -189,7 +189,7 @@ _RUN_CLOSED_LOOP_PARAMETERS = (
     "calibration", "dt", "control_period", "plant_period", "noise_fraction", "delays",
     "estimator_rank", "antinode_window", "frequency_window", "retarget_threshold",
     "settle_margin", "n_modes", "clamp_distance", "obstacles", "motion", "planner_time_budget",
-    "seed", "calibrate", "settings", "aeolian_steady")
+    "seed", "calibrate", "settings", "aeolian_steady", "wind")
 
 
 BASELINES: dict[str, Baseline] = {

@@ -11,6 +11,7 @@ import numpy as np
 from .._validation import read_only
 from ..errors import ModelError, TruncationWarning
 from ..fem import MDR
+from ..severity import envelope_settled
 from ..simulation import ParkedSteadyState, parked_steady_state
 from ..simulation.plant import (
     ModalPlant,
@@ -96,6 +97,7 @@ def window_comparison(name: str, position: float, states: np.ndarray, plant: Mod
     columns = np.flatnonzero(mask)
     per_block = max(64, _WINDOW_BLOCK_VALUES // line.bare.n_nodes)
     sum_square, envelope = 0.0, np.zeros(line.bare.n_nodes)
+    node_square = np.zeros(line.bare.n_nodes)
     for block in np.array_split(columns, -(-columns.size // per_block)):
         if recorded is None:
             field = nodal_field(plant, states[block], line.residual[:, block], position)
@@ -107,11 +109,13 @@ def window_comparison(name: str, position: float, states: np.ndarray, plant: Mod
                 field -= along
                 field += robot_correction(plant, states[block], position)
         sum_square += float(np.sum(line.weights @ field**2))
+        node_square += np.sum(field**2, axis=1)
         np.maximum(envelope, np.max(np.abs(field), axis=1), out=envelope)
     rms = float(np.sqrt(sum_square / columns.size))
     return Comparison(name, float(position), rms, float(envelope.max()),
                       float(np.mean(power[mask])) if power.size else 0.0,
-                      read_only(envelope))
+                      read_only(envelope),
+                      amplitude=float(np.sqrt(2 * node_square.max() / columns.size)))
 
 
 # A settled window whose RMS is farther than this from the steady state (or whose halves differ by
@@ -160,17 +164,33 @@ def _steady_comparison(window: Comparison, state: ParkedSteadyState, index: int)
     transient = abs(window.rms / rms - 1.0) > TRANSIENT_TOLERANCE if rms > 0 else False
     return Comparison(window.name, window.position, rms, float(envelope.max()),
                       float(state.damper_power[index]), read_only(envelope),
-                      window_rms=window.rms, steady=True, transient=bool(transient))
+                      window_rms=window.rms, steady=True, transient=bool(transient),
+                      amplitude=float(envelope.max()))
 
 
 def _window_only(window: Comparison, line, states, plant, mask) -> Comparison:
-    """A placement without a steady state: the window RMS, flagged when its halves differ."""
+    """A placement without a steady state: the window RMS, flagged when its halves differ (or,
+    in the self-limiting wind, when the line's amplitude has not settled)."""
     index = np.flatnonzero(mask)
     halves = np.array_split(index, 2)
     rms = [float(np.sqrt(np.mean(line.weights @ nodal_field(
         plant, states[h], line.residual[:, h]) ** 2))) for h in halves if h.size]
     transient = len(rms) == 2 and abs(rms[0] - rms[1]) > TRANSIENT_TOLERANCE * max(rms)
+    if line.wind is not None and not transient:
+        transient = not _wind_settled(line, states, plant, index)
     return dataclasses.replace(window, window_rms=window.rms, transient=bool(transient))
+
+
+def _wind_settled(line, states, plant, index: np.ndarray) -> bool:
+    """Whether the line's amplitude in the self-limiting wind has settled over the samples
+    ``index`` (within TRANSIENT_TOLERANCE): ``severity.envelope_settled`` (simulate_aeolian's
+    test) on its energy amplitude at each plant block's start. The halves' test alone misses a
+    slow approach: near the balance the net damping vanishes, and a robot off the antinode
+    settles over minutes."""
+    damping = line.wind.free_damping if plant is line.free_plant else line.wind.damping
+    blocks = index[:: max(line.plant_steps, 1)]
+    return envelope_settled(line.t[blocks], damping.line_amplitude(states[blocks]),
+                            TRANSIENT_TOLERANCE, converging=True)
 
 
 def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, limits,
@@ -185,7 +205,8 @@ def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, li
     start_states, plant = calibration.start_states, line.plant
     n_t = line.t.size
     run_field, start_field = fields
-    free_states = run_parked(line.free_plant, None, line.modal_force, n_t)
+    free_states = (run_parked(line.free_plant, None, line.modal_force, n_t) if line.wind is None
+                   else line.wind.parked(None, n_t, free=True))
     windows = {
         "no_robot": (window_comparison("no_robot", np.nan, free_states, line.free_plant,
                                        np.zeros(n_t), line, mask), free_states, line.free_plant),
@@ -228,7 +249,8 @@ def all_comparisons(line, robot: MDR, records, calibration, mask: np.ndarray, li
 
 def _parked_window(name: str, x_park: float, line, robot: MDR, mask: np.ndarray):
     """(window comparison, states, plant) of the run with the robot parked at ``x_park``."""
-    states = run_parked(line.plant, x_park, line.modal_force, line.t.size)
+    states = (run_parked(line.plant, x_park, line.modal_force, line.t.size)
+              if line.wind is None else line.wind.parked(x_park, line.t.size))
     power = damper_power(line.plant, robot, states, x_park)
     return window_comparison(name, x_park, states, line.plant, power, line, mask), states, \
         line.plant

@@ -8,6 +8,7 @@ not steered by.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -17,14 +18,19 @@ import numpy as np
 from .._spectral import dominant_frequency, fit_phasors
 from .._threads import on_one_blas_thread
 from .._validation import check_bool, check_choice, check_rng, checked_keywords, read_only
-from ..errors import BeliefContradictedWarning, ReachWarning, ShortfallWarning
+from ..errors import (
+    BeliefContradictedWarning,
+    ReachWarning,
+    ShortfallWarning,
+    TruncationWarning,
+)
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
 from ..simulation.plant import damper_power, load_segments, nodal_field
 from .aeolian_steady import aeolian_steady_state, checked_options, precheck
 from .belief import Belief, BeliefTracker, believe, checked_nominal
-from .evaluation import all_comparisons, settling_of
+from .evaluation import Settling, all_comparisons, settling_of
 from .motion import Motion
 from .policy import (
     Targeting,
@@ -55,6 +61,7 @@ from .simulated import (
     run_estimate,
 )
 from .simulated import calibrate as calibrate_estimator  # 'calibrate' is the span's option
+from .wind import checked_wind
 
 #: Standard deviations of the calibrated tension by which the belief must differ from the
 #: estimator's line before the estimator is rebuilt on it (:func:`_estimator_stale`).
@@ -344,6 +351,30 @@ def _move_robot(motion: Motion, records: Records, t: np.ndarray, k: int, end: in
     records.target[k + 1 : end + 1] = motion.goal
 
 
+def _later_half(settling: Settling, t: np.ndarray) -> Settling:
+    """The settled window's later half: in the self-limiting wind the line's amplitude takes
+    seconds to settle after the robot stops (the robot damps it down from the balance's
+    amplitude, and the wind's ratio grows as it falls), so the window the robot's arrival
+    starts still holds the decay."""
+    start = 0.5 * (settling.window[0] + float(t[-1]))
+    mask = t >= start - 1e-12
+    return dataclasses.replace(settling, mask=mask, window=(float(t[mask][0]), float(t[-1])))
+
+
+def _warn_unsettled(result: ClosedLoopResult, duration: float) -> None:
+    """TruncationWarning when a placement's vibration in the self-limiting wind still changes
+    by more than 10 % between the settled window's halves (``Comparison.transient``)."""
+    ringing = [c.name for c in result.comparisons if c.transient]
+    if ringing:
+        start, end = result.settled_window
+        warnings.warn(
+            f"The 'duration' {duration:g} s is too short for the line to settle in the "
+            f"self-limiting wind: over the settled window {start:.4g}-{end:.4g} s the vibration "
+            f"of {ringing} changes by more than 10 % between its halves. Lengthen 'duration' "
+            f"(e.g. to {2 * duration:g} s) so that the window starts after the amplitude has "
+            "settled.", TruncationWarning, stacklevel=3)
+
+
 # Thousands of small products per simulated second: one BLAS thread is several times faster than
 # two contending ones. The limit applies inside this call only.
 @checked_keywords
@@ -381,6 +412,7 @@ def run_closed_loop(
     settings: PolicySettings | None = None,
     aeolian_steady: bool | Mapping = False,
     estimator: str = "recipe",
+    wind: str | Mapping = "fixed_lift",
 ) -> ClosedLoopResult:
     """Drive the damping robot to the antinode from sensor data and measure the vibration.
 
@@ -512,6 +544,18 @@ def run_closed_loop(
         (``ClosedLoopResult.estimator_updates``; docs/closed_loop.md, "The robot in the
         estimator's model"). Either way ``ClosedLoopResult.estimator_consistency`` tests it
         over the whole run.
+    wind : {"fixed_lift", "self_limiting"} or mapping
+        What an :class:`~powerline_control.excitation.AeolianForce` does to the simulated line.
+        "fixed_lift" (default): a lift of fixed amplitude on the line's own damping.
+        "self_limiting": the energy balance's physics (:mod:`.wind`): the wind's power from the
+        power curve at the locked mode's current amplitude as a negative damping on it, and the
+        conductor's self-damping on every mode at its own amplitude (the line's own damping is
+        not used), recomputed at every plant block by the functions
+        :func:`~powerline_control.severity.simulate_aeolian` calls; the line starts vibrating
+        at the energy balance's amplitude without the robot. A mapping does the same with the
+        physics' options (``wind_curve``, ``turbulence_intensity``, ``self_damping``,
+        ``self_damping_k``, ``self_damping_exponents``). The comparisons are then over the
+        settled window (no exact steady state of a sine); the controller is given nothing new.
 
     Returns
     -------
@@ -541,6 +585,10 @@ def run_closed_loop(
         When the run ends worse than the robot parked at its start or than a fixed damper near
         the clamp, under its load or, with ``aeolian_steady``, in the self-limiting wind
         (``ClosedLoopResult.shortfalls``).
+    TruncationWarning
+        When the mesh does not resolve a load's frequency, or (``wind="self_limiting"``) when a
+        placement's vibration still changes by more than 10 % between the settled window's
+        halves: the run is too short to settle.
 
     Examples
     --------
@@ -571,6 +619,7 @@ def run_closed_loop(
     estimator = check_choice("estimator", estimator, ESTIMATORS)
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
+    wind_options = checked_wind(wind, segments, settings.bare)
     steady_options = checked_options(aeolian_steady, segments[-1][1])
     if steady_options is not None:   # refused now, not after the run
         precheck(settings.bare, segments[-1][1][0], steady_options)
@@ -578,7 +627,7 @@ def run_closed_loop(
     # ---- the line, its loads, and the estimator calibrated with the robot parked at its start
     setup_start, setup_cpu = time.perf_counter(), time.process_time()
     line = build_line(robot, segments, settings, sensors, n_modes=n_modes,
-                      clamp_distance=clamp_distance)
+                      clamp_distance=clamp_distance, wind=wind_options)
     calibrated = calibrate_estimator(line, robot, settings, rng,
                                      estimator=estimator,
                                      told=told if isinstance(told, LineModel) else None)
@@ -641,6 +690,8 @@ def run_closed_loop(
     frequencies = records.frequencies
     loop_length = float(span.loop_length(frequencies[-1])) if frequencies else float("nan")
     settling = settling_of(records, t, segments, n_cal, loop_length, settings.settle_margin)
+    if wind_options is not None:
+        settling = _later_half(settling, t)
     loop_power = damper_power(line.plant, robot, records.plant_states, records.position)
     travel_time = travel_budget(t[n_cal - 1], t[0], t[-1], policy)
     bounds = free_interval(robot.position, limits, span.length, settings.obstacles)
@@ -661,6 +712,8 @@ def run_closed_loop(
                                            float(records.position[-1]),
                                            clamp_distance=line.clamp_distance, **steady_options)
         timings["aeolian steady cpu"] = time.process_time() - steady_cpu
+    if line.wind is not None:   # the self-limiting wind's exponentials, every run of the call
+        timings["damping rebuilds"] = line.wind.held.rebuilds + line.wind.free_held.rebuilds
     timings["calibration cpu"] = beliefs.cpu
     timings["call cpu"] = time.process_time() - call_cpu
     result = ClosedLoopResult(
@@ -703,7 +756,10 @@ def run_closed_loop(
         policy=policy,
         aeolian_steady=steady_wind,
         estimator=estimator,
+        wind="fixed_lift" if wind_options is None else "self_limiting",
     )
+    if wind_options is not None:
+        _warn_unsettled(result, settings.duration)
     for when, text in result.contradictions:
         warnings.warn(f"The robot's measurements contradict its belief at {when:.4g} s: {text}.",
                       BeliefContradictedWarning, stacklevel=3)

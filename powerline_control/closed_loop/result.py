@@ -42,6 +42,10 @@ class Comparison:
         True when the settled window still rings: its RMS is more than 10 % away from the steady
         state (or, without one, its two halves' RMS differ by more than 10 %), so ``window_rms``
         says little about where the line settles.
+    amplitude : float
+        Antinode amplitude, zero-to-peak, m: over the settled window the largest over the nodes
+        of sqrt(2 mean y^2) (how :func:`~powerline_control.severity.simulate_aeolian` measures
+        it; a beat does not raise it as it raises ``peak``); in exact steady state ``peak``.
 
     Examples
     --------
@@ -60,6 +64,7 @@ class Comparison:
     window_rms: float = float("nan")
     steady: bool = False
     transient: bool = False
+    amplitude: float = float("nan")
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,6 +185,10 @@ class ClosedLoopResult(Result):
     estimator : str
         The estimator's model (``run_closed_loop``'s ``estimator``): "recipe" or
         "robot_input".
+    wind : str
+        What the aeolian load did to the simulated line (``run_closed_loop``'s ``wind``):
+        "fixed_lift" or "self_limiting" (then :attr:`comparisons` are over the settled window
+        of runs in that wind, each started at the energy balance's amplitude).
     estimator_updates : tuple of (float, str)
         When (s) and why the "robot_input" estimator was rebuilt, warmed on the last
         calibration window's length of the records (the new filter runs from the next sample):
@@ -194,8 +203,9 @@ class ClosedLoopResult(Result):
         "comparisons cpu", "calibration cpu" (the span's calibrations and the belief's
         rebuilds, within the loop's), "estimator updates cpu" (the estimator's rebuilds on the
         belief, within the loop's), "aeolian steady cpu" (the self-limiting runs, when asked)
-        and "call cpu" (the whole call); and "modes", the number of bare-line modes the plant
-        kept.
+        and "call cpu" (the whole call); "modes", the number of bare-line modes the plant
+        kept; and with ``wind="self_limiting"`` "damping rebuilds", the discretisations the
+        held amplitude-dependent damping rebuilt over the call's runs.
 
     Examples
     --------
@@ -251,6 +261,7 @@ class ClosedLoopResult(Result):
     aeolian_steady: object = field(default=None, repr=False)
     estimator: str = field(default="recipe", repr=False)
     estimator_updates: tuple = field(default=(), repr=False)
+    wind: str = field(default="fixed_lift", repr=False)
 
     def comparison(self, name: str) -> Comparison:
         """The comparison called ``name`` (see :attr:`comparisons`)."""

@@ -17,6 +17,7 @@ from ..estimate import KalmanFilter, windowed_consistency
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..recipe import design_estimator
+from ..simulation.held_damping import step_unforced
 from ..simulation.plant import (
     SMALL_PLANT_MODES,
     ModalPlant,
@@ -27,6 +28,7 @@ from ..simulation.plant import (
 )
 from .robot_input import RobotInputModel, process_noise_of, robot_input_filter
 from .settings import Settings
+from .wind import SelfLimitingWind, self_limiting_wind
 
 #: The closed loop's estimators: the recipe's, identified with the robot parked at its start,
 #: and the bare line's modal model with the robot's measured force as an input
@@ -66,6 +68,7 @@ class SimulatedLine:
     harmonic: tuple | None      # (frequency, parts) of the last load when it is one sine
     weights: np.ndarray         # (n_nodes,) trapezoid weights: the judge's span RMS
     load_frequencies: tuple     # the loads' frequencies, Hz: the band the plants keep
+    wind: SelfLimitingWind | None = None   # the self-limiting wind (None: the loads as given)
 
     @property
     def sensor_positions(self) -> np.ndarray:
@@ -74,8 +77,10 @@ class SimulatedLine:
 
 
 def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
-               clamp_distance) -> SimulatedLine:
-    """The sensors on the FE model, the modal plant and the loads' histories."""
+               clamp_distance, wind: dict | None = None) -> SimulatedLine:
+    """The sensors on the FE model, the modal plant and the loads' histories. ``wind``: the
+    self-limiting wind's options (:func:`.wind.checked_wind`), which replace the AeolianForce's
+    lift (no load history: the wind is the plant's negative damping); None: the loads as given."""
     bare = settings.bare
     span = bare.span
     sensors = tuple(sorted(check_indices("sensors", sensors, bare.n_nodes).tolist()))
@@ -112,7 +117,9 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
     else:
         n_modes = check_int("n_modes", n_modes, low=1, high=bare.n_dofs)
     loads = [load for _, items in segments for load in items]
-    plant = ModalPlant(bare, robot, n_modes, settings.dt, loads=loads)
+    # the self-limiting wind applies no load: no Ritz vectors of it (the robot is still re-tuned
+    # for the flexibility the band misses at the wind's frequency)
+    plant = ModalPlant(bare, robot, n_modes, settings.dt, loads=loads, ritz=wind is None)
     plant_steps = settings.plant_steps
     if plant_steps is None:
         # 10 ms blocks, or one block per control period for a long span's band of ~100 modes
@@ -122,9 +129,17 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
             if plant.r > SMALL_PLANT_MODES
             else max(1, min(settings.steps_per_period, int(round(0.01 / settings.dt))))
         )
-    free_plant = ModalPlant(bare, None, n_modes, settings.dt, loads=loads)
-    modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
-    if not (np.any(modal_force) or np.any(residual)):
+    free_plant = ModalPlant(bare, None, n_modes, settings.dt, loads=loads, ritz=wind is None)
+    self_limiting = None
+    if wind is not None:
+        # the wind acts as the plant's negative damping only: no lift, no load residual, and
+        # no exact steady state of a sine to compare placements in
+        modal_force, residual, harmonic = (np.zeros((t.size, plant.r)),
+                                           np.zeros((bare.n_nodes, t.size)), None)
+        self_limiting = self_limiting_wind(wind, plant, free_plant, plant_steps)
+    else:
+        modal_force, residual, harmonic = load_histories(bare, plant, segments, t)
+    if wind is None and not (np.any(modal_force) or np.any(residual)):
         given = [load for _, items in segments for load in items]
         raise InputError(
             "The 'force' parameter puts no load on the line: it is empty or acts only at a "
@@ -135,6 +150,7 @@ def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
         clamp_distance=clamp_distance, t=t, plant=plant, free_plant=free_plant,
         plant_steps=plant_steps, modal_force=modal_force, residual=residual, harmonic=harmonic,
         weights=bare.span_weights, load_frequencies=tuple(load_frequencies),
+        wind=self_limiting,
     )
 
 
@@ -179,13 +195,14 @@ class Estimator:
 
 
 def robot_force(plant: ModalPlant, states: np.ndarray, modal_force: np.ndarray,
-                x: float) -> np.ndarray:
+                x: float, line_damping: np.ndarray | None = None) -> np.ndarray:
     """The robot's force on the line (N) at each of the plant's ``states`` ``(n, 2 n_q)`` with
     the robot at ``x``: its body's inertia and its absorber's spring and damper force, what the
-    robot's own accelerometer and absorber measure (the plant's accelerations, exact)."""
+    robot's own accelerometer and absorber measure (the plant's accelerations, exact with the
+    line's modal damping ``line_damping``, None: the plant's own)."""
     if plant.robot is None:
         return np.zeros(states.shape[0])
-    mass, damp, stiff = plant.matrices(x)
+    mass, damp, stiff = plant.matrices(x, line_damping)
     nq, r = plant.n_q, plant.r
     load = np.zeros((states.shape[0], nq))
     load[:, :r] = modal_force
@@ -208,7 +225,8 @@ def calibrate(line: SimulatedLine, robot: MDR, settings: Settings, rng, *,
     (what the controller is told of the line; None: the simulated line's own mesh, the
     controller told the truth) and the robot's force record."""
     n_cal, sensor_list = settings.n_cal, list(line.sensors)
-    start_states = run_parked(line.plant, robot.position, line.modal_force, line.t.size)
+    start_states = (run_parked(line.plant, robot.position, line.modal_force, line.t.size)
+                    if line.wind is None else line.wind.parked(robot.position, line.t.size))
     calib_true = nodal_field(line.plant, start_states[:n_cal], line.residual[:, :n_cal])
     calib_rms = float(np.sqrt(np.mean(calib_true**2)))
     noise_std = settings.noise_fraction * calib_rms
@@ -345,7 +363,10 @@ def _robot_force_record(line: SimulatedLine, states: np.ndarray, x: float,
     (noise std, generator): the same relative noise as the line's sensors, from a generator of
     its own (spawned: the sensors' noise stays what it is without the force)."""
     n = states.shape[0]
-    true = robot_force(line.plant, states, line.modal_force[:n], x)
+    # in the self-limiting wind the line's damping moves with its amplitude: the window's
+    # middle's (its share of the accelerations is of the order of the damping ratio, 1e-3)
+    damping = None if line.wind is None else line.wind.damping.matrix(states[n // 2])
+    true = robot_force(line.plant, states, line.modal_force[:n], x, damping)
     std = noise_fraction * float(np.sqrt(np.mean(true**2)))
     force_rng = rng.spawn(1)[0]
     return true + std * force_rng.standard_normal(n), (std, force_rng)
@@ -432,12 +453,20 @@ def advance_plant(plant_state: np.ndarray, records: Records, line: SimulatedLine
         block_end = min(j + line.plant_steps, end)
         x_mid = 0.5 * (records.position[j] + records.position[block_end])
         tic = time.perf_counter()
-        phi, g0, g1 = line.plant.discretise(x_mid)
+        if line.wind is None:
+            maps = line.plant.discretise(x_mid)
+        else:   # the self-limiting wind: the damping of the block's start, no lift
+            phi = line.wind.held.transition(x_mid, plant_state)
         at_robot = line.plant.coupling(x_mid)
         timings["plant update"] += time.perf_counter() - tic
         tic = time.perf_counter()
-        plant_state = _step_plant(plant_state, (phi, g0, g1), records, line.modal_force, j,
-                                  block_end)
+        if line.wind is None:
+            plant_state = _step_plant(plant_state, maps, records, line.modal_force, j,
+                                      block_end)
+        else:
+            records.plant_states[j] = plant_state
+            step_unforced(phi, records.plant_states, j, block_end)
+            plant_state = records.plant_states[block_end].copy()
         _sense(records, line, at_robot, calibration.noise_std, rng, j, block_end)
         if calibration.estimator.input_model is not None:
             _sense_force(records, line, calibration.force_noise, x_mid, j, block_end)
@@ -482,7 +511,8 @@ def _sense_force(records: Records, line: SimulatedLine, force_noise: tuple, x: f
     """The robot's noisy force on the line over samples j+1..block_end, recorded."""
     std, force_rng = force_noise
     true = robot_force(line.plant, records.plant_states[j + 1 : block_end + 1],
-                       line.modal_force[j + 1 : block_end + 1], x)
+                       line.modal_force[j + 1 : block_end + 1], x,
+                       None if line.wind is None else line.wind.held.matrix)
     records.robot_force[j + 1 : block_end + 1] = true + std * force_rng.standard_normal(
         true.size)
 

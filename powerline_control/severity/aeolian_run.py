@@ -39,7 +39,8 @@ from .balance import _check_dampers, aeolian_severity
 from .self_damping import FotiMartinelli
 from .wind import SelfDampingLaw, _curve, _resolve_law, wind_power
 
-__all__ = ["AeolianRun", "simulate_aeolian"]
+__all__ = ["AeolianDamping", "AeolianRun", "aeolian_damping", "envelope_settled",
+           "simulate_aeolian"]
 
 #: The wind's negative damping is evaluated at no less than this reduced amplitude Y/D: the
 #: CIGRE cubic's constant term gives the wind a finite power at Y = 0 (which the energy balance
@@ -144,6 +145,174 @@ class AeolianRun:
 def _ratio(power: float, mass: float, omega: float, amplitude: float) -> float:
     """zeta = 2 P / (m omega^3 Y^2): the modal damping ratio that takes ``power`` W/m."""
     return 2.0 * power / (mass * omega**3 * amplitude**2)
+
+
+@dataclass(frozen=True, eq=False)
+class AeolianDamping:
+    """The self-limiting wind and the conductor's self-damping as the modal damping of a plant.
+
+    Built by :func:`aeolian_damping` for a :class:`~powerline_control.simulation.plant.ModalPlant`
+    (state z = (q, y, q', y'): the basis' coordinates, the robot's absorber if any, their
+    rates). :meth:`matrix` turns the state into the line's modal damping (r, r): each band mode's
+    self-damping 2 zeta_c omega at its own antinode amplitude, and the wind's negative
+    -2 zeta_w omega on the locked mode at its own (zeta = 2 P / (m omega^3 Y^2), the module
+    doc). :func:`simulate_aeolian` and the closed loop's self-limiting plant both call it: the
+    one home of that mapping.
+
+    Attributes
+    ----------
+    span : Span
+        The line (conductor, tension, length).
+    omega : ndarray
+        The plant's band modes' natural circular frequencies, rad/s.
+    peak : ndarray
+        Each band mode's largest nodal displacement per unit modal coordinate (its antinode).
+    locked : int
+        Index (in the band) of the mode the wind locks into: the one nearest St V / D.
+    n_q : int
+        The plant's coordinates (the band, the Ritz vectors, the absorber).
+    r : int
+        The plant's basis size (band and Ritz vectors).
+    law : SelfDampingLaw or FotiMartinelli
+        The conductor's self-damping, resolved.
+    wind_curve : str
+        The power curve's name.
+    turbulence_intensity : float
+        Iv (the power curve's reduction).
+
+    Examples
+    --------
+    >>> from powerline_control import LineModel, Span
+    >>> from powerline_control.simulation.plant import ModalPlant
+    >>> span = Span.at_rts_fraction(60.0, "drake", 0.2)
+    >>> plant = ModalPlant(LineModel(span), None, 24, dt=1e-3)
+    >>> damping = aeolian_damping(plant, span, 3.0)
+    >>> z = damping.start_state(plant, 0.005)          # the locked mode at 5 mm
+    >>> round(float(damping.amplitudes(z)[damping.locked]) * 1e3, 3)
+    5.0
+    >>> bool(damping.matrix(z)[damping.locked, damping.locked] < 0)   # the wind feeds it
+    True
+    """
+
+    span: Span
+    omega: np.ndarray = field(repr=False)
+    peak: np.ndarray = field(repr=False)
+    locked: int
+    n_q: int
+    r: int
+    law: object = field(repr=False)
+    wind_curve: str = "cigre"
+    turbulence_intensity: float = 0.0
+
+    @property
+    def frequency(self) -> float:
+        """The locked mode's natural frequency, Hz."""
+        return float(self.omega[self.locked] / (2 * math.pi))
+
+    @property
+    def band(self) -> int:
+        """The band's modes (the first ``band`` plant coordinates)."""
+        return self.omega.size
+
+    def amplitudes(self, z: np.ndarray) -> np.ndarray:
+        """Each band mode's antinode amplitude from its energy, m (smooth where the robot's
+        absorber exchanges energy with the line; exact for a free mode)."""
+        q, v = z[: self.band], z[self.n_q : self.n_q + self.band]
+        return self.peak * np.sqrt(q**2 + (v / self.omega) ** 2)
+
+    def line_amplitude(self, z: np.ndarray) -> float | np.ndarray:
+        """The antinode amplitude of one standing wave at the locked frequency carrying the
+        band's whole vibration energy, E = m omega^2 Y^2 L / 4, m (one per row of a 2-D z)."""
+        q, v = z[..., : self.band], z[..., self.n_q : self.n_q + self.band]
+        energy = 0.5 * np.sum(v**2 + self.omega**2 * q**2, axis=-1)
+        amplitude = np.sqrt(4 * energy / (self.span.conductor.mass_per_length
+                                          * self.omega[self.locked] ** 2 * self.span.length))
+        return float(amplitude) if np.ndim(amplitude) == 0 else amplitude
+
+    def coefficients(self, z: np.ndarray) -> tuple[np.ndarray, float]:
+        """(own, wind): each band mode's self-damping coefficient 2 zeta_c omega (band,) and the
+        wind's -2 zeta_w omega on the locked mode (<= 0), 1/s, at the state's amplitudes."""
+        y = self.amplitudes(z)
+        cond = self.span.conductor
+        mass = cond.mass_per_length
+        own = np.zeros(self.band)
+        for i in np.flatnonzero(y > 0):
+            p_c = float(self.law.power(y[i], self.omega[i] / (2 * math.pi), self.span))
+            own[i] = 2 * _ratio(p_c, mass, self.omega[i], y[i]) * self.omega[i]
+        curve = _curve(self.wind_curve)
+        y_wind = min(max(y[self.locked], LOWEST_REDUCED_AMPLITUDE * cond.diameter),
+                     curve.max_reduced_amplitude * cond.diameter)
+        p_w = float(wind_power(y_wind, self.frequency, cond.diameter,
+                               wind_curve=self.wind_curve,
+                               turbulence_intensity=self.turbulence_intensity))
+        omega = self.omega[self.locked]
+        wind = -2 * min(_ratio(p_w, mass, omega, y_wind), MAX_WIND_RATIO) * omega
+        return own, wind
+
+    def matrix(self, z: np.ndarray, coefficients: tuple | None = None) -> np.ndarray:
+        """The line's modal damping (r, r) at state z (or of given :meth:`coefficients`)."""
+        own, wind = self.coefficients(z) if coefficients is None else coefficients
+        matrix = np.zeros((self.r, self.r))
+        matrix[: self.band, : self.band] = np.diag(own)
+        matrix[self.locked, self.locked] += wind
+        return matrix
+
+    def start_state(self, plant: ModalPlant, amplitude: float) -> np.ndarray:
+        """The plant's state (2 n_q,) with the locked mode at antinode ``amplitude`` (m), at
+        rest at its largest displacement, every other coordinate zero."""
+        z = np.zeros(2 * plant.n_q)
+        z[self.locked] = amplitude / self.peak[self.locked]
+        return z
+
+
+def aeolian_damping(plant: ModalPlant, span: Span, wind_speed: float, *,
+                    strouhal: float = DEFAULT_STROUHAL, wind_curve: str = "cigre",
+                    turbulence_intensity: float = 0.0,
+                    self_damping: str | SelfDampingLaw | FotiMartinelli = "noiseux1991",
+                    self_damping_k: float | None = None,
+                    self_damping_exponents: Sequence[float] | None = None) -> AeolianDamping:
+    """The self-limiting wind's and the self-damping's modal damping of ``plant``.
+
+    The wind locks into the plant's band mode nearest St V / D; the self-damping law is resolved
+    once (its argument checks, repeated for every mode at every block, took half a run).
+
+    Parameters
+    ----------
+    plant : ModalPlant
+        The line's modal plant (its first ``n_band`` coordinates are bare eigenmodes).
+    span : Span
+        The line.
+    wind_speed : float
+        m/s.
+    strouhal, wind_curve, turbulence_intensity, self_damping, self_damping_k, \
+self_damping_exponents
+        As in :func:`aeolian_severity`.
+
+    Returns
+    -------
+    AeolianDamping
+
+    Examples
+    --------
+    >>> from powerline_control import LineModel, Span
+    >>> from powerline_control.simulation.plant import ModalPlant
+    >>> span = Span.at_rts_fraction(60.0, "drake", 0.2)
+    >>> damping = aeolian_damping(ModalPlant(LineModel(span), None, 24, dt=1e-3), span, 3.0)
+    >>> round(damping.frequency, 1)      # St V / D = 0.185 * 3 / 0.02814 = 19.7 Hz
+    19.7
+    """
+    speed = check_real("wind_speed", wind_speed, low=0.0, high=MAX_WIND_SPEED)
+    _curve(wind_curve)   # an unknown curve is refused here, not at the first block
+    check_real("turbulence_intensity", turbulence_intensity, low=0.0, low_inclusive=True)
+    band = plant.n_band
+    omega = np.sqrt(plant.omega2[:band])
+    shedding = strouhal * speed / span.conductor.diameter
+    return AeolianDamping(
+        span=span, omega=read_only(omega),
+        peak=read_only(np.max(np.abs(plant.nodal[:, :band]), axis=0)),
+        locked=int(np.argmin(np.abs(omega / (2 * math.pi) - shedding))), n_q=plant.n_q,
+        r=plant.r, law=_resolve_law(self_damping, self_damping_k, self_damping_exponents),
+        wind_curve=wind_curve, turbulence_intensity=float(turbulence_intensity))
 
 
 @on_one_blas_thread
@@ -276,54 +445,22 @@ self_damping_exponents
     # flexibility there
     loads = () if robot is None else (HarmonicForce(1.0, shedding, robot.position),)
     plant = ModalPlant(bare, robot, modes, dt=1.0 / (per_period * shedding), loads=loads)
-    band = plant.n_band
-    omega = np.sqrt(plant.omega2[:band])
-    locked = int(np.argmin(np.abs(omega / (2 * math.pi) - shedding)))
-    frequency = float(omega[locked] / (2 * math.pi))
+    # the wind's and the self-damping's modal damping at the state's amplitudes: the one home
+    # of that mapping (the closed loop's self-limiting plant calls it too)
+    damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers, **law)
+    locked, frequency = damping.locked, damping.frequency
     mode_number = int((np.arange(modes) if np.ndim(modes) == 0 else modes)[locked]) + 1
-    peak = np.max(np.abs(plant.nodal[:, :band]), axis=0)    # antinode displacement per unit q
     position = None if robot is None else robot.position
     floor = LOWEST_REDUCED_AMPLITUDE * cond.diameter
-    y_max = _curve(wind_curve).max_reduced_amplitude * cond.diameter
-    mass = cond.mass_per_length
-
-    def amplitudes(z: np.ndarray) -> np.ndarray:
-        """Each band mode's antinode amplitude from its energy (smooth where the robot's
-        absorber exchanges energy with the line; exact for a free mode)."""
-        q, v = z[:band], z[plant.n_q:plant.n_q + band]
-        return peak * np.sqrt(q**2 + (v / omega) ** 2)
-
-    def line_amplitude(z: np.ndarray) -> float:
-        """The antinode amplitude of one standing wave at the locked frequency carrying the
-        line's whole vibration energy, E = m omega^2 Y^2 L / 4 (what the run follows)."""
-        q, v = z[:band], z[plant.n_q:plant.n_q + band]
-        energy = 0.5 * float(np.sum(v**2 + omega**2 * q**2))
-        return math.sqrt(4 * energy / (mass * omega[locked] ** 2 * span.length))
-
-    # The law self_damping_power evaluates, resolved once: its argument checks ran in the
-    # energy balance above, and repeated for every mode at every block they took half the run
-    # (2.4 of 4.7 s on Drake 300 m with the robot); the powers are the same to the last bit.
-    resolved = _resolve_law(self_damping, self_damping_k, self_damping_exponents)
+    line_amplitude = damping.line_amplitude
+    band, mass = damping.band, cond.mass_per_length
 
     def line_damping(z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-        """Modal damping (r, r): each band mode's self-damping 2 zeta_c omega at its own
-        amplitude, and the wind's negative -2 zeta_w omega on the locked mode at its own."""
-        y = amplitudes(z)
-        own = np.zeros(band)
-        for i in np.flatnonzero(y > 0):
-            p_c = float(resolved.power(y[i], omega[i] / (2 * math.pi), span))
-            own[i] = 2 * _ratio(p_c, mass, omega[i], y[i]) * omega[i]
-        y_wind = min(max(y[locked], floor), y_max)
-        p_w = float(wind_power(y_wind, frequency, cond.diameter, **powers))
-        wind = -2 * min(_ratio(p_w, mass, omega[locked], y_wind), MAX_WIND_RATIO) \
-            * omega[locked]
-        matrix = np.zeros((plant.r, plant.r))
-        matrix[:band, :band] = np.diag(own)
-        matrix[locked, locked] += wind
-        return matrix, own, wind
+        """Modal damping (r, r) and its (own, wind) coefficients at the state's amplitudes."""
+        own, wind = damping.coefficients(z)
+        return damping.matrix(z, (own, wind)), own, wind
 
-    z = np.zeros(2 * plant.n_q)
-    z[locked] = start / peak[locked]
+    z = damping.start_state(plant, start)
     # (time, amplitude) at each block's start, grown by doubling: the settling test reads the
     # whole history at every block, as arrays
     history, n = np.empty((2, 256)), 0
@@ -335,7 +472,7 @@ self_damping_exponents
         history[:, n] = t, line_amplitude(z)
         n += 1
         times, envelope = history[0, :n], history[1, :n]
-        if _settled(times, envelope, tolerance) or envelope[-1] < VANISHED * floor:
+        if envelope_settled(times, envelope, tolerance) or envelope[-1] < VANISHED * floor:
             settled = True
             break
         matrix, own, wind = line_damping(z)
@@ -405,15 +542,52 @@ def _flow(a: np.ndarray, duration: float, z: np.ndarray) -> np.ndarray:
     return np.real(vectors @ (np.exp(eigenvalues * duration) * np.linalg.solve(vectors, z)))
 
 
-def _settled(times: np.ndarray, envelope: np.ndarray, tolerance: float) -> bool:
-    """Aitken's extrapolation over the envelope's time means on the last three quarters of the
-    run, in three equal windows: the remaining change of a geometric approach to the steady
-    amplitude, relative to it. Means, not samples: where the robot's absorber exchanges energy
-    with the line, the amplitude at a block's start carries the beat."""
+def envelope_settled(times: np.ndarray, envelope: np.ndarray, tolerance: float, *,
+                     converging: bool = False) -> bool:
+    """Whether an amplitude history has settled: Aitken's extrapolation of its approach.
+
+    The envelope's time means over the last three quarters of the history, in three equal
+    windows, extrapolated as a geometric approach to the steady amplitude: settled when the
+    remaining change, relative to the last mean, is at most ``tolerance`` (and both windows'
+    changes are too). Means, not samples: where the robot's absorber exchanges energy with the
+    line, the amplitude at one instant carries the beat. Each window needs
+    :data:`BLOCKS_PER_WINDOW` samples.
+
+    Parameters
+    ----------
+    times : ndarray
+        Ascending sample times, s.
+    envelope : ndarray
+        The amplitude at those times.
+    tolerance : float
+        Largest relative remaining change of a settled history.
+    converging : bool
+        Also require a settled look over the history itself: a second window that changes as
+        much as the first, or more (an accelerating fall, where the extrapolation means
+        nothing), by more than a tenth of ``tolerance``, or a change over the three windows
+        of more than a quarter of ``tolerance`` (a history short against the approach's time
+        scale sees a nearly straight fall, whose extrapolation understates what remains),
+        has not settled; one that moves by less than a hundredth of ``tolerance`` over the
+        three windows has (a drift that slow defeats the extrapolation, which divides by the
+        difference of two nearly equal changes). False (simulate_aeolian's runs, which stop at
+        the first block that settles, with the whole approach in view): the extrapolation
+        alone.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0.0, 20.0, 201)
+    >>> envelope_settled(t, 1 + np.exp(-t), 0.01), envelope_settled(t, 1 + np.exp(-t / 20), 0.01)
+    (True, False)
+    """
     if envelope.size < 3 * BLOCKS_PER_WINDOW:
         return False
     t, y = times, envelope
-    edges = t[-1] * np.array([0.25, 0.5, 0.75, 1.0])
+    edges = t[0] + (t[-1] - t[0]) * np.array([0.25, 0.5, 0.75, 1.0])
     means = []
     for lo, hi in zip(edges[:-1], edges[1:], strict=True):
         inside = (t >= lo) & (t <= hi)
@@ -424,6 +598,12 @@ def _settled(times: np.ndarray, envelope: np.ndarray, tolerance: float) -> bool:
     if y3 <= 0:
         return False
     d1, d2 = y2 - y1, y3 - y2
+    if converging:
+        if abs(y3 - y1) <= 0.01 * tolerance * y3:
+            return True
+        if (abs(d2) >= abs(d1) and abs(d2) > 0.1 * tolerance * y3) \
+                or abs(y3 - y1) > 0.25 * tolerance * y3:
+            return False
     if max(abs(d1), abs(d2)) > tolerance * y3:   # both windows still: no fast transient left
         return False
     denominator = d2 - d1

@@ -1,5 +1,5 @@
-"""The line in time: simulate -> Snapshots (snapshots.py), the moving-robot plant (plant.py) and
-the parked steady state (steady_state.py), both checked against the full FE with the robot.
+"""The line in time: simulate -> Snapshots, the moving-robot plant (plant.py; held_damping.py
+when its damping follows its state) and the parked steady state, checked against the full FE.
 
 ``simulate`` lives in ``snapshots.py`` so that no module shares a public function's name (the
 import system binds a submodule on its package, over a function of the same name).

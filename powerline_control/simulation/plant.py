@@ -54,10 +54,13 @@ class ModalPlant:
     ``loads``: the loads the plant will be driven by; each sine adds the Ritz vectors of what
     the kept modes miss of its response (see the module doc), and the frequency of the last
     sine is where the robot's residual flexibility is evaluated (None: no sine, no correction).
+    ``ritz``: False keeps the loads' frequency for the robot but adds no Ritz vectors (a wind
+    that acts as a damping, not a load: vectors of a load it does not apply would only hold
+    what the robot scatters into them, undamped).
     """
 
     def __init__(self, model: LineModel, robot: MDR | None, modes, dt: float, *,
-                 loads=()):
+                 loads=(), ritz: bool = True):
         index = np.arange(modes) if np.ndim(modes) == 0 else np.asarray(modes)
         basis = model.modes(int(index.max()) + 1)
         self.model, self.dt = model, dt
@@ -67,7 +70,8 @@ class ModalPlant:
         self.robot = robot if active else None
         sines = _sines(model, loads)
         self.frequency = sines[-1][0] if sines else None
-        ritz, ritz_omega2, ritz_damping, n_above = _load_ritz_vectors(model, basis, index, sines)
+        ritz, ritz_omega2, ritz_damping, n_above = _load_ritz_vectors(
+            model, basis, index, sines if ritz else [])
         self.n_ritz = ritz_omega2.size
         self.n_ritz_above = n_above       # the last columns: Ritz vectors above the top mode
         self.n_band = index.size          # the first n_band columns are bare eigenmodes

@@ -1,0 +1,184 @@
+"""The closed loop's own plant in the self-limiting wind (``run_closed_loop(wind=...)``).
+
+Independent truths: ``simulate_aeolian`` (its own plant, its own adaptive blocks and settling
+test) for the same line, wind and robot position; the energy balance ``aeolian_severity`` (a
+root of P_w = P_c, no time integration); the conservation of energy over a window (the wind's
+input is the conductor's and the robot's dissipation plus the energy gained), each power
+computed here from the states and the physics' damping at each block's start.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+
+import powerline_control as plc
+from powerline_control.errors import InputError, ShortfallWarning, TruncationWarning
+from powerline_control.severity import aeolian_damping, aeolian_severity, simulate_aeolian
+from powerline_control.simulation.held_damping import HeldDamping, run_held
+from powerline_control.simulation.plant import ModalPlant
+
+WIND = 3.0
+
+
+def _case(length: float, bc: str):
+    """Drake at 20 % RTS, 100 equal elements, the drake-300m robot (5 kg body, 3 kg absorber)
+    tuned to the mode the wind locks into, parked off its antinode; four sensors."""
+    span = plc.Span.at_rts_fraction(length, "drake", 0.2)
+    model = plc.LineModel(span, 100, bc=bc)
+    frequency = plc.AeolianForce(WIND).frequency_for(span.conductor)
+    mode = int(round(span.length / float(span.loop_length(frequency))))
+    robot = dataclasses.replace(plc.tune_damper(model, mode, None, 3.0, body_mass=5.0),
+                                position=0.46 * length)
+    n = model.n_nodes
+    return span, model, robot, [n // 5, 2 * n // 5, 3 * n // 5 + 3, 4 * n // 5]
+
+
+def _parked_run(length: float, bc: str):
+    """The closed loop with limits that keep the robot where it starts (1 um/s), 16 s."""
+    span, model, robot, sensors = _case(length, bc)
+    with warnings.catch_warnings():
+        # a robot that cannot move is the point here: the policy says it cannot reach, and the
+        # judge that the loop ends no better than parked
+        warnings.simplefilter("ignore", plc.errors.ReachWarning)
+        warnings.simplefilter("ignore", ShortfallWarning)
+        # the fixed damper near the clamp damps weakly: its line still creeps after 16 s (the
+        # placements compared below are checked settled)
+        warnings.simplefilter("ignore", TruncationWarning)
+        result = plc.run_closed_loop(model, plc.AeolianForce(WIND), robot,
+                                     plc.RobotLimits(1e-6, 1e-6), sensors=sensors,
+                                     duration=16.0, calibration=2.0, wind="self_limiting")
+    return span, robot, result
+
+
+@pytest.mark.parametrize(("length", "bc", "parked_settles"),
+                         [(30.0, "pinned", True), (40.0, "clamped", False)])
+def test_the_parked_and_bare_line_settle_where_simulate_aeolian_does(length, bc,
+                                                                     parked_settles):
+    span, robot, result = _parked_run(length, bc)
+    assert result.wind == "self_limiting"
+    assert float(np.ptp(result.robot_position)) < 1e-4           # parked
+    bare, parked = result.comparison("no_robot"), result.comparison("closed_loop")
+    truth_bare = simulate_aeolian(span, WIND, bc=bc, n_elements=100)
+    # two integrations of the same physics with different bases (the loop's plant keeps the
+    # modes 0.6-1.4x the tone, its robot re-tuned for the flexibility they miss;
+    # simulate_aeolian keeps +-10 % and the robot's own Ritz vector): measured within 0.4 %
+    # bare; the issue's bound is 10 %
+    assert not bare.transient
+    assert bare.amplitude == pytest.approx(truth_bare.amplitude, rel=0.02)
+    # and the energy balance (no time integration) without the robot: St V / D against the
+    # locked FE mode's frequency puts up to a few % between them (measured 0.2 %, 0.1 %)
+    balance = float(aeolian_severity(span, [WIND], bc=bc).amplitude[0])
+    assert bare.amplitude == pytest.approx(balance, rel=0.03)
+    # the robot brought the line down from the balance's amplitude it started at
+    assert parked.amplitude < 0.2 * balance
+    truth_parked = simulate_aeolian(span, WIND, dataclasses.replace(
+        robot, position=float(result.robot_position[-1])), bc=bc, n_elements=100)
+    if parked_settles:
+        # simulate_aeolian settles in 10 s here (measured 0.5 % apart)
+        assert not parked.transient
+        assert parked.amplitude == pytest.approx(truth_parked.amplitude, rel=0.10)
+    else:
+        # on the clamped 40 m span with the robot 1.6 m off the antinode simulate_aeolian
+        # needs 220 s: the 16 s run, 25 % above it, is still falling and says so
+        assert truth_parked.t_envelope[-1] > 100.0
+        assert parked.transient
+        assert parked.amplitude > 1.1 * truth_parked.amplitude
+
+
+def test_energy_is_conserved_with_the_amplitude_dependent_damping():
+    span, model, robot, _ = _case(30.0, "pinned")
+    dt = 1e-3
+    plant = ModalPlant(model, robot, 14, dt, loads=(plc.AeolianForce(WIND),), ritz=False)
+    damping = aeolian_damping(plant, span, WIND)
+    held = HeldDamping(plant, damping.matrix)
+    block, n_t = 10, 3001
+    z0 = damping.start_state(plant, float(aeolian_severity(span, [WIND], bc="pinned")
+                                          .amplitude[0]))
+    states = run_held(held, robot.position, z0, n_t, block=block)
+    # a window of the decay (the robot at work, the damping moving every block)
+    window = slice(1000, 3001)
+    nq = plant.n_q
+    _, robot_damping, _ = plant.matrices(robot.position, np.zeros((plant.r, plant.r)))
+    wind_in = dissipated = 0.0
+    for j in range(window.start, window.stop - 1, block):
+        own, wind = damping.coefficients(states[j])    # the physics at the block's start
+        v = states[j : j + block + 1, nq:]
+        c_wind = np.zeros((nq, nq))
+        c_wind[damping.locked, damping.locked] = -wind
+        c_loss = robot_damping.copy()
+        c_loss[: damping.band, : damping.band] += np.diag(own)
+        wind_in += np.trapezoid(np.einsum("ki,ij,kj->k", v, c_wind, v), dx=dt)
+        dissipated += np.trapezoid(np.einsum("ki,ij,kj->k", v, c_loss, v), dx=dt)
+    gained = (plant.energy(states[window.stop - 1], robot.position)
+              - plant.energy(states[window.start], robot.position))
+    # input = dissipated + gained: the flow is exact within a block; the trapezoid rule at 50
+    # samples a period and the held damping (within 0.1 % of the physics') cost < 1e-3
+    # (measured 7e-5 of the input, 5e-6 of the dissipation)
+    assert abs(wind_in - dissipated - gained) < 0.01 * max(wind_in, dissipated)
+    # the line without the robot at the balance's amplitude is nearly steady: its map is held
+    # for most blocks (measured 30 rebuilds in 100 blocks, against 300 in 300 while decaying)
+    free = ModalPlant(model, None, 14, dt, loads=(plc.AeolianForce(WIND),), ritz=False)
+    free_damping = aeolian_damping(free, span, WIND)
+    steady = HeldDamping(free, free_damping.matrix)
+    run_held(steady, None, free_damping.start_state(free, float(aeolian_severity(
+        span, [WIND], bc="pinned").amplitude[0])), 1001, block=block)
+    assert steady.rebuilds < 0.5 * 100 and held.rebuilds > 0.9 * 300
+
+
+@pytest.mark.parametrize(("wind", "words"), [
+    ("self-limiting", ["'wind'", "'self-limiting'", "fixed_lift", "self_limiting"]),
+    ({"wind_curv": "cigre"}, ["'wind'", "wind_curv", "wind_curve"]),
+    ({"max_duration": 10.0}, ["'wind'", "max_duration", "turbulence_intensity"]),
+    (3, ["'wind'", "int", "self_limiting"]),
+])
+def test_unknown_wind_options_are_refused(wind, words):
+    _, model, robot, sensors = _case(30.0, "pinned")
+    with pytest.raises(InputError) as caught:
+        plc.run_closed_loop(model, plc.AeolianForce(WIND), robot, sensors=sensors,
+                            duration=3.0, calibration=1.0, wind=wind)
+    for word in words:
+        assert word in str(caught.value)
+
+
+def test_a_wind_beyond_the_power_curves_data_is_refused():
+    # Drake 30 m at 20 % RTS in 3 m/s: the Farquharson curve's data end before the wind's power
+    # falls to the self-damping's (the energy balance's "above curve range")
+    span, model, robot, sensors = _case(30.0, "pinned")
+    assert aeolian_severity(span, [WIND], bc="pinned", wind_curve="farquharson"
+                            ).status[0] == "above curve range"
+    with pytest.raises(InputError, match=r"'force' wind speed 3 m/s.*'farquharson'.*wind_curve"):
+        plc.run_closed_loop(model, plc.AeolianForce(WIND), robot, sensors=sensors,
+                            duration=3.0, calibration=1.0,
+                            wind={"wind_curve": "farquharson"})
+
+
+def test_a_harmonic_load_is_refused_in_the_self_limiting_wind():
+    _, model, robot, sensors = _case(30.0, "pinned")
+    with pytest.raises(InputError, match=r"'wind'.*one AeolianForce.*HarmonicForce"):
+        plc.run_closed_loop(model, plc.HarmonicForce(1.0, 19.6, 10.0), robot, sensors=sensors,
+                            duration=3.0, calibration=1.0, wind="self_limiting")
+
+
+def test_a_run_too_short_to_settle_says_so():
+    _, model, robot, sensors = _case(30.0, "pinned")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", plc.errors.ReachWarning)
+        warnings.simplefilter("ignore", ShortfallWarning)
+        with pytest.warns(TruncationWarning, match=r"'duration' 4 s is too short.*Lengthen"):
+            plc.run_closed_loop(model, plc.AeolianForce(WIND), robot,
+                                plc.RobotLimits(1e-6, 1e-6), sensors=sensors, duration=4.0,
+                                calibration=1.0, wind="self_limiting")
+
+
+def test_a_conductor_without_self_damping_data_is_refused():
+    # the lab span's conductor has no rated strength, which the Noiseux law's k needs
+    model = plc.LineModel(plc.Span.paper_lab(), 20)
+    robot = plc.MDR.tuned(1.2, 0.02, 0.05, 24.5, 0.1)
+    with pytest.raises(InputError) as caught:
+        plc.run_closed_loop(model, plc.AeolianForce(1.0), robot, sensors=[4, 9, 15],
+                            duration=3.0, calibration=1.0, wind="self_limiting")
+    assert "self_damping_k" in str(caught.value) and "rated_strength" in str(caught.value)
