@@ -182,3 +182,39 @@ def test_a_conductor_without_self_damping_data_is_refused():
         plc.run_closed_loop(model, plc.AeolianForce(1.0), robot, sensors=[4, 9, 15],
                             duration=3.0, calibration=1.0, wind="self_limiting")
     assert "self_damping_k" in str(caught.value) and "rated_strength" in str(caught.value)
+
+
+SCENARIO = "\n".join([
+    "[span]", 'preset = "conductor"', 'conductor = "drake"', "length = 30.0",
+    "rts_fraction = 0.2", "[forcing]", 'kind = "aeolian"', "wind_speed = 3.0", "[robot]",
+    "start = 13.9"])
+
+
+def test_a_scenario_chooses_the_wind_of_its_closed_loop(monkeypatch):
+    """robot.wind reaches run_closed_loop (the main job's stage) with the severity section's
+    power curve and self-damping law; fixed_lift is the default; a self-limiting wind under a
+    load that is not aeolian is refused by its dotted name before any stage runs."""
+    from powerline_control.closed_loop import loop
+    from powerline_control.scenario import stages
+
+    assert plc.load_scenario(text=SCENARIO).robot.wind == "fixed_lift"
+    scenario = plc.load_scenario(text=SCENARIO + '\nwind = "self_limiting"')
+    with pytest.raises(InputError, match=r"robot.wind = \"self_limiting\" is not allowed"):
+        plc.load_scenario(text='[robot]\nwind = "self_limiting"')   # the lab's shaker
+    with pytest.raises(InputError, match="robot.wind"):
+        plc.load_scenario(text=SCENARIO + '\nwind = "strong"')
+    seen = {}
+
+    def fake(*args, **kwargs):
+        seen.update(kwargs)
+        raise RuntimeError("stop")
+
+    monkeypatch.setattr(loop, "run_closed_loop", fake)
+    monkeypatch.setattr("powerline_control.closed_loop.run_closed_loop", fake)
+    span = plc.Span.at_rts_fraction(30.0, "drake", 0.2)
+    tuning = type("Tuning", (), {"robot": plc.MDR(position=13.9)})()
+    with pytest.raises(RuntimeError, match="stop"):
+        stages._closed_loop(scenario, plc.LineModel(span, 20), plc.AeolianForce(3.0), tuning)
+    law = plc.severity.SELF_DAMPING_LAWS["noiseux1991"]
+    assert seen["wind"] == {"wind_curve": "cigre", "self_damping": "noiseux1991",
+                            "self_damping_k": pytest.approx(law.coefficient(span))}

@@ -262,6 +262,13 @@ class RobotConfig:
         "robot moves, or the recipe's, identified with the robot parked at its start "
         "(run_closed_loop's estimator).",
         choices=("recipe", "robot_input"))
+    wind: str = _key(
+        "fixed_lift", "", "What the aeolian wind does to the closed loop's simulated line: a "
+        "lift of fixed amplitude on the line's own damping, or the self-limiting wind of the "
+        "energy balance (the severity section's power curve at the locked mode's current "
+        "amplitude, its self-damping law on every mode; the line starts at the balance's "
+        "amplitude) (run_closed_loop's wind).",
+        choices=("fixed_lift", "self_limiting"))
 
 
 #: The names of severity.WIND_POWER_CURVES and of the SELF_DAMPING_LAWS that carry a tension
@@ -694,6 +701,10 @@ def _check_scenario(check: _Checker, scenario: Scenario, given: dict) -> None:
         check.refuse("forcing.frequency", scenario.forcing.frequency,
                    f"below the Nyquist frequency 1 / (2 dt) = {0.5 / sim.dt:g} Hz "
                    "(simulation.dt)")
+    if scenario.robot.wind == "self_limiting" and scenario.forcing.kind != "aeolian":
+        check.refuse("robot.wind", scenario.robot.wind, '"fixed_lift" with forcing.kind = '
+                     f'{_repr(scenario.forcing.kind)}',
+                     "The self-limiting wind is an aeolian load: set forcing.kind = \"aeolian\".")
     if scenario.robot.closed_loop > 0:
         _check_calibration_record(check, scenario)
     if scenario.robot.closed_loop > sim.duration * 10:

@@ -515,7 +515,9 @@ def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, identificatio
         duration=cfg.closed_loop, calibration=calibration, dt=dt,
         noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed,
         nominal=model if nominal is None else nominal, calibrate=True,
-        aeolian_steady=closed_loop_wind(scenario, model.span), estimator=cfg.estimator)
+        aeolian_steady=closed_loop_wind(scenario, model.span), estimator=cfg.estimator,
+        wind=(wind_physics(scenario, model.span) if cfg.wind == "self_limiting"
+              else "fixed_lift"))
     return ClosedLoop(tuning=tuning, sensors=tuple(int(i) for i in sensors), result=result,
                       calibration=calibration, sensors_how=how)
 
@@ -542,11 +544,41 @@ def closed_loop_wind(scenario: Scenario, span) -> dict | bool:
     >>> closed_loop_wind(load_scenario(), None)     # the lab span's shaker: no wind
     False
     """
-    from ..severity import SELF_DAMPING_LAWS
-
     sev = scenario.severity
     if scenario.forcing.kind != "aeolian" or not (sev.enabled and sev.time_domain):
         return False
+    return wind_physics(scenario, span)
+
+
+def wind_physics(scenario: Scenario, span) -> dict:
+    """The self-limiting wind's physics the scenario sets: the severity section's power curve
+    and self-damping law, its k from the severity study's rated strength
+    (:func:`severity_span`): ``run_closed_loop``'s ``wind`` (with ``robot.wind =
+    "self_limiting"``) and its ``aeolian_steady`` judgement alike.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``severity`` section.
+    span : Span
+        The line the closed loop simulates (the truth).
+
+    Returns
+    -------
+    dict
+        ``wind_curve``, ``self_damping`` and ``self_damping_k``.
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> drake = plc.Span.at_rts_fraction(300.0, "drake", 0.2)
+    >>> physics = wind_physics(load_scenario("drake-300m"), drake)
+    >>> physics["wind_curve"], physics["self_damping"]
+    ('cigre', 'noiseux1991')
+    """
+    from ..severity import SELF_DAMPING_LAWS
+
+    sev = scenario.severity
     law = SELF_DAMPING_LAWS[sev.self_damping]
     return {"wind_curve": sev.wind_curve, "self_damping": sev.self_damping,
             "self_damping_k": law.coefficient(severity_span(scenario, span))}
