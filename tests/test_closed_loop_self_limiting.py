@@ -14,6 +14,7 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy.integrate import trapezoid
 
 import powerline_control as plc
 from powerline_control.errors import InputError, ShortfallWarning, TruncationWarning
@@ -111,8 +112,8 @@ def test_energy_is_conserved_with_the_amplitude_dependent_damping():
         c_wind[damping.locked, damping.locked] = -wind
         c_loss = robot_damping.copy()
         c_loss[: damping.band, : damping.band] += np.diag(own)
-        wind_in += np.trapezoid(np.einsum("ki,ij,kj->k", v, c_wind, v), dx=dt)
-        dissipated += np.trapezoid(np.einsum("ki,ij,kj->k", v, c_loss, v), dx=dt)
+        wind_in += trapezoid(np.einsum("ki,ij,kj->k", v, c_wind, v), dx=dt)
+        dissipated += trapezoid(np.einsum("ki,ij,kj->k", v, c_loss, v), dx=dt)
     gained = (plant.energy(states[window.stop - 1], robot.position)
               - plant.energy(states[window.start], robot.position))
     # input = dissipated + gained: the flow is exact within a block; the trapezoid rule at 50

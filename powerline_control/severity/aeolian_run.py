@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
+from scipy.integrate import trapezoid  # numpy >= 1.26 is allowed: np.trapezoid is 2.0's
 
 from .._threads import on_one_blas_thread
 from .._validation import check_real, read_only
@@ -508,7 +509,7 @@ self_damping_exponents
 
     def mean_power(quadratic: np.ndarray) -> float:
         values = np.einsum("ki,ij,kj->k", velocities, quadratic, velocities)
-        return float(np.trapezoid(values, dx=dt) / (dt * (n_samples - 1)))
+        return float(trapezoid(values, dx=dt) / (dt * (n_samples - 1)))
 
     own_matrix = np.zeros((plant.n_q, plant.n_q))
     own_matrix[:band, :band] = np.diag(own)
@@ -593,7 +594,7 @@ def envelope_settled(times: np.ndarray, envelope: np.ndarray, tolerance: float, 
         inside = (t >= lo) & (t <= hi)
         if np.count_nonzero(inside) < BLOCKS_PER_WINDOW:
             return False
-        means.append(float(np.trapezoid(y[inside], t[inside]) / (t[inside][-1] - t[inside][0])))
+        means.append(float(trapezoid(y[inside], t[inside]) / (t[inside][-1] - t[inside][0])))
     y1, y2, y3 = means
     if y3 <= 0:
         return False
