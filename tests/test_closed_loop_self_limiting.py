@@ -219,3 +219,28 @@ def test_a_scenario_chooses_the_wind_of_its_closed_loop(monkeypatch):
     law = plc.severity.SELF_DAMPING_LAWS["noiseux1991"]
     assert seen["wind"] == {"wind_curve": "cigre", "self_damping": "noiseux1991",
                             "self_damping_k": pytest.approx(law.coefficient(span))}
+
+
+def test_the_report_says_which_wind_the_closed_loop_ran_in_and_shows_no_nan():
+    from powerline_control.scenario.summary import result_sections
+    from powerline_control.scenario.summary_verdict import result_verdict
+
+    text = SCENARIO.replace("[robot]", "[model]\nn_elements = 60\n[robot]") + "\n".join([
+        "", 'wind = "self_limiting"', "body_mass = 5.0", "suspended_mass = 3.0",
+        "closed_loop = 6.0"])
+    with warnings.catch_warnings():
+        # a 6 s run on a lightly damped span neither settles nor goes far: not the point here
+        for category in (TruncationWarning, ShortfallWarning, plc.errors.ReachWarning):
+            warnings.simplefilter("ignore", category)
+        result = plc.run_scenario(plc.load_scenario(text=text), stages=("model", "closed_loop"))
+    assert result.closed_loop.result.wind == "self_limiting"
+    section = next(s for s in result_sections(result) if s["title"].startswith("Closed loop"))
+    rows = {row[0]: row for row in section["rows"]}
+    assert rows["wind"][1].startswith("self-limiting")
+    cells = " ".join(str(cell) for row in section["rows"] for cell in row)
+    assert "nan" not in cells.split() and "nan mm" not in cells   # no best-position scan here
+    assert "RMS: robot parked at the best position" not in rows
+    headline = next(h for h in result_verdict(result).headlines
+                    if h.label == "robot against no robot")
+    assert "in the self-limiting wind" in headline.verdict
+    assert "fixed-amplitude" not in headline.verdict

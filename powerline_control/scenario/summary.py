@@ -598,11 +598,23 @@ def _closed_loop_section(r) -> dict:
                            " (the robot did not settle: the last second)"),
                         "The window RMS (beside each steady state below) is over this window, "
                         "after the robot last arrived."))
+    self_limiting = getattr(result, "wind", "fixed_lift") == "self_limiting"
+    if self_limiting:
+        rows.insert(1, ("wind", "self-limiting (robot.wind)",
+                        "The closed loop's line is driven by the energy balance's physics: the "
+                        "wind's power at the locked mode's current amplitude and the "
+                        "conductor's self-damping (the severity section's curve and law), "
+                        "starting at the balance's amplitude; the records of the stages above "
+                        "are the fixed lift's."))
     for comparison in getattr(result, "comparisons", ()):
+        if not np.isfinite(comparison.rms):
+            continue   # no steady-state scan under this load: no best position to compare
         label = _COMPARISON_WORDS.get(comparison.name, comparison.name)
         where = "" if not np.isfinite(comparison.position) else \
             f" at {comparison.position:.4g} m"
         note = f"peak {mm(comparison.peak)}"
+        if self_limiting:   # the amplitude the energy balance and severity speak of
+            note += f"; antinode amplitude {mm(comparison.amplitude)}"
         if comparison.steady:
             note += (f"; settled window {mm(comparison.window_rms)}"
                      + (" (still ringing)" if comparison.transient else ""))

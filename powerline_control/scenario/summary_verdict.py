@@ -184,7 +184,9 @@ def _robot(r) -> tuple:
     names = {c.name for c in res.comparisons}
     how = "steady state" if closed.steady else "settled window"
     steady = getattr(res, "aeolian_steady", None)
-    if steady is not None:
+    if getattr(res, "wind", "fixed_lift") == "self_limiting":
+        how += " in the self-limiting wind"
+    elif steady is not None:
         how += " under the simulation's fixed-amplitude lift"
     ended = f" The robot ended at {closed.position:.4g} m."
     out = []
