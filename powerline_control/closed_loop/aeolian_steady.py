@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -136,6 +136,18 @@ def _ratio(numerator: float, denominator: float) -> float:
     return numerator / denominator if denominator > 0 else math.inf
 
 
+def known_options(parameter: str, value: Mapping, allowed: Sequence[str]) -> dict:
+    """``value`` as a dict, refused with an InputError naming ``parameter`` when it names an
+    option of the self-limiting physics outside ``allowed``."""
+    unknown = [key for key in value if key not in allowed]
+    if unknown:
+        raise InputError(
+            f"The '{parameter}' parameter names options {unknown} that the self-limiting "
+            f"physics does not take here: allowed are {list(allowed)} (the span, supports, mesh "
+            "and robot are the closed loop's own).")
+    return dict(value)
+
+
 def checked_options(value: object, wind: object) -> dict | None:
     """``run_closed_loop``'s ``aeolian_steady``: None when not asked (False), else the
     :func:`~powerline_control.severity.simulate_aeolian` options it names (True: none, the
@@ -146,13 +158,7 @@ def checked_options(value: object, wind: object) -> dict | None:
             return None
         options = {}
     elif isinstance(value, Mapping):
-        unknown = [key for key in value if key not in PHYSICS_OPTIONS]
-        if unknown:
-            raise InputError(
-                f"The 'aeolian_steady' parameter names options {unknown} that simulate_aeolian's "
-                f"physics does not take here: allowed are {list(PHYSICS_OPTIONS)} (the span, "
-                "supports, mesh and robot are the closed loop's own).")
-        options = dict(value)
+        options = known_options("aeolian_steady", value, PHYSICS_OPTIONS)
     else:
         raise InputError(
             "The 'aeolian_steady' parameter must be True, False or a mapping of simulate_aeolian "

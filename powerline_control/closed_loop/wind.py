@@ -27,7 +27,7 @@ from ..fem import LineModel
 from ..severity import AeolianDamping, aeolian_damping, aeolian_severity
 from ..simulation.held_damping import HeldDamping, run_held
 from ..simulation.plant import ModalPlant
-from .aeolian_steady import PHYSICS_OPTIONS
+from .aeolian_steady import PHYSICS_OPTIONS, known_options
 
 #: The aeolian loads of the closed loop's line: the lift of fixed amplitude on the model's
 #: damping, or the energy balance's self-limiting physics.
@@ -53,13 +53,7 @@ def checked_wind(value: object, segments: list, model: LineModel) -> dict | None
             return None
         options = {}
     elif isinstance(value, Mapping):
-        unknown = [key for key in value if key not in WIND_OPTIONS]
-        if unknown:
-            raise InputError(
-                f"The 'wind' parameter names options {unknown} that the self-limiting physics "
-                f"does not take: allowed are {list(WIND_OPTIONS)} (the span, supports, mesh and "
-                "robot are the closed loop's own).")
-        options = dict(value)
+        options = known_options("wind", value, WIND_OPTIONS)
     else:
         raise InputError(f"The 'wind' parameter must be one of {list(WINDS)} or a mapping of "
                          f"the self-limiting physics' options {list(WIND_OPTIONS)}. Got "
