@@ -43,6 +43,7 @@ import dataclasses  # noqa: E402
 import os  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
+from functools import partial  # noqa: E402
 
 import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import numpy as np  # noqa: E402
@@ -79,6 +80,13 @@ def measure(model, robot, sensors, judged: bool, wind: str = "fixed_lift"):
     return result, time.process_time() - cpu
 
 
+def fastest_of_each(repeats: int, first, second) -> tuple:
+    """The fastest (result, CPU s) of ``first()`` and of ``second()``, run in turn ``repeats``
+    times: alternating, the machine's load falls on both."""
+    runs = [(first(), second()) for _ in range(max(repeats, 1))]
+    return tuple(min((pair[i] for pair in runs), key=lambda run: run[1]) for i in (0, 1))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=2,
@@ -96,12 +104,9 @@ def main() -> None:
     for label, spec in cases:
         model, robot, sensors = case(*spec)
         load_before = os.getloadavg()[0]
-        plain, judged = [], []
-        for _ in range(max(options.repeats, 1)):   # alternate: the load falls on both
-            plain.append(measure(model, robot, sensors, False))
-            judged.append(measure(model, robot, sensors, True))
-        base, base_cpu = min(plain, key=lambda run: run[1])
-        result, cpu = min(judged, key=lambda run: run[1])
+        (base, base_cpu), (result, cpu) = fastest_of_each(
+            options.repeats, partial(measure, model, robot, sensors, False),
+            partial(measure, model, robot, sensors, True))
         steady = result.aeolian_steady
         simulated = float(result.t[-1])
         lift = base.comparison("no_robot").rms / base.comparison("closed_loop").rms
@@ -134,12 +139,9 @@ def self_limiting(cases, repeats: int) -> None:
     for label, spec in cases:
         model, robot, sensors = case(*spec)
         load_before = os.getloadavg()[0]
-        lift, limited = [], []
-        for _ in range(max(repeats, 1)):   # alternate: the load falls on both
-            lift.append(measure(model, robot, sensors, False))
-            limited.append(measure(model, robot, sensors, True, "self_limiting"))
-        _, lift_cpu = min(lift, key=lambda run: run[1])
-        result, cpu = min(limited, key=lambda run: run[1])
+        (_, lift_cpu), (result, cpu) = fastest_of_each(
+            repeats, partial(measure, model, robot, sensors, False),
+            partial(measure, model, robot, sensors, True, "self_limiting"))
         cpu -= result.timings["aeolian steady cpu"]
         steady = result.aeolian_steady
         simulated = float(result.t[-1])
