@@ -39,7 +39,7 @@ from .policy import (
     mode_spacing,
     obstacle_ends,
     pick_target,
-    predicted_rms,
+    predicted_figure,
     predicted_sensors,
     quiet_from,
     reach_within,
@@ -203,7 +203,7 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
     choice = choose_target(shape, belief.plant, robot, 2 * np.pi * tone, belief.weights,
                            belief.inside(motion.position), *belief.within(low, high), reach,
                            obstacle_ends((low, high), settings.obstacles, settings.limits.length),
-                           policy)
+                           policy, settings.objective)
     records.predictions.append((float(t[k]), choice.grid, choice.predicted, read_only(shape),
                                 tone))
     if retarget:
@@ -292,9 +292,9 @@ def _out_of_reach(choice, shape: np.ndarray, belief: Belief, motion: Motion, rob
     else:
         anywhere = choose_target(shape, belief.plant, robot, omega, belief.weights,
                                  choice.position, *belief.within(half, length - half),
-                                 settings=policy)
-    chosen, best = predicted_rms(shape, belief.plant, robot, omega,
-                                 [choice.position, anywhere.position], belief.weights)
+                                 settings=policy, objective=choice.objective)
+    chosen, best = predicted_figure(choice.objective, shape, belief.plant, robot, omega,
+                                    [choice.position, anywhere.position], belief.weights)
     if best >= (1 - policy.min_gain) * chosen:
         return None
     limits, gain = settings.limits, 100 * (1 - best / chosen)
@@ -620,6 +620,10 @@ def run_closed_loop(
     rng = check_rng(seed)
     segments = load_segments(force, settings.duration)
     wind_options = checked_wind(wind, segments, settings.bare)
+    if wind_options is not None:
+        # In the self-limiting wind the best place is where the absorber reaches the locked
+        # mode most: its antinode (docs/validation/closed_loop.md).
+        settings = dataclasses.replace(settings, objective="antinode")
     steady_options = checked_options(aeolian_steady, segments[-1][1])
     if steady_options is not None:   # refused now, not after the run
         precheck(settings.bare, segments[-1][1][0], steady_options)

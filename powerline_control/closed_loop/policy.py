@@ -16,7 +16,7 @@ wherever the robot is; then it predicts the span's RMS with itself parked at eve
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -117,9 +117,12 @@ class Choice:
     grid : ndarray
         The candidate positions (the free interval), m.
     predicted : ndarray
-        Predicted steady-state span RMS with the robot parked at each candidate, m.
+        Predicted steady-state span RMS with the robot parked at each candidate, m (with
+        ``objective="antinode"``: :func:`inverse_coupling`, dimensionless).
     predicted_here : float
-        The same with the robot parked where it is, m.
+        The same with the robot parked where it is.
+    objective : str
+        What the prediction is (:data:`OBJECTIVES`).
 
     Examples
     --------
@@ -133,20 +136,74 @@ class Choice:
     grid: np.ndarray = field(repr=False)
     predicted: np.ndarray = field(repr=False)
     predicted_here: float
+    objective: str = "response"
 
     @property
     def gain(self) -> float:
-        """Predicted relative drop of the span's RMS by moving there (0: none)."""
+        """Predicted relative drop of the figure by moving there (0: none): of the span's RMS,
+        or (``objective="antinode"``) of the inverse coupling, 1 - |W_here|^2 / |W_there|^2."""
         there = (float(np.interp(self.position, self.grid, self.predicted))
                  if self.predicted.size else self.predicted_here)
         return 1.0 - min(there, self.predicted_here) / max(self.predicted_here, 1e-300)
 
+    def gain_words(self, digits: int = 0) -> str:
+        """The predicted gain in words, for the decision log.
+
+        >>> Choice(0.6, np.array([0.6, 1.8]), np.array([1.0, 4.0]), 4.0, "antinode").gain_words()
+        'the standing wave predicted 2x as large there'
+        """
+        if self.objective == "antinode":
+            ratio = 1.0 / np.sqrt(max(1.0 - self.gain, 1e-300))
+            return f"the standing wave predicted {ratio:.{digits + 2}g}x as large there"
+        return f"predicted {100 * self.gain:.{digits}f} % lower"
+
+    def short_of(self, bar: float) -> str:
+        """Why a gain below ``bar`` (a fraction) does not move the robot, in words.
+
+        >>> Choice(0.6, np.array([0.6, 1.8]), np.array([2e-4, 3e-4]), 2.1e-4).short_of(0.05)
+        ' is only 4.8 % lower (< 5 %)'
+        """
+        if self.objective == "antinode":
+            return f": {self.gain_words(1)}, a gain below {100 * bar:g} %"
+        return f" is only {100 * self.gain:.1f} % lower (< {100 * bar:g} %)"
+
+
+#: What a position is judged by. "response": the predicted steady span RMS under a load of
+#: fixed amplitude (:func:`predicted_rms`). "antinode": in the self-limiting wind the locked
+#: mode's amplitude is set by the power the line dissipates, and the robot's absorber dissipates
+#: in proportion to the square of the standing wave's amplitude where it sits, so a position is
+#: judged by :func:`inverse_coupling` (docs/validation/closed_loop.md, "The policy in the
+#: self-limiting wind").
+OBJECTIVES = ("response", "antinode")
+
+
+def inverse_coupling(bare_shape, plant, positions) -> np.ndarray:
+    """``(max |W_bare| / |W_bare(p)|)^2`` at each of ``positions``: 1 at the robot-free
+    standing wave's largest antinode, growing towards its nodes. The robot's absorber takes
+    energy from the locked mode in proportion to ``|W_bare(p)|^2``, so this is the inverse of its
+    coupling to the wave relative to the best place (a figure to minimise like the span RMS)."""
+    x = plant.model.node_positions
+    peak = float(np.max(np.abs(bare_shape)))
+    here = np.abs(_interpolated(bare_shape, x, np.asarray(positions, dtype=float)))
+    return (peak / np.maximum(here, 1e-6 * peak)) ** 2   # a node: a million times the antinode
+
+
+def predicted_figure(objective: str, bare_shape, plant, robot, omega, positions,
+                     weights) -> np.ndarray:
+    """The figure a position is judged by under ``objective`` (:data:`OBJECTIVES`), lower is
+    better, at each of ``positions``."""
+    if objective == "antinode":
+        return inverse_coupling(bare_shape, plant, positions)
+    return predicted_rms(bare_shape, plant, robot, omega, positions, weights)
+
 
 def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low, high,
                   reach=np.inf, obstacle_ends=(False, False),
-                  settings: PolicySettings = DEFAULT_POLICY) -> Choice:
+                  settings: PolicySettings = DEFAULT_POLICY,
+                  objective: str = "response") -> Choice:
     """The predicted best parked position within reach: among the local minima of the predicted
-    RMS no farther than ``reach`` from the robot, those within ``settings.near_optimal`` of the
+    figure (``objective``, :data:`OBJECTIVES`: the span RMS by default) no farther than
+    ``reach`` from the robot, those within ``settings.near_optimal`` of the
     lowest of them, the one nearest the robot (when none is within reach, the lowest position
     within reach, on the way down to one; the robot's own position when the prediction has no
     minimum or nothing within reach is lower than where it is). When no minimum within reach
@@ -156,9 +213,11 @@ def choose_target(bare_shape, plant, robot, omega, weights, robot_position, low,
     ``max(settings.grid_per_node * n_nodes, settings.min_grid)`` positions of [low, high]."""
     grid = np.linspace(low, high, max(settings.grid_per_node * plant.model.n_nodes,
                                       settings.min_grid))
-    predicted = predicted_rms(bare_shape, plant, robot, omega, grid, weights)
-    here = float(predicted_rms(bare_shape, plant, robot, omega, [robot_position], weights)[0])
-    return pick_target(grid, predicted, here, robot_position, reach, obstacle_ends, settings)
+    predicted = predicted_figure(objective, bare_shape, plant, robot, omega, grid, weights)
+    here = float(predicted_figure(objective, bare_shape, plant, robot, omega, [robot_position],
+                                  weights)[0])
+    choice = pick_target(grid, predicted, here, robot_position, reach, obstacle_ends, settings)
+    return replace(choice, objective=objective)
 
 
 def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_position: float,
@@ -576,17 +635,17 @@ class Targeting:
             self.loop, self.anchor_frequency, self.pending_since = loop, frequency, None
             self.choices, self.phase = 1, Phase.CONFIRMING
             if worth_moving:
-                return f"target {choice.position:.4g} m (predicted {100 * choice.gain:.0f} % lower)"
-            return (f"hold at {here:.4g} m: the best predicted position {choice.position:.4g} m "
-                    f"is only {100 * choice.gain:.1f} % lower (< {100 * policy.min_gain:g} %)")
+                return f"target {choice.position:.4g} m ({choice.gain_words()})"
+            return (f"hold at {here:.4g} m: the best predicted position {choice.position:.4g} m"
+                    f"{choice.short_of(policy.min_gain)}")
         if abs(choice.position - self.anchor) <= policy.same_loop * self.loop:
             # The same minimum, better estimated from a steady window: accept it (the
             # gate is anchored to the choice, it never moves with the goal) and stop; a
             # refinement predicted to gain less than refine_gain is not worth the move.
             self.phase = Phase.FINAL
             if choice.gain < policy.refine_gain:
-                return (f"confirm {here:.4g} m (the refinement to {choice.position:.4g} m is "
-                        f"predicted only {100 * choice.gain:.1f} % lower)")
+                return (f"confirm {here:.4g} m (the refinement to {choice.position:.4g} m"
+                        f"{choice.short_of(policy.refine_gain)})")
             self.goal = choice.position
             return f"confirm {choice.position:.4g} m (anchor {self.anchor:.4g} m)"
         if self.choices < policy.max_choices:
@@ -594,8 +653,7 @@ class Targeting:
             # have kept the near one) from a steadier window: go there (still confirming).
             self.anchor, self.loop, self.goal = choice.position, loop, choice.position
             self.choices += 1
-            return (f"another loop: {choice.position:.4g} m (predicted "
-                    f"{100 * choice.gain:.0f} % lower)")
+            return f"another loop: {choice.position:.4g} m ({choice.gain_words()})"
         self.phase = Phase.FINAL
         return (f"final at {self.goal:.4g} m (best predicted {choice.position:.4g} m, "
-                f"{100 * choice.gain:.1f} % lower)")
+                f"{choice.gain_words(1)})")

@@ -79,6 +79,9 @@ class Settings:
     bare: LineModel             # the line the loop runs on (without the robot)
     obstacles: tuple
     policy: PolicySettings      # the policy's settings (run_closed_loop's 'settings')
+    # What the policy judges a position by (policy.OBJECTIVES): the wind the user declares is
+    # the engineer's knowledge of the line, not a reading of the simulated line.
+    objective: str = "response"
 
     @property
     def n_samples(self) -> int:
