@@ -175,3 +175,25 @@ def test_scenario_severity_reports_the_time_domain_beside_the_balance():
     data = result_json(result)["severity_time_domain"]
     assert data["reduction"] == pytest.approx(runs.reduction)
     assert data["bare_amplitude_m"] == pytest.approx(runs.bare.amplitude)
+
+
+def test_a_mode_the_wind_has_not_fed_gets_no_self_damping_and_no_nan():
+    # A band mode at 3e-163 m: its Y^2 underflows and P_c / Y^2 was 0 / 0 (NaN stopped a run on
+    # a 372 m Condor span). The law's ratio, 2 k Y^(a-2) f^b / (m omega^3) with a = 2.44, tends
+    # to 0 there; the locked mode's coefficients are those of the state without that mode.
+    from powerline_control.severity import aeolian_damping
+    from powerline_control.simulation.plant import ModalPlant
+
+    span = _span("drake", 60.0)
+    plant = ModalPlant(plc.LineModel(span), None, 24, dt=1e-3)
+    damping = aeolian_damping(plant, span, 3.0)
+    z = damping.start_state(plant, 0.005)
+    quiet = (damping.locked + 1) % damping.band
+    z_quiet = z.copy()
+    z_quiet[quiet] = 2.3e-162    # the smallest modal coordinate whose square is not 0
+    assert 0 < damping.amplitudes(z_quiet)[quiet] and damping.amplitudes(z_quiet)[quiet] ** 2 == 0
+    own, wind = damping.coefficients(z_quiet)
+    own_without, wind_without = damping.coefficients(z)
+    assert np.all(np.isfinite(own)) and np.isfinite(wind)
+    assert own[quiet] == 0.0
+    assert np.array_equal(own, own_without) and wind == wind_without

@@ -63,6 +63,13 @@ MAX_WIND_RATIO = 0.1
 #: power curve's constant term, below the curves' data).
 VANISHED = 1e-3
 
+#: A band mode whose antinode amplitude is below this fraction of the conductor's diameter is
+#: given no self-damping: its ratio grows as Y^(a - 2) with the laws' a > 2 (1e-5 of its value at
+#: Y ~ D for Noiseux's 2.44), and at such amplitudes P_c / Y^2 is 0 / 0 once Y^2 underflows (a
+#: mode the line has not yet fed, at 1e-170 m on a 372 m Condor span, stopped simulate_aeolian
+#: with NaN).
+QUIESCENT = 1e-12
+
 #: Blocks each of the settling test's three windows must hold: a few long blocks (a light
 #: damping) say too little of the approach.
 BLOCKS_PER_WINDOW = 10
@@ -237,7 +244,7 @@ class AeolianDamping:
         cond = self.span.conductor
         mass = cond.mass_per_length
         own = np.zeros(self.band)
-        for i in np.flatnonzero(y > 0):
+        for i in np.flatnonzero(y > QUIESCENT * cond.diameter):
             p_c = float(self.law.power(y[i], self.omega[i] / (2 * math.pi), self.span))
             own[i] = 2 * _ratio(p_c, mass, self.omega[i], y[i]) * self.omega[i]
         curve = _curve(self.wind_curve)
