@@ -66,7 +66,7 @@ VANISHED = 1e-3
 #: A band mode whose antinode amplitude is below this fraction of the conductor's diameter is
 #: given no self-damping: its ratio grows as Y^(a - 2) with the laws' a > 2 (1e-5 of its value at
 #: Y ~ D for Noiseux's 2.44), and at such amplitudes P_c / Y^2 is 0 / 0 once Y^2 underflows (a
-#: mode the line has not yet fed, at 1e-170 m on a 372 m Condor span, stopped simulate_aeolian
+#: mode the line has not yet fed, on a 372 m Condor span, stopped simulate_aeolian
 #: with NaN).
 QUIESCENT = 1e-12
 
