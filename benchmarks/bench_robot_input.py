@@ -57,25 +57,34 @@ def _timed(calibration, records):
 
 
 def per_sample(*runs):
-    """Median seconds per sample of step and of step_block for each run's filter, the runs
-    timed in turn within each repeat (a shared machine's load drifts between repeats)."""
+    """Seconds per sample of step and of step_block for each run's filter, the runs timed in
+    turn within each repeat (a shared machine's load drifts between repeats): per run, the
+    medians of step and step_block, the minimum of step_block, its states, and the
+    step_block time of each repeat (for the ratios within a repeat)."""
     timings = [[_timed(*run) for run in runs] for _ in range(REPEATS)]
     return [(float(np.median([t[i][0] for t in timings])),
-             float(np.median([t[i][1] for t in timings])), timings[0][i][2])
+             float(np.median([t[i][1] for t in timings])),
+             float(np.min([t[i][1] for t in timings])), timings[0][i][2],
+             np.array([t[i][1] for t in timings]))
             for i in range(len(runs))]
 
 
 def main(seeds):
     print(_common.PINNED)
-    print(f"{'scenario':58s} {'n today':>7s} {'n robot':>7s} {'step us':>15s} {'ratio':>6s} "
-          f"{'block us':>15s} {'ratio':>6s}")
+    print(f"step: per sample, median of {REPEATS} repeats; step_block: per {PACKET}-sample "
+          "packet, min / median of the repeats, and the median of the per-repeat ratios")
+    print(f"{'scenario':40s} {'n today':>7s} {'n robot':>7s} {'step us':>15s} {'ratio':>6s} "
+          f"{'packet us (min / median)':>32s} {'ratio min/med/rep':>18s}")
     for seed in seeds:
         scenario = fam.scenario(seed)
         today, robot = per_sample(captured(scenario, "recipe"),
                                   captured(scenario, "robot_input"))
-        print(f"{scenario.description[:58]:58s} {today[2]:7d} {robot[2]:7d} "
+        us = 1e6 * PACKET
+        print(f"{scenario.description[:40]:40s} {today[3]:7d} {robot[3]:7d} "
               f"{1e6 * today[0]:6.1f} -> {1e6 * robot[0]:6.1f} {robot[0] / today[0]:6.2f} "
-              f"{1e6 * today[1]:6.1f} -> {1e6 * robot[1]:6.1f} {robot[1] / today[1]:6.2f}")
+              f"{us * today[2]:6.1f}/{us * today[1]:6.1f} -> {us * robot[2]:6.1f}/"
+              f"{us * robot[1]:6.1f}   {robot[2] / today[2]:4.2f}/{robot[1] / today[1]:4.2f}/"
+              f"{float(np.median(robot[4] / today[4])):4.2f}")
 
 
 if __name__ == "__main__":
