@@ -54,9 +54,11 @@ class ModalPacket:
         lift = np.empty((n, 2 * n_slots))
         lift[:, 0::2], lift[:, 1::2] = vectors.real * scale, -vectors.imag * scale
         lift[:, 1::2][:, is_real] = 0.0
-        # States and the outputs' O x[k] in one product: [lift; O lift].
-        self.lift = np.vstack([lift, observe @ lift])
-        self.n = n
+        # Transposed, for (L, 2 slots) @ (2 slots, n): as fast as lift @ (2 slots, L) up to 300
+        # states and 1.4x faster at 352 (once the lift outgrows the 1 MiB L2 cache, EPYC), and
+        # the scan's output is its operand as it stands (no transposed copy).
+        self.lift_t = np.ascontiguousarray(lift.T)
+        self.observe_t = np.ascontiguousarray((observe @ lift).T)
         # real coordinates of V^-1 (rows Re, Im interleaved): z = (to_modal @ x).view(complex)
         to_modal = np.empty((2 * n_slots, inverse.shape[1]))
         to_modal[0::2], to_modal[1::2] = inverse.real, inverse.imag
@@ -112,14 +114,13 @@ class ModalPacket:
         drives = product[:, : 2 * n_slots].view(complex)
         drives[0] += self.eigenvalues * z0
         z = self._scan(drives)
-        # the real coordinates in C order: a transposed operand doubled the product's time
-        # (OpenBLAS, 204 x 212 by 212 x 10)
-        stacked = self.lift @ np.ascontiguousarray(z.view(float).T)
-        seen = stacked[self.n :]
+        coordinates = z.view(float)   # (L, 2 slots), C order
+        states = (coordinates @ self.lift_t).T   # (n, L), F order
+        seen = (coordinates @ self.observe_t).T  # O x[k]
         outputs = product[:, 2 * n_slots :].T.copy()
         outputs[:, 0] += seen0
         outputs[:, 1:] += seen[:, :-1]
-        return stacked[: self.n], z, outputs, seen[:, -1]
+        return states, z, outputs, seen[:, -1]
 
     def _scan(self, drives: np.ndarray) -> np.ndarray:
         """``z[k] = lambda z[k-1] + drives[k]`` down the rows of ``drives`` ``(L, slots)``
