@@ -4,8 +4,13 @@ robot's force as an input) against today's ``"recipe"`` filter, on the same run.
 
 Both filters are the ones ``run_closed_loop`` builds (kept by a hook on the loop), each stepped
 on the run's own sensor record: one sample per call (``step``, with the robot's modal forces as
-the input) and in the loop's 10-sample packets (``step_block``). The issue's bound: at most 1.5x
-today's cost per step. BLAS is pinned to one thread (``_common`` is imported before numpy).
+the input) and in the loop's 10-sample packets (``step_block``, which for a converged filter runs
+the closed loop's modal form, ``estimate/_packet.py``). The issue's bound: at most 1.5x today's
+cost per step. Both filters are timed in turn within each of the repeats (the shared machine's
+load drifts between repeats): ``step`` as the median per sample, a packet as the minimum and
+the median over the repeats, and the ratios of those and the median of the per-repeat ratios.
+BLAS is pinned to one thread (``_common`` is imported before numpy). Results:
+docs/validation/closed_loop.md (the estimator's cost).
 
 Usage::
 

@@ -20,10 +20,11 @@ from __future__ import annotations
 import numpy as np
 
 # The modal form is used only when the eigenvector matrix of the closed loop is this well
-# conditioned. Its states differ from the stepped loop's by about cond(V) * eps times a small
-# factor, relative (measured: 8.5e-11 at cond(V) = 3.7e5 on the closed loop's 204-state filter
-# over 2000 samples), so 1e6 keeps that near or below 1e-9 relative; beyond it (near a Jordan
-# block, nearly parallel eigenvectors) the stepped loop is kept.
+# conditioned. Its states differ from the stepped loop's by up to about cond(V) * eps, relative
+# (measured over 2000 samples of the closed loop's filters: 8.5e-11 at cond(V) = 3.7e5 with 204
+# states, 9.4e-12 at 9.3e5 with 348), so 1e6 keeps that near 2e-10, well inside 1e-9; beyond it
+# (near a Jordan block: nearly parallel eigenvectors) the stepped loop is kept. The family's
+# closed-loop filters reach 9.3e5 (docs/validation/closed_loop.md).
 MAX_CONDITION = 1e6
 # The scan scales sample j's drive by lambda^-j and the running sum by lambda^k (one cumulative
 # sum instead of a Python loop over samples); it is used while every |lambda|^(L-1) of the packet
@@ -64,7 +65,6 @@ class ModalPacket:
         to_modal[0::2], to_modal[1::2] = inverse.real, inverse.imag
         to_modal[1::2][is_real] = 0.0
         self.to_modal = to_modal
-        self.observe = observe
         # drivers (L, q) to [modal drives interleaved | H w] in one product
         modal_drive = inverse @ drive
         drive_t = np.empty((drive.shape[1], 2 * n_slots + feedthrough.shape[0]))
@@ -73,7 +73,7 @@ class ModalPacket:
         drive_t[:, 2 * n_slots :] = feedthrough.T
         self.drive_t = drive_t
         self.powers = [eigenvalues]   # lambda^(2^i) of the doubling scan, extended as needed
-        self.scaled: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}
+        self.scaled: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray] | None] = {}
 
     @classmethod
     def build(cls, closed: np.ndarray, drive: np.ndarray, observe: np.ndarray,
