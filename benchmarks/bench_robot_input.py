@@ -4,8 +4,13 @@ robot's force as an input) against today's ``"recipe"`` filter, on the same run.
 
 Both filters are the ones ``run_closed_loop`` builds (kept by a hook on the loop), each stepped
 on the run's own sensor record: one sample per call (``step``, with the robot's modal forces as
-the input) and in the loop's 10-sample packets (``step_block``). The issue's bound: at most 1.5x
-today's cost per step. BLAS is pinned to one thread (``_common`` is imported before numpy).
+the input) and in the loop's 10-sample packets (``step_block``, which for a converged filter runs
+the closed loop's modal form, ``estimate/_packet.py``). The issue's bound: at most 1.5x today's
+cost per step. Both filters are timed in turn within each of the repeats (the shared machine's
+load drifts between repeats): ``step`` as the median per sample, a packet as the minimum and
+the median over the repeats, and the ratios of those and the median of the per-repeat ratios.
+BLAS is pinned to one thread (``_common`` is imported before numpy). Results:
+docs/validation/closed_loop.md (the estimator's cost).
 
 Usage::
 
@@ -57,25 +62,34 @@ def _timed(calibration, records):
 
 
 def per_sample(*runs):
-    """Median seconds per sample of step and of step_block for each run's filter, the runs
-    timed in turn within each repeat (a shared machine's load drifts between repeats)."""
+    """Seconds per sample of step and of step_block for each run's filter, the runs timed in
+    turn within each repeat (a shared machine's load drifts between repeats): per run, the
+    medians of step and step_block, the minimum of step_block, its states, and the
+    step_block time of each repeat (for the ratios within a repeat)."""
     timings = [[_timed(*run) for run in runs] for _ in range(REPEATS)]
     return [(float(np.median([t[i][0] for t in timings])),
-             float(np.median([t[i][1] for t in timings])), timings[0][i][2])
+             float(np.median([t[i][1] for t in timings])),
+             float(np.min([t[i][1] for t in timings])), timings[0][i][2],
+             np.array([t[i][1] for t in timings]))
             for i in range(len(runs))]
 
 
 def main(seeds):
     print(_common.PINNED)
-    print(f"{'scenario':58s} {'n today':>7s} {'n robot':>7s} {'step us':>15s} {'ratio':>6s} "
-          f"{'block us':>15s} {'ratio':>6s}")
+    print(f"step: per sample, median of {REPEATS} repeats; step_block: per {PACKET}-sample "
+          "packet, min / median of the repeats, and the median of the per-repeat ratios")
+    print(f"{'scenario':40s} {'n today':>7s} {'n robot':>7s} {'step us':>15s} {'ratio':>6s} "
+          f"{'packet us (min / median)':>32s} {'ratio min/med/rep':>18s}")
     for seed in seeds:
         scenario = fam.scenario(seed)
         today, robot = per_sample(captured(scenario, "recipe"),
                                   captured(scenario, "robot_input"))
-        print(f"{scenario.description[:58]:58s} {today[2]:7d} {robot[2]:7d} "
+        us = 1e6 * PACKET
+        print(f"{scenario.description[:40]:40s} {today[3]:7d} {robot[3]:7d} "
               f"{1e6 * today[0]:6.1f} -> {1e6 * robot[0]:6.1f} {robot[0] / today[0]:6.2f} "
-              f"{1e6 * today[1]:6.1f} -> {1e6 * robot[1]:6.1f} {robot[1] / today[1]:6.2f}")
+              f"{us * today[2]:6.1f}/{us * today[1]:6.1f} -> {us * robot[2]:6.1f}/"
+              f"{us * robot[1]:6.1f}   {robot[2] / today[2]:4.2f}/{robot[1] / today[1]:4.2f}/"
+              f"{float(np.median(robot[4] / today[4])):4.2f}")
 
 
 if __name__ == "__main__":

@@ -7,7 +7,8 @@ checked and frozen at construction (with the steady-state DARE solution computed
 tracking, divergence checks, the consistency windows, the spectral test of a run) shared by
 ``step`` and ``filter``, and the modal batch recursion that evaluates converged NaN-free
 stretches as a blocked scan over all modes at once (:func:`_recursion_tables`,
-:func:`_diagonal_recursion`). Nothing here imports the filter.
+:func:`_diagonal_recursion`); ``step_block``'s short packets go through ``_packet.ModalPacket``.
+Nothing here imports the filter.
 
 Test seam: ``_recursion_tables``, ``_diagonal_recursion`` and ``_SCAN_BLOCK``: the blocked scan is
 checked against a plain step-by-step recursion across block boundaries (tests/test_estimate.py).
@@ -36,6 +37,7 @@ from ..errors import (
 )
 from ._adaptive import _Adaptation
 from ._model_error import innovation_inflation
+from ._packet import MAX_CONDITION, ModalPacket
 from ._spectrum import (
     NIS_FIELD_SPAN,
     following_reference,
@@ -50,9 +52,8 @@ from .consistency import DEFAULT_CONSISTENCY_WINDOW, _window_sums
 from .result import Consistency
 
 # The modal batch recursion is used only when the eigenvector matrix of the closed loop is this
-# well conditioned; its round-off grows with cond(V), and beyond this it could differ from the
-# loop by more than 1e-9 relative.
-_MAX_MODAL_CONDITION = 1e6
+# well conditioned (the bound of the packets' modal form, _packet.MAX_CONDITION, and why).
+_MAX_MODAL_CONDITION = MAX_CONDITION
 # Consecutive full samples with a gain change below gain_rtol before the gain is frozen.
 _CONFIRM_SAMPLES = 10
 # Block length of the vectorised diagonal recursion: in-block work grows with it, the Python
@@ -175,6 +176,11 @@ class FilterSpec:
         """The modal form of the steady closed loop (:func:`_build_batch`), or False."""
         return _build_batch(self, self.steady_solution[0])
 
+    @cached_property
+    def steady_packet(self) -> ModalPacket | None:
+        """The modal form of the steady closed loop for short packets (:func:`_build_packet`)."""
+        return _build_packet(self, self.steady_solution[0])
+
     @property
     def mean_square_window(self) -> int:
         """Time constant (samples) of the running mean squares of the model-error terms: the
@@ -245,6 +251,9 @@ class _Recursion:
         self.converged = True
         self.gain_ss, self.posterior_ss, self.predicted_ss = gain, posterior, predicted
         self.closed_loop = None   # (F, (I - K C) B) of advance_frozen, built on first use
+        self.packet = False       # its modal form (packet_form), built on first use
+        # the packets' modal state, C A x, and the x they describe (packet_form)
+        self.modal_z = self.modal_seen = self.modal_of = None
         if spec.info_form:
             self.s_factor = None  # NIS through Woodbury with posterior_ss, O(n p)
         else:
@@ -278,6 +287,27 @@ class _Recursion:
                 self.w_sum /= self.realtime_growth()
             self.closed.append((self.w_sum, self.w_valid, self.w_used))
             self.w_sum, self.w_valid, self.w_used, self.w_len = 0.0, 0, 0, 0
+
+    def monitor_full(self, nis: np.ndarray, y: np.ndarray) -> None:
+        """:meth:`monitor` of a block of samples with every sensor: one addition per window
+        the block touches instead of one call per sample (with a field reference, per sample:
+        a closing window reads the ring buffer)."""
+        spec = self.spec
+        if self.recent is not None:
+            for k, value in enumerate(nis.tolist()):
+                self.monitor(value, spec.p, y[:, k])
+            return
+        start = 0
+        while start < nis.size:
+            take = min(nis.size - start, spec.window - self.w_len)
+            self.w_sum += float(nis[start : start + take].sum())
+            self.w_valid += take
+            self.w_used += take * spec.p
+            self.w_len += take
+            start += take
+            if self.w_len == spec.window:
+                self.closed.append((self.w_sum, self.w_valid, self.w_used))
+                self.w_sum, self.w_valid, self.w_used, self.w_len = 0.0, 0, 0, 0
 
     def resume(self, nis: np.ndarray, raw_nis: np.ndarray, n_used: np.ndarray,
                measurements: np.ndarray) -> None:
@@ -411,10 +441,11 @@ class _Recursion:
 
         For a converged recursion and NaN-free samples only. Each sample is then the linear
         closed loop ``x[k] = F x[k-1] + K y[k] + (I - K C) B u[k-1] - K D u[k]`` with
-        ``F = (I - K C) A`` (the batch form of :func:`_build_batch`, stepped
-        here, not diagonalised): one product per sample, the drives of the block and its
-        innovations (``C A x[k-1] + C B u[k-1]``) in one product each; equal to
-        :meth:`advance` per sample to round-off.
+        ``F = (I - K C) A``, run in its modal form (``_packet.ModalPacket``: one product for the
+        modal drives, a scan, one product for the states) or, when that form would lose
+        accuracy (``_packet.MAX_CONDITION``), stepped (one product per sample); the
+        innovations (``C A x[k-1] + C B u[k-1]``) in one product. Equal to :meth:`advance` per
+        sample to round-off.
         """
         spec = self.spec
         if self.closed_loop is None:
@@ -422,23 +453,50 @@ class _Recursion:
             # the one-step predictions of the outputs straight from the states: C A is p x n,
             # a block's (A x) would cost n x n per sample
             self.closed_loop = (i_kc @ spec.A, i_kc @ spec.B if spec.m else None,
-                                spec.C @ spec.A, spec.C @ spec.B if spec.m else None)
-        closed, input_map, predict_output, predict_input = self.closed_loop
+                                spec.C @ spec.A, spec.C @ spec.B if spec.m else None,
+                                bool(spec.m and np.any(spec.D)))
+        closed, input_map, predict_output, predict_input, with_d = self.closed_loop
         n_t = y.shape[1]
-        drive = self.gain_ss @ y
-        previous = np.empty((spec.n, n_t))      # x[k-1] per column
-        if spec.m:
-            u_prev = np.column_stack([self.u_prev, u[:, :-1]])
-            drive += input_map @ u_prev - self.gain_ss @ (spec.D @ u)
-        states = np.empty((spec.n, n_t))
-        x = self.x
-        for k in range(n_t):
-            previous[:, k] = x
-            x = closed @ x + drive[:, k]
-            states[:, k] = x
-        innovations = y - predict_output @ previous
-        if spec.m:
-            innovations -= predict_input @ u_prev + spec.D @ u
+        packet = self.packet_form() if n_t else None
+        if packet is not None:
+            p, m = spec.p, spec.m
+            drivers = np.empty((n_t, packet.drive_t.shape[0]))   # time along rows
+            drivers[:, :p] = y.T
+            if m:
+                drivers[0, p : p + m] = self.u_prev
+                drivers[1:, p : p + m] = u[:, :-1].T
+                if with_d:
+                    drivers[:, p + m :] = u.T
+            # The modal state (and C A x) carried from the last packet while x is still the
+            # state they describe (x is only ever replaced, never written into), else from x.
+            if self.modal_of is self.x:
+                z0, seen0 = self.modal_z, self.modal_seen
+            else:
+                z0, seen0 = packet.modal(self.x), predict_output @ self.x
+            # predicted: C A x[k-1] + C B u[k-1] + D u[k] per column
+            states, modal, predicted, seen = packet.run(z0, drivers, seen0)
+            x = states[:, -1].copy()
+            self.modal_z, self.modal_seen, self.modal_of = modal[-1].copy(), seen.copy(), x
+        else:
+            u_prev = np.column_stack([self.u_prev, u[:, :-1]]) if spec.m else None
+            drive = self.gain_ss @ y
+            previous = np.empty((spec.n, n_t))      # x[k-1] per column
+            if spec.m:
+                drive += input_map @ u_prev
+                if with_d:
+                    drive -= self.gain_ss @ (spec.D @ u)
+            states = np.empty((spec.n, n_t))
+            x = self.x
+            for k in range(n_t):
+                previous[:, k] = x
+                x = closed @ x + drive[:, k]
+                states[:, k] = x
+            predicted = predict_output @ previous
+            if spec.m:
+                predicted += predict_input @ u_prev
+                if with_d:
+                    predicted += spec.D @ u
+        innovations = y - predicted
         self.x, self.P, self.k = x, self.posterior_ss, self.k + n_t
         if n_t:
             self.u_prev = u[:, -1]
@@ -447,9 +505,16 @@ class _Recursion:
             factor, self.mean_square = spec.inflation(states, self.mean_square)
             nis_block = nis_block / factor
         if spec.window is not None:
-            for k, nis in enumerate(nis_block.tolist()):
-                self.monitor(nis, spec.p, y[:, k])
+            self.monitor_full(nis_block, y)
         return states
+
+    def packet_form(self) -> ModalPacket | None:
+        """The modal form of the frozen closed loop for :meth:`advance_frozen` (built once per
+        frozen gain; for a steady-state filter once per filter), or None: step it."""
+        if self.packet is False:
+            self.packet = (self.spec.steady_packet if self.spec.steady_state
+                           else _build_packet(self.spec, self.gain_ss))
+        return self.packet
 
     def _joseph_update(self, p_pred, x_pred, y, u, index):
         """Covariance form (``p <= n``): gain through a Cholesky of ``S``, Joseph update."""
@@ -662,6 +727,22 @@ class _Recursion:
         if spec.m:
             self.u_prev = u[:, -1].copy()
         self.k += length
+
+
+def _build_packet(spec: FilterSpec, gain: np.ndarray) -> ModalPacket | None:
+    """:meth:`ModalPacket.build` of ``x[k] = (I - K C) A x[k-1] + G w[k]`` with the predicted
+    outputs ``C A x[k-1] + C B u[k-1] + D u[k]``, the drivers ``w`` being ``y[k]``, ``u[k-1]``
+    and (with a nonzero ``D``) ``u[k]``."""
+    i_kc = np.eye(spec.n) - gain @ spec.C
+    drive, feedthrough = [gain], [np.zeros((spec.p, spec.p))]
+    if spec.m:
+        drive.append(i_kc @ spec.B)
+        feedthrough.append(spec.C @ spec.B)
+        if np.any(spec.D):
+            drive.append(-gain @ spec.D)
+            feedthrough.append(spec.D)
+    return ModalPacket.build(i_kc @ spec.A, np.hstack(drive), spec.C @ spec.A,
+                             np.hstack(feedthrough))
 
 
 def _build_batch(spec: FilterSpec, gain: np.ndarray):

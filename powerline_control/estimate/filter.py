@@ -617,7 +617,10 @@ class KalmanFilter:
 
         The same recursion, state and consistency windows as calling :meth:`step` once per
         sample, with the arguments checked once for the block instead of once per sample (a
-        controller that receives its sensors in packets).
+        controller that receives its sensors in packets). Once the gain is frozen, a NaN-free
+        block runs through the closed loop's modal form (one product for the drives, one for
+        the states, no Python loop over samples), equal to :meth:`step` to round-off; a closed
+        loop whose eigenvectors are too ill-conditioned for that is stepped.
 
         Parameters
         ----------
@@ -656,7 +659,7 @@ class KalmanFilter:
         u_all = self._check_input_block(inputs, n_t)
         run = self._running
         if run.converged and not run.first and not np.isnan(y_all).any():
-            return run.advance_frozen(y_all, u_all)   # no covariance work: one loop, no checks
+            return run.advance_frozen(y_all, u_all)   # no covariance work, no checks
         states = np.empty((self._spec.n, n_t))
         for k in range(n_t):
             states[:, k] = self._advance(y_all[:, k], u_all[:, k])
