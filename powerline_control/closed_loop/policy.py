@@ -11,7 +11,8 @@ the bare line's receptance,
 (the robot-free excited shape, fitted on the bare modes), which in steady state is the same
 wherever the robot is; then it predicts the span's RMS with itself parked at every p,
 ``W_p = W_bare + H(., p) D_r W_bare(p) / (1 - H(p, p) D_r)``, and goes to the best it can reach
-(docs/closed_loop.md).
+(docs/closed_loop.md). In the self-limiting wind it ranks the positions by the absorber's
+coupling to that robot-free standing wave instead (:data:`OBJECTIVES`).
 """
 
 from __future__ import annotations
@@ -655,5 +656,5 @@ class Targeting:
             self.choices += 1
             return f"another loop: {choice.position:.4g} m ({choice.gain_words()})"
         self.phase = Phase.FINAL
-        return (f"final at {self.goal:.4g} m (best predicted {choice.position:.4g} m, "
+        return (f"final at {self.goal:.4g} m (best {choice.position:.4g} m, "
                 f"{choice.gain_words(1)})")
