@@ -78,7 +78,8 @@ def test_the_policy_predicts_with_the_nominal_only(monkeypatch):
     spy("believe", closed_loop_run.believe, lambda model, **kw: model)
     spy("plants", closed_loop_run.kernel_shape, lambda plant, *a: plant.model)
     spy("plants", closed_loop_run.choose_target, lambda shape, plant, *a: plant.model)
-    spy("plants", closed_loop_run.predicted_rms, lambda shape, plant, *a: plant.model)
+    spy("plants", closed_loop_run.predicted_figure,
+        lambda objective, shape, plant, *a: plant.model)
     spy("modes", closed_loop_run.resolve_time, lambda tone, modes, *policy: modes)
     accept = closed_loop_run.Targeting.accept
 
