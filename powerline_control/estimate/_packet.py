@@ -35,6 +35,21 @@ _SCALED_RANGE = 1e150
 _SCALED_LENGTH = 64
 
 
+def conjugate_modes(closed: np.ndarray, max_condition: float = MAX_CONDITION):
+    """``(eigenvalues, vectors, real, upper)`` of ``closed``: its eigen-decomposition and the
+    indices of its real eigenvalues and of the upper halves of its conjugate pairs; or None when
+    the modal form would lose accuracy (the eigenvector matrix's condition number above
+    ``max_condition``, or eigenvalues not in exact conjugate pairs)."""
+    eigenvalues, vectors = np.linalg.eig(closed)
+    if not np.all(np.isfinite(vectors)) or np.linalg.cond(vectors) > max_condition:
+        return None
+    real = np.flatnonzero(eigenvalues.imag == 0)
+    upper = np.flatnonzero(eigenvalues.imag > 0)
+    if real.size + 2 * upper.size != eigenvalues.size:
+        return None
+    return eigenvalues, vectors, real, upper
+
+
 class ModalPacket:
     """The closed loop ``x[k] = F x[k-1] + G w[k]`` in modal coordinates, for short packets,
     with the outputs ``o[k] = O x[k-1] + H w[k]`` along.
@@ -86,13 +101,10 @@ class ModalPacket:
         defective or nearly defective ``closed``, whose modal round-off would exceed about 1e-9
         relative) or the eigenvalues do not come in exact conjugate pairs.
         """
-        eigenvalues, vectors = np.linalg.eig(closed)
-        if not np.all(np.isfinite(vectors)) or np.linalg.cond(vectors) > max_condition:
+        modes = conjugate_modes(closed, max_condition)
+        if modes is None:
             return None
-        real = np.flatnonzero(eigenvalues.imag == 0)
-        upper = np.flatnonzero(eigenvalues.imag > 0)
-        if real.size + 2 * upper.size != eigenvalues.size:
-            return None
+        eigenvalues, vectors, real, upper = modes
         keep = np.sort(np.concatenate([real, upper]))
         inverse = np.linalg.solve(vectors, np.eye(vectors.shape[0], dtype=complex))[keep]
         return cls(eigenvalues[keep], vectors[:, keep], inverse, drive, observe, feedthrough)

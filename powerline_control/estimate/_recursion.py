@@ -37,7 +37,7 @@ from ..errors import (
 )
 from ._adaptive import _Adaptation
 from ._model_error import innovation_inflation
-from ._packet import MAX_CONDITION, ModalPacket
+from ._packet import MAX_CONDITION, ModalPacket, conjugate_modes
 from ._spectrum import (
     NIS_FIELD_SPAN,
     following_reference,
@@ -449,12 +449,7 @@ class _Recursion:
         """
         spec = self.spec
         if self.closed_loop is None:
-            i_kc = np.eye(spec.n) - self.gain_ss @ spec.C
-            # the one-step predictions of the outputs straight from the states: C A is p x n,
-            # a block's (A x) would cost n x n per sample
-            self.closed_loop = (i_kc @ spec.A, i_kc @ spec.B if spec.m else None,
-                                spec.C @ spec.A, spec.C @ spec.B if spec.m else None,
-                                bool(spec.m and np.any(spec.D)))
+            self.closed_loop = _frozen_loop(spec, self.gain_ss)
         closed, input_map, predict_output, predict_input, with_d = self.closed_loop
         n_t = y.shape[1]
         packet = self.packet_form() if n_t else None
@@ -729,20 +724,29 @@ class _Recursion:
         self.k += length
 
 
+def _frozen_loop(spec: FilterSpec, gain: np.ndarray) -> tuple:
+    """The frozen filter's closed loop: ``(F, (I - K C) B, C A, C B, D nonzero)`` with
+    ``F = (I - K C) A`` (the input terms None without inputs). The one-step predictions of the
+    outputs come straight from the states through ``C A`` (p x n): a block's ``A x`` would cost
+    n x n per sample."""
+    i_kc = np.eye(spec.n) - gain @ spec.C
+    return (i_kc @ spec.A, i_kc @ spec.B if spec.m else None, spec.C @ spec.A,
+            spec.C @ spec.B if spec.m else None, bool(spec.m and np.any(spec.D)))
+
+
 def _build_packet(spec: FilterSpec, gain: np.ndarray) -> ModalPacket | None:
     """:meth:`ModalPacket.build` of ``x[k] = (I - K C) A x[k-1] + G w[k]`` with the predicted
     outputs ``C A x[k-1] + C B u[k-1] + D u[k]``, the drivers ``w`` being ``y[k]``, ``u[k-1]``
     and (with a nonzero ``D``) ``u[k]``."""
-    i_kc = np.eye(spec.n) - gain @ spec.C
+    closed, input_map, predict_output, predict_input, with_d = _frozen_loop(spec, gain)
     drive, feedthrough = [gain], [np.zeros((spec.p, spec.p))]
     if spec.m:
-        drive.append(i_kc @ spec.B)
-        feedthrough.append(spec.C @ spec.B)
-        if np.any(spec.D):
+        drive.append(input_map)
+        feedthrough.append(predict_input)
+        if with_d:
             drive.append(-gain @ spec.D)
             feedthrough.append(spec.D)
-    return ModalPacket.build(i_kc @ spec.A, np.hstack(drive), spec.C @ spec.A,
-                             np.hstack(feedthrough))
+    return ModalPacket.build(closed, np.hstack(drive), predict_output, np.hstack(feedthrough))
 
 
 def _build_batch(spec: FilterSpec, gain: np.ndarray):
@@ -753,19 +757,14 @@ def _build_batch(spec: FilterSpec, gain: np.ndarray):
     together by :func:`_diagonal_recursion`; conjugate pairs are run once and lifted back
     with ``2 Re(.)``, so the lift is one real ``(n, n)`` product per stretch.
     """
-    n = spec.n
-    i_kc = np.eye(n) - gain @ spec.C
-    closed = i_kc @ spec.A
-    eigenvalues, vectors = np.linalg.eig(closed)
-    if np.linalg.cond(vectors) > _MAX_MODAL_CONDITION:
-        return False
-    real = np.flatnonzero(eigenvalues.imag == 0)
-    upper = np.flatnonzero(eigenvalues.imag > 0)
-    if real.size + 2 * upper.size != n:
-        return False  # eigenvalues not in exact conjugate pairs: keep the loop
+    closed, input_map = _frozen_loop(spec, gain)[:2]
+    modes = conjugate_modes(closed, _MAX_MODAL_CONDITION)
+    if modes is None:
+        return False  # nearly defective, or eigenvalues not in exact conjugate pairs: the loop
+    eigenvalues, vectors, real, upper = modes
     keep = np.concatenate([real, upper])
     lu = sla.lu_factor(vectors)
-    drive = gain if not spec.m else np.hstack([gain, i_kc @ spec.B, -gain @ spec.D])
+    drive = gain if not spec.m else np.hstack([gain, input_map, -gain @ spec.D])
     modal_drive = sla.lu_solve(lu, drive.astype(complex))[keep]
     lift = np.hstack(
         [vectors[:, real].real, 2 * vectors[:, upper].real, -2 * vectors[:, upper].imag]
