@@ -2,8 +2,8 @@
 energy balance and clamp strain, wind climates and records, fatigue, the robot's value, checks.
 
 Modules: wind, self_damping, dampers, balance, aeolian_run (the same powers in the time
-domain), climate, checks, record, fatigue, and clamp_estimate (clamp strain from an estimator's
-field, with its sigma).
+domain), coupled (the balance with the robot coupled to the line), climate, checks, record,
+fatigue, and clamp_estimate (clamp strain from an estimator's field, with its sigma).
 ``powerline_control.severity`` keeps every name the single module ``severity.py`` had.
 """
 
@@ -29,6 +29,8 @@ from .clamp_estimate import *  # noqa: F403
 from .clamp_estimate import __all__ as _clamp_estimate_all
 from .climate import *  # noqa: F403
 from .climate import __all__ as _climate_all
+from .coupled import *  # noqa: F403
+from .coupled import __all__ as _coupled_all
 from .dampers import *  # noqa: F403
 from .dampers import __all__ as _dampers_all
 from .fatigue import *  # noqa: F403
@@ -41,4 +43,5 @@ from .wind import *  # noqa: F403
 from .wind import __all__ as _wind_all
 
 __all__ = [*_wind_all, *_dampers_all, *_balance_all, *_climate_all, *_checks_all, *_record_all,
-           *_fatigue_all, *_self_damping_all, *_clamp_estimate_all, *_aeolian_run_all]
+           *_fatigue_all, *_self_damping_all, *_clamp_estimate_all, *_aeolian_run_all,
+           *_coupled_all]

@@ -323,6 +323,39 @@ self_damping_exponents
         wind_curve=wind_curve, turbulence_intensity=float(turbulence_intensity))
 
 
+def _aeolian_plant(span: Span, wind_speed: float, robot: MDR | None, *, bc: str,
+                  n_elements: int | None, strouhal: float,
+                  samples_per_period: int = 32) -> tuple[LineModel, ModalPlant, np.ndarray]:
+    """The bare line, the modal plant a self-limiting aeolian run integrates, and the indices
+    (0-based) of the bare modes in the plant's band.
+
+    The modes: every one on a short span, those within :data:`MODE_BAND` of St V / D on a long
+    one; the robot's point force adds its Ritz vector (what the kept modes miss of the line's
+    flexibility where it sits). :func:`simulate_aeolian` and :func:`coupled_balance` build their
+    plant here, so both speak of the same line.
+
+    Examples
+    --------
+    >>> from powerline_control import Span
+    >>> bare, plant, band = _aeolian_plant(Span.at_rts_fraction(60.0, "drake", 0.2), 3.0, None,
+    ...                                    bc="pinned", n_elements=None, strouhal=0.185)
+    >>> plant.n_band == plant.r      # no robot: no Ritz vector
+    True
+    """
+    shedding = strouhal * wind_speed / span.conductor.diameter
+    bare = LineModel(span, n_elements, bc=bc)
+    modes = default_modes(span, bare, [shedding], 1.0 / (8 * shedding))
+    if np.ndim(modes):
+        # a long span: the modes near the tone (the plant's band is wider, for moving loads)
+        estimate = span.pinned_frequencies(bare.n_dofs)
+        near = np.flatnonzero(np.abs(estimate / shedding - 1) <= MODE_BAND)
+        modes = near if near.size else modes
+    loads = () if robot is None else (HarmonicForce(1.0, shedding, robot.position),)
+    plant = ModalPlant(bare, robot, modes, dt=1.0 / (samples_per_period * shedding),
+                       loads=loads)
+    return bare, plant, np.arange(modes) if np.ndim(modes) == 0 else np.asarray(modes)
+
+
 @on_one_blas_thread
 def simulate_aeolian(
     span: Span,
@@ -441,23 +474,13 @@ self_damping_exponents
                            high_inclusive=True)
 
     cond = span.conductor
-    shedding = strouhal * speed / cond.diameter
-    bare = LineModel(span, n_elements, bc=bc)
-    modes = default_modes(span, bare, [shedding], 1.0 / (8 * shedding))
-    if np.ndim(modes):
-        # a long span: the modes near the tone (the plant's band is wider, for moving loads)
-        estimate = span.pinned_frequencies(bare.n_dofs)
-        near = np.flatnonzero(np.abs(estimate / shedding - 1) <= MODE_BAND)
-        modes = near if near.size else modes
-    # the robot's point force: its Ritz vector carries what the kept modes miss of the line's
-    # flexibility there
-    loads = () if robot is None else (HarmonicForce(1.0, shedding, robot.position),)
-    plant = ModalPlant(bare, robot, modes, dt=1.0 / (per_period * shedding), loads=loads)
+    bare, plant, band_modes = _aeolian_plant(span, speed, robot, bc=bc, n_elements=n_elements,
+                                strouhal=strouhal, samples_per_period=per_period)
     # the wind's and the self-damping's modal damping at the state's amplitudes: the one home
     # of that mapping (the closed loop's self-limiting plant calls it too)
     damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers, **law)
     locked, frequency = damping.locked, damping.frequency
-    mode_number = int((np.arange(modes) if np.ndim(modes) == 0 else modes)[locked]) + 1
+    mode_number = int(band_modes[locked]) + 1
     position = None if robot is None else robot.position
     floor = LOWEST_REDUCED_AMPLITUDE * cond.diameter
     line_amplitude = damping.line_amplitude
