@@ -103,7 +103,7 @@ class CoupledBalance:
     >>> from powerline_control import Span
     >>> balance = coupled_balance(Span.at_rts_fraction(60.0, "drake", 0.2), 3.0, bc="pinned")
     >>> balance.status, round(balance.amplitude * 1e3, 1)
-    ('balanced', 8.4)
+    ('balanced', 8.6)
     """
 
     wind_speed: float
