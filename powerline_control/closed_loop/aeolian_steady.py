@@ -43,8 +43,9 @@ class AeolianSteady:
     simulated (its span, supports and mesh; the conductor's self-damping instead of the plant's
     modal damping) at the wind speed of the run's last load. Each carries its simulated steady
     amplitude (``amplitude``) and the energy balance's at the same wind and robot position
-    (``balance_amplitude``, :func:`~powerline_control.severity.aeolian_severity`, whose damper
-    power is first order in the robot's impedance).
+    (``balance_amplitude``: with the robot :func:`~powerline_control.severity.coupled_balance`'s,
+    its power from the line and robot coupled; ``first_order_amplitude``:
+    :func:`~powerline_control.severity.aeolian_severity`'s first-order damper power).
 
     Attributes
     ----------
@@ -101,8 +102,16 @@ class AeolianSteady:
     @property
     def balance_reduction(self) -> float:
         """The energy balance's reduction at the same wind and position: its amplitude without
-        the robot over its first-order amplitude with the robot where the loop ended."""
+        the robot over its amplitude with the robot (coupled to the line) where the loop
+        ended."""
         return _ratio(self.no_robot.balance_amplitude, self.closed_loop.balance_amplitude)
+
+    @property
+    def first_order_reduction(self) -> float:
+        """The same with the textbook first-order damper power (the standing wave left as it
+        is): what the energy balance says when it ignores the robot's reaction."""
+        return _ratio(self.no_robot.first_order_amplitude,
+                      self.closed_loop.first_order_amplitude)
 
     @property
     def settled(self) -> bool:

@@ -715,8 +715,10 @@ def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
     speeds = np.asarray(sev.wind_speeds, dtype=float)
     bare = aeolian_severity(span, wind_speeds=speeds, **kwargs)
     robot = tuning.robot
+    # the robot's power from the line and robot coupled: its impedance on a real span is many
+    # times the line's wave impedance, where the first-order power overstates it several-fold
     with_robot = aeolian_severity(span, wind_speeds=speeds, dampers=[AtAntinode(robot)],
-                                  **kwargs)
+                                  damper_model="coupled", **kwargs)
     strand = kwargs.get("outer_strand_diameter", span.conductor.outer_strand_diameter)
     return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
                     strand_source=source, assumptions=assumptions,

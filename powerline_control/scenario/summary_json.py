@@ -156,6 +156,8 @@ def result_json(result) -> dict:
                    for name, run in zip(_STEADY_NAMES, steady.runs, strict=True)},
                 **{f"{name}_balance_amplitude_m": _f(run.balance_amplitude)
                    for name, run in zip(_STEADY_NAMES, steady.runs, strict=True)},
+                **{f"{name}_first_order_amplitude_m": _f(run.first_order_amplitude)
+                   for name, run in zip(_STEADY_NAMES, steady.runs, strict=True)},
                 "near_clamp_position_m": _f(steady.near_clamp.robot_position),
                 "closed_loop_position_m": _f(steady.closed_loop.robot_position),
                 "antinode_position_m": _f(steady.at_antinode.robot_position),
@@ -163,6 +165,7 @@ def result_json(result) -> dict:
                 "near_clamp_reduction": _f(steady.clamp_reduction),
                 "antinode_reduction": _f(steady.antinode_reduction),
                 "balance_reduction": _f(steady.balance_reduction),
+                "first_order_reduction": _f(steady.first_order_reduction),
                 "settled": bool(steady.settled)}
     if r.severity is not None:
         bare, robot = r.severity.bare, r.severity.robot
@@ -183,9 +186,10 @@ def result_json(result) -> dict:
                 **{f"{name}_amplitude_m": _f(run.amplitude) for name, run in (
                     ("bare", runs.bare), ("antinode", runs.at_antinode),
                     ("near_clamp", runs.near_clamp))},
-                **{f"{name}_balance_amplitude_m": _f(run.balance_amplitude) for name, run in (
-                    ("bare", runs.bare), ("antinode", runs.at_antinode),
-                    ("near_clamp", runs.near_clamp))},
+                **{f"{name}_{what}_amplitude_m": _f(getattr(run, f"{what}_amplitude"))
+                   for name, run in (("bare", runs.bare), ("antinode", runs.at_antinode),
+                                     ("near_clamp", runs.near_clamp))
+                   for what in ("balance", "first_order")},
                 "near_clamp_position_m": _f(runs.near_clamp.robot_position),
                 "reduction": _f(runs.reduction), "near_clamp_reduction": _f(runs.clamp_reduction),
                 "robot_impedance_ratio": _f(runs.at_antinode.robot_impedance_ratio),

@@ -191,14 +191,15 @@ def _time_domain_row(runs, judged: bool = False) -> tuple[tuple, str]:
            "amplitudes to trust for the robot's value.")
     note = ("The time-domain check and the energy balance use the same wind power and "
             "self-damping, so without dampers they agree up to the locked mode's frequency "
-            "against St V / D. With the robot the balance's damper power is first order: it "
-            "assumes the robot leaves the standing wave as it is, which holds when the robot's "
-            f"impedance is small against the line's wave impedance sqrt(T m); here it is "
-            f"{robot.robot_impedance_ratio:.3g} times that, so "
-            + ("the balance overstates the power the robot takes and the simulated amplitude, "
-               "which carries the robot's effect on the wave, is the one to trust."
-               if robot.robot_impedance_ratio > 0.3 else
-               "the two should agree, and a difference is the simulation's coupling of modes.")
+            "against St V / D. With the robot the balance takes the robot's power from the "
+            "line and robot coupled (severity.coupled_balance: the amplitude at which the mode "
+            "the wind feeds neither grows nor decays), since the robot's impedance is "
+            f"{robot.robot_impedance_ratio:.3g} times the line's wave impedance sqrt(T m) and "
+            "reshapes the standing wave where it sits. The textbook damper power, first order "
+            "(1/2 Re Z omega^2 Y^2 phi^2 / L, the standing wave left as it is), gives "
+            f"{mm(robot.first_order_amplitude)} at the antinode"
+            + (": it overstates the power such a robot takes."
+               if robot.robot_impedance_ratio > 0.3 else ", close to the coupled one.")
             + " The closed loop's own load is a lift of fixed amplitude, not self-limiting: its "
             "RMS rows compare the robot's positions under one load, not the line's steady "
             "vibration"
@@ -246,10 +247,12 @@ def closed_loop_wind_row(steady, span, severity_runs=None, severity_span=None) -
             "(severity.simulate_aeolian). This is where the line settles, and the robot's value "
             "to trust. The RMS rows above are under the closed loop's own load, a lift of fixed "
             "amplitude on a fixed modal damping: they rank positions under one load, and do not "
-            "settle where wind and conductor balance. The energy balance at the same position "
-            f"says {steady.balance_reduction:.3g}x: its damper power is first order in the "
-            f"robot's impedance, here {closed.robot_impedance_ratio:.3g} times the line's wave "
-            "impedance sqrt(T m), so it overstates what the robot takes.")
+            "settle where wind and conductor balance. The energy balance at the same position, "
+            "with the robot's power from the line and robot coupled, says "
+            f"{steady.balance_reduction:.3g}x; with the textbook first-order damper power "
+            f"(the standing wave left as it is, while the robot's impedance is "
+            f"{closed.robot_impedance_ratio:.3g} times the line's wave impedance sqrt(T m)) it "
+            f"would say {steady.first_order_reduction:.3g}x.")
     if severity_runs is not None:
         note += " " + _against_severity(steady, span, severity_runs, severity_span)
     return (f"self-limiting wind {steady.wind_speed:g} m/s, steady state", value, note)

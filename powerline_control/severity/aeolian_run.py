@@ -95,8 +95,9 @@ class AeolianRun:
         Steady antinode amplitude, zero-to-peak, m: the largest of sqrt(2 mean y^2) over the
         nodes in the final window.
     balance_amplitude : float
-        The energy balance's amplitude for the same span, wind and robot
-        (:func:`aeolian_severity`), m.
+        The energy balance's amplitude for the same span, wind and robot, m: without a robot
+        :func:`aeolian_severity`'s; with one :func:`coupled_balance`'s (the robot's power from
+        the line and robot coupled, on this run's plant).
     relative_error : float
         ``amplitude / balance_amplitude - 1``.
     settled : bool
@@ -114,10 +115,13 @@ class AeolianRun:
         integration's energy conservation.
     robot_position : float or None
         Where the robot is parked, m (None without a robot).
+    first_order_amplitude : float
+        :func:`aeolian_severity`'s amplitude with the robot's first-order damper power,
+        1/2 Re Z omega^2 Y^2 phi^2 / L, m (the bare balance's without a robot).
     robot_impedance_ratio : float
         ``|Z|`` of the robot at ``frequency`` over the line's wave impedance sqrt(T m) (0 without a
-        robot): the energy balance's first-order damper power assumes the robot leaves the
-        standing wave as it is, which holds when this is small (well below 1).
+        robot): the first-order damper power assumes the robot leaves the standing wave as it
+        is, which holds when this is small (well below 1).
     x : ndarray
         Node positions, m.
     field_amplitude : ndarray
@@ -145,6 +149,7 @@ class AeolianRun:
     robot_power: float = 0.0
     energy_residual: float = 0.0
     robot_position: float | None = None
+    first_order_amplitude: float = 0.0
     robot_impedance_ratio: float = 0.0
     x: np.ndarray = field(default=None, repr=False)
     field_amplitude: np.ndarray = field(default=None, repr=False)
@@ -481,6 +486,14 @@ self_damping_exponents
     damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers, **law)
     locked, frequency = damping.locked, damping.frequency
     mode_number = int(band_modes[locked]) + 1
+    reference = float(balance.amplitude[0])
+    if robot is not None:
+        # The balance with the robot: its power from the line and robot coupled, not the
+        # first-order formula (module coupled; imported here, as it builds on this module)
+        from .coupled import cycle_field, limit_cycle
+
+        reference = float(cycle_field(plant, limit_cycle(plant, damping, robot.position)[1])
+                          .max())
     position = None if robot is None else robot.position
     floor = LOWEST_REDUCED_AMPLITUDE * cond.diameter
     line_amplitude = damping.line_amplitude
@@ -552,7 +565,6 @@ self_damping_exponents
     residual = (p_wind - p_self - p_robot - gained) / p_wind if p_wind > 0 else 0.0
     field_amplitude = np.sqrt(2 * np.mean((states[:, :plant.r] @ plant.nodal.T) ** 2, axis=0))
     amplitude = float(field_amplitude.max())
-    reference = float(balance.amplitude[0])
     return AeolianRun(
         wind_speed=speed, frequency=frequency, mode=mode_number,
         amplitude=amplitude, balance_amplitude=reference,
@@ -561,6 +573,7 @@ self_damping_exponents
         envelope=read_only(envelope.copy()), wind_power=p_wind / span.length,
         self_damping_power=p_self / span.length, robot_power=p_robot / span.length,
         energy_residual=float(residual), robot_position=position,
+        first_order_amplitude=float(balance.amplitude[0]),
         robot_impedance_ratio=0.0 if robot is None else abs(damper_impedance(robot, frequency))
         / math.sqrt(span.tension * mass), x=read_only(bare.node_positions.copy()),
         field_amplitude=read_only(field_amplitude))

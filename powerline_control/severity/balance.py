@@ -284,6 +284,22 @@ def _solve_balance(balance, y_high: float, scale: float, on_grid=None) -> tuple[
     return float(root), "balanced"
 
 
+#: How a damper's power enters the balance (``aeolian_severity(damper_model=)``).
+DAMPER_MODELS = ("first_order", "coupled")
+
+
+def _check_coupled(dampers: tuple) -> None:
+    """The coupled balance takes one robot, an MDR parked or ``AtAntinode(MDR)``."""
+    device = dampers[0].damper if isinstance(dampers[0], AtAntinode) else dampers[0]
+    factor = dampers[0].factor if isinstance(dampers[0], AtAntinode) else 1.0
+    if len(dampers) != 1 or not isinstance(device, MDR) or factor != 1.0:
+        raise InputError(
+            "The 'dampers' parameter with damper_model='coupled' must hold one MDR or "
+            "AtAntinode(MDR) with factor 1 (the robot coupled to the FE line). Got "
+            f"{[_label_of(d) for d in dampers]}: use damper_model='first_order' for "
+            "ImpedanceDampers, several dampers or a placement factor.")
+
+
 @checked_keywords
 def aeolian_severity(
     span: Span,
@@ -304,6 +320,7 @@ def aeolian_severity(
     endurance_strain_pp: float = ENDURANCE_STRAIN_PP,
     reference_cycles: float = 5e8,
     label: str | None = None,
+    damper_model: str = "first_order",
 ) -> SeverityResult:
     """Steady aeolian vibration of a span by the energy balance, with clamp strain and margins.
 
@@ -354,6 +371,14 @@ def aeolian_severity(
         ``sbl_margin`` (default 5e8 [from memory: the usual "endurance" count]).
     label : str or None
         Configuration name (default: from the dampers).
+    damper_model : {"first_order", "coupled"}
+        How the robot's power enters the balance. "first_order" (default): the textbook
+        ``1/2 Re Z omega^2 Y^2 phi^2 / L``, the standing wave left as it is (right when the
+        damper's impedance is small against the line's wave impedance sqrt(T m)). "coupled":
+        one MDR (or ``AtAntinode(MDR)``) coupled to the FE line, its power computed from the
+        vibration it leaves (:func:`coupled_balance`, at each wind speed; a real robot's
+        impedance is several times sqrt(T m), and the first-order power then overstates what it
+        takes several-fold).
 
     Returns
     -------
@@ -381,6 +406,9 @@ def aeolian_severity(
     speeds = _check_wind_speeds(wind_speeds)
     _check_severity_budget(speeds.size)
     dampers = _check_dampers(dampers, span)
+    damper_model = check_choice("damper_model", damper_model, DAMPER_MODELS)
+    if damper_model == "coupled" and dampers:
+        _check_coupled(dampers)
     st = check_real("strouhal", strouhal, low=0.01, low_inclusive=True, high=1.0)
     curve = _curve(wind_curve)
     law = _resolve_law(self_damping, self_damping_k, self_damping_exponents)
@@ -429,13 +457,24 @@ def aeolian_severity(
             return base * curve.reduced_power(y / d) - law.power(y, f, span) \
                 - coefficient * y * y
 
-        y, state = _solve_balance(balance, y_high, d, on_grid)
+        if damper_model == "coupled" and dampers:
+            # the coupled line and robot (module coupled, which builds on this one)
+            from .coupled import coupled_balance
+
+            coupled = coupled_balance(
+                span, float(speed), dampers[0], bc=bc, strouhal=st, wind_curve=curve.name,
+                turbulence_intensity=turbulence_intensity, self_damping=law)
+            y, state = coupled.amplitude, coupled.status
+            out["pw"][i], out["pc"][i] = coupled.wind_power, coupled.self_damping_power
+            out["pd"][i] = coupled.robot_power
+        else:
+            y, state = _solve_balance(balance, y_high, d, on_grid)
+            out["pw"][i] = base * float(curve.reduced_power(y / d))
+            out["pc"][i] = float(law.power(y, f, span))
+            out["pd"][i] = coefficient * y * y
         status.append(state)
         yb, sps, sfy = _clamp_stress(span, f, y, strand=strand, modulus=modulus, x_b=x_b)
         out["frequency"][i], out["loop"][i], out["amplitude"][i] = f, loop, y
-        out["pw"][i] = base * float(curve.reduced_power(y / d))
-        out["pc"][i] = float(law.power(y, f, span))
-        out["pd"][i] = coefficient * y * y
         out["yb"][i], out["sps"][i], out["sfy"][i] = yb, sps, sfy
         modes[i] = max(1, int(round(span.length / loop)))
     strain_pp = 2 * out["sps"] / modulus

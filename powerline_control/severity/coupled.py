@@ -175,12 +175,16 @@ def _cycle(plant, damping: AeolianDamping, position: float | None, locked_amplit
         "use simulate_aeolian for this span and robot.")
 
 
-def _limit_cycle(plant, damping: AeolianDamping, position: float | None, low: float,
-                 high: float) -> tuple[str, _Cycle | None]:
-    """The status and the limit cycle: the mode the wind feeds, continued from ``low`` (m) up
-    the locked amplitude in steps of :data:`AMPLITUDE_STEP` until its growth rate changes sign,
-    then the root between the two steps (Brent's method on the amplitude's logarithm, each
-    trial continued from the lower step)."""
+def limit_cycle(plant, damping: AeolianDamping, position: float | None
+                ) -> tuple[str, _Cycle | None]:
+    """The status and the limit cycle: the mode the wind feeds, continued from the wind's
+    lowest amplitude (:data:`LOWEST_REDUCED_AMPLITUDE` D) up the locked amplitude in steps of
+    :data:`AMPLITUDE_STEP` until its growth rate changes sign, then the root between the two
+    steps (Brent's method on the amplitude's logarithm, each trial continued from the lower
+    step); "above curve range" when it still grows at the power curve's last amplitude."""
+    diameter = damping.span.conductor.diameter
+    low = LOWEST_REDUCED_AMPLITUDE * diameter
+    high = _curve(damping.wind_curve).max_reduced_amplitude * diameter
     cycle = _cycle(plant, damping, position, low)
     if cycle.eigenvalue.real <= 0:
         return "no vibration", None
@@ -202,6 +206,13 @@ def _limit_cycle(plant, damping: AeolianDamping, position: float | None, low: fl
     root = scipy.optimize.brentq(growth, math.log(amplitude), math.log(upper), xtol=1e-12,
                                  rtol=1e-12)
     return "balanced", _cycle(plant, damping, position, math.exp(root), below.shape)
+
+
+def cycle_field(plant, cycle: _Cycle | None) -> np.ndarray:
+    """The limit cycle's amplitude at each node, m (zeros without one)."""
+    if cycle is None:
+        return np.zeros(plant.nodal.shape[0])
+    return np.abs(plant.nodal @ cycle.shape[: plant.r])
 
 
 def _antinode_near(plant, locked: int, position: float) -> float:
@@ -326,18 +337,15 @@ self_damping_exponents
         strouhal=strouhal, bc=bc, **powers)
 
     cond = span.conductor
-    curve = _curve(wind_curve)
-    low = LOWEST_REDUCED_AMPLITUDE * cond.diameter
-    high = curve.max_reduced_amplitude * cond.diameter
 
     mode = int(band_modes[damping.locked]) + 1
-    status, cycle = _limit_cycle(plant, damping, position, low, high)
+    status, cycle = limit_cycle(plant, damping, position)
     frequency = damping.frequency
     field_amplitude = np.zeros(bare.n_nodes)
     p_wind = p_self = p_robot = residual = 0.0
     if cycle is not None:
         frequency = abs(cycle.eigenvalue.imag) / (2 * math.pi)
-        field_amplitude = np.abs(plant.nodal @ cycle.shape[: plant.r])
+        field_amplitude = cycle_field(plant, cycle)
         p_wind, p_self, p_robot = (
             value / span.length for value in _cycle_powers(plant, damping, position, cycle))
         residual = (p_wind - p_self - p_robot) / p_wind if p_wind > 0 else 0.0
