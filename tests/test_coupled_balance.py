@@ -109,3 +109,26 @@ def test_bad_robot_is_refused_by_name(robot, words):
 def test_bad_wind_speed_is_refused_by_name():
     with pytest.raises(InputError, match="wind_speed"):
         coupled_balance(SPAN, -1.0)
+
+
+def test_severity_with_the_coupled_robot_is_the_coupled_balance():
+    robot = plc.tune_damper(plc.LineModel(SPAN, bc="clamped"), 18, 6.5 * 60 / 18, 3.0,
+                            body_mass=5.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        severity = aeolian_severity(SPAN, [3.0], [robot], bc="clamped", damper_model="coupled")
+        coupled = coupled_balance(SPAN, 3.0, robot, bc="clamped")
+        first = aeolian_severity(SPAN, [3.0], [robot], bc="clamped")
+    assert float(severity.amplitude[0]) == pytest.approx(coupled.amplitude, rel=1e-12)
+    assert float(severity.damper_power[0]) == pytest.approx(coupled.robot_power, rel=1e-12)
+    assert float(first.amplitude[0]) == pytest.approx(coupled.first_order_amplitude, rel=1e-12)
+
+
+@pytest.mark.parametrize(("kwargs", "words"), [
+    ({"dampers": [ImpedanceDamper(1.0, [10.0, 30.0], [5.0, 5.0])], "damper_model": "coupled"},
+     "dampers"),
+    ({"damper_model": "exact"}, "damper_model"),
+])
+def test_severity_refuses_what_the_coupled_model_cannot_take(kwargs, words):
+    with pytest.raises(InputError, match=words):
+        aeolian_severity(SPAN, [3.0], **kwargs)

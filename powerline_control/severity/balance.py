@@ -378,7 +378,8 @@ def aeolian_severity(
         one MDR (or ``AtAntinode(MDR)``) coupled to the FE line, its power computed from the
         vibration it leaves (:func:`coupled_balance`, at each wind speed; a real robot's
         impedance is several times sqrt(T m), and the first-order power then overstates what it
-        takes several-fold).
+        takes several-fold). Where the first-order amplitude lies below 1e-3 D, under the power
+        curves' data, the first-order balance is kept.
 
     Returns
     -------
@@ -457,8 +458,13 @@ def aeolian_severity(
             return base * curve.reduced_power(y / d) - law.power(y, f, span) \
                 - coefficient * y * y
 
-        if damper_model == "coupled" and dampers:
-            # the coupled line and robot (module coupled, which builds on this one)
+        y, state = _solve_balance(balance, y_high, d, on_grid)
+        # the coupled line and robot (module coupled, which builds on this one); below the
+        # power curves' data its wind is capped as the time-domain run's is, and there the
+        # first-order balance (an extrapolation either way) is kept
+        from .aeolian_run import LOWEST_REDUCED_AMPLITUDE
+
+        if damper_model == "coupled" and dampers and y >= LOWEST_REDUCED_AMPLITUDE * d:
             from .coupled import coupled_balance
 
             coupled = coupled_balance(
@@ -468,7 +474,6 @@ def aeolian_severity(
             out["pw"][i], out["pc"][i] = coupled.wind_power, coupled.self_damping_power
             out["pd"][i] = coupled.robot_power
         else:
-            y, state = _solve_balance(balance, y_high, d, on_grid)
             out["pw"][i] = base * float(curve.reduced_power(y / d))
             out["pc"][i] = float(law.power(y, f, span))
             out["pd"][i] = coefficient * y * y

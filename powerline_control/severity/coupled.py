@@ -157,11 +157,13 @@ def _cycle(plant, damping: AeolianDamping, position: float | None, locked_amplit
         if follow is None:
             share = np.abs(shapes[locked]) / np.maximum(
                 np.linalg.norm(shapes[:band], axis=0), 1e-300)
-            fed = np.flatnonzero((values.imag > 0) & (share >= FED_SHARE))
+            # an overdamped locked mode (real eigenvalues: far below the curves' data on a
+            # light conductor) is fed too: its growth rate says whether the line vibrates
+            fed = np.flatnonzero((values.imag >= 0) & (share >= FED_SHARE))
             k = int(fed[np.argmax(values.real[fed])])
         else:
             overlap = np.abs(np.conj(follow) @ shapes) / np.linalg.norm(follow)
-            overlap[values.imag <= 0] = -1.0
+            overlap[values.imag < 0] = -1.0
             k = int(np.argmax(overlap))
         shape = shapes[:, k] * (locked_amplitude / damping.peak[locked] / shapes[locked, k])
         follow = shape
