@@ -330,12 +330,17 @@ self_damping_exponents
     bare, plant, band_modes = _aeolian_plant(span, speed, device, bc=bc,
                                              n_elements=n_elements, strouhal=strouhal)
     damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers)
-    position = None
-    if device is not None:
-        position = _antinode_near(plant, damping.locked, device.position) if at_antinode \
-            else float(device.position)
+    if at_antinode:
+        # the band's modes do not depend on the robot; its Ritz vector (the line's flexibility
+        # the band misses where it sits) does, so the plant is built again at the antinode
+        device = dataclasses.replace(
+            device, position=_antinode_near(plant, damping.locked, device.position))
+        bare, plant, band_modes = _aeolian_plant(span, speed, device, bc=bc,
+                                                 n_elements=n_elements, strouhal=strouhal)
+        damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers)
+    position = None if device is None else float(device.position)
     first_order = aeolian_severity(
-        span, [speed], () if device is None else (dataclasses.replace(device, position=position),),
+        span, [speed], () if device is None else (device,),
         strouhal=strouhal, bc=bc, **powers)
 
     cond = span.conductor
