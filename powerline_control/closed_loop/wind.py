@@ -12,122 +12,21 @@ action is that negative damping. The line starts vibrating at the energy balance
 without the robot (a line already vibrating when the robot starts), so a run shows the robot
 bringing the amplitude down to its new steady level. Only the simulated truth changes: the
 controller sees its sensors and its own records, as under the fixed lift.
+
+The choice and its plant's wind have one home,
+:mod:`powerline_control.severity.self_limiting` (the self-limiting record,
+:func:`~powerline_control.severity.simulate_self_limiting`, uses them too); this module keeps
+their names where the closed loop's readers look for them.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass
+from ..severity.self_limiting import (
+    WIND_OPTIONS,
+    WINDS,
+    SelfLimitingWind,
+    checked_wind,
+    self_limiting_wind,
+)
 
-import numpy as np
-
-from ..errors import InputError
-from ..excitation import AeolianForce
-from ..fem import LineModel
-from ..severity import AeolianDamping, aeolian_damping, aeolian_severity
-from ..simulation.held_damping import HeldDamping, run_held
-from ..simulation.plant import ModalPlant
-from .aeolian_steady import PHYSICS_OPTIONS, known_options
-
-#: The aeolian loads of the closed loop's line: the lift of fixed amplitude on the model's
-#: damping, or the energy balance's self-limiting physics.
-WINDS = ("fixed_lift", "self_limiting")
-
-#: The self-limiting physics' options a caller may set (``aeolian_steady``'s, less how its
-#: separate runs settle: the closed loop runs for its ``duration``).
-WIND_OPTIONS = tuple(k for k in PHYSICS_OPTIONS if k not in ("settle_tolerance", "max_duration"))
-
-
-def checked_wind(value: object, segments: list, model: LineModel) -> dict | None:
-    """``run_closed_loop``'s ``wind``: None for the fixed lift, else the self-limiting physics'
-    options (a mapping: those; "self_limiting": none, the severity study's defaults). Refused:
-    another name or option, a load that is not one AeolianForce for the whole run, supports that
-    differ at the two ends, and a wind whose energy balance leaves the power curve's data or
-    sustains no vibration (before the run)."""
-    if isinstance(value, str):
-        if value not in WINDS:
-            raise InputError(f"The 'wind' parameter must be one of {list(WINDS)} or a mapping "
-                             f"of the self-limiting physics' options {list(WIND_OPTIONS)}. Got "
-                             f"{value!r}.")
-        if value == "fixed_lift":
-            return None
-        options = {}
-    elif isinstance(value, Mapping):
-        options = known_options("wind", value, WIND_OPTIONS)
-    else:
-        raise InputError(f"The 'wind' parameter must be one of {list(WINDS)} or a mapping of "
-                         f"the self-limiting physics' options {list(WIND_OPTIONS)}. Got "
-                         f"{value!r:.60} of type {type(value).__name__}.")
-    loads = [load for _, items in segments for load in items]
-    if len(segments) != 1 or len(loads) != 1 or not isinstance(loads[0], AeolianForce):
-        raise InputError(
-            "The 'wind' parameter 'self_limiting' drives the line by one AeolianForce for the "
-            "whole run (its wind speed and Strouhal number). Got "
-            f"{[type(f).__name__ for f in loads]} in {len(segments)} segment(s): use "
-            "wind='fixed_lift' for other loads or a schedule.")
-    left, right = model.bc
-    if left != right:
-        raise InputError(
-            "The 'wind' parameter 'self_limiting' needs the same support at both ends (the "
-            f"energy balance takes 'clamped' or 'pinned'). Got bc={model.bc}.")
-    wind = loads[0]
-    physics = dict(options)
-    balance = aeolian_severity(model.span, [wind.wind_speed], bc=left, strouhal=wind.strouhal,
-                               **physics)
-    status = balance.status[0]
-    curve = physics.get("wind_curve", "cigre")
-    if status == "above curve range":
-        raise InputError(
-            f"The 'force' wind speed {wind.wind_speed:g} m/s drives the span past the {curve!r} "
-            "power curve's data, so the self-limiting wind has no amplitude to settle at: choose "
-            "a wind_curve whose data reach further (e.g. 'cigre'), a lower wind speed, or "
-            "wind='fixed_lift'.")
-    if status != "balanced" or not float(balance.amplitude[0]) > 0:
-        raise InputError(
-            f"The 'force' wind speed {wind.wind_speed:g} m/s sustains no vibration on this span "
-            f"in the self-limiting wind (energy balance: {status!r}, the conductor's "
-            "self-damping takes more than the wind gives at every amplitude of the "
-            f"{curve!r} curve): there is nothing for the robot to damp. Choose another wind "
-            "speed or wind='fixed_lift'.")
-    return {"wind": wind, "amplitude": float(balance.amplitude[0]), **physics}
-
-
-@dataclass(frozen=True, eq=False)
-class SelfLimitingWind:
-    """The line's self-limiting wind: the modal damping of the plant with and without the
-    robot (held between blocks, :class:`~powerline_control.simulation.held_damping.HeldDamping`),
-    and the energy balance's amplitude the line starts at."""
-
-    damping: AeolianDamping     # the modal damping of the plant with the robot
-    free_damping: AeolianDamping  # of the plant without it (the "no_robot" comparison)
-    held: HeldDamping           # its map, held between blocks, with the robot
-    free_held: HeldDamping      # without it
-    amplitude: float            # the energy balance's antinode amplitude without the robot, m
-    block: int                  # samples per plant block: the damping is evaluated at each start
-
-    def start(self, free: bool = False) -> np.ndarray:
-        """The state the line starts in: the locked mode at the balance's amplitude."""
-        if free:
-            return self.free_damping.start_state(self.free_held.plant, self.amplitude)
-        return self.damping.start_state(self.held.plant, self.amplitude)
-
-    def parked(self, x: float | None, n_t: int, free: bool = False) -> np.ndarray:
-        """States (n_t, 2 n_q) of the whole run with the robot parked at x (``free``: the line
-        without the robot)."""
-        return run_held(self.free_held if free else self.held, None if free else x,
-                        self.start(free), n_t, block=self.block)
-
-
-def self_limiting_wind(options: dict, plant: ModalPlant, free_plant: ModalPlant,
-                       block: int) -> SelfLimitingWind:
-    """The :class:`SelfLimitingWind` of :func:`checked_wind`'s options on the line's plants."""
-    physics = {k: v for k, v in options.items() if k in WIND_OPTIONS}
-    wind = options["wind"]
-    span = plant.model.span
-
-    damping, free_damping = (aeolian_damping(p, span, wind.wind_speed, strouhal=wind.strouhal,
-                                             **physics) for p in (plant, free_plant))
-    return SelfLimitingWind(damping=damping, free_damping=free_damping,
-                            held=HeldDamping(plant, damping.matrix),
-                            free_held=HeldDamping(free_plant, free_damping.matrix),
-                            amplitude=options["amplitude"], block=block)
+__all__ = ["WINDS", "WIND_OPTIONS", "SelfLimitingWind", "checked_wind", "self_limiting_wind"]

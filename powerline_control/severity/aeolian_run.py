@@ -443,16 +443,7 @@ self_damping_exponents
     cond = span.conductor
     shedding = strouhal * speed / cond.diameter
     bare = LineModel(span, n_elements, bc=bc)
-    modes = default_modes(span, bare, [shedding], 1.0 / (8 * shedding))
-    if np.ndim(modes):
-        # a long span: the modes near the tone (the plant's band is wider, for moving loads)
-        estimate = span.pinned_frequencies(bare.n_dofs)
-        near = np.flatnonzero(np.abs(estimate / shedding - 1) <= MODE_BAND)
-        modes = near if near.size else modes
-    # the robot's point force: its Ritz vector carries what the kept modes miss of the line's
-    # flexibility there
-    loads = () if robot is None else (HarmonicForce(1.0, shedding, robot.position),)
-    plant = ModalPlant(bare, robot, modes, dt=1.0 / (per_period * shedding), loads=loads)
+    plant, modes = aeolian_plant(bare, robot, shedding, 1.0 / (per_period * shedding))
     # the wind's and the self-damping's modal damping at the state's amplitudes: the one home
     # of that mapping (the closed loop's self-limiting plant calls it too)
     damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers, **law)
@@ -541,6 +532,43 @@ self_damping_exponents
         robot_impedance_ratio=0.0 if robot is None else abs(damper_impedance(robot, frequency))
         / math.sqrt(span.tension * mass), x=read_only(bare.node_positions.copy()),
         field_amplitude=read_only(field_amplitude))
+
+
+def aeolian_plant(bare: LineModel, robot: MDR | None, shedding: float,
+                  dt: float) -> tuple[ModalPlant, object]:
+    """The self-limiting wind's modal plant of the bare line with the robot parked, and its modes.
+
+    The modes: every mode below 8x the shedding frequency on a short span (the plant's
+    :func:`~powerline_control.simulation.plant.default_modes`), those within :data:`MODE_BAND`
+    of it on a long one; with a robot, its point force's Ritz vector, which carries what the
+    kept modes miss of the line's flexibility there. :func:`simulate_aeolian` and the
+    self-limiting record (:func:`~.aeolian_record.simulate_self_limiting`) both build it here.
+
+    Parameters
+    ----------
+    bare : LineModel
+        The line without the robot.
+    robot : MDR or None
+        The robot, parked at its position.
+    shedding : float
+        The vortex-shedding frequency St V / D, Hz.
+    dt : float
+        The plant's sample interval, s.
+
+    Returns
+    -------
+    (ModalPlant, int or ndarray)
+        The plant and its modes (a count of the lowest, or the band's 0-based indices).
+    """
+    span = bare.span
+    modes = default_modes(span, bare, [shedding], 1.0 / (8 * shedding))
+    if np.ndim(modes):
+        # a long span: the modes near the tone (the plant's band is wider, for moving loads)
+        estimate = span.pinned_frequencies(bare.n_dofs)
+        near = np.flatnonzero(np.abs(estimate / shedding - 1) <= MODE_BAND)
+        modes = near if near.size else modes
+    loads = () if robot is None else (HarmonicForce(1.0, shedding, robot.position),)
+    return ModalPlant(bare, robot, modes, dt=dt, loads=loads), modes
 
 
 def _flow(a: np.ndarray, duration: float, z: np.ndarray) -> np.ndarray:

@@ -1,0 +1,171 @@
+"""The self-limiting aeolian wind as a choice of a simulated line: ``wind="fixed_lift"`` or the
+energy balance's own physics (``"self_limiting"``, or a mapping of its options).
+
+With ``wind="fixed_lift"`` an :class:`~powerline_control.excitation.AeolianForce` is a lift of
+fixed amplitude on a line with the model's fixed damping. With ``wind="self_limiting"`` the same
+wind is the energy balance's physics, as in :func:`~.aeolian_run.simulate_aeolian`: the wind's
+power from the power curve at the locked mode's current amplitude, as a negative modal damping
+on that mode, and the conductor's self-damping on every band mode at its own amplitude, both
+recomputed from the plant's state at every plant block by the one function that maps them
+(:class:`~.aeolian_run.AeolianDamping`). No lift is applied: the wind's only action is that
+negative damping. The closed loop (``run_closed_loop(wind=)``) and the self-limiting record
+(:func:`~.aeolian_record.simulate_self_limiting`) check the choice here
+(:func:`checked_wind`) and build their plants' wind here (:func:`self_limiting_wind`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..excitation import AeolianForce
+from ..fem import LineModel
+from ..simulation.held_damping import HeldDamping, run_held
+from ..simulation.plant import ModalPlant
+from .aeolian_run import AeolianDamping, aeolian_damping
+from .balance import aeolian_severity
+
+__all__ = ["WINDS", "WIND_OPTIONS", "SelfLimitingWind", "checked_wind", "known_options",
+           "self_limiting_wind"]
+
+#: The aeolian loads of a simulated line: the lift of fixed amplitude on the model's damping,
+#: or the energy balance's self-limiting physics.
+WINDS = ("fixed_lift", "self_limiting")
+
+#: The self-limiting physics' options a caller may set: the wind's power curve and the
+#: conductor's self-damping law (:func:`~.balance.aeolian_severity`'s names). The span, the
+#: supports, the mesh, the Strouhal number and the robot are the simulated line's own.
+WIND_OPTIONS = ("wind_curve", "turbulence_intensity", "self_damping", "self_damping_k",
+                "self_damping_exponents")
+
+
+def known_options(parameter: str, value: Mapping, allowed: Sequence[str]) -> dict:
+    """``value`` as a dict, refused with an InputError naming ``parameter`` when it names an
+    option of the self-limiting physics outside ``allowed``.
+
+    Examples
+    --------
+    >>> known_options("wind", {"wind_curve": "cigre"}, WIND_OPTIONS)
+    {'wind_curve': 'cigre'}
+    """
+    unknown = [key for key in value if key not in allowed]
+    if unknown:
+        raise InputError(
+            f"The '{parameter}' parameter names options {unknown} that the self-limiting "
+            f"physics does not take here: allowed are {list(allowed)} (the span, supports, mesh "
+            "and robot are the simulated line's own).")
+    return dict(value)
+
+
+def checked_wind(value: object, segments: list, model: LineModel) -> dict | None:
+    """A simulated line's ``wind``: None for the fixed lift, else the self-limiting physics'
+    options (a mapping: those; "self_limiting": none, the severity study's defaults), with the
+    wind (``"wind"``) and the energy balance's amplitude of the line without a robot
+    (``"amplitude"``, m). ``segments``: the run's loads, ``[(start time, [loads])]``. Refused:
+    another name or option, a load that is not one AeolianForce for the whole run, supports
+    that differ at the two ends, and a wind whose energy balance leaves the power curve's data
+    or sustains no vibration (before the run).
+
+    Examples
+    --------
+    >>> from powerline_control import AeolianForce, LineModel, Span
+    >>> model = LineModel(Span.at_rts_fraction(60.0, "drake", 0.2), bc="pinned")
+    >>> checked_wind("fixed_lift", [(0.0, [AeolianForce(3.0)])], model) is None
+    True
+    >>> options = checked_wind("self_limiting", [(0.0, [AeolianForce(3.0)])], model)
+    >>> round(options["amplitude"] * 1e3, 1)      # the energy balance's antinode amplitude, mm
+    8.5
+    """
+    if isinstance(value, str):
+        if value not in WINDS:
+            raise InputError(f"The 'wind' parameter must be one of {list(WINDS)} or a mapping "
+                             f"of the self-limiting physics' options {list(WIND_OPTIONS)}. Got "
+                             f"{value!r}.")
+        if value == "fixed_lift":
+            return None
+        options = {}
+    elif isinstance(value, Mapping):
+        options = known_options("wind", value, WIND_OPTIONS)
+    else:
+        raise InputError(f"The 'wind' parameter must be one of {list(WINDS)} or a mapping of "
+                         f"the self-limiting physics' options {list(WIND_OPTIONS)}. Got "
+                         f"{value!r:.60} of type {type(value).__name__}.")
+    loads = [load for _, items in segments for load in items]
+    if len(segments) != 1 or len(loads) != 1 or not isinstance(loads[0], AeolianForce):
+        raise InputError(
+            "The 'wind' parameter 'self_limiting' drives the line by one AeolianForce for the "
+            "whole run (its wind speed and Strouhal number). Got "
+            f"{[type(f).__name__ for f in loads]} in {len(segments)} segment(s): use "
+            "wind='fixed_lift' for other loads or a schedule.")
+    left, right = model.bc
+    if left != right:
+        raise InputError(
+            "The 'wind' parameter 'self_limiting' needs the same support at both ends (the "
+            f"energy balance takes 'clamped' or 'pinned'). Got bc={model.bc}.")
+    wind = loads[0]
+    physics = dict(options)
+    balance = aeolian_severity(model.span, [wind.wind_speed], bc=left, strouhal=wind.strouhal,
+                               **physics)
+    status = balance.status[0]
+    curve = physics.get("wind_curve", "cigre")
+    if status == "above curve range":
+        raise InputError(
+            f"The 'force' wind speed {wind.wind_speed:g} m/s drives the span past the {curve!r} "
+            "power curve's data, so the self-limiting wind has no amplitude to settle at: choose "
+            "a wind_curve whose data reach further (e.g. 'cigre'), a lower wind speed, or "
+            "wind='fixed_lift'.")
+    if status != "balanced" or not float(balance.amplitude[0]) > 0:
+        raise InputError(
+            f"The 'force' wind speed {wind.wind_speed:g} m/s sustains no vibration on this span "
+            f"in the self-limiting wind (energy balance: {status!r}, the conductor's "
+            "self-damping takes more than the wind gives at every amplitude of the "
+            f"{curve!r} curve): there is nothing for the robot to damp. Choose another wind "
+            "speed or wind='fixed_lift'.")
+    return {"wind": wind, "amplitude": float(balance.amplitude[0]), **physics}
+
+
+@dataclass(frozen=True, eq=False)
+class SelfLimitingWind:
+    """The line's self-limiting wind: the modal damping of the plant with and without the
+    robot (held between blocks, :class:`~powerline_control.simulation.held_damping.HeldDamping`),
+    and the energy balance's amplitude the line starts at."""
+
+    damping: AeolianDamping     # the modal damping of the plant with the robot
+    free_damping: AeolianDamping  # of the plant without it (the "no_robot" comparison)
+    held: HeldDamping           # its map, held between blocks, with the robot
+    free_held: HeldDamping      # without it
+    amplitude: float            # the energy balance's antinode amplitude without the robot, m
+    block: int                  # samples per plant block: the damping is evaluated at each start
+
+    def start(self, free: bool = False) -> np.ndarray:
+        """The state the line starts in: the locked mode at the balance's amplitude."""
+        if free:
+            return self.free_damping.start_state(self.free_held.plant, self.amplitude)
+        return self.damping.start_state(self.held.plant, self.amplitude)
+
+    def parked(self, x: float | None, n_t: int, free: bool = False,
+               z0: np.ndarray | None = None) -> np.ndarray:
+        """States (n_t, 2 n_q) of the whole run with the robot parked at x (``free``: the line
+        without the robot), from ``z0`` (None: :meth:`start`)."""
+        start = self.start(free) if z0 is None else z0
+        return run_held(self.free_held if free else self.held, None if free else x,
+                        start, n_t, block=self.block)
+
+
+def self_limiting_wind(options: dict, plant: ModalPlant, free_plant: ModalPlant,
+                       block: int) -> SelfLimitingWind:
+    """The :class:`SelfLimitingWind` of :func:`checked_wind`'s options on the line's plants
+    (with the robot and without it; the same plant twice for a line without one)."""
+    physics = {k: v for k, v in options.items() if k in WIND_OPTIONS}
+    wind = options["wind"]
+    span = plant.model.span
+
+    damping, free_damping = (aeolian_damping(p, span, wind.wind_speed, strouhal=wind.strouhal,
+                                             **physics) for p in (plant, free_plant))
+    return SelfLimitingWind(damping=damping, free_damping=free_damping,
+                            held=HeldDamping(plant, damping.matrix),
+                            free_held=HeldDamping(free_plant, free_damping.matrix),
+                            amplitude=options["amplitude"], block=block)
