@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,14 +25,14 @@ from ..errors import InputError
 from ..excitation import AeolianForce
 from ..fem import MDR, LineModel
 from ..severity import AeolianRun, aeolian_severity, simulate_aeolian
+from ..severity.self_limiting import WIND_OPTIONS, known_options
 
 __all__ = ["AeolianSteady", "aeolian_steady_state"]
 
 #: The options of :func:`~powerline_control.severity.simulate_aeolian` a caller may set: the
 #: wind's power curve, the conductor's self-damping law, and how the runs settle. The span, the
 #: supports, the mesh, the Strouhal number and the robot are the closed loop's own.
-PHYSICS_OPTIONS = ("wind_curve", "turbulence_intensity", "self_damping", "self_damping_k",
-                   "self_damping_exponents", "settle_tolerance", "max_duration")
+PHYSICS_OPTIONS = (*WIND_OPTIONS, "settle_tolerance", "max_duration")
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,18 +143,6 @@ class AeolianSteady:
 
 def _ratio(numerator: float, denominator: float) -> float:
     return numerator / denominator if denominator > 0 else math.inf
-
-
-def known_options(parameter: str, value: Mapping, allowed: Sequence[str]) -> dict:
-    """``value`` as a dict, refused with an InputError naming ``parameter`` when it names an
-    option of the self-limiting physics outside ``allowed``."""
-    unknown = [key for key in value if key not in allowed]
-    if unknown:
-        raise InputError(
-            f"The '{parameter}' parameter names options {unknown} that the self-limiting "
-            f"physics does not take here: allowed are {list(allowed)} (the span, supports, mesh "
-            "and robot are the closed loop's own).")
-    return dict(value)
 
 
 def checked_options(value: object, wind: object) -> dict | None:

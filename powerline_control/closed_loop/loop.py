@@ -27,6 +27,7 @@ from ..errors import (
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..plan import RobotLimits, free_interval
+from ..severity.self_limiting import checked_wind
 from ..simulation.plant import damper_power, load_segments, nodal_field
 from .aeolian_steady import aeolian_steady_state, checked_options, precheck
 from .belief import Belief, BeliefTracker, believe, checked_nominal
@@ -61,7 +62,6 @@ from .simulated import (
     run_estimate,
 )
 from .simulated import calibrate as calibrate_estimator  # 'calibrate' is the span's option
-from .wind import checked_wind
 
 #: Standard deviations of the calibrated tension by which the belief must differ from the
 #: estimator's line before the estimator is rebuilt on it (:func:`_estimator_stale`).
@@ -547,7 +547,8 @@ def run_closed_loop(
     wind : {"fixed_lift", "self_limiting"} or mapping
         What an :class:`~powerline_control.excitation.AeolianForce` does to the simulated line.
         "fixed_lift" (default): a lift of fixed amplitude on the line's own damping.
-        "self_limiting": the energy balance's physics (:mod:`.wind`): the wind's power from the
+        "self_limiting": the energy balance's physics
+        (:mod:`powerline_control.severity.self_limiting`): the wind's power from the
         power curve at the locked mode's current amplitude as a negative damping on it, and the
         conductor's self-damping on every mode at its own amplitude (the line's own damping is
         not used), recomputed at every plant block by the functions

@@ -17,6 +17,7 @@ from ..estimate import KalmanFilter, windowed_consistency
 from ..fem import MDR, LineModel
 from ..line import Span
 from ..recipe import design_estimator
+from ..severity.self_limiting import SelfLimitingWind, self_limiting_wind
 from ..simulation.held_damping import step_unforced
 from ..simulation.plant import (
     SMALL_PLANT_MODES,
@@ -28,7 +29,6 @@ from ..simulation.plant import (
 )
 from .robot_input import RobotInputModel, process_noise_of, robot_input_filter
 from .settings import Settings
-from .wind import SelfLimitingWind, self_limiting_wind
 
 #: The closed loop's estimators: the recipe's, identified with the robot parked at its start,
 #: and the bare line's modal model with the robot's measured force as an input
@@ -79,8 +79,9 @@ class SimulatedLine:
 def build_line(robot, segments, settings: Settings, sensors, *, n_modes,
                clamp_distance, wind: dict | None = None) -> SimulatedLine:
     """The sensors on the FE model, the modal plant and the loads' histories. ``wind``: the
-    self-limiting wind's options (:func:`.wind.checked_wind`), which replace the AeolianForce's
-    lift (no load history: the wind is the plant's negative damping); None: the loads as given."""
+    self-limiting wind's options (:func:`~powerline_control.severity.self_limiting.checked_wind`),
+    which replace the AeolianForce's lift (no load history: the wind is the plant's negative
+    damping); None: the loads as given."""
     bare = settings.bare
     span = bare.span
     sensors = tuple(sorted(check_indices("sensors", sensors, bare.n_nodes).tolist()))

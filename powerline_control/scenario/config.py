@@ -267,7 +267,9 @@ class RobotConfig:
         "lift of fixed amplitude on the line's own damping, or the self-limiting wind of the "
         "energy balance (the severity section's power curve at the locked mode's current "
         "amplitude, its self-damping law on every mode; the line starts at the balance's "
-        "amplitude) (run_closed_loop's wind).",
+        "amplitude) (run_closed_loop's wind). The self-limiting wind also makes the records "
+        "the estimator is identified on (severity.simulate_self_limiting), which then refuse a "
+        "shaker (identification.shaker = 0).",
         choices=("fixed_lift", "self_limiting"))
 
 

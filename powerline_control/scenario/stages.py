@@ -74,8 +74,23 @@ def _records(scenario: Scenario, model, force, record=None, *, identify: bool = 
     if identify:
         check_identification_work(scenario, model.n_nodes)
     start = time.perf_counter()
-    test = simulate(model, force, duration=sim.duration, dt=sim.dt,
-                    noise_fraction=sim.noise_fraction, seed=sim.seed)
+    if scenario.robot.wind == "self_limiting":
+        # the record the estimator learns from vibrates as the closed loop's line then does:
+        # the same wind's physics, the line at the energy balance's amplitude from the first
+        # sample (so the record's duration and start are the fixed lift's)
+        from ..severity import simulate_self_limiting
+
+        if ident.shaker > 0:   # refused here, not at load: a closed loop alone needs no record
+            raise InputError(
+                f"identification.shaker = {ident.shaker:g} is not allowed with robot.wind = "
+                '"self_limiting": the records are simulated in the self-limiting wind, which '
+                "applies no load (the wind is a damping). Allowed: identification.shaker = 0.")
+        test = simulate_self_limiting(model, force, duration=sim.duration, dt=sim.dt,
+                                      wind=wind_physics(scenario, model.span),
+                                      noise_fraction=sim.noise_fraction, seed=sim.seed)
+    else:
+        test = simulate(model, force, duration=sim.duration, dt=sim.dt,
+                        noise_fraction=sim.noise_fraction, seed=sim.seed)
     n_train = int(TRAIN_FRACTION * test.t.size)
     train, shaker, where = test, None, None
     if ident.shaker > 0:

@@ -31,44 +31,27 @@ from scipy.integrate import trapezoid  # numpy >= 1.26 is allowed: np.trapezoid 
 from .._threads import on_one_blas_thread
 from .._validation import check_real, read_only
 from ..errors import InputError, TruncationWarning
-from ..excitation import DEFAULT_STROUHAL, HarmonicForce
+from ..excitation import DEFAULT_STROUHAL
 from ..fem import MDR, LineModel, damper_impedance
 from ..line import Span
-from ..simulation.plant import ModalPlant, default_modes
 from ._common import MAX_WIND_SPEED, _check_span
 from .balance import _check_dampers, aeolian_severity
+from .modal import (
+    LOWEST_REDUCED_AMPLITUDE,
+    aeolian_damping,
+    aeolian_plant,
+    cycle_field,
+    limit_cycle,
+)
 from .self_damping import FotiMartinelli
-from .wind import SelfDampingLaw, _curve, _resolve_law, wind_power
+from .wind import SelfDampingLaw, _curve
 
-__all__ = ["AeolianDamping", "AeolianRun", "aeolian_damping", "envelope_settled",
-           "simulate_aeolian"]
-
-#: The wind's negative damping is evaluated at no less than this reduced amplitude Y/D: the
-#: CIGRE cubic's constant term gives the wind a finite power at Y = 0 (which the energy balance
-#: uses as it is), hence an infinite ratio zeta_w at rest.
-LOWEST_REDUCED_AMPLITUDE = 1e-3
-
-#: Modes kept on a long span: natural frequencies within this fraction of St V / D, with the
-#: robot's Ritz vector for the rest (Drake 300 m, robot at an antinode: the amplitude moves
-#: 0.7 % from +-10 % to the closed loop's 0.6-1.4 band).
-MODE_BAND = 0.1
-
-#: Largest negative damping ratio the wind is given: far below the curves' data (Y/D < 0.01)
-#: the CIGRE cubic's constant term makes zeta_w grow as 1 / Y^2, past critical damping on a
-#: light conductor at high frequency, where a damping ratio no longer describes a lift.
-MAX_WIND_RATIO = 0.1
+__all__ = ["AeolianRun", "envelope_settled", "simulate_aeolian"]
 
 #: A line whose amplitude falls below this fraction of the wind's lowest amplitude has stopped
 #: vibrating: the wind cannot sustain it (the energy balance's amplitude there comes from the
 #: power curve's constant term, below the curves' data).
 VANISHED = 1e-3
-
-#: A band mode whose antinode amplitude is below this fraction of the conductor's diameter is
-#: given no self-damping: its ratio grows as Y^(a - 2) with the laws' a > 2 (1e-5 of its value at
-#: Y ~ D for Noiseux's 2.44), and at such amplitudes P_c / Y^2 is 0 / 0 once Y^2 underflows (a
-#: mode the line has not yet fed, on a 372 m Condor span, stopped simulate_aeolian
-#: with NaN).
-QUIESCENT = 1e-12
 
 #: Blocks each of the settling test's three windows must hold: a few long blocks (a light
 #: damping) say too little of the approach.
@@ -153,212 +136,6 @@ class AeolianRun:
     robot_impedance_ratio: float = 0.0
     x: np.ndarray = field(default=None, repr=False)
     field_amplitude: np.ndarray = field(default=None, repr=False)
-
-
-def _ratio(power: float, mass: float, omega: float, amplitude: float) -> float:
-    """zeta = 2 P / (m omega^3 Y^2): the modal damping ratio that takes ``power`` W/m."""
-    return 2.0 * power / (mass * omega**3 * amplitude**2)
-
-
-@dataclass(frozen=True, eq=False)
-class AeolianDamping:
-    """The self-limiting wind and the conductor's self-damping as the modal damping of a plant.
-
-    Built by :func:`aeolian_damping` for a :class:`~powerline_control.simulation.plant.ModalPlant`
-    (state z = (q, y, q', y'): the basis' coordinates, the robot's absorber if any, their
-    rates). :meth:`matrix` turns the state into the line's modal damping (r, r): each band mode's
-    self-damping 2 zeta_c omega at its own antinode amplitude, and the wind's negative
-    -2 zeta_w omega on the locked mode at its own (zeta = 2 P / (m omega^3 Y^2), the module
-    doc). :func:`simulate_aeolian` and the closed loop's self-limiting plant both call it: the
-    one home of that mapping.
-
-    Attributes
-    ----------
-    span : Span
-        The line (conductor, tension, length).
-    omega : ndarray
-        The plant's band modes' natural circular frequencies, rad/s.
-    peak : ndarray
-        Each band mode's largest nodal displacement per unit modal coordinate (its antinode).
-    locked : int
-        Index (in the band) of the mode the wind locks into: the one nearest St V / D.
-    n_q : int
-        The plant's coordinates (the band, the Ritz vectors, the absorber).
-    r : int
-        The plant's basis size (band and Ritz vectors).
-    law : SelfDampingLaw or FotiMartinelli
-        The conductor's self-damping, resolved.
-    wind_curve : str
-        The power curve's name.
-    turbulence_intensity : float
-        Iv (the power curve's reduction).
-
-    Examples
-    --------
-    >>> from powerline_control import LineModel, Span
-    >>> from powerline_control.simulation.plant import ModalPlant
-    >>> span = Span.at_rts_fraction(60.0, "drake", 0.2)
-    >>> plant = ModalPlant(LineModel(span), None, 24, dt=1e-3)
-    >>> damping = aeolian_damping(plant, span, 3.0)
-    >>> z = damping.start_state(plant, 0.005)          # the locked mode at 5 mm
-    >>> round(float(damping.amplitudes(z)[damping.locked]) * 1e3, 3)
-    5.0
-    >>> bool(damping.matrix(z)[damping.locked, damping.locked] < 0)   # the wind feeds it
-    True
-    """
-
-    span: Span
-    omega: np.ndarray = field(repr=False)
-    peak: np.ndarray = field(repr=False)
-    locked: int
-    n_q: int
-    r: int
-    law: object = field(repr=False)
-    wind_curve: str = "cigre"
-    turbulence_intensity: float = 0.0
-
-    @property
-    def frequency(self) -> float:
-        """The locked mode's natural frequency, Hz."""
-        return float(self.omega[self.locked] / (2 * math.pi))
-
-    @property
-    def band(self) -> int:
-        """The band's modes (the first ``band`` plant coordinates)."""
-        return self.omega.size
-
-    def amplitudes(self, z: np.ndarray) -> np.ndarray:
-        """Each band mode's antinode amplitude from its energy, m (smooth where the robot's
-        absorber exchanges energy with the line; exact for a free mode)."""
-        q, v = z[: self.band], z[self.n_q : self.n_q + self.band]
-        return self.peak * np.sqrt(q**2 + (v / self.omega) ** 2)
-
-    def line_amplitude(self, z: np.ndarray) -> float | np.ndarray:
-        """The antinode amplitude of one standing wave at the locked frequency carrying the
-        band's whole vibration energy, E = m omega^2 Y^2 L / 4, m (one per row of a 2-D z)."""
-        q, v = z[..., : self.band], z[..., self.n_q : self.n_q + self.band]
-        energy = 0.5 * np.sum(v**2 + self.omega**2 * q**2, axis=-1)
-        amplitude = np.sqrt(4 * energy / (self.span.conductor.mass_per_length
-                                          * self.omega[self.locked] ** 2 * self.span.length))
-        return float(amplitude) if np.ndim(amplitude) == 0 else amplitude
-
-    def coefficients(self, z: np.ndarray) -> tuple[np.ndarray, float]:
-        """(own, wind): each band mode's self-damping coefficient 2 zeta_c omega (band,) and the
-        wind's -2 zeta_w omega on the locked mode (<= 0), 1/s, at the state's amplitudes."""
-        y = self.amplitudes(z)
-        cond = self.span.conductor
-        mass = cond.mass_per_length
-        own = np.zeros(self.band)
-        for i in np.flatnonzero(y > QUIESCENT * cond.diameter):
-            p_c = float(self.law.power(y[i], self.omega[i] / (2 * math.pi), self.span))
-            own[i] = 2 * _ratio(p_c, mass, self.omega[i], y[i]) * self.omega[i]
-        curve = _curve(self.wind_curve)
-        y_wind = min(max(y[self.locked], LOWEST_REDUCED_AMPLITUDE * cond.diameter),
-                     curve.max_reduced_amplitude * cond.diameter)
-        p_w = float(wind_power(y_wind, self.frequency, cond.diameter,
-                               wind_curve=self.wind_curve,
-                               turbulence_intensity=self.turbulence_intensity))
-        omega = self.omega[self.locked]
-        wind = -2 * min(_ratio(p_w, mass, omega, y_wind), MAX_WIND_RATIO) * omega
-        return own, wind
-
-    def matrix(self, z: np.ndarray, coefficients: tuple | None = None) -> np.ndarray:
-        """The line's modal damping (r, r) at state z (or of given :meth:`coefficients`)."""
-        own, wind = self.coefficients(z) if coefficients is None else coefficients
-        matrix = np.zeros((self.r, self.r))
-        matrix[: self.band, : self.band] = np.diag(own)
-        matrix[self.locked, self.locked] += wind
-        return matrix
-
-    def start_state(self, plant: ModalPlant, amplitude: float) -> np.ndarray:
-        """The plant's state (2 n_q,) with the locked mode at antinode ``amplitude`` (m), at
-        rest at its largest displacement, every other coordinate zero."""
-        z = np.zeros(2 * plant.n_q)
-        z[self.locked] = amplitude / self.peak[self.locked]
-        return z
-
-
-def aeolian_damping(plant: ModalPlant, span: Span, wind_speed: float, *,
-                    strouhal: float = DEFAULT_STROUHAL, wind_curve: str = "cigre",
-                    turbulence_intensity: float = 0.0,
-                    self_damping: str | SelfDampingLaw | FotiMartinelli = "noiseux1991",
-                    self_damping_k: float | None = None,
-                    self_damping_exponents: Sequence[float] | None = None) -> AeolianDamping:
-    """The self-limiting wind's and the self-damping's modal damping of ``plant``.
-
-    The wind locks into the plant's band mode nearest St V / D; the self-damping law is resolved
-    once (its argument checks, repeated for every mode at every block, took half a run).
-
-    Parameters
-    ----------
-    plant : ModalPlant
-        The line's modal plant (its first ``n_band`` coordinates are bare eigenmodes).
-    span : Span
-        The line.
-    wind_speed : float
-        m/s.
-    strouhal, wind_curve, turbulence_intensity, self_damping, self_damping_k, \
-self_damping_exponents
-        As in :func:`aeolian_severity`.
-
-    Returns
-    -------
-    AeolianDamping
-
-    Examples
-    --------
-    >>> from powerline_control import LineModel, Span
-    >>> from powerline_control.simulation.plant import ModalPlant
-    >>> span = Span.at_rts_fraction(60.0, "drake", 0.2)
-    >>> damping = aeolian_damping(ModalPlant(LineModel(span), None, 24, dt=1e-3), span, 3.0)
-    >>> round(damping.frequency, 1)      # St V / D = 0.185 * 3 / 0.02814 = 19.7 Hz
-    19.7
-    """
-    speed = check_real("wind_speed", wind_speed, low=0.0, high=MAX_WIND_SPEED)
-    _curve(wind_curve)   # an unknown curve is refused here, not at the first block
-    check_real("turbulence_intensity", turbulence_intensity, low=0.0, low_inclusive=True)
-    band = plant.n_band
-    omega = np.sqrt(plant.omega2[:band])
-    shedding = strouhal * speed / span.conductor.diameter
-    return AeolianDamping(
-        span=span, omega=read_only(omega),
-        peak=read_only(np.max(np.abs(plant.nodal[:, :band]), axis=0)),
-        locked=int(np.argmin(np.abs(omega / (2 * math.pi) - shedding))), n_q=plant.n_q,
-        r=plant.r, law=_resolve_law(self_damping, self_damping_k, self_damping_exponents),
-        wind_curve=wind_curve, turbulence_intensity=float(turbulence_intensity))
-
-
-def _aeolian_plant(span: Span, wind_speed: float, robot: MDR | None, *, bc: str,
-                  n_elements: int | None, strouhal: float,
-                  samples_per_period: int = 32) -> tuple[LineModel, ModalPlant, np.ndarray]:
-    """The bare line, the modal plant a self-limiting aeolian run integrates, and the indices
-    (0-based) of the bare modes in the plant's band.
-
-    The modes: every one on a short span, those within :data:`MODE_BAND` of St V / D on a long
-    one; the robot's point force adds its Ritz vector (what the kept modes miss of the line's
-    flexibility where it sits). :func:`simulate_aeolian` and :func:`coupled_balance` build their
-    plant here, so both speak of the same line.
-
-    Examples
-    --------
-    >>> from powerline_control import Span
-    >>> bare, plant, band = _aeolian_plant(Span.at_rts_fraction(60.0, "drake", 0.2), 3.0, None,
-    ...                                    bc="pinned", n_elements=None, strouhal=0.185)
-    >>> plant.n_band == plant.r      # no robot: no Ritz vector
-    True
-    """
-    shedding = strouhal * wind_speed / span.conductor.diameter
-    bare = LineModel(span, n_elements, bc=bc)
-    modes = default_modes(span, bare, [shedding], 1.0 / (8 * shedding))
-    if np.ndim(modes):
-        # a long span: the modes near the tone (the plant's band is wider, for moving loads)
-        estimate = span.pinned_frequencies(bare.n_dofs)
-        near = np.flatnonzero(np.abs(estimate / shedding - 1) <= MODE_BAND)
-        modes = near if near.size else modes
-    loads = () if robot is None else (HarmonicForce(1.0, shedding, robot.position),)
-    plant = ModalPlant(bare, robot, modes, dt=1.0 / (samples_per_period * shedding),
-                       loads=loads)
-    return bare, plant, np.arange(modes) if np.ndim(modes) == 0 else np.asarray(modes)
 
 
 @on_one_blas_thread
@@ -479,8 +256,9 @@ self_damping_exponents
                            high_inclusive=True)
 
     cond = span.conductor
-    bare, plant, band_modes = _aeolian_plant(span, speed, robot, bc=bc, n_elements=n_elements,
-                                strouhal=strouhal, samples_per_period=per_period)
+    shedding = strouhal * speed / cond.diameter
+    bare = LineModel(span, n_elements, bc=bc)
+    plant, band_modes = aeolian_plant(bare, robot, shedding, 1.0 / (per_period * shedding))
     # the wind's and the self-damping's modal damping at the state's amplitudes: the one home
     # of that mapping (the closed loop's self-limiting plant calls it too)
     damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers, **law)
@@ -488,10 +266,8 @@ self_damping_exponents
     mode_number = int(band_modes[locked]) + 1
     reference = float(balance.amplitude[0])
     if robot is not None:
-        # The balance with the robot: its power from the line and robot coupled, not the
-        # first-order formula (module coupled; imported here, as it builds on this module)
-        from .coupled import cycle_field, limit_cycle
-
+        # the balance with the robot: its power from the line and robot coupled, not the
+        # first-order formula
         reference = float(cycle_field(plant, limit_cycle(plant, damping, robot.position)[1])
                           .max())
     position = None if robot is None else robot.position

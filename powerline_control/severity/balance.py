@@ -58,6 +58,7 @@ from .dampers import (
     loop_length,
     standing_wave_shape,
 )
+from .modal import LOWEST_REDUCED_AMPLITUDE, coupled_cycle
 from .self_damping import FotiMartinelli
 from .wind import SelfDampingLaw, _curve, _resolve_law, turbulence_factor
 
@@ -376,10 +377,11 @@ def aeolian_severity(
         ``1/2 Re Z omega^2 Y^2 phi^2 / L``, the standing wave left as it is (right when the
         damper's impedance is small against the line's wave impedance sqrt(T m)). "coupled":
         one MDR (or ``AtAntinode(MDR)``) coupled to the FE line, its power computed from the
-        vibration it leaves (:func:`coupled_balance`, at each wind speed; a real robot's
+        vibration it leaves (the coupled limit cycle at each wind speed; a real robot's
         impedance is several times sqrt(T m), and the first-order power then overstates what it
         takes several-fold). Where the first-order amplitude lies below 1e-3 D, under the power
-        curves' data, the first-order balance is kept.
+        curves' data, the first-order balance is kept. (:func:`coupled_balance` gives one wind
+        speed's coupled balance with its powers, frequency and field.)
 
     Returns
     -------
@@ -459,15 +461,11 @@ def aeolian_severity(
                 - coefficient * y * y
 
         y, state = _solve_balance(balance, y_high, d, on_grid)
-        # the coupled line and robot (module coupled, which builds on this one); below the
-        # power curves' data its wind is capped as the time-domain run's is, and there the
-        # first-order balance (an extrapolation either way) is kept
-        from .aeolian_run import LOWEST_REDUCED_AMPLITUDE
-
+        # the coupled line and robot; below the power curves' data its wind is capped as the
+        # time-domain run's is, and there the first-order balance (an extrapolation either
+        # way) is kept
         if damper_model == "coupled" and dampers and y >= LOWEST_REDUCED_AMPLITUDE * d:
-            from .coupled import coupled_balance
-
-            coupled = coupled_balance(
+            coupled = coupled_cycle(
                 span, float(speed), dampers[0], bc=bc, strouhal=st, wind_curve=curve.name,
                 turbulence_intensity=turbulence_intensity, self_damping=law)
             y, state = coupled.amplitude, coupled.status

@@ -1,22 +1,21 @@
-"""The closed loop's simulated line in the self-limiting aeolian wind (``run_closed_loop(wind=)``).
+"""The self-limiting aeolian wind as a choice of a simulated line: ``wind="fixed_lift"`` or the
+energy balance's own physics (``"self_limiting"``, or a mapping of its options).
 
-With ``wind="fixed_lift"`` (the default) an :class:`~powerline_control.excitation.AeolianForce`
-is a lift of fixed amplitude on a line with the model's fixed damping. With
-``wind="self_limiting"`` (or a mapping of the physics' options) the same wind is the energy
-balance's own physics, as in :func:`~powerline_control.severity.simulate_aeolian`: the wind's
-power from the power curve at the locked mode's current amplitude, as a negative modal damping on
-that mode, and the conductor's self-damping on every mode at its own amplitude, both recomputed
-from the plant's state at every plant block by the one function that maps them
-(:class:`~powerline_control.severity.AeolianDamping`). No lift is applied: the wind's only
-action is that negative damping. The line starts vibrating at the energy balance's amplitude
-without the robot (a line already vibrating when the robot starts), so a run shows the robot
-bringing the amplitude down to its new steady level. Only the simulated truth changes: the
-controller sees its sensors and its own records, as under the fixed lift.
+With ``wind="fixed_lift"`` an :class:`~powerline_control.excitation.AeolianForce` is a lift of
+fixed amplitude on a line with the model's fixed damping. With ``wind="self_limiting"`` the same
+wind is the energy balance's physics, as in :func:`~.aeolian_run.simulate_aeolian`: the wind's
+power from the power curve at the locked mode's current amplitude, as a negative modal damping
+on that mode, and the conductor's self-damping on every band mode at its own amplitude, both
+recomputed from the plant's state at every plant block by the one function that maps them
+(:class:`~.modal.AeolianDamping`). No lift is applied: the wind's only action is that
+negative damping. The closed loop (``run_closed_loop(wind=)``) and the self-limiting record
+(:func:`~.aeolian_record.simulate_self_limiting`) check the choice here
+(:func:`checked_wind`) and build their plants' wind here (:func:`self_limiting_wind`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,26 +23,62 @@ import numpy as np
 from ..errors import InputError
 from ..excitation import AeolianForce
 from ..fem import LineModel
-from ..severity import AeolianDamping, aeolian_damping, aeolian_severity
 from ..simulation.held_damping import HeldDamping, run_held
 from ..simulation.plant import ModalPlant
-from .aeolian_steady import PHYSICS_OPTIONS, known_options
+from .balance import aeolian_severity
+from .modal import AeolianDamping, aeolian_damping
 
-#: The aeolian loads of the closed loop's line: the lift of fixed amplitude on the model's
-#: damping, or the energy balance's self-limiting physics.
+__all__ = ["WINDS", "WIND_OPTIONS", "SelfLimitingWind", "checked_wind", "known_options",
+           "self_limiting_wind"]
+
+#: The aeolian loads of a simulated line: the lift of fixed amplitude on the model's damping,
+#: or the energy balance's self-limiting physics.
 WINDS = ("fixed_lift", "self_limiting")
 
-#: The self-limiting physics' options a caller may set (``aeolian_steady``'s, less how its
-#: separate runs settle: the closed loop runs for its ``duration``).
-WIND_OPTIONS = tuple(k for k in PHYSICS_OPTIONS if k not in ("settle_tolerance", "max_duration"))
+#: The self-limiting physics' options a caller may set: the wind's power curve and the
+#: conductor's self-damping law (:func:`~.balance.aeolian_severity`'s names). The span, the
+#: supports, the mesh, the Strouhal number and the robot are the simulated line's own.
+WIND_OPTIONS = ("wind_curve", "turbulence_intensity", "self_damping", "self_damping_k",
+                "self_damping_exponents")
+
+
+def known_options(parameter: str, value: Mapping, allowed: Sequence[str]) -> dict:
+    """``value`` as a dict, refused with an InputError naming ``parameter`` when it names an
+    option of the self-limiting physics outside ``allowed``.
+
+    Examples
+    --------
+    >>> known_options("wind", {"wind_curve": "cigre"}, WIND_OPTIONS)
+    {'wind_curve': 'cigre'}
+    """
+    unknown = [key for key in value if key not in allowed]
+    if unknown:
+        raise InputError(
+            f"The '{parameter}' parameter names options {unknown} that the self-limiting "
+            f"physics does not take here: allowed are {list(allowed)} (the span, supports, mesh "
+            "and robot are the simulated line's own).")
+    return dict(value)
 
 
 def checked_wind(value: object, segments: list, model: LineModel) -> dict | None:
-    """``run_closed_loop``'s ``wind``: None for the fixed lift, else the self-limiting physics'
-    options (a mapping: those; "self_limiting": none, the severity study's defaults). Refused:
-    another name or option, a load that is not one AeolianForce for the whole run, supports that
-    differ at the two ends, and a wind whose energy balance leaves the power curve's data or
-    sustains no vibration (before the run)."""
+    """A simulated line's ``wind``: None for the fixed lift, else the self-limiting physics'
+    options (a mapping: those; "self_limiting": none, the severity study's defaults), with the
+    wind (``"wind"``) and the energy balance's amplitude of the line without a robot
+    (``"amplitude"``, m). ``segments``: the run's loads, ``[(start time, [loads])]``. Refused:
+    another name or option, a load that is not one AeolianForce for the whole run, supports
+    that differ at the two ends, and a wind whose energy balance leaves the power curve's data
+    or sustains no vibration (before the run).
+
+    Examples
+    --------
+    >>> from powerline_control import AeolianForce, LineModel, Span
+    >>> model = LineModel(Span.at_rts_fraction(60.0, "drake", 0.2), bc="pinned")
+    >>> checked_wind("fixed_lift", [(0.0, [AeolianForce(3.0)])], model) is None
+    True
+    >>> options = checked_wind("self_limiting", [(0.0, [AeolianForce(3.0)])], model)
+    >>> round(options["amplitude"] * 1e3, 1)      # the energy balance's antinode amplitude, mm
+    8.5
+    """
     if isinstance(value, str):
         if value not in WINDS:
             raise InputError(f"The 'wind' parameter must be one of {list(WINDS)} or a mapping "
@@ -111,16 +146,19 @@ class SelfLimitingWind:
             return self.free_damping.start_state(self.free_held.plant, self.amplitude)
         return self.damping.start_state(self.held.plant, self.amplitude)
 
-    def parked(self, x: float | None, n_t: int, free: bool = False) -> np.ndarray:
+    def parked(self, x: float | None, n_t: int, free: bool = False,
+               z0: np.ndarray | None = None) -> np.ndarray:
         """States (n_t, 2 n_q) of the whole run with the robot parked at x (``free``: the line
-        without the robot)."""
+        without the robot), from ``z0`` (None: :meth:`start`)."""
+        start = self.start(free) if z0 is None else z0
         return run_held(self.free_held if free else self.held, None if free else x,
-                        self.start(free), n_t, block=self.block)
+                        start, n_t, block=self.block)
 
 
 def self_limiting_wind(options: dict, plant: ModalPlant, free_plant: ModalPlant,
                        block: int) -> SelfLimitingWind:
-    """The :class:`SelfLimitingWind` of :func:`checked_wind`'s options on the line's plants."""
+    """The :class:`SelfLimitingWind` of :func:`checked_wind`'s options on the line's plants
+    (with the robot and without it; the same plant twice for a line without one)."""
     physics = {k: v for k, v in options.items() if k in WIND_OPTIONS}
     wind = options["wind"]
     span = plant.model.span
