@@ -36,8 +36,9 @@ CASES = (("drake", 300.0, "pinned", None, 3.0, 5.0), ("drake", 300.0, "pinned", 
          ("cardinal", 80.0, "pinned", 18, 1.0, 1.0))
 
 
-def measure(case: tuple) -> tuple:
-    """One span and robot: the run, the coupled balance, and each one's CPU seconds."""
+def tuned_robot(case: tuple) -> tuple:
+    """One case's span, supports and robot: tuned by ``tune_damper`` to the mode locked at
+    3 m/s (or the case's mode) at one of its antinodes."""
     conductor, length, bc, mode, absorber, body = case
     span = plc.Span.at_rts_fraction(length, conductor, 0.2)
     model = plc.LineModel(span, bc=bc)
@@ -46,7 +47,12 @@ def measure(case: tuple) -> tuple:
         mode, position = round(length / float(span.loop_length(tone))), None
     else:
         position = (mode // 3 + 0.5) * length / mode
-    robot = plc.tune_damper(model, mode, position, absorber, body_mass=body)
+    return span, bc, plc.tune_damper(model, mode, position, absorber, body_mass=body)
+
+
+def measure(case: tuple) -> tuple:
+    """One span and robot: the run, the coupled balance, and each one's CPU seconds."""
+    span, bc, robot = tuned_robot(case)
     start = time.process_time()
     run = simulate_aeolian(span, WIND, robot, bc=bc)
     middle = time.process_time()

@@ -19,31 +19,15 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common  # noqa: E402  (pins BLAS to one thread before numpy loads)
 import numpy as np  # noqa: E402
+from bench_coupled_balance import CASES, WIND, tuned_robot  # noqa: E402
 
-import powerline_control as plc  # noqa: E402
 from powerline_control.fem.damper import ImpedanceDamper, damper_impedance  # noqa: E402
 from powerline_control.severity import aeolian_severity, simulate_aeolian  # noqa: E402
-
-WIND = 3.0
-#: (conductor, length, supports, mode or None for the locked one at tune_damper's position,
-#: absorber kg, body kg)
-CASES = (("drake", 300.0, "pinned", None, 3.0, 5.0), ("drake", 300.0, "pinned", None, 0.3, 0.5),
-         ("condor", 220.0, "clamped", None, 3.0, 5.0), ("condor", 220.0, "clamped", None, 0.3, 0.5),
-         ("drake", 60.0, "clamped", 18, 3.0, 5.0), ("drake", 60.0, "clamped", 18, 0.3, 0.5),
-         ("cardinal", 80.0, "pinned", 18, 1.0, 1.0))
 
 
 def measure(case: tuple) -> tuple:
     """One span and robot: simulated amplitude, first-order and corrected balance, |Z|/Z0."""
-    conductor, length, bc, mode, absorber, body = case
-    span = plc.Span.at_rts_fraction(length, conductor, 0.2)
-    model = plc.LineModel(span, bc=bc)
-    if mode is None:
-        tone = plc.AeolianForce(WIND).frequency_for(span.conductor)
-        mode, position = round(length / float(span.loop_length(tone))), None
-    else:
-        position = (mode // 3 + 0.5) * length / mode
-    robot = plc.tune_damper(model, mode, position, absorber, body_mass=body)
+    span, bc, robot = tuned_robot(case)
     run = simulate_aeolian(span, WIND, robot, bc=bc)
     wave = np.sqrt(span.tension * span.conductor.mass_per_length)
     frequencies = np.linspace(0.5, 1.5, 201) * run.frequency
