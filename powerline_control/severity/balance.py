@@ -58,7 +58,7 @@ from .dampers import (
     loop_length,
     standing_wave_shape,
 )
-from .modal import LOWEST_REDUCED_AMPLITUDE, coupled_cycle
+from .modal import LOWEST_REDUCED_AMPLITUDE, coupled_cycle, coupled_robot
 from .self_damping import FotiMartinelli
 from .wind import SelfDampingLaw, _curve, _resolve_law, turbulence_factor
 
@@ -289,18 +289,6 @@ def _solve_balance(balance, y_high: float, scale: float, on_grid=None) -> tuple[
 DAMPER_MODELS = ("first_order", "coupled")
 
 
-def _check_coupled(dampers: tuple) -> None:
-    """The coupled balance takes one robot, an MDR parked or ``AtAntinode(MDR)``."""
-    device = dampers[0].damper if isinstance(dampers[0], AtAntinode) else dampers[0]
-    factor = dampers[0].factor if isinstance(dampers[0], AtAntinode) else 1.0
-    if len(dampers) != 1 or not isinstance(device, MDR) or factor != 1.0:
-        raise InputError(
-            "The 'dampers' parameter with damper_model='coupled' must hold one MDR or "
-            "AtAntinode(MDR) with factor 1 (the robot coupled to the FE line). Got "
-            f"{[_label_of(d) for d in dampers]}: use damper_model='first_order' for "
-            "ImpedanceDampers, several dampers or a placement factor.")
-
-
 @checked_keywords
 def aeolian_severity(
     span: Span,
@@ -411,7 +399,13 @@ def aeolian_severity(
     dampers = _check_dampers(dampers, span)
     damper_model = check_choice("damper_model", damper_model, DAMPER_MODELS)
     if damper_model == "coupled" and dampers:
-        _check_coupled(dampers)
+        if len(dampers) != 1:
+            raise InputError(
+                "The 'dampers' parameter with damper_model='coupled' must hold one robot (the "
+                f"coupled model parks one on the FE line). Got {len(dampers)}: "
+                f"{[_label_of(d) for d in dampers]}; use damper_model='first_order'.")
+        coupled_robot(dampers[0], "dampers", "use damper_model='first_order' for "
+                      "ImpedanceDampers or a placement factor")
     st = check_real("strouhal", strouhal, low=0.01, low_inclusive=True, high=1.0)
     curve = _curve(wind_curve)
     law = _resolve_law(self_damping, self_damping_k, self_damping_exponents)

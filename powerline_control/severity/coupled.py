@@ -15,7 +15,7 @@ from ..fem import MDR, AtAntinode
 from ..line import Span
 from ._common import MAX_WIND_SPEED, _check_span
 from .balance import aeolian_severity
-from .modal import CoupledBalance, coupled_cycle
+from .modal import CoupledBalance, coupled_cycle, coupled_robot
 from .self_damping import FotiMartinelli
 from .wind import SelfDampingLaw
 
@@ -85,16 +85,8 @@ self_damping_exponents
     """
     span = _check_span(span)
     speed = check_real("wind_speed", wind_speed, low=0.0, high=MAX_WIND_SPEED)
-    at_antinode = isinstance(robot, AtAntinode)
-    device = robot.damper if at_antinode else robot
-    if device is not None and not isinstance(device, MDR):
-        raise InputError("The 'robot' parameter of coupled_balance must be an MDR, "
-                         "AtAntinode(MDR) or None (the coupled model needs the robot's masses, "
-                         f"spring and dashpot). Got {type(device).__name__}.")
-    if at_antinode and robot.factor != 1.0:
-        raise InputError("The 'robot' parameter of coupled_balance takes AtAntinode with "
-                         f"factor 1 (the robot at the antinode). Got factor {robot.factor:g}: "
-                         "park an MDR at the position you mean instead.")
+    device = coupled_robot(robot, "robot", "park an MDR at the position you mean, or use "
+                           "aeolian_severity for other dampers")
     if device is not None and not 0 <= device.position <= span.length:
         raise InputError(f"The 'robot' position must lie in [0, {span.length:g}] m (the span). "
                          f"Got {device.position!r}.")

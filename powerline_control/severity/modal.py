@@ -44,15 +44,15 @@ import scipy.optimize
 from .._validation import check_real, read_only
 from ..errors import InputError
 from ..excitation import DEFAULT_STROUHAL, HarmonicForce
-from ..fem import MDR, LineModel, damper_impedance
+from ..fem import MDR, AtAntinode, LineModel, damper_impedance
 from ..line import Span
 from ..simulation.plant import ModalPlant, default_modes
 from ._common import MAX_WIND_SPEED
 from .self_damping import FotiMartinelli
 from .wind import SelfDampingLaw, _curve, _resolve_law, wind_power
 
-__all__ = ["AeolianDamping", "CoupledBalance", "aeolian_damping", "aeolian_plant",
-           "coupled_cycle"]
+# coupled_cycle is the balance's and coupled_balance's shared step, not a name of its own
+__all__ = ["AeolianDamping", "CoupledBalance", "aeolian_damping", "aeolian_plant"]
 
 #: The wind's negative damping is evaluated at no less than this reduced amplitude Y/D: the
 #: CIGRE cubic's constant term gives the wind a finite power at Y = 0 (which the energy balance
@@ -378,7 +378,7 @@ class CoupledBalance:
     first_order_amplitude: float = math.nan
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _Cycle:
     """The coupled mode the wind feeds at one locked amplitude: eigenvalue and shape."""
 
@@ -503,6 +503,22 @@ def _cycle_powers(plant, damping: AeolianDamping, position: float | None, cycle:
     return float(wind), own, robot
 
 
+def coupled_robot(robot: object, parameter: str, fix: str) -> MDR | None:
+    """The MDR a coupled balance parks (``robot``: an MDR, ``AtAntinode(MDR)`` with factor 1, or
+    None), refused with an InputError naming ``parameter`` otherwise (``fix``: what else to
+    use). Its position is checked by the caller, who knows the span."""
+    device = robot.damper if isinstance(robot, AtAntinode) else robot
+    factor = robot.factor if isinstance(robot, AtAntinode) else 1.0
+    if device is not None and not isinstance(device, MDR) or factor != 1.0:
+        raise InputError(
+            f"The '{parameter}' parameter of the coupled balance must be an MDR, AtAntinode(MDR) "
+            "with factor 1 (the robot at the antinode) or None: the coupled model parks the "
+            "robot's masses, spring and dashpot on the FE line. Got "
+            f"{type(device).__name__}" + (f" with factor {factor:g}" if factor != 1.0 else "")
+            + f": {fix}.")
+    return device
+
+
 def coupled_cycle(span: Span, speed: float, robot, *, bc: str = "clamped",
                   n_elements: int | None = None, strouhal: float = DEFAULT_STROUHAL,
                   wind_curve: str = "cigre", turbulence_intensity: float = 0.0,
@@ -521,7 +537,7 @@ def coupled_cycle(span: Span, speed: float, robot, *, bc: str = "clamped",
     >>> cycle.status, round(cycle.amplitude * 1e3, 1)
     ('balanced', 8.6)
     """
-    at_antinode = not isinstance(robot, MDR) and robot is not None
+    at_antinode = isinstance(robot, AtAntinode)
     device = robot.damper if at_antinode else robot
     powers = {"wind_curve": wind_curve, "turbulence_intensity": turbulence_intensity,
               "self_damping": self_damping, "self_damping_k": self_damping_k,
@@ -539,10 +555,6 @@ def coupled_cycle(span: Span, speed: float, robot, *, bc: str = "clamped",
         plant, band_modes = aeolian_plant(bare, device, shedding, dt)
         damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers)
     position = None if device is None else float(device.position)
-
-    cond = span.conductor
-
-    mode = int(band_modes[damping.locked]) + 1
     status, cycle = limit_cycle(plant, damping, position)
     frequency = damping.frequency
     field_amplitude = np.zeros(bare.n_nodes)
@@ -554,10 +566,11 @@ def coupled_cycle(span: Span, speed: float, robot, *, bc: str = "clamped",
             value / span.length for value in _cycle_powers(plant, damping, position, cycle))
         residual = (p_wind - p_self - p_robot) / p_wind if p_wind > 0 else 0.0
     ratio = 0.0 if device is None else abs(damper_impedance(device, frequency)) \
-        / math.sqrt(span.tension * cond.mass_per_length)
+        / math.sqrt(span.tension * span.conductor.mass_per_length)
     return CoupledBalance(
         wind_speed=speed, status=status, amplitude=float(field_amplitude.max()),
-        frequency=float(frequency), mode=mode, robot_position=position,
+        frequency=float(frequency), mode=int(band_modes[damping.locked]) + 1,
+        robot_position=position,
         wind_power=float(p_wind), self_damping_power=float(p_self),
         robot_power=float(p_robot), energy_residual=float(residual),
         robot_impedance_ratio=float(ratio), x=read_only(bare.node_positions.copy()),
