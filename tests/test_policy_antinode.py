@@ -95,3 +95,36 @@ def test_in_the_self_limiting_wind_the_loop_ends_at_the_locked_modes_antinode():
     steady = result.aeolian_steady
     assert steady.closed_loop.amplitude < 1.1 * steady.at_antinode.amplitude
     assert any("the standing wave" in decision for _, decision in result.decisions)
+
+
+def test_the_locked_mode_is_found_among_the_coupled_modes_a_heavy_robot_shares_it_with():
+    """Drake 300 m pinned (the drake-300m scenario's warm line), its 5 + 3 kg robot 0.5 m from an
+    antinode of mode 95, which the wind locked into before the robot arrived. The robot shares
+    mode 95 among coupled modes a fraction of a spacing apart; the line, started in mode 95,
+    beats between them. Each line's own largest bare component is a neighbour (94 or 96), the
+    mode the two lines share is 95: the closed form sin(95 pi x / L)."""
+    from powerline_control.closed_loop.policy import locked_wave
+
+    span = dataclasses.replace(plc.Span.at_rts_fraction(300.0, "drake", 0.2), tension=24995.0)
+    robot = plc.tune_damper(plc.LineModel(plc.Span.at_rts_fraction(300.0, "drake", 0.2),
+                                          bc="pinned"), 90, 150.5, 3.0, body_mass=5.0)
+    plant = ModalPlant(plc.LineModel(span, bc="pinned"), robot, np.arange(80, 110), dt=1e-3)
+    x = plant.model.node_positions
+    sensors = np.array([45.77, 64.72, 121.6, 140.5, 178.4])
+    rows = plant.couplings(sensors)
+    # the line in mode 95 at rest at its largest displacement, decomposed on the coupled modes
+    values, vectors = np.linalg.eig(plant.state_matrix(150.5))
+    start = np.zeros(2 * plant.n_q)
+    start[95 - 81] = 1.0
+    amplitudes = np.linalg.solve(vectors, start)
+    strong = np.abs(amplitudes) > 0.2 * np.abs(amplitudes).max()
+    near = np.flatnonzero((values.imag > 0) & strong)
+    assert near.size >= 2                              # the robot shares the locked mode
+    lines = [(values[c].imag, rows @ (amplitudes[c] * vectors[: plant.r, c])) for c in near]
+    band = plant.nodal[:, : plant.n_band]
+    largest = {81 + int(np.argmax(np.abs(vectors[: plant.n_band, c])
+                                  * np.abs(band).max(axis=0))) for c in near}
+    assert 95 not in largest                          # no one line names it
+    wave = locked_wave(plant, rows, 150.5, lines)
+    sine = np.sin(95 * np.pi * x / 300.0)
+    assert abs(wave @ sine) / (np.linalg.norm(wave) * np.linalg.norm(sine)) > 0.999

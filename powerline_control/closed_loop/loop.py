@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .._spectral import dominant_frequency, fit_phasors
+from .._spectral import dominant_frequency, extract_lines, fit_phasors
 from .._threads import on_one_blas_thread
 from .._validation import check_bool, check_choice, check_rng, checked_keywords, read_only
 from ..errors import (
@@ -37,6 +37,7 @@ from .policy import (
     Targeting,
     choose_target,
     kernel_shape,
+    locked_wave,
     mode_spacing,
     obstacle_ends,
     pick_target,
@@ -123,6 +124,23 @@ def _excited_shape(seen: Measurements, belief: Belief, robot: MDR, x_r: float, e
     return shape, unsteady
 
 
+#: Spectral lines a decision in the self-limiting wind reads from its record, and how near the
+#: tone (in mode spacings) a line must lie to count as the locked mode's.
+LOCKED_LINES, LOCKED_SPACINGS = 6, 1.5
+
+
+def _record_lines(seen: Measurements, belief: Belief, end: int, tone: float,
+                  record: int) -> list[tuple[float, np.ndarray]]:
+    """(omega, the sensors' phasors) of the record's lines within LOCKED_SPACINGS mode
+    spacings of the tone, over its last ``record`` samples (the tone alone if none is)."""
+    lo = max(end + 1 - record, 0)
+    signals, tt = seen.sensors[:, lo : end + 1], seen.t[lo : end + 1]
+    found = extract_lines(signals, tt[1] - tt[0], LOCKED_LINES)[0]
+    spacing = mode_spacing(belief.mode_frequencies, tone)
+    near = [float(f) for f in found if abs(f - tone) <= LOCKED_SPACINGS * spacing] or [tone]
+    return [(2 * np.pi * f, fit_phasors(signals, tt, f)) for f in near]
+
+
 def _decision_tone(seen: Measurements, settings: Settings, targeting: Targeting, k: int,
                    excitation: tuple[float, float]) -> tuple[float, int]:
     """The tone a decision is made at, measured on the excitation's record (``excitation``: when
@@ -198,6 +216,9 @@ def _update_target(targeting: Targeting, motion: Motion, records: Records, seen:
                 "nominal span may lie loops from the best position")))
         return
     _check_prediction(records, seen, motion.position, k, tone, shape_window)
+    if settings.objective == "antinode":
+        shape = locked_wave(belief.plant, belief.rows, belief.inside(motion.position),
+                            _record_lines(seen, belief, k, tone, shape_window))
     low, high = motion.bounds()
     reach = reach_within(settings.limits, travel_budget(t[k], t[0], t[-1], policy))
     choice = choose_target(shape, belief.plant, robot, 2 * np.pi * tone, belief.weights,

@@ -178,6 +178,28 @@ class Choice:
 OBJECTIVES = ("response", "antinode")
 
 
+def locked_wave(plant, rows, robot_position: float, lines) -> np.ndarray:
+    """The bare mode the wind feeds, at the nodes, from the record's lines near the tone.
+
+    ``lines``: (omega, the sensors' phasors) of each spectral line. A heavy robot shares the
+    locked mode among line-and-robot modes a fraction of a mode spacing apart (the line, locked
+    before it arrived, beats between them), so no one tone names the mode the wind feeds, nor
+    does a wave fitted at one (its neighbours' receptance there is as large). Each line is the
+    belief's coupled mode nearest it, scaled to the sensors' phasors; the bare mode that carries
+    most of their summed energy (by nodal amplitude) is the one they share: the locked mode."""
+    values, vectors = np.linalg.eig(plant.state_matrix(robot_position))
+    upper = np.flatnonzero(values.imag > 0)
+    band = plant.nodal[:, : plant.n_band]
+    peak = np.max(np.abs(band), axis=0)
+    content = np.zeros(plant.n_band)
+    for omega, phasors in lines:
+        mode = vectors[: plant.r, upper[np.argmin(np.abs(values.imag[upper] - omega))]]
+        at_sensors = rows @ mode
+        scale = np.vdot(at_sensors, phasors) / np.vdot(at_sensors, at_sensors)
+        content += np.abs(scale * mode[: plant.n_band] * peak) ** 2
+    return band[:, int(np.argmax(content))]
+
+
 def inverse_coupling(bare_shape, plant, positions) -> np.ndarray:
     """``(max |W_bare| / |W_bare(p)|)^2`` at each of ``positions``: 1 at the robot-free
     standing wave's largest antinode, growing towards its nodes. The robot's absorber takes
