@@ -192,9 +192,18 @@ def locked_wave(plant, rows, robot_position: float, lines) -> np.ndarray:
     band = plant.nodal[:, : plant.n_band]
     peak = np.max(np.abs(band), axis=0)
     content = np.zeros(plant.n_band)
+    spacing = mode_spacing(np.sort(values.imag[upper]), float(np.mean([o for o, _ in lines])))
     for omega, phasors in lines:
-        mode = vectors[: plant.r, upper[np.argmin(np.abs(values.imag[upper] - omega))]]
-        at_sensors = rows @ mode
+        # the coupled modes within a spacing of the line; the one whose shape at the sensors
+        # the line's phasors match best (a calibration a fraction of a spacing off must not
+        # hand the line to the neighbour)
+        near = upper[np.abs(values.imag[upper] - omega) <= spacing]
+        if near.size == 0:
+            near = upper[[np.argmin(np.abs(values.imag[upper] - omega))]]
+        shapes = rows @ vectors[: plant.r, near]
+        fit = np.abs(np.conj(shapes).T @ phasors) / np.linalg.norm(shapes, axis=0)
+        best = int(np.argmax(fit))
+        mode, at_sensors = vectors[: plant.r, near[best]], shapes[:, best]
         scale = np.vdot(at_sensors, phasors) / np.vdot(at_sensors, at_sensors)
         content += np.abs(scale * mode[: plant.n_band] * peak) ** 2
     return band[:, int(np.argmax(content))]
