@@ -185,8 +185,10 @@ def locked_wave(plant, rows, robot_position: float, lines) -> np.ndarray:
     locked mode among line-and-robot modes a fraction of a mode spacing apart (the line, locked
     before it arrived, beats between them), so no one tone names the mode the wind feeds, nor
     does a wave fitted at one (its neighbours' receptance there is as large). Each line is the
-    belief's coupled mode nearest it, scaled to the sensors' phasors; the bare mode that carries
-    most of their summed energy (by nodal amplitude) is the one they share: the locked mode."""
+    belief's coupled mode (with the robot at ``robot_position``) within a mode spacing of it whose
+    shape at the sensors (``rows``: the plant's modes there) its phasors match best, scaled to
+    them; the bare mode that carries most of their summed energy (by nodal amplitude) is the one
+    they share: the locked mode."""
     values, vectors = np.linalg.eig(plant.state_matrix(robot_position))
     upper = np.flatnonzero(values.imag > 0)
     band = plant.nodal[:, : plant.n_band]

@@ -129,10 +129,12 @@ class ClosedLoopResult(Result):
     damper_power : ndarray, shape (n_t,)
         Power dissipated in the robot's damper, W.
     predictions : tuple of (float, ndarray, ndarray, ndarray, float)
-        At each target choice and confirmation: the time (s), the positions and the steady-state
-        RMS (m) the controller predicted for the robot parked there, the robot-free excited
-        shape (complex amplitude at every node, m) it predicted from, and the tone it was made at
-        (Hz, measured on the excitation's record since it began, not on the last window).
+        At each target choice and confirmation: the time (s), the positions and the figure the
+        controller predicted for the robot parked there (the steady-state RMS, m; in the
+        self-limiting wind the inverse coupling to the locked mode), the shape it predicted from
+        (the robot-free excited shape, complex amplitude at every node, m; in the self-limiting
+        wind the locked mode's shape), and the tone it was made at (Hz, measured on the
+        excitation's record since it began, not on the last window).
     decisions : tuple of (float, str)
         Every decision of the policy, in words: the time (s) and what it chose ("target ...",
         "confirm ...", "another loop ...", "final ...") or why it held still ("hold ...: the
