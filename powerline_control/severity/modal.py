@@ -545,15 +545,15 @@ def coupled_cycle(span: Span, speed: float, robot, *, bc: str = "clamped",
     bare = LineModel(span, n_elements, bc=bc)
     shedding = strouhal * speed / span.conductor.diameter
     dt = 1.0 / (SAMPLES_PER_PERIOD * shedding)    # the plant's sampling: unused by eigenvalues
+    if at_antinode:
+        # the antinode is the bare band's (the same modes with or without the robot); the
+        # robot's Ritz vector (the flexibility the band misses where it sits) is built there
+        free, _ = aeolian_plant(bare, None, shedding, dt)
+        locked = aeolian_damping(free, span, speed, strouhal=strouhal, **powers).locked
+        device = dataclasses.replace(device,
+                                     position=_antinode_near(free, locked, device.position))
     plant, band_modes = aeolian_plant(bare, device, shedding, dt)
     damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers)
-    if at_antinode:
-        # the band's modes do not depend on the robot; its Ritz vector (the line's flexibility
-        # the band misses where it sits) does, so the plant is built again at the antinode
-        device = dataclasses.replace(
-            device, position=_antinode_near(plant, damping.locked, device.position))
-        plant, band_modes = aeolian_plant(bare, device, shedding, dt)
-        damping = aeolian_damping(plant, span, speed, strouhal=strouhal, **powers)
     position = None if device is None else float(device.position)
     status, cycle = limit_cycle(plant, damping, position)
     frequency = damping.frequency
