@@ -268,6 +268,28 @@ def test_losing_to_the_fixed_damper_in_the_wind_is_a_shortfall(run):
     said = [text for text in worse.shortfalls if "self-limiting" in text]
     assert said == [f"in the self-limiting wind the line settles {steady.clamp_reduction:.2f}x "
                     f"as high (antinode amplitude {1e3 * steady.near_clamp.amplitude:.4g} mm) as "
-                    f"with a fixed damper parked near the clamp at "
-                    f"{steady.closed_loop.robot_position:.4g} m "
+                    f"with the robot parked at {steady.closed_loop.robot_position:.4g} m, a "
+                    f"fixed damper parked near the clamp "
                     f"({1e3 * steady.closed_loop.amplitude:.4g} mm)"]
+
+
+def test_ending_above_the_start_in_the_wind_is_a_shortfall(run):
+    # The robot's start judged as the loop's end and the reverse: ending more than 5 % above
+    # the start in steady state is said; a run in the self-limiting wind is judged by its steady
+    # state alone (its own window is the amplitude still on its way)
+    model, robot, result = run
+    steady = result.aeolian_steady
+    direct = simulate_aeolian(SPAN, WIND, robot, bc="pinned")   # parked at 13.9 m
+    assert steady.start.robot_position == pytest.approx(13.9)
+    assert steady.start.amplitude == pytest.approx(direct.amplitude, rel=1e-9)
+    ratio = steady.start.amplitude / steady.closed_loop.amplitude
+    assert ratio > 1.05      # a third of a loop off the antinode, against near it
+    back = dataclasses.replace(steady, start=steady.closed_loop, closed_loop=steady.start)
+    said = [text for text in dataclasses.replace(result, aeolian_steady=back).shortfalls
+            if "where the robot started" in text]
+    assert said == [f"in the self-limiting wind the line settles {ratio:.2f}x as high (antinode "
+                    f"amplitude {1e3 * steady.start.amplitude:.4g} mm) as with the robot parked "
+                    f"at {steady.closed_loop.robot_position:.4g} m, where the robot started "
+                    f"({1e3 * steady.closed_loop.amplitude:.4g} mm)"]
+    windy = dataclasses.replace(result, wind="self_limiting", aeolian_steady=back)
+    assert all(text.startswith("in the self-limiting wind") for text in windy.shortfalls)

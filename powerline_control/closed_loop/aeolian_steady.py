@@ -7,8 +7,9 @@ where the line settles in that wind. With ``run_closed_loop(aeolian_steady=...)`
 placements are judged again with the energy balance's own physics: the power curve's wind power
 at the current amplitude and the conductor's self-damping, simulated until the amplitude settles
 (:func:`~powerline_control.severity.simulate_aeolian`, the one home of that physics) on the line
-simulated, with no robot, the robot parked near the clamp (a fixed damper), where the closed loop
-ended, and at the antinode of the locked mode nearest there (where the severity study parks it).
+simulated, with no robot, the robot parked near the clamp (a fixed damper), where it started,
+where the closed loop ended, and at the antinode of the locked mode nearest there (where the
+severity study parks it).
 """
 
 from __future__ import annotations
@@ -56,6 +57,8 @@ class AeolianSteady:
     near_clamp : AeolianRun
         The robot parked near the clamp, where a fixed damper sits (the closed loop's
         ``clamp_distance``).
+    start : AeolianRun
+        The robot parked where it started (had it never moved).
     closed_loop : AeolianRun
         The robot parked where the closed loop ended.
     at_antinode : AeolianRun
@@ -74,11 +77,14 @@ class AeolianSteady:
     15.0
     >>> bool(steady.reduction > 10), bool(steady.clamp_reduction > 0.5)
     (True, True)
+    >>> round(steady.start.robot_position, 2)     # where it started: tune_damper's position
+    15.0
     """
 
     wind_speed: float
     no_robot: AeolianRun
     near_clamp: AeolianRun
+    start: AeolianRun
     closed_loop: AeolianRun
     at_antinode: AeolianRun
 
@@ -92,6 +98,12 @@ class AeolianSteady:
         """Steady amplitude with the robot parked near the clamp (a fixed damper) over that
         with the robot where the loop ended (> 1: the robot beats the fixed damper)."""
         return _ratio(self.near_clamp.amplitude, self.closed_loop.amplitude)
+
+    @property
+    def start_reduction(self) -> float:
+        """Steady amplitude with the robot parked where it started over that with the robot
+        where the loop ended (> 1: moving paid)."""
+        return _ratio(self.start.amplitude, self.closed_loop.amplitude)
 
     @property
     def antinode_reduction(self) -> float:
@@ -120,22 +132,23 @@ class AeolianSteady:
 
     @property
     def runs(self) -> tuple:
-        """(no_robot, near_clamp, closed_loop, at_antinode)."""
-        return self.no_robot, self.near_clamp, self.closed_loop, self.at_antinode
+        """(no_robot, near_clamp, start, closed_loop, at_antinode)."""
+        return self.no_robot, self.near_clamp, self.start, self.closed_loop, self.at_antinode
 
     def summary(self) -> str:
         """A few lines: each placement's steady amplitude beside the energy balance's, and the
         reductions."""
         lines = [f"self-limiting wind {self.wind_speed:g} m/s (simulate_aeolian; energy "
                  "balance at the same position in brackets):"]
-        names = ("no robot", "near clamp", "closed loop", "at antinode")
+        names = ("no robot", "near clamp", "start", "closed loop", "at antinode")
         for name, run in zip(names, self.runs, strict=True):
             where = "" if run.robot_position is None else f" x = {run.robot_position:7.3f} m"
             lines.append(f"  {name:12s}{where:14s} amplitude {1e3 * run.amplitude:8.4f} mm "
                          f"({1e3 * run.balance_amplitude:.4f} mm)"
                          + ("" if run.settled else " not settled"))
         lines.append(f"  reduction {self.reduction:.3g}x against no robot, "
-                     f"{self.clamp_reduction:.3g}x against the fixed damper near the clamp; "
+                     f"{self.clamp_reduction:.3g}x against the fixed damper near the clamp, "
+                     f"{self.start_reduction:.3g}x against its start; "
                      f"at the antinode {self.antinode_reduction:.3g}x; the energy balance at "
                      f"the loop's position {self.balance_reduction:.3g}x")
         return "\n".join(lines)
@@ -223,12 +236,13 @@ def antinode_near(run: AeolianRun, position: float) -> float:
 def aeolian_steady_state(model: LineModel, wind: AeolianForce, robot: MDR, position: float, *,
                          clamp_distance: float, **physics) -> AeolianSteady:
     """Judge the robot parked at ``position`` in the self-limiting wind, against no robot, a
-    fixed damper near the clamp and the antinode.
+    fixed damper near the clamp, the robot's start and the antinode.
 
-    Four runs of :func:`~powerline_control.severity.simulate_aeolian` on ``model``'s span,
+    Five runs of :func:`~powerline_control.severity.simulate_aeolian` on ``model``'s span,
     supports and mesh, at ``wind``'s speed and Strouhal number, each until its amplitude settles:
-    no robot; ``robot`` parked at ``clamp_distance``, at ``position``, and at the antinode of the
-    locked mode nearest ``position`` (from the no-robot run's steady field).
+    no robot; ``robot`` parked at ``clamp_distance``, where it starts (``robot.position``), at
+    ``position``, and at the antinode of the locked mode nearest ``position`` (from the no-robot
+    run's steady field).
 
     Parameters
     ----------
@@ -237,7 +251,7 @@ def aeolian_steady_state(model: LineModel, wind: AeolianForce, robot: MDR, posit
     wind : AeolianForce
         The wind (its lift coefficient is not used: the power curve replaces it).
     robot : MDR
-        The robot (its position is replaced).
+        The robot, at its start.
     position : float
         Where the robot is judged, m.
     clamp_distance : float
@@ -287,5 +301,5 @@ def aeolian_steady_state(model: LineModel, wind: AeolianForce, robot: MDR, posit
 
     bare = parked(None)
     return AeolianSteady(wind_speed=float(speed), no_robot=bare, near_clamp=parked(clamp_distance),
-                         closed_loop=parked(position), at_antinode=parked(antinode_near(bare,
-                                                                                       position)))
+                         start=parked(robot.position), closed_loop=parked(position),
+                         at_antinode=parked(antinode_near(bare, position)))

@@ -322,11 +322,13 @@ class ClosedLoopResult(Result):
 
     @property
     def shortfalls(self) -> tuple:
-        """What the run fell short of, in words: ending (in the settled window) more than 5 %
-        worse than the robot parked at its start, or worse than a fixed damper parked near the
-        clamp, under the run's load or, when it was judged (:attr:`aeolian_steady`), in the
-        self-limiting wind; empty when it did neither, or when the robot had not settled (a run
-        that ends with the robot still moving is no verdict) or the run lacks those comparisons.
+        """What the run fell short of, in words: ending more than 5 % worse than the robot
+        parked at its start, or worse than a fixed damper parked near the clamp. Under the run's
+        load the settled window decides; when the run was judged in the self-limiting wind
+        (:attr:`aeolian_steady`) its steady state decides too, and alone when the run itself
+        was in that wind (its window is the amplitude still on its way, which settles over
+        minutes). Empty when it did neither, or when the robot had not settled (a run that ends
+        with the robot still moving is no verdict) or the run lacks those comparisons.
 
         Examples
         --------
@@ -341,24 +343,28 @@ class ClosedLoopResult(Result):
         names = {c.name for c in self.comparisons}
         if not self.settled or not {"closed_loop", "start", "near_clamp"} <= names:
             return ()
-        closed = self.comparison("closed_loop")
-        out = []
-        for name, tolerance, what in (("start", 1.05, "where the robot started"),
-                                      ("near_clamp", 1.0, "a fixed damper parked near the "
-                                                          "clamp")):
-            other = self.comparison(name)
-            if closed.rms > tolerance * other.rms:
-                out.append(f"the line ends {closed.rms / other.rms:.2f}x as high (RMS "
-                           f"{1e3 * closed.rms:.4g} mm) as with the robot parked at "
-                           f"{other.position:.4g} m, {what} ({1e3 * other.rms:.4g} mm)")
+        limits = (("start", 1.05, "where the robot started"),
+                  ("near_clamp", 1.0, "a fixed damper parked near the clamp"))
         steady = self.aeolian_steady
-        if steady is not None and steady.clamp_reduction < 1.0:
-            ended, clamp = steady.closed_loop, steady.near_clamp
-            ratio = 1 / steady.clamp_reduction
-            out.append(f"in the self-limiting wind the line settles {ratio:.2f}x as high "
-                       f"(antinode amplitude {1e3 * ended.amplitude:.4g} mm) as with "
-                       f"a fixed damper parked near the clamp at {clamp.robot_position:.4g} m "
-                       f"({1e3 * clamp.amplitude:.4g} mm)")
+        out = []
+        if steady is None or self.wind != "self_limiting":
+            closed = self.comparison("closed_loop")
+            for name, tolerance, what in limits:
+                other = self.comparison(name)
+                if closed.rms > tolerance * other.rms:
+                    out.append(f"the line ends {closed.rms / other.rms:.2f}x as high (RMS "
+                               f"{1e3 * closed.rms:.4g} mm) as with the robot parked at "
+                               f"{other.position:.4g} m, {what} ({1e3 * other.rms:.4g} mm)")
+        if steady is not None:
+            ended = steady.closed_loop
+            for name, tolerance, what in limits:
+                other = getattr(steady, name)
+                if ended.amplitude > tolerance * other.amplitude:
+                    out.append(f"in the self-limiting wind the line settles "
+                               f"{ended.amplitude / other.amplitude:.2f}x as high (antinode "
+                               f"amplitude {1e3 * ended.amplitude:.4g} mm) as with the robot "
+                               f"parked at {other.robot_position:.4g} m, {what} "
+                               f"({1e3 * other.amplitude:.4g} mm)")
         return tuple(out)
 
     def summary(self) -> str:

@@ -644,7 +644,8 @@ def _closed_loop_wind(r, result) -> tuple:
     from .summary_severity import closed_loop_wind_row
 
     runs = None if r.severity is None else r.severity.time_domain
-    return closed_loop_wind_row(result.aeolian_steady, result.span, runs, r.span)
+    return closed_loop_wind_row(result.aeolian_steady, result.span, runs, r.span,
+                                getattr(result, "wind", "fixed_lift"))
 
 
 def _not_the_wind(r) -> tuple:

@@ -23,7 +23,7 @@ UNITS = {
 
 
 #: The closed loop's placements in the self-limiting wind (``AeolianSteady.runs``), as JSON keys.
-_STEADY_NAMES = ("no_robot", "near_clamp", "closed_loop", "antinode")
+_STEADY_NAMES = ("no_robot", "near_clamp", "start", "closed_loop", "antinode")
 
 
 def _f(value) -> float:
@@ -159,10 +159,12 @@ def result_json(result) -> dict:
                 **{f"{name}_first_order_amplitude_m": _f(run.first_order_amplitude)
                    for name, run in zip(_STEADY_NAMES, steady.runs, strict=True)},
                 "near_clamp_position_m": _f(steady.near_clamp.robot_position),
+                "start_position_m": _f(steady.start.robot_position),
                 "closed_loop_position_m": _f(steady.closed_loop.robot_position),
                 "antinode_position_m": _f(steady.at_antinode.robot_position),
                 "reduction": _f(steady.reduction),
                 "near_clamp_reduction": _f(steady.clamp_reduction),
+                "start_reduction": _f(steady.start_reduction),
                 "antinode_reduction": _f(steady.antinode_reduction),
                 "balance_reduction": _f(steady.balance_reduction),
                 "first_order_reduction": _f(steady.first_order_reduction),

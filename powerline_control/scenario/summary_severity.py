@@ -208,10 +208,12 @@ def _time_domain_row(runs, judged: bool = False) -> tuple[tuple, str]:
     return row, note
 
 
-def closed_loop_wind_row(steady, span, severity_runs=None, severity_span=None) -> tuple:
+def closed_loop_wind_row(steady, span, severity_runs=None, severity_span=None,
+                         wind: str = "fixed_lift") -> tuple:
     """The closed-loop section's row of the self-limiting wind: where the loop ended, no robot,
-    the fixed damper and the antinode in steady state, and what each number means beside the
-    closed loop's own load, the energy balance and the severity study's time-domain check.
+    the fixed damper, the robot's start and the antinode in steady state, and what each number
+    means beside the run's own window, the energy balance and the severity study's time-domain
+    check.
 
     Parameters
     ----------
@@ -223,6 +225,8 @@ def closed_loop_wind_row(steady, span, severity_runs=None, severity_span=None) -
         The severity section's time-domain check at the same wind, when it ran.
     severity_span : Span or None
         The span it ran on.
+    wind : str
+        The wind the closed loop itself ran in (``ClosedLoopResult.wind``).
 
     Returns
     -------
@@ -231,13 +235,16 @@ def closed_loop_wind_row(steady, span, severity_runs=None, severity_span=None) -
     """
     closed, bare, clamp, antinode = (steady.closed_loop, steady.no_robot, steady.near_clamp,
                                      steady.at_antinode)
-    unsettled = [name for name, run in zip(("no robot", "near the clamp", "where it ended",
-                                            "at the antinode"), steady.runs, strict=True)
+    unsettled = [name for name, run in zip(("no robot", "near the clamp", "where it started",
+                                            "where it ended", "at the antinode"), steady.runs,
+                                           strict=True)
                  if not run.settled]
     value = (f"robot where the loop ended ({closed.robot_position:.4g} m): {mm(closed.amplitude)}"
              f", {steady.reduction:.3g}x below no robot ({mm(bare.amplitude)}) and "
              f"{steady.clamp_reduction:.3g}x below a fixed damper near the clamp "
-             f"({clamp.robot_position:.3g} m: {mm(clamp.amplitude)}); at the antinode "
+             f"({clamp.robot_position:.3g} m: {mm(clamp.amplitude)}) and "
+             f"{steady.start_reduction:.3g}x below its start ({steady.start.robot_position:.4g} "
+             f"m: {mm(steady.start.amplitude)}); at the antinode "
              f"{antinode.robot_position:.4g} m: {mm(antinode.amplitude)}, "
              f"{steady.antinode_reduction:.3g}x"
              + (f" (not settled: {', '.join(unsettled)})" if unsettled else ""))
@@ -245,20 +252,29 @@ def closed_loop_wind_row(steady, span, severity_runs=None, severity_span=None) -
             "self-limiting wind: the energy balance's wind power at the current amplitude and "
             "the conductor's self-damping, run until the amplitude settles "
             "(severity.simulate_aeolian). This is where the line settles, and the robot's value "
-            "to trust. The RMS rows above are under the closed loop's own load, a lift of fixed "
-            "amplitude on a fixed modal damping: they rank positions under one load, and do not "
-            "settle where wind and conductor balance. The energy balance at the same position, "
+            "to trust. " + _window_words(wind) + " The energy balance at the same position, "
             "with the robot's power from the line and robot coupled, says "
             f"{steady.balance_reduction:.3g}x; with the textbook first-order damper power "
             f"(the standing wave left as it is, while the robot's impedance is "
             f"{closed.robot_impedance_ratio:.3g} times the line's wave impedance sqrt(T m)) it "
             f"would say {steady.first_order_reduction:.3g}x.")
     if severity_runs is not None:
-        note += " " + _against_severity(steady, span, severity_runs, severity_span)
+        note += " " + _against_severity(steady, span, severity_runs, severity_span, wind)
     return (f"self-limiting wind {steady.wind_speed:g} m/s, steady state", value, note)
 
 
-def _against_severity(steady, span, runs, severity_span) -> str:
+def _window_words(wind: str) -> str:
+    """What the closed loop's RMS rows are, beside the steady state."""
+    if wind == "self_limiting":
+        return ("The RMS rows above are the run's own last window in the same wind: the "
+                "amplitude on its way, which with the robot settles over minutes, longer than "
+                "the run.")
+    return ("The RMS rows above are under the closed loop's own load, a lift of fixed "
+            "amplitude on a fixed modal damping: they rank positions under one load, and do not "
+            "settle where wind and conductor balance.")
+
+
+def _against_severity(steady, span, runs, severity_span, wind: str) -> str:
     """The closed loop's self-limiting reduction against the severity section's, and what
     makes them differ: the line (tension) and the robot's position."""
     theirs = runs.reduction
@@ -280,9 +296,11 @@ def _against_severity(steady, span, runs, severity_span) -> str:
         causes.append(
             f"the loop ended {100 * apart / loop:.2g} % of a loop ({apart:.3g} m) from the "
             f"antinode, where the robot gives {steady.antinode_reduction:.3g}x against "
-            f"{steady.reduction:.3g}x: the closed loop chose its position under its own load, "
-            "a sine at St V / D that drives the modes around it off resonance, not in the "
-            "self-limiting wind, which locks into one mode at that mode's frequency")
+            f"{steady.reduction:.3g}x"
+            + (": the closed loop chose its position under its own load, a sine at St V / D "
+               "that drives the modes around it off resonance, not in the self-limiting wind, "
+               "which locks into one mode at that mode's frequency" if wind != "self_limiting"
+               else ""))
     if causes:
         text += " They differ because " + "; and ".join(causes) + "."
     return text

@@ -180,10 +180,14 @@ def _robot(r) -> tuple:
     if r.closed_loop is None:
         return ()
     res = r.closed_loop.result
+    steady = getattr(res, "aeolian_steady", None)
+    if steady is not None and getattr(res, "wind", "fixed_lift") == "self_limiting":
+        # The run's own window in this wind is the amplitude on its way (it settles over
+        # minutes): the steady state is the verdict.
+        return _robot_settled(steady)
     closed = res.comparison("closed_loop")
     names = {c.name for c in res.comparisons}
     how = "steady state" if closed.steady else "settled window"
-    steady = getattr(res, "aeolian_steady", None)
     if getattr(res, "wind", "fixed_lift") == "self_limiting":
         how += " in the self-limiting wind"
     elif steady is not None:
@@ -194,17 +198,39 @@ def _robot(r) -> tuple:
         if name not in names:
             continue
         other = res.comparison(name)
-        # a line at rest with the robot (no load) has no finite ratio
-        ratio = float(other.rms) / float(closed.rms) if closed.rms > 0 else math.inf
-        where = "" if not math.isfinite(other.position) else f" at {other.position:.4g} m"
-        verdict = (f"{'less' if ratio >= 1 else 'MORE'} vibration than {words}{where}: RMS "
-                   f"{mm(other.rms)} -> {mm(closed.rms)} ({how}).{ended}")
+        out.append(_against(label, words, other.position, other.rms, closed.rms,
+                            f"RMS {mm(other.rms)} -> {mm(closed.rms)} ({how}).{ended}"))
         ended = ""   # said once, in the first row
-        out.append(Headline(label, ratio,
-                            f"{ratio:.2f}x" if ratio >= 1 else f"{1 / ratio:.2f}x worse",
-                            verdict, SECTION_IDS["closed_loop"]))
     if steady is not None:
         out.append(_robot_in_wind(steady))
+    return tuple(out)
+
+
+def _against(label: str, words: str, position: float, other: float, closed: float,
+             how: str) -> Headline:
+    """One comparison of the robot where the loop ended with another placement: ``other`` over
+    ``closed`` (a line at rest with the robot, no load, has no finite ratio)."""
+    ratio = float(other) / float(closed) if closed > 0 else math.inf
+    where = "" if not math.isfinite(position) else f" at {position:.4g} m"
+    verdict = f"{'less' if ratio >= 1 else 'MORE'} vibration than {words}{where}: {how}"
+    return Headline(label, ratio, f"{ratio:.2f}x" if ratio >= 1 else f"{1 / ratio:.2f}x worse",
+                    verdict, SECTION_IDS["closed_loop"])
+
+
+def _robot_settled(steady) -> tuple:
+    """The comparisons of a run in the self-limiting wind, in its steady state
+    (``aeolian_steady``): steady antinode amplitudes, zero to peak."""
+    closed = steady.closed_loop
+    ended = f" The robot ended at {closed.robot_position:.4g} m."
+    out = []
+    for name, label, words in _AGAINST:
+        other = getattr(steady, name)
+        position = math.nan if other.robot_position is None else other.robot_position
+        out.append(_against(
+            label, words, position, other.amplitude, closed.amplitude,
+            f"steady antinode amplitude {mm(other.amplitude)} -> {mm(closed.amplitude)} in the "
+            f"{steady.wind_speed:g} m/s self-limiting wind, simulated until it settles.{ended}"))
+        ended = ""
     return tuple(out)
 
 
