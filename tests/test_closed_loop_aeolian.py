@@ -293,3 +293,24 @@ def test_ending_above_the_start_in_the_wind_is_a_shortfall(run):
                     f"({1e3 * steady.closed_loop.amplitude:.4g} mm)"]
     windy = dataclasses.replace(result, wind="self_limiting", aeolian_steady=back)
     assert all(text.startswith("in the self-limiting wind") for text in windy.shortfalls)
+
+
+def test_a_run_in_the_self_limiting_wind_is_reported_by_its_steady_state(run):
+    # The report's robot rows for a run in that wind: the steady amplitudes' ratios, not the
+    # run's own window (the amplitude on its way), and no claim that the window rings into them
+    from types import SimpleNamespace
+
+    from powerline_control.scenario.summary_verdict import _robot, _robot_caveats
+
+    result = dataclasses.replace(run[2], wind="self_limiting")
+    steady = result.aeolian_steady
+    r = SimpleNamespace(closed_loop=SimpleNamespace(result=result))
+    rows = {h.label: h for h in _robot(r)}
+    ended = steady.closed_loop.amplitude
+    for label, other in (("robot against no robot", steady.no_robot),
+                         ("robot against its start", steady.start),
+                         ("robot against a damper near the clamp", steady.near_clamp)):
+        assert rows[label].value == pytest.approx(other.amplitude / ended, rel=1e-12)
+        assert "steady antinode amplitude" in rows[label].verdict
+    assert rows["robot against its start"].value > 1.05     # a third of a loop off, then near
+    assert all("run longer" not in c.text for c in _robot_caveats(r))

@@ -313,11 +313,13 @@ def _robot_caveats(r) -> tuple:
                           "are over the last second; a longer robot.closed_loop lets it "
                           "arrive.", at))
     ringing = [c.name.replace("_", " ") for c in res.comparisons if c.transient]
+    judged_steady = res.comparison("closed_loop").steady or (
+        getattr(res, "aeolian_steady", None) is not None
+        and getattr(res, "wind", "fixed_lift") == "self_limiting")
     if ringing:
         out.append(Caveat(f"The settled window still rings ({', '.join(ringing)}): its window "
                           "RMS says little about where the line settles"
-                          + ("; the ratios above are the exact steady state."
-                             if res.comparison("closed_loop").steady else
+                          + ("; the ratios above are the steady state." if judged_steady else
                              "; run longer before trusting the ratios above."), at))
     if res.estimator_consistency is not None and not res.estimator_consistency.consistent:
         why = ("its model (the robot's force as an input) no longer fits: the line or its "
