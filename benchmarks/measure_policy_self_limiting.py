@@ -4,7 +4,8 @@
 Each run is ``closed_loop_family.off_nominal(seed)`` (the truth off the nominal, the controller
 calibrating) with ``wind="self_limiting"`` and ``aeolian_steady=True``: the amplitude
 ``simulate_aeolian`` settles at with the robot parked where the loop ended, over that with it
-parked at the locked mode's antinode nearest there and over the fixed damper near the clamp.
+parked at the locked mode's antinode nearest there, over the fixed damper near the clamp and over
+the robot parked where it started.
 ``--forced-response`` runs the policy as it ranks positions under the fixed lift (the predicted
 span RMS of a load of fixed amplitude) in place of the standing wave's coupling: the comparison's
 "before". Runs whose energy balance stays below 0.01 D (the wind cannot sustain the vibration)
@@ -77,6 +78,7 @@ def measure(job: tuple) -> dict:
                 antinode=float(steady.at_antinode.robot_position),
                 over_antinode=steady.closed_loop.amplitude / steady.at_antinode.amplitude,
                 over_clamp=steady.closed_loop.amplitude / steady.near_clamp.amplitude,
+                over_start=1 / steady.start_reduction,
                 decisions=[decision for _, decision in result.decisions])
 
 
@@ -94,22 +96,27 @@ def main() -> None:
     print(_common.PINNED)
     with ProcessPoolExecutor(2) as pool:
         rows = list(pool.map(measure, [(seed, options.forced_response) for seed in seeds]))
-    print("| seed | conductor | end, m | antinode, m | end/antinode | end/clamp damper |")
-    print("|---|---|---|---|---|---|")
+    print("| seed | conductor | end, m | antinode, m | end/antinode | end/clamp damper | "
+          "end/start |")
+    print("|---|---|---|---|---|---|---|")
     for row in rows:
         if "error" in row:
-            print(f"| {row['seed']} | error: {row['error'][:80]} | | | | |")
+            print(f"| {row['seed']} | error: {row['error'][:80]} | | | | | |")
             continue
         note = "" if row["sustained"] else " (not sustained)"
         print(f"| {row['seed']} | {row['conductor']}{note} | {row['end']:.2f} | "
-              f"{row['antinode']:.2f} | {row['over_antinode']:.3f} | {row['over_clamp']:.3f} |")
+              f"{row['antinode']:.2f} | {row['over_antinode']:.3f} | {row['over_clamp']:.3f} | "
+              f"{row['over_start']:.3f} |")
     kept = sorted(row["over_antinode"] for row in rows if row.get("sustained"))
     if kept:
         rank = kept[min(len(kept) - 1, round(0.9 * (len(kept) - 1)))]
         print(f"\nsustained runs {len(kept)}: median {statistics.median(kept):.3f}, p90 (nearest "
               f"rank) {rank:.3f}, worst {kept[-1]:.3f}, within 1.5x "
               f"{sum(value <= 1.5 for value in kept)}/{len(kept)}, below the clamp damper "
-              f"{sum(row['over_clamp'] < 1 for row in rows if row.get('sustained'))}/{len(kept)}")
+              f"{sum(row['over_clamp'] < 1 for row in rows if row.get('sustained'))}/{len(kept)}, "
+              f"above 1.05x the start "
+              f"{sum(row['over_start'] > 1.05 for row in rows if row.get('sustained'))}/"
+              f"{len(kept)}")
     if options.json:
         Path(options.json).write_text(json.dumps(rows, indent=1))
 
