@@ -300,6 +300,7 @@ def test_a_run_in_the_self_limiting_wind_is_reported_by_its_steady_state(run):
     # run's own window (the amplitude on its way), and no claim that the window rings into them
     from types import SimpleNamespace
 
+    from powerline_control.scenario.summary import _reduction_row
     from powerline_control.scenario.summary_verdict import _robot, _robot_caveats
 
     result = dataclasses.replace(run[2], wind="self_limiting")
@@ -314,3 +315,7 @@ def test_a_run_in_the_self_limiting_wind_is_reported_by_its_steady_state(run):
         assert "steady antinode amplitude" in rows[label].verdict
     assert rows["robot against its start"].value > 1.05     # a third of a loop off, then near
     assert all("run longer" not in c.text for c in _robot_caveats(r))
+    label, value, note = _reduction_row(result)
+    assert value == f"{steady.start_reduction:.2f}x"
+    assert f"{result.vibration_reduction:.2f}x" in note       # the window's, said beside it
+    assert _reduction_row(run[2])[1] == f"{run[2].vibration_reduction:.2f}x"   # fixed lift
