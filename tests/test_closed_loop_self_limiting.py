@@ -231,6 +231,10 @@ def test_the_report_says_which_wind_the_closed_loop_ran_in_and_shows_no_nan():
     cells = " ".join(str(cell) for row in section["rows"] for cell in row)
     assert "nan" not in cells.split() and "nan mm" not in cells   # no best-position scan here
     assert "RMS: robot parked at the best position" not in rows
+    # the load in that wind is no lift of fixed amplitude: its words say so, with no C_L
+    span_rows = {row[0]: row for s in result_sections(result) if s["title"] == "Span and model"
+                 for row in s["rows"]}
+    assert "self-limiting" in span_rows["load"][1] and "C_L" not in span_rows["load"][1]
     headline = next(h for h in result_verdict(result).headlines
                     if h.label == "robot against no robot")
     assert "in the self-limiting wind" in headline.verdict

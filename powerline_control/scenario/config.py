@@ -164,11 +164,18 @@ class ForcingConfig:
             return strouhal_frequency(self.wind_speed, span.conductor.diameter)
         return 0.5 * self.bandwidth
 
-    def describe(self, span) -> str:
-        """The load in words, with units."""
+    def describe(self, span, wind: str = "fixed_lift") -> str:
+        """The load in words, with units; ``wind``: the scenario's ``robot.wind`` (what an
+        aeolian load does to the simulated line)."""
         if self.kind == "harmonic":
             return (f"harmonic point force of {self.amplitude:g} N at {self.frequency:g} Hz, "
                     f"applied at x = {self.position:g} m")
+        if self.kind == "aeolian" and wind == "self_limiting":
+            return (f"aeolian vortex shedding in a {self.wind_speed:g} m/s wind, self-limiting: "
+                    "the [severity] power curve's wind power at the locked mode's amplitude "
+                    "against the conductor's self-damping, in the mode nearest the Strouhal "
+                    f"frequency {self.load_frequency(span):.3g} Hz (St = 0.185, d = "
+                    f"{1e3 * span.conductor.diameter:g} mm)")
         if self.kind == "aeolian":
             return (f"aeolian vortex shedding in a {self.wind_speed:g} m/s wind: a lift force "
                     f"distributed along the whole span at the Strouhal frequency "

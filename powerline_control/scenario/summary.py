@@ -61,7 +61,7 @@ def _model_section(r) -> dict:
         ("first natural frequencies (nominal)", ", ".join(f"{f:.4g}" for f in frequencies)
          + " Hz", _nearest_mode_note(frequencies, load, model.n_dofs)),
         *truth_rows(r),
-        ("load", sc.forcing.describe(span),
+        ("load", sc.forcing.describe(span, sc.robot.wind),
          "It drives the true line in every simulated run: the records, the closed loop and its "
          "parked comparisons."),
     ]

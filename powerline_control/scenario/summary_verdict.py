@@ -127,7 +127,7 @@ def _span_text(r) -> str:
 
 def _asked_text(r) -> str:
     sc = r.scenario
-    parts = [f"load: {sc.forcing.describe(r.span)}"]
+    parts = [f"load: {sc.forcing.describe(r.span, sc.robot.wind)}"]
     if r.layouts is not None:
         parts.append(f"estimate the whole span from {len(r.layouts['chosen'].nodes)} sensors")
     if r.closed_loop is not None:
