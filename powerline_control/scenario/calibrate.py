@@ -175,8 +175,9 @@ def calibrate_scenario(scenario: Scenario, record=None, *, progress=None) -> Sce
         record = Record(snap.t, snap.x[nodes], snap.displacement[nodes],
                         f"simulated ({scenario.name}, its true line)",
                         truth=snap.true_displacement[nodes])
+        load = scenario.forcing.describe(made.span, scenario.robot.wind)
         how = (f"simulated, since no --record was given: {sim.duration:g} s of the scenario's "
-               f"true line under its load ({scenario.forcing.describe(made.span, scenario.robot.wind)}), sensors "
+               f"true line under its load ({load}), sensors "
                f"at {positions_text(np.asarray(snap.x)[nodes], nodes)}, noise "
                f"{100 * sim.noise_fraction:g} % of the RMS displacement")
         nominal, truth = made.model, made.true_span
