@@ -299,7 +299,8 @@ def aeolian_steady_state(model: LineModel, wind: AeolianForce, robot: MDR, posit
         placed = None if x is None else dataclasses.replace(robot, position=float(x))
         return simulate_aeolian(span, speed, placed, **common)
 
-    bare = parked(None)
+    bare, ended = parked(None), parked(position)
+    start = ended if robot.position == position else parked(robot.position)   # never moved
     return AeolianSteady(wind_speed=float(speed), no_robot=bare, near_clamp=parked(clamp_distance),
-                         start=parked(robot.position), closed_loop=parked(position),
+                         start=start, closed_loop=ended,
                          at_antinode=parked(antinode_near(bare, position)))
