@@ -239,3 +239,25 @@ def test_the_report_says_which_wind_the_closed_loop_ran_in_and_shows_no_nan():
                     if h.label == "robot against no robot")
     assert "in the self-limiting wind" in headline.verdict
     assert "fixed-amplitude" not in headline.verdict
+
+
+def test_the_plan_applies_the_closed_loops_rule_of_the_self_limiting_wind():
+    """In that wind the plan stage judges positions as the closed loop does there, by the
+    robot's coupling to the estimated standing wave: its target is the estimated field's
+    antinode, which the true field's confirms (independent truth: the noise-free held-out
+    record's own peaks)."""
+    from powerline_control.scenario.summary_plan import plan_section
+
+    text = SCENARIO.replace("[robot]", "[model]\nn_elements = 60\n[simulation]\nduration = 4.0\n"
+                            "dt = 0.002\n[identification]\nshaker = 0.0\n[robot]")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", plc.errors.ExcitationWarning)   # one locked tone
+        result = plc.run_scenario(plc.load_scenario(text=text + '\nwind = "self_limiting"'),
+                                  stages=("model", "records", "identification", "sensors",
+                                          "estimation", "plan"))
+    plan = result.plan
+    assert plan.choice.objective == "antinode"
+    loop = plan.truth.loop_length
+    assert abs(plan.choice.position - plan.truth.position) < 0.05 * loop
+    assert abs(plan.choice.position - 13.9) < 0.5 * loop      # the antinode nearest the start
+    assert "standing wave" in {row[0]: row for row in plan_section(result)["rows"]}["target"][1]

@@ -16,7 +16,7 @@ import pytest
 
 import powerline_control as plc
 from powerline_control.closed_loop.policy import Choice, choose_target, inverse_coupling
-from powerline_control.errors import ExcitationWarning, TruncationWarning
+from powerline_control.errors import ExcitationWarning, InputError, TruncationWarning
 from powerline_control.simulation.plant import ModalPlant
 
 LENGTH, MODE = 30.0, 9
@@ -128,3 +128,12 @@ def test_the_locked_mode_is_found_among_the_coupled_modes_a_heavy_robot_shares_i
     wave = locked_wave(plant, rows, 150.5, lines)
     sine = np.sin(95 * np.pi * x / 300.0)
     assert abs(wave @ sine) / (np.linalg.norm(wave) * np.linalg.norm(sine)) > 0.999
+
+
+def test_choose_parked_position_refuses_an_unknown_objective():
+    model = plc.LineModel(plc.Span.paper_lab(), n_elements=20, damping=plc.ModalDamping(0.01))
+    field = np.sin(np.linspace(0, np.pi, model.n_nodes))[:, None] * np.sin(
+        2 * np.pi * 24.0 * 1e-3 * np.arange(200))
+    with pytest.raises(InputError, match="objective"):
+        plc.closed_loop.choose_parked_position(model, field, 1e-3, plc.MDR(position=1.2), 1.2,
+                                               plc.RobotLimits(0.5, 1.0), objective="quiet")

@@ -23,7 +23,7 @@ from enum import Enum
 import numpy as np
 
 from .._spectral import dominant_frequency, fit_phasors
-from .._validation import check_array, check_bare_line, check_real, read_only
+from .._validation import check_array, check_bare_line, check_choice, check_real, read_only
 from ..errors import InputError
 from ..fem import MDR, LineModel
 from ..plan import RobotLimits, free_interval
@@ -311,7 +311,8 @@ def pick_target(grid: np.ndarray, predicted: np.ndarray, here: float, robot_posi
 def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot: MDR,
                            start: float, limits: RobotLimits, *, obstacles=(),
                            travel_time: float = np.inf,
-                           settings: PolicySettings | None = None) -> Choice:
+                           settings: PolicySettings | None = None,
+                           objective: str = "response") -> Choice:
     """Where the closed loop would send the robot, from a record of the robot-free field.
 
     The closed loop's own targeting rule (:func:`choose_target`) on a record with no robot on
@@ -341,12 +342,19 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
         Time the robot may spend travelling, s (``inf``: the whole free interval is in reach).
     settings : PolicySettings or None
         The policy's settings (None: the defaults, the closed loop's own).
+    objective : str
+        What a position is judged by (:data:`OBJECTIVES`): "response", the span RMS predicted
+        under the field's load of fixed amplitude; "antinode", the robot's coupling to the
+        field's standing wave, as the closed loop judges in the self-limiting wind
+        (``run_closed_loop(wind="self_limiting")``), where the wind locks into one mode and the
+        robot damps it most at its antinode.
 
     Returns
     -------
     Choice
-        ``position`` (m), the candidate ``grid`` and its ``predicted`` RMS (m), the prediction
-        ``predicted_here`` at the start, and the predicted ``gain``.
+        ``position`` (m), the candidate ``grid`` and its ``predicted`` RMS (m; with "antinode"
+        :func:`inverse_coupling`), the prediction ``predicted_here`` at the start, and the
+        predicted ``gain``.
 
     Examples
     --------
@@ -358,10 +366,15 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
     ...                                 1.2, plc.RobotLimits(0.5, 1.0))
     >>> round(choice.position, 1), round(choice.gain, 2)    # the loop at 0.58 m is the best
     (0.6, 0.83)
+    >>> locked = choose_parked_position(model, snap.displacement[:, -2000:], snap.dt, robot,
+    ...                                 1.2, plc.RobotLimits(0.5, 1.0), objective="antinode")
+    >>> round(locked.position, 2)        # an antinode of the field's 3 loops (0.61, 1.83, 3.05)
+    1.82
     """
     if not isinstance(model, LineModel):
         raise InputError(f"The 'model' parameter must be a LineModel. Got {type(model).__name__}.")
     settings = checked_policy(settings)
+    objective = check_choice("objective", objective, OBJECTIVES)
     check_bare_line(model, "the robot is the 'robot' argument (the field is the line's without it)")
     if not isinstance(robot, MDR):
         raise InputError(f"The 'robot' parameter must be an MDR. Got {type(robot).__name__}.")
@@ -394,7 +407,8 @@ def choose_parked_position(model: LineModel, field: np.ndarray, dt: float, robot
     low, high = free_interval(start, limits, model.span.length, obstacles)
     return choose_target(shape, plant, robot, 2 * np.pi * frequency, model.span_weights, start,
                          low, high, reach_within(limits, travel_time),
-                         obstacle_ends((low, high), obstacles, limits.length), settings)
+                         obstacle_ends((low, high), obstacles, limits.length), settings,
+                         objective)
 
 
 def obstacle_ends(bounds: tuple[float, float], obstacles, body_length: float) -> tuple[bool, bool]:

@@ -505,8 +505,12 @@ def _plan(scenario: Scenario, records: Records, layouts: dict, model, tuning: Tu
     # 1 / length, must tell the load's line from a natural frequency's ringing next to it).
     # predicted with the nominal model (what the engineer knows), from the estimated field
     field = on_nodes(estimate.field, snap.x, model.node_positions)
+    # in the self-limiting wind the closed loop judges positions by the robot's coupling to
+    # the locked standing wave: the plan applies the same rule
     choice = choose_parked_position(model, field, snap.dt, tuning.robot, robot.start,
-                                    limits, travel_time=travel)
+                                    limits, travel_time=travel,
+                                    objective=("antinode" if robot.wind == "self_limiting"
+                                               else "response"))
     target = nearest_antinode(estimated, choice.position)
     truth = nearest_antinode(true, choice.position)
     trajectory = plan_motion(robot.start, choice.position, limits, span_length=model.span.length)

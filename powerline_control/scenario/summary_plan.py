@@ -32,10 +32,12 @@ def plan_section(r) -> dict:
         ("antinodes (estimated field)", positions_text([a.position for a in p.antinodes]),
          f"Peaks of the estimated field's amplitude over the held-out record; the true field's "
          f"loops are {loop:.3g} m long, so neighbouring antinodes sit about that far apart."),
-        ("target", f"{p.choice.position:.4g} m (predicted "
-         f"{100 * p.choice.gain:.0f} % less vibration than at the start)",
+        ("target", f"{p.choice.position:.4g} m ({p.choice.gain_words()}"
+         + ("" if p.choice.objective == "antinode" else " than at the start") + ")",
          "The closed loop's rule: the predicted best parked position within reach (the "
-         "nearest of those within 3 % of the best), from the estimated field."),
+         "nearest of those within 3 % of the best), from the estimated field"
+         + (": in the self-limiting wind, where the robot couples most to the field's standing "
+            "wave." if p.choice.objective == "antinode" else ".")),
         ("nearest antinode", f"{p.target.position:.4g} m (true field: {p.truth.position:.4g} m, "
          f"{100 * abs(p.target.position - p.truth.position) / loop:.2g} % of a loop length "
          "apart)", "The estimated antinode nearest the target, checked against the true field."),
