@@ -262,6 +262,7 @@ def test_losing_to_the_fixed_damper_in_the_wind_is_a_shortfall(run):
     # the fixed damper was, and the fixed damper's amplitude is the loop's
     result = run[2]
     steady = result.aeolian_steady
+    assert not result.steady_verdict          # a fixed-lift run: its window is judged too
     assert not any("self-limiting" in text for text in result.shortfalls)
     swapped = dataclasses.replace(steady, near_clamp=steady.closed_loop,
                                   closed_loop=steady.near_clamp)
@@ -310,7 +311,7 @@ def test_a_run_in_the_self_limiting_wind_is_reported_by_its_steady_state():
                                   stages=("model", "closed_loop", "severity"))
     loop = result.closed_loop.result
     steady = loop.aeolian_steady
-    assert loop.wind == "self_limiting"
+    assert loop.wind == "self_limiting" and loop.steady_verdict
     # the start's steady state is simulate_aeolian's with the robot parked there (13.9 m)
     robot = dataclasses.replace(result.closed_loop.tuning.robot, position=13.9)
     mesh = loop.x.size - 1

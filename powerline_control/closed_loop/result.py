@@ -321,14 +321,22 @@ class ClosedLoopResult(Result):
         return (self.t[-1] - self.calibration_time) / max(busy, 1e-12)
 
     @property
+    def steady_verdict(self) -> bool:
+        """True when the run was in the self-limiting wind and judged there
+        (:attr:`aeolian_steady`): its verdict (:attr:`shortfalls`, the report's comparisons) is
+        then that steady state, since its own window is the amplitude still on its way (with the
+        robot it settles over minutes)."""
+        return self.aeolian_steady is not None and self.wind == "self_limiting"
+
+    @property
     def shortfalls(self) -> tuple:
-        """What the run fell short of, in words: ending more than 5 % worse than the robot
-        parked at its start, or worse than a fixed damper parked near the clamp. Under the run's
-        load the settled window decides; when the run was judged in the self-limiting wind
-        (:attr:`aeolian_steady`) its steady state decides too, and alone when the run itself
-        was in that wind (its window is the amplitude still on its way, which settles over
-        minutes). Empty when it did neither, or when the robot had not settled (a run that ends
-        with the robot still moving is no verdict) or the run lacks those comparisons.
+        """What the run fell short of, in words: ending more than 5 % worse than the robot parked at
+        its start, or worse than a fixed damper parked near the clamp. Under the run's load the
+        settled window decides; when the run was judged in the self-limiting wind
+        (:attr:`aeolian_steady`) its steady state decides too, and alone when the run itself was in
+        that wind (:attr:`steady_verdict`). Empty when it did neither, or when the robot had not
+        settled (a run that ends with the robot still moving is no verdict) or the run lacks those
+        comparisons.
 
         Examples
         --------
@@ -347,7 +355,7 @@ class ClosedLoopResult(Result):
                   ("near_clamp", 1.0, "a fixed damper parked near the clamp"))
         steady = self.aeolian_steady
         out = []
-        if steady is None or self.wind != "self_limiting":
+        if not self.steady_verdict:
             closed = self.comparison("closed_loop")
             for name, tolerance, what in limits:
                 other = self.comparison(name)

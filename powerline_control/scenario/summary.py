@@ -550,13 +550,12 @@ def _reduction_row(result) -> tuple:
     steady state of the self-limiting wind when the run itself was in that wind and was judged
     there (its own window is the amplitude on its way), else the run's own comparison."""
     window = float(result.vibration_reduction)
-    steady = getattr(result, "aeolian_steady", None)
-    if steady is None or getattr(result, "wind", "fixed_lift") != "self_limiting":
+    if not getattr(result, "steady_verdict", False):
         return ("vibration reduction", f"{window:.2f}x",
                 "RMS displacement over the span with the robot parked where it started, "
                 "divided by the same with the robot where the closed loop left it (> 1: moving "
                 "helps).")
-    return ("vibration reduction", f"{steady.start_reduction:.2f}x",
+    return ("vibration reduction", f"{result.aeolian_steady.start_reduction:.2f}x",
             "Steady antinode amplitude in the self-limiting wind with the robot parked where "
             "it started, divided by the same where the closed loop left it (> 1: moving "
             f"helps). The RMS rows of the run's own window say {window:.2f}x: the amplitude "

@@ -181,9 +181,7 @@ def _robot(r) -> tuple:
         return ()
     res = r.closed_loop.result
     steady = getattr(res, "aeolian_steady", None)
-    if steady is not None and getattr(res, "wind", "fixed_lift") == "self_limiting":
-        # The run's own window in this wind is the amplitude on its way (it settles over
-        # minutes): the steady state is the verdict.
+    if getattr(res, "steady_verdict", False):
         return _robot_settled(steady)
     closed = res.comparison("closed_loop")
     names = {c.name for c in res.comparisons}
@@ -313,9 +311,8 @@ def _robot_caveats(r) -> tuple:
                           "are over the last second; a longer robot.closed_loop lets it "
                           "arrive.", at))
     ringing = [c.name.replace("_", " ") for c in res.comparisons if c.transient]
-    judged_steady = res.comparison("closed_loop").steady or (
-        getattr(res, "aeolian_steady", None) is not None
-        and getattr(res, "wind", "fixed_lift") == "self_limiting")
+    judged_steady = res.comparison("closed_loop").steady or getattr(res, "steady_verdict",
+                                                                     False)
     if ringing:
         out.append(Caveat(f"The settled window still rings ({', '.join(ringing)}): its window "
                           "RMS says little about where the line settles"
