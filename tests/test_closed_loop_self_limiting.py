@@ -261,3 +261,19 @@ def test_the_plan_applies_the_closed_loops_rule_of_the_self_limiting_wind():
     assert abs(plan.choice.position - plan.truth.position) < 0.05 * loop
     assert abs(plan.choice.position - 13.9) < 0.5 * loop      # the antinode nearest the start
     assert "standing wave" in {row[0]: row for row in plan_section(result)["rows"]}["target"][1]
+
+
+def test_a_wind_whose_balance_lies_below_the_curves_data_is_refused():
+    # Oxlip 40 m at 20 % RTS in 2.5 m/s: the energy balance settles at 5.4e-4 D, held up only by
+    # the CIGRE cubic's constant term, below the 1e-3 D where the simulated wind is capped
+    span = plc.Span.at_rts_fraction(40.0, "oxlip", 0.2)
+    balance = aeolian_severity(span, [2.5], bc="pinned")
+    assert balance.status[0] == "balanced"
+    assert 0 < balance.amplitude[0] < 1e-3 * span.conductor.diameter
+    model = plc.LineModel(span, 40, bc="pinned")
+    robot = plc.MDR.tuned(20.0, 0.5, 0.3, 2.5 * 0.185 / span.conductor.diameter, 0.1)
+    with pytest.raises(InputError) as caught:
+        plc.run_closed_loop(model, plc.AeolianForce(2.5), robot, sensors=[5, 15, 25],
+                            duration=3.0, calibration=1.0, wind="self_limiting")
+    for word in ("'force' wind speed 2.5 m/s", "0.001 D", "'cigre'", "fixed_lift"):
+        assert word in str(caught.value)

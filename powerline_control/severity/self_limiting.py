@@ -26,7 +26,7 @@ from ..fem import LineModel
 from ..simulation.held_damping import HeldDamping, run_held
 from ..simulation.plant import ModalPlant
 from .balance import aeolian_severity
-from .modal import AeolianDamping, aeolian_damping
+from .modal import LOWEST_REDUCED_AMPLITUDE, AeolianDamping, aeolian_damping
 
 __all__ = ["WINDS", "WIND_OPTIONS", "SelfLimitingWind", "checked_wind", "known_options",
            "self_limiting_wind"]
@@ -67,7 +67,8 @@ def checked_wind(value: object, segments: list, model: LineModel) -> dict | None
     (``"amplitude"``, m). ``segments``: the run's loads, ``[(start time, [loads])]``. Refused:
     another name or option, a load that is not one AeolianForce for the whole run, supports
     that differ at the two ends, and a wind whose energy balance leaves the power curve's data
-    or sustains no vibration (before the run).
+    (above it, or below :data:`~.modal.LOWEST_REDUCED_AMPLITUDE` D) or sustains no vibration
+    (before the run).
 
     Examples
     --------
@@ -124,7 +125,21 @@ def checked_wind(value: object, segments: list, model: LineModel) -> dict | None
             "self-damping takes more than the wind gives at every amplitude of the "
             f"{curve!r} curve): there is nothing for the robot to damp. Choose another wind "
             "speed or wind='fixed_lift'.")
-    return {"wind": wind, "amplitude": float(balance.amplitude[0]), **physics}
+    amplitude, diameter = float(balance.amplitude[0]), model.span.conductor.diameter
+    if amplitude < LOWEST_REDUCED_AMPLITUDE * diameter:
+        # There the balance holds by the power curve's constant term alone (a finite wind power
+        # at rest), while the simulated wind's ratio is capped: the simulated line decays far
+        # below the balance (Oxlip 217 m at 1.6 m/s: 5e-8 m against 1.1e-5 m).
+        raise InputError(
+            f"The 'force' wind speed {wind.wind_speed:g} m/s sustains only "
+            f"{amplitude * 1e3:.3g} mm on this span by the energy balance "
+            f"({amplitude / diameter:.2g} D), below the {LOWEST_REDUCED_AMPLITUDE:g} D under "
+            "which the simulated wind's power is capped (the "
+            f"{curve!r} power curve has no data that low), so the simulated line would not "
+            "settle there; it is a vibration too small for the robot to damp. Choose a wind "
+            "speed whose balance lies above it (aeolian_severity's amplitude) or "
+            "wind='fixed_lift'.")
+    return {"wind": wind, "amplitude": amplitude, **physics}
 
 
 @dataclass(frozen=True, eq=False)
