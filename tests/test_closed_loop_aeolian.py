@@ -214,15 +214,34 @@ def test_scenario_reports_the_closed_loop_in_the_self_limiting_wind():
 @pytest.mark.parametrize(("extra", "asked"), [
     ("", True), ("time_domain = false", False)])
 def test_scenario_asks_for_the_judgement_with_the_time_domain_check(extra, asked):
-    from powerline_control.scenario.stages import closed_loop_wind
+    from powerline_control.scenario.stages import wind_judgement
 
     scenario = plc.load_scenario(text=SCENARIO + "\n" + extra)
-    options = closed_loop_wind(scenario, SPAN)
+    options, unjudged = wind_judgement(scenario, SPAN)
     assert bool(options) is asked
+    assert ("time_domain is off" in unjudged) is not asked
     if asked:   # the severity study's curve and law, with the Lilien k of the conductor
         law = plc.severity.SELF_DAMPING_LAWS["noiseux1991"]
         assert options == {"wind_curve": "cigre", "self_damping": "noiseux1991",
                            "self_damping_k": pytest.approx(law.coefficient(SPAN))}
+
+
+def test_a_wind_whose_balance_lies_below_the_curves_data_is_not_judged_in_it():
+    # Oxlip 40 m at 20 % RTS in 2.5 m/s: the energy balance settles at 5.4e-4 D, below the
+    # 1e-3 D where the simulated wind's power is capped (test_closed_loop_self_limiting)
+    from powerline_control.scenario.stages import wind_judgement
+
+    span = plc.Span.at_rts_fraction(40.0, "oxlip", 0.2)
+    scenario = plc.load_scenario(text="\n".join([
+        "[span]", 'preset = "conductor"', 'conductor = "oxlip"', "length = 40.0",
+        "rts_fraction = 0.2", "[model]", 'bc = "pinned"', "[forcing]", 'kind = "aeolian"',
+        "wind_speed = 2.5", "[robot]", "start = 20.3", "[severity]", "enabled = true"]))
+    balance = plc.aeolian_severity(span, [2.5], bc="pinned")
+    assert 0 < balance.amplitude[0] < 1e-3 * span.conductor.diameter
+    options, unjudged = wind_judgement(scenario, span)
+    assert options is False
+    for words in ("wind speed 2.5 m/s", "0.00054 D", "0.001 D", "choose another wind speed"):
+        assert words in unjudged
 
 
 def test_a_closed_loop_under_another_load_says_it_is_not_the_severity_sections():

@@ -25,8 +25,8 @@ import numpy as np
 from ..errors import InputError
 from ..excitation import AeolianForce
 from ..fem import MDR, LineModel
-from ..severity import AeolianRun, aeolian_severity, simulate_aeolian
-from ..severity.self_limiting import WIND_OPTIONS, known_options
+from ..severity import AeolianRun, simulate_aeolian
+from ..severity.self_limiting import WIND_OPTIONS, known_options, settling_balance
 
 __all__ = ["AeolianSteady", "aeolian_steady_state"]
 
@@ -202,18 +202,16 @@ def _mesh(model: LineModel) -> int | None:
 
 
 def precheck(model: LineModel, wind: AeolianForce, options: dict) -> None:
-    """The energy balance at the run's wind on its line: what simulate_aeolian would refuse (no
-    rated strength for the self-damping law, a wind beyond the power curve's data, an unknown
-    curve or law) is refused before the run, not after it."""
+    """The energy balance at the run's wind on its line: a wind the self-limiting physics cannot
+    settle at (:func:`~powerline_control.severity.self_limiting.settling_balance`), a conductor
+    without a rated strength for the self-damping law, an unknown curve or law, is refused
+    before the run, not after it."""
     powers = {k: v for k, v in options.items() if k not in ("settle_tolerance", "max_duration")}
-    balance = aeolian_severity(model.span, [wind.wind_speed], bc=_supports(model),
-                               strouhal=wind.strouhal, **powers)
-    if balance.status[0] == "above curve range":
-        curve = powers.get("wind_curve", "cigre")
+    _, problem = settling_balance(model.span, wind, _supports(model), powers)
+    if problem is not None:
         raise InputError(
-            f"The 'force' wind speed {wind.wind_speed:g} m/s drives the span past the {curve!r} "
-            "power curve's data, so the 'aeolian_steady' judgement has no steady amplitude to "
-            "find: choose a wind_curve whose data reach further, or leave aeolian_steady False.")
+            f"The 'force' wind speed {wind.wind_speed:g} m/s {problem}, or leave aeolian_steady "
+            "False (its judgement has no steady amplitude to find).")
 
 
 def antinode_near(run: AeolianRun, position: float) -> float:

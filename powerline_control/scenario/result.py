@@ -209,6 +209,9 @@ class ClosedLoop:
         Calibration time, s.
     sensors_how : str
         Where the sensors came from, in words (:func:`~.sensing.closed_loop_sensors`).
+    unjudged : str
+        Why the run is not judged in the self-limiting wind as well, in words ("" when it is:
+        :func:`~.stages.wind_judgement`).
     """
 
     tuning: Tuning
@@ -216,6 +219,7 @@ class ClosedLoop:
     result: Any = field(repr=False)
     calibration: float = 0.0
     sensors_how: str = ""
+    unjudged: str = ""
 
 
 @dataclass(frozen=True, eq=False)

@@ -37,11 +37,10 @@ from .sensor_count import SensorCountCheck
 from .truth import on_nodes
 
 __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATION",
-           "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing", "closed_loop_wind",
-           "driven_mode",
+           "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing", "driven_mode",
            "layout_filter", "longest_complete_run", "read_wind_record",
            "severity_assumptions", "severity_inputs", "severity_span", "support_intervals",
-           "tune_robot"]
+           "tune_robot", "wind_judgement"]
 
 #: Share of the simulated record that trains the estimator; the rest tests it (held out).
 TRAIN_FRACTION = 0.6
@@ -529,23 +528,27 @@ def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, identificatio
     cfg = scenario.robot
     sensors, how = closed_loop_sensors(scenario, model.node_positions, identification)
     dt, calibration = closed_loop_timing(scenario)
+    steady, unjudged = wind_judgement(scenario, model.span)
     result = run_closed_loop(
         model, force, tuning.robot, RobotLimits(cfg.v_max, cfg.a_max), sensors=list(sensors),
         duration=cfg.closed_loop, calibration=calibration, dt=dt,
         noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed,
         nominal=model if nominal is None else nominal, calibrate=True,
-        aeolian_steady=closed_loop_wind(scenario, model.span), estimator=cfg.estimator,
+        aeolian_steady=steady, estimator=cfg.estimator,
         wind=(wind_physics(scenario, model.span) if cfg.wind == "self_limiting"
               else "fixed_lift"))
     return ClosedLoop(tuning=tuning, sensors=tuple(int(i) for i in sensors), result=result,
-                      calibration=calibration, sensors_how=how)
+                      calibration=calibration, sensors_how=how, unjudged=unjudged)
 
 
-def closed_loop_wind(scenario: Scenario, span) -> dict | bool:
-    """``run_closed_loop``'s ``aeolian_steady`` for the scenario: in the aeolian wind, with the
-    severity study's time-domain check on, the closed loop's robot is judged again in the
-    self-limiting wind with the severity study's power curve and self-damping law (its k from
-    the severity study's rated strength, :func:`severity_span`); else False.
+def wind_judgement(scenario: Scenario, span) -> tuple[dict | bool, str]:
+    """(``aeolian_steady``, why not): ``run_closed_loop``'s ``aeolian_steady`` for the
+    scenario, and, when it is False, why the closed loop is not judged in the self-limiting wind,
+    in words ("" when it is). In the aeolian wind, with the severity study's time-domain check
+    on, the closed loop's robot is judged again in the self-limiting wind with the severity
+    study's power curve and self-damping law (its k from the severity study's rated strength,
+    :func:`severity_span`), unless that physics cannot settle the line
+    (:func:`~powerline_control.severity.self_limiting.settling_balance`).
 
     Parameters
     ----------
@@ -556,17 +559,25 @@ def closed_loop_wind(scenario: Scenario, span) -> dict | bool:
 
     Returns
     -------
-    dict or bool
+    (dict or bool, str)
 
     Examples
     --------
-    >>> closed_loop_wind(load_scenario(), None)     # the lab span's shaker: no wind
-    False
+    >>> wind_judgement(load_scenario(), None)     # the lab span's shaker: no wind
+    (False, 'the [forcing] is harmonic, not the wind')
     """
-    sev = scenario.severity
-    if scenario.forcing.kind != "aeolian" or not (sev.enabled and sev.time_domain):
-        return False
-    return wind_physics(scenario, span)
+    from ..severity.self_limiting import settling_balance
+
+    forcing, sev = scenario.forcing, scenario.severity
+    if forcing.kind != "aeolian":
+        return False, f"the [forcing] is {forcing.kind}, not the wind"
+    if not (sev.enabled and sev.time_domain):
+        return False, "the [forcing] is aeolian, but [severity] time_domain is off"
+    physics = wind_physics(scenario, span)
+    _, problem = settling_balance(span, forcing.build(), scenario.model.bc, physics)
+    if problem is not None:
+        return False, f"the [forcing] wind speed {forcing.wind_speed:g} m/s {problem}"
+    return physics, ""
 
 
 def wind_physics(scenario: Scenario, span) -> dict:

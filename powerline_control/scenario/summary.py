@@ -666,10 +666,7 @@ def _closed_loop_wind(r, result) -> tuple:
 def _not_the_wind(r) -> tuple:
     """Why the closed loop's reduction is not the severity section's, when the closed loop was
     not judged in the self-limiting wind."""
-    kind = r.scenario.forcing.kind
-    how = ("the [forcing] is aeolian, but [severity] time_domain is off" if kind == "aeolian"
-           else f"the [forcing] is {kind}, not the wind")
-    return ("against the severity section", "not comparable: " + how,
+    return ("against the severity section", "not comparable: " + r.closed_loop.unjudged,
             "The closed loop's RMS rows are under the scenario's own load on the line's modal "
             "damping; the severity section's amplitudes are where the wind's power balances the "
             "conductor's self-damping at each wind speed, with the robot at the antinode. With "

@@ -23,13 +23,14 @@ import numpy as np
 from ..errors import InputError
 from ..excitation import AeolianForce
 from ..fem import LineModel
+from ..line import Span
 from ..simulation.held_damping import HeldDamping, run_held
 from ..simulation.plant import ModalPlant
 from .balance import aeolian_severity
 from .modal import LOWEST_REDUCED_AMPLITUDE, AeolianDamping, aeolian_damping
 
 __all__ = ["WINDS", "WIND_OPTIONS", "SelfLimitingWind", "checked_wind", "known_options",
-           "self_limiting_wind"]
+           "self_limiting_wind", "settling_balance"]
 
 #: The aeolian loads of a simulated line: the lift of fixed amplitude on the model's damping,
 #: or the energy balance's self-limiting physics.
@@ -108,38 +109,57 @@ def checked_wind(value: object, segments: list, model: LineModel) -> dict | None
             f"energy balance takes 'clamped' or 'pinned'). Got bc={model.bc}.")
     wind = loads[0]
     physics = dict(options)
-    balance = aeolian_severity(model.span, [wind.wind_speed], bc=left, strouhal=wind.strouhal,
-                               **physics)
-    status = balance.status[0]
-    curve = physics.get("wind_curve", "cigre")
-    if status == "above curve range":
-        raise InputError(
-            f"The 'force' wind speed {wind.wind_speed:g} m/s drives the span past the {curve!r} "
-            "power curve's data, so the self-limiting wind has no amplitude to settle at: choose "
-            "a wind_curve whose data reach further (e.g. 'cigre'), a lower wind speed, or "
-            "wind='fixed_lift'.")
-    if status != "balanced" or not float(balance.amplitude[0]) > 0:
-        raise InputError(
-            f"The 'force' wind speed {wind.wind_speed:g} m/s sustains no vibration on this span "
-            f"in the self-limiting wind (energy balance: {status!r}, the conductor's "
-            "self-damping takes more than the wind gives at every amplitude of the "
-            f"{curve!r} curve): there is nothing for the robot to damp. Choose another wind "
-            "speed or wind='fixed_lift'.")
-    amplitude, diameter = float(balance.amplitude[0]), model.span.conductor.diameter
-    if amplitude < LOWEST_REDUCED_AMPLITUDE * diameter:
-        # There the balance holds by the power curve's constant term alone (a finite wind power
-        # at rest), while the simulated wind's ratio is capped: the simulated line decays far
-        # below the balance (Oxlip 217 m at 1.6 m/s: 5e-8 m against 1.1e-5 m).
-        raise InputError(
-            f"The 'force' wind speed {wind.wind_speed:g} m/s sustains only "
-            f"{amplitude * 1e3:.3g} mm on this span by the energy balance "
-            f"({amplitude / diameter:.2g} D), below the {LOWEST_REDUCED_AMPLITUDE:g} D under "
-            "which the simulated wind's power is capped (the "
-            f"{curve!r} power curve has no data that low), so the simulated line would not "
-            "settle there; it is a vibration too small for the robot to damp. Choose a wind "
-            "speed whose balance lies above it (aeolian_severity's amplitude) or "
-            "wind='fixed_lift'.")
+    amplitude, problem = settling_balance(model.span, wind, left, physics)
+    if problem is not None:
+        raise InputError(f"The 'force' wind speed {wind.wind_speed:g} m/s {problem}, or use "
+                         "wind='fixed_lift'.")
     return {"wind": wind, "amplitude": amplitude, **physics}
+
+
+def settling_balance(span: Span, wind: AeolianForce, bc: str,
+                     physics: Mapping | None = None) -> tuple[float, str | None]:
+    """(amplitude, problem): the energy balance's antinode amplitude (m) of ``span`` with no
+    damper in ``wind`` on supports ``bc``, and why the self-limiting physics cannot settle a
+    simulated line there (None when it can), in words that say what would work. It cannot past
+    the power curve's data, where the wind sustains no vibration, and below
+    :data:`~.modal.LOWEST_REDUCED_AMPLITUDE` D: there the balance holds by the CIGRE cubic's
+    constant term alone (a finite wind power at rest) while the simulated wind's power is capped,
+    and the simulated line decays far below the balance (Oxlip 217 m at 1.6 m/s: 5e-8 m against
+    1.1e-5 m). ``physics``: the power curve and self-damping options (:data:`WIND_OPTIONS`).
+
+    Examples
+    --------
+    >>> from powerline_control import AeolianForce, Span
+    >>> oxlip = Span.at_rts_fraction(40.0, "oxlip", 0.2)
+    >>> amplitude, problem = settling_balance(oxlip, AeolianForce(1.0), "pinned")
+    >>> round(amplitude * 1e3, 4), problem          # 1.4e-3 D: a balance it can settle at
+    (0.0151, None)
+    >>> print(settling_balance(oxlip, AeolianForce(2.5), "pinned")[1])
+    sustains only 0.00563 mm on this span by the energy balance (0.00054 D), below the 0.001 D \
+under which the simulated wind's power is capped (the 'cigre' power curve has no data that low): \
+a vibration too small for the robot to damp; choose another wind speed
+    """
+    physics = dict(physics or {})
+    balance = aeolian_severity(span, [wind.wind_speed], bc=bc, strouhal=wind.strouhal, **physics)
+    status, amplitude = balance.status[0], float(balance.amplitude[0])
+    curve = physics.get("wind_curve", "cigre")
+    diameter = span.conductor.diameter
+    if status == "above curve range":
+        return amplitude, (f"drives the span past the {curve!r} power curve's data: choose a "
+                           "wind_curve whose data reach further (e.g. 'cigre') or a lower wind "
+                           "speed")
+    if status != "balanced" or not amplitude > 0:
+        return 0.0, (f"sustains no vibration on this span (energy balance: {status!r}, the "
+                     "conductor's self-damping takes more than the wind gives at every "
+                     f"amplitude of the {curve!r} curve): there is nothing for the robot to "
+                     "damp; choose another wind speed")
+    if amplitude < LOWEST_REDUCED_AMPLITUDE * diameter:
+        return amplitude, (
+            f"sustains only {amplitude * 1e3:.3g} mm on this span by the energy balance "
+            f"({amplitude / diameter:.2g} D), below the {LOWEST_REDUCED_AMPLITUDE:g} D under "
+            f"which the simulated wind's power is capped (the {curve!r} power curve has no data "
+            "that low): a vibration too small for the robot to damp; choose another wind speed")
+    return amplitude, None
 
 
 @dataclass(frozen=True, eq=False)
