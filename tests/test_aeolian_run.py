@@ -197,3 +197,25 @@ def test_a_mode_the_wind_has_not_fed_gets_no_self_damping_and_no_nan():
     assert np.all(np.isfinite(own)) and np.isfinite(wind)
     assert own[quiet] == 0.0
     assert np.array_equal(own, own_without) and wind == wind_without
+
+
+@pytest.mark.parametrize(("name", "rts", "wind_speed", "settles"), [
+    ("drake", 0.2, 7.0, True),     # 3.6e-2 D, the wind's ratio 1.1e-3 at the balance
+    ("condor", 0.2, 7.0, True),    # 2.9e-2 D, 1.6e-3
+    ("oxlip", 0.4, 1.0, False),    # 3.2e-3 D, 0.11: the simulated wind gives at most 0.1
+    ("oxlip", 0.2, 1.0, False),    # 1.4e-3 D, 0.53
+    ("oxlip", 0.2, 2.5, False),    # 5.4e-4 D, below the 1e-3 D floor
+])
+def test_settling_balance_tells_where_the_run_settles_at_the_balance(name, rts, wind_speed,
+                                                                    settles):
+    """settling_balance's verdict, from the energy balance alone, against the time-domain run
+    itself: where it says the self-limiting wind cannot hold the balance, the run settles more
+    than 10 % below it; where it can, within 10 %."""
+    from powerline_control.severity.self_limiting import settling_balance
+
+    span = plc.Span.at_rts_fraction(40.0, name, rts)
+    amplitude, problem = settling_balance(span, plc.AeolianForce(wind_speed), "pinned")
+    run = simulate_aeolian(span, wind_speed, bc="pinned", max_duration=900.0)
+    assert run.settled and run.balance_amplitude == pytest.approx(amplitude)
+    assert (problem is None) is settles
+    assert (abs(run.relative_error) < 0.1) is settles

@@ -52,7 +52,8 @@ from .self_damping import FotiMartinelli
 from .wind import SelfDampingLaw, _curve, _resolve_law, wind_power
 
 # coupled_cycle is the balance's and coupled_balance's shared step, not a name of its own
-__all__ = ["AeolianDamping", "CoupledBalance", "aeolian_damping", "aeolian_plant"]
+__all__ = ["AeolianDamping", "CoupledBalance", "aeolian_damping", "aeolian_plant",
+           "power_ratio"]
 
 #: The wind's negative damping is evaluated at no less than this reduced amplitude Y/D: the
 #: CIGRE cubic's constant term gives the wind a finite power at Y = 0 (which the energy balance
@@ -96,8 +97,16 @@ SAMPLES_PER_PERIOD = 32
 MAX_SHAPE_ITERATIONS = 100
 
 
-def _ratio(power: float, mass: float, omega: float, amplitude: float) -> float:
-    """zeta = 2 P / (m omega^3 Y^2): the modal damping ratio that takes ``power`` W/m."""
+def power_ratio(power: float, mass: float, omega: float, amplitude: float) -> float:
+    """zeta = 2 P / (m omega^3 Y^2): the modal damping ratio of a standing wave of antinode
+    amplitude ``amplitude`` (m) at ``omega`` (rad/s) on a line of ``mass`` kg/m that takes (or,
+    for the wind, gives) ``power`` W/m (the module doc).
+
+    Examples
+    --------
+    >>> round(power_ratio(0.01, 1.628, 2 * math.pi * 19.7, 0.008), 7)   # Drake, 8 mm at 19.7 Hz
+    0.0001012
+    """
     return 2.0 * power / (mass * omega**3 * amplitude**2)
 
 
@@ -192,7 +201,7 @@ class AeolianDamping:
         own = np.zeros(self.band)
         for i in np.flatnonzero(y > QUIESCENT * cond.diameter):
             p_c = float(self.law.power(y[i], self.omega[i] / (2 * math.pi), self.span))
-            own[i] = 2 * _ratio(p_c, mass, self.omega[i], y[i]) * self.omega[i]
+            own[i] = 2 * power_ratio(p_c, mass, self.omega[i], y[i]) * self.omega[i]
         curve = _curve(self.wind_curve)
         y_wind = min(max(y[self.locked], LOWEST_REDUCED_AMPLITUDE * cond.diameter),
                      curve.max_reduced_amplitude * cond.diameter)
@@ -200,7 +209,7 @@ class AeolianDamping:
                                wind_curve=self.wind_curve,
                                turbulence_intensity=self.turbulence_intensity))
         omega = self.omega[self.locked]
-        wind = -2 * min(_ratio(p_w, mass, omega, y_wind), MAX_WIND_RATIO) * omega
+        wind = -2 * min(power_ratio(p_w, mass, omega, y_wind), MAX_WIND_RATIO) * omega
         return own, wind
 
     def matrix(self, z: np.ndarray, coefficients: tuple | None = None) -> np.ndarray:

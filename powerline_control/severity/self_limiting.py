@@ -15,6 +15,7 @@ negative damping. The closed loop (``run_closed_loop(wind=)``) and the self-limi
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -27,7 +28,13 @@ from ..line import Span
 from ..simulation.held_damping import HeldDamping, run_held
 from ..simulation.plant import ModalPlant
 from .balance import aeolian_severity
-from .modal import LOWEST_REDUCED_AMPLITUDE, AeolianDamping, aeolian_damping
+from .modal import (
+    LOWEST_REDUCED_AMPLITUDE,
+    MAX_WIND_RATIO,
+    AeolianDamping,
+    aeolian_damping,
+    power_ratio,
+)
 
 __all__ = ["WINDS", "WIND_OPTIONS", "SelfLimitingWind", "checked_wind", "known_options",
            "self_limiting_wind", "settling_balance"]
@@ -68,8 +75,8 @@ def checked_wind(value: object, segments: list, model: LineModel) -> dict | None
     (``"amplitude"``, m). ``segments``: the run's loads, ``[(start time, [loads])]``. Refused:
     another name or option, a load that is not one AeolianForce for the whole run, supports
     that differ at the two ends, and a wind whose energy balance leaves the power curve's data
-    (above it, or below :data:`~.modal.LOWEST_REDUCED_AMPLITUDE` D) or sustains no vibration
-    (before the run).
+    or sustains no vibration, or lies too far below it for the simulated wind to hold
+    (:func:`settling_balance`), before the run.
 
     Examples
     --------
@@ -120,30 +127,37 @@ def settling_balance(span: Span, wind: AeolianForce, bc: str,
                      physics: Mapping | None = None) -> tuple[float, str | None]:
     """(amplitude, problem): the energy balance's antinode amplitude (m) of ``span`` with no
     damper in ``wind`` on supports ``bc``, and why the self-limiting physics cannot settle a
-    simulated line there (None when it can), in words that say what would work. It cannot past
-    the power curve's data, where the wind sustains no vibration, and below
-    :data:`~.modal.LOWEST_REDUCED_AMPLITUDE` D: there the balance holds by the CIGRE cubic's
-    constant term alone (a finite wind power at rest) while the simulated wind's power is capped,
-    and the simulated line decays far below the balance (Oxlip 217 m at 1.6 m/s: 5e-8 m against
-    1.1e-5 m). ``physics``: the power curve and self-damping options (:data:`WIND_OPTIONS`).
+    simulated line there (None when it can), in words that say what would work.
+
+    It cannot past the power curve's data, where the wind sustains no vibration, and where the
+    balance needs more of the wind than the simulated wind gives: a damping ratio above
+    :data:`~.modal.MAX_WIND_RATIO` on the locked mode, or an amplitude below
+    :data:`~.modal.LOWEST_REDUCED_AMPLITUDE` D. There the balance is held far below the power
+    curve's data (by the CIGRE cubic's power at rest), and the simulated line decays far below it
+    (Oxlip 40 m pinned at 1 m/s: the balance 1.4e-3 D needs a ratio of 0.53, and the line
+    settles at 3e-5 D; at 40 % RTS, 3.2e-3 D needs 0.11 and the line settles 14 % low; the real
+    conductors' balances need 1e-3). ``physics``: the power curve and self-damping options
+    (:data:`WIND_OPTIONS`).
 
     Examples
     --------
     >>> from powerline_control import AeolianForce, Span
+    >>> drake = Span.at_rts_fraction(40.0, "drake", 0.2)
+    >>> amplitude, problem = settling_balance(drake, AeolianForce(3.0), "pinned")
+    >>> round(amplitude * 1e3, 2), problem
+    (8.52, None)
     >>> oxlip = Span.at_rts_fraction(40.0, "oxlip", 0.2)
-    >>> amplitude, problem = settling_balance(oxlip, AeolianForce(1.0), "pinned")
-    >>> round(amplitude * 1e3, 4), problem          # 1.4e-3 D: a balance it can settle at
-    (0.0151, None)
-    >>> print(settling_balance(oxlip, AeolianForce(2.5), "pinned")[1])
-    sustains only 0.00563 mm on this span by the energy balance (0.00054 D), below the 0.001 D \
-under which the simulated wind's power is capped (the 'cigre' power curve has no data that low): \
-a vibration too small for the robot to damp; choose another wind speed
+    >>> print(settling_balance(oxlip, AeolianForce(1.0), "pinned")[1])
+    sustains only 0.0151 mm on this span by the energy balance (0.0014 D), far below the \
+'cigre' power curve's data: the balance needs a wind damping ratio of 0.53 on the locked mode, \
+and the simulated wind gives at most 0.1, at no less than 0.001 D, so the simulated line would \
+decay far below it; it is a vibration too small for the robot to damp: choose another wind speed
     """
     physics = dict(physics or {})
     balance = aeolian_severity(span, [wind.wind_speed], bc=bc, strouhal=wind.strouhal, **physics)
     status, amplitude = balance.status[0], float(balance.amplitude[0])
     curve = physics.get("wind_curve", "cigre")
-    diameter = span.conductor.diameter
+    cond = span.conductor
     if status == "above curve range":
         return amplitude, (f"drives the span past the {curve!r} power curve's data: choose a "
                            "wind_curve whose data reach further (e.g. 'cigre') or a lower wind "
@@ -153,12 +167,16 @@ a vibration too small for the robot to damp; choose another wind speed
                      "conductor's self-damping takes more than the wind gives at every "
                      f"amplitude of the {curve!r} curve): there is nothing for the robot to "
                      "damp; choose another wind speed")
-    if amplitude < LOWEST_REDUCED_AMPLITUDE * diameter:
+    wind_ratio = power_ratio(float(balance.wind_power[0]), cond.mass_per_length,
+                             2 * math.pi * float(balance.frequency[0]), amplitude)
+    if amplitude < LOWEST_REDUCED_AMPLITUDE * cond.diameter or wind_ratio > MAX_WIND_RATIO:
         return amplitude, (
             f"sustains only {amplitude * 1e3:.3g} mm on this span by the energy balance "
-            f"({amplitude / diameter:.2g} D), below the {LOWEST_REDUCED_AMPLITUDE:g} D under "
-            f"which the simulated wind's power is capped (the {curve!r} power curve has no data "
-            "that low): a vibration too small for the robot to damp; choose another wind speed")
+            f"({amplitude / cond.diameter:.2g} D), far below the {curve!r} power curve's data: "
+            f"the balance needs a wind damping ratio of {wind_ratio:.2g} on the locked mode, "
+            f"and the simulated wind gives at most {MAX_WIND_RATIO:g}, at no less than "
+            f"{LOWEST_REDUCED_AMPLITUDE:g} D, so the simulated line would decay far below it; "
+            "it is a vibration too small for the robot to damp: choose another wind speed")
     return amplitude, None
 
 
