@@ -242,6 +242,15 @@ def test_a_wind_whose_balance_lies_below_the_curves_data_is_not_judged_in_it():
     assert options is False
     for words in ("wind speed 2.5 m/s", "0.00054 D", "0.001 D", "choose another wind speed"):
         assert words in unjudged
+    # the severity section's time-domain check is skipped for the same reason, and says so
+    from powerline_control.scenario.summary import result_sections
+
+    result = plc.run_scenario(scenario, stages=("model", "severity"))
+    assert result.severity.time_domain is None
+    assert result.severity.time_domain_skipped == unjudged
+    section = next(s for s in result_sections(result) if "severity" in s["title"].lower())
+    row = next(row for row in section["rows"] if row[0] == "time domain at 2.5 m/s")
+    assert row[1] == "not run: " + unjudged
 
 
 def test_a_closed_loop_under_another_load_says_it_is_not_the_severity_sections():

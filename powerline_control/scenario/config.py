@@ -328,7 +328,8 @@ class SeverityConfig:
         True, "", "Check the energy balance at the [forcing] wind speed in the time domain with "
         "the same two powers (severity.simulate_aeolian), without dampers and with the robot "
         "parked at the antinode, and judge the closed loop's final position in the same "
-        "self-limiting wind (aeolian forcing only).", when=("enabled", (True,)))
+        "self-limiting wind (aeolian forcing only; skipped, with the reason, where that wind "
+        "cannot hold the balance).", when=("enabled", (True,)))
     wind_record: str | None = _key(
         None, "", "A wind record, a CSV file with columns time, wind_speed, direction, "
         "temperature (and optionally turbulence_intensity): adds the fatigue stage to run and "

@@ -245,10 +245,14 @@ class Severity:
         NaN when the conductor carries none).
     time_domain : SeverityTimeDomain or None
         The energy balance at the scenario's aeolian wind speed checked in the time domain;
-        None when not asked for or the forcing is not the wind.
+        None when not asked for, the forcing is not the wind, or the simulated wind cannot
+        settle the line (``time_domain_skipped``).
     robot_frequency : float
         The frequency the robot's absorber is tuned to, sqrt(k / m_d) / 2 pi, Hz (NaN when
         unknown): it takes power from the wind speeds whose Strouhal frequency lies near it.
+    time_domain_skipped : str
+        Why the time-domain check was asked for and not run, in words ("" otherwise): the
+        self-limiting wind cannot settle the line at that wind speed.
     """
 
     bare: Any
@@ -260,6 +264,7 @@ class Severity:
     rated_strength: float = float("nan")
     time_domain: SeverityTimeDomain | None = None
     robot_frequency: float = float("nan")
+    time_domain_skipped: str = ""
 
 
 @dataclass(frozen=True, eq=False)

@@ -566,18 +566,28 @@ def wind_judgement(scenario: Scenario, span) -> tuple[dict | bool, str]:
     >>> wind_judgement(load_scenario(), None)     # the lab span's shaker: no wind
     (False, 'the [forcing] is harmonic, not the wind')
     """
-    from ..severity.self_limiting import settling_balance
-
     forcing, sev = scenario.forcing, scenario.severity
     if forcing.kind != "aeolian":
         return False, f"the [forcing] is {forcing.kind}, not the wind"
     if not (sev.enabled and sev.time_domain):
         return False, "the [forcing] is aeolian, but [severity] time_domain is off"
-    physics = wind_physics(scenario, span)
-    _, problem = settling_balance(span, forcing.build(), scenario.model.bc, physics)
-    if problem is not None:
-        return False, f"the [forcing] wind speed {forcing.wind_speed:g} m/s {problem}"
-    return physics, ""
+    unsettled = _unsettled(scenario, span)
+    return (False, unsettled) if unsettled else (wind_physics(scenario, span), "")
+
+
+def _unsettled(scenario: Scenario, span) -> str:
+    """Why the self-limiting wind of the scenario's aeolian forcing, with the severity
+    section's physics, cannot settle ``span`` in a simulation
+    (:func:`~powerline_control.severity.self_limiting.settling_balance`), in words; "" when it
+    can."""
+    from ..severity.self_limiting import settling_balance
+
+    forcing = scenario.forcing
+    _, problem = settling_balance(span, forcing.build(), scenario.model.bc,
+                                  wind_physics(scenario, span))
+    if problem is None:
+        return ""
+    return f"the [forcing] wind speed {forcing.wind_speed:g} m/s {problem}"
 
 
 def wind_physics(scenario: Scenario, span) -> dict:
@@ -750,26 +760,33 @@ def _severity(scenario: Scenario, span, tuning: Tuning) -> Severity:
     with_robot = aeolian_severity(span, wind_speeds=speeds, dampers=[AtAntinode(robot)],
                                   damper_model="coupled", **kwargs)
     strand = kwargs.get("outer_strand_diameter", span.conductor.outer_strand_diameter)
+    time_domain, skipped = _time_domain(scenario, span, tuning)
     return Severity(bare=bare, robot=with_robot, outer_strand_diameter=float(strand),
                     strand_source=source, assumptions=assumptions,
                     endurance_applies=span.conductor.family == ENDURANCE_FAMILY,
                     rated_strength=float(span.conductor.rated_strength or float("nan")),
-                    time_domain=_time_domain(scenario, span, tuning),
+                    time_domain=time_domain, time_domain_skipped=skipped,
                     robot_frequency=float(np.sqrt(robot.stiffness / robot.suspended_mass)
                                           / (2 * np.pi)))
 
 
-def _time_domain(scenario: Scenario, span, tuning: Tuning) -> SeverityTimeDomain | None:
+def _time_domain(scenario: Scenario, span,
+                 tuning: Tuning) -> tuple[SeverityTimeDomain | None, str]:
     """The energy balance at the scenario's aeolian wind speed, checked in the time domain with
     the same powers: no damper, the robot parked at the antinode, and parked near the clamp as
-    a fixed damper would be; None when not asked for or the forcing is not the wind."""
+    a fixed damper would be; None when not asked for or the forcing is not the wind, and None
+    with the reason (else "") where the simulated wind cannot settle the line
+    (:func:`_unsettled`)."""
     import dataclasses
 
     from ..severity import harmonic_mean_position, simulate_aeolian
 
     sev, forcing = scenario.severity, scenario.forcing
     if not sev.time_domain or forcing.kind != "aeolian":
-        return None
+        return None, ""
+    unsettled = _unsettled(scenario, span)
+    if unsettled:
+        return None, unsettled
     settings = {"bc": scenario.model.bc, "wind_curve": sev.wind_curve,
                 "self_damping": sev.self_damping}
     speed = forcing.wind_speed
@@ -778,7 +795,7 @@ def _time_domain(scenario: Scenario, span, tuning: Tuning) -> SeverityTimeDomain
         bare=simulate_aeolian(span, speed, **settings),
         at_antinode=simulate_aeolian(span, speed, parked(position=tuning.antinode), **settings),
         near_clamp=simulate_aeolian(span, speed, parked(position=harmonic_mean_position(span)),
-                                    **settings))
+                                    **settings)), ""
 
 
 def read_wind_record(wind_record) -> tuple:

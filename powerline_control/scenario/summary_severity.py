@@ -108,6 +108,13 @@ def severity_section(r) -> dict:
         row, note = _time_domain_row(sev.time_domain, judged)
         rows.append(row)
         notes.append(note)
+    elif sev.time_domain_skipped:
+        rows.append((f"time domain at {r.scenario.forcing.wind_speed:g} m/s",
+                     "not run: " + sev.time_domain_skipped,
+                     "The time-domain check simulates the balance's own powers until the "
+                     "amplitude settles (severity.simulate_aeolian); it is skipped where that "
+                     "simulation cannot hold the balance (severity.self_limiting."
+                     "settling_balance)."))
     missed = _tuning_note(sev, r.span.conductor.diameter)
     if missed:
         notes.append(missed)
