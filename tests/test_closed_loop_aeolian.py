@@ -251,6 +251,9 @@ def test_a_wind_whose_balance_lies_below_the_curves_data_is_not_judged_in_it():
     section = next(s for s in result_sections(result) if "severity" in s["title"].lower())
     row = next(row for row in section["rows"] if row[0] == "time domain at 2.5 m/s")
     assert row[1] == "not run: " + unjudged
+    from powerline_control.scenario.summary_json import result_json
+
+    assert result_json(result)["severity_time_domain_skipped"] == unjudged
 
 
 def test_a_closed_loop_under_another_load_says_it_is_not_the_severity_sections():

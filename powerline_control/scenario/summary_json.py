@@ -149,7 +149,9 @@ def result_json(result) -> dict:
                                "tested": n}
                        for phase, (above, below, n) in consistency_by_phase(res).items()})
         steady = res.aeolian_steady
-        if steady is not None:   # the same placements in the self-limiting wind
+        if steady is None:
+            out["closed_loop_aeolian_steady_skipped"] = r.closed_loop.unjudged
+        else:   # the same placements in the self-limiting wind
             out["closed_loop_aeolian_steady"] = {
                 "wind_speed_m_s": _f(steady.wind_speed),
                 **{f"{name}_amplitude_m": _f(run.amplitude)
@@ -197,6 +199,8 @@ def result_json(result) -> dict:
                 "robot_impedance_ratio": _f(runs.at_antinode.robot_impedance_ratio),
                 "settled": all(run.settled for run in (runs.bare, runs.at_antinode,
                                                        runs.near_clamp))}
+        elif r.severity.time_domain_skipped:
+            out["severity_time_domain_skipped"] = r.severity.time_domain_skipped
     if r.fatigue is not None:
         life = r.fatigue.life
         out["fatigue"] = {name: {"damage_per_year": _f(life[name].damage_per_year),
