@@ -277,3 +277,18 @@ def test_a_wind_whose_balance_lies_below_the_curves_data_is_refused():
                             duration=3.0, calibration=1.0, wind="self_limiting")
     for word in ("'force' wind speed 2.5 m/s", "0.001 D", "'cigre'", "fixed_lift"):
         assert word in str(caught.value)
+
+
+def test_a_scenario_in_a_wind_the_self_limiting_physics_cannot_hold_names_its_keys():
+    # Oxlip 40 m at 20 % RTS in 2.5 m/s (above): refused by the scenario's names, before any
+    # record is simulated
+    scenario = plc.load_scenario(text="\n".join([
+        "[span]", 'preset = "conductor"', 'conductor = "oxlip"', "length = 40.0",
+        "rts_fraction = 0.2", "[model]", 'bc = "pinned"', "[forcing]", 'kind = "aeolian"',
+        "wind_speed = 2.5", "[identification]", "shaker = 0.0", "[robot]", "start = 20.3",
+        'wind = "self_limiting"']))
+    with pytest.raises(InputError) as caught:
+        plc.run_scenario(scenario, stages=("model", "records"))
+    for words in ('robot.wind = "self_limiting"', "[forcing] wind speed 2.5 m/s",
+                  'robot.wind = "fixed_lift"'):
+        assert words in str(caught.value)

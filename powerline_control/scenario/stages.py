@@ -40,7 +40,7 @@ __all__ = ["TRAIN_FRACTION", "SHAKER_POSITION", "CONTROL_PERIOD", "MAX_CALIBRATI
            "ANTINODE_WINDOW", "LAB_CONDUCTOR", "closed_loop_timing", "driven_mode",
            "layout_filter", "longest_complete_run", "read_wind_record",
            "severity_assumptions", "severity_inputs", "severity_span", "support_intervals",
-           "tune_robot", "wind_judgement"]
+           "self_limiting_physics", "tune_robot", "wind_judgement"]
 
 #: Share of the simulated record that trains the estimator; the rest tests it (held out).
 TRAIN_FRACTION = 0.6
@@ -85,7 +85,7 @@ def _records(scenario: Scenario, model, force, record=None, *, identify: bool = 
                 '"self_limiting": the records are simulated in the self-limiting wind, which '
                 "applies no load (the wind is a damping). Allowed: identification.shaker = 0.")
         test = simulate_self_limiting(model, force, duration=sim.duration, dt=sim.dt,
-                                      wind=wind_physics(scenario, model.span),
+                                      wind=self_limiting_physics(scenario, model.span),
                                       noise_fraction=sim.noise_fraction, seed=sim.seed)
     else:
         test = simulate(model, force, duration=sim.duration, dt=sim.dt,
@@ -535,7 +535,7 @@ def _closed_loop(scenario: Scenario, model, force, tuning: Tuning, identificatio
         noise_fraction=scenario.simulation.noise_fraction, seed=scenario.simulation.seed,
         nominal=model if nominal is None else nominal, calibrate=True,
         aeolian_steady=steady, estimator=cfg.estimator,
-        wind=(wind_physics(scenario, model.span) if cfg.wind == "self_limiting"
+        wind=(self_limiting_physics(scenario, model.span) if cfg.wind == "self_limiting"
               else "fixed_lift"))
     return ClosedLoop(tuning=tuning, sensors=tuple(int(i) for i in sensors), result=result,
                       calibration=calibration, sensors_how=how, unjudged=unjudged)
@@ -573,6 +573,44 @@ def wind_judgement(scenario: Scenario, span) -> tuple[dict | bool, str]:
         return False, "the [forcing] is aeolian, but [severity] time_domain is off"
     unsettled = _unsettled(scenario, span)
     return (False, unsettled) if unsettled else (wind_physics(scenario, span), "")
+
+
+def self_limiting_physics(scenario: Scenario, span) -> dict:
+    """``run_closed_loop``'s and ``simulate_self_limiting``'s ``wind`` for a scenario with
+    ``robot.wind = "self_limiting"`` (:func:`wind_physics`), refused where that wind cannot
+    settle the line ``span`` (:func:`_unsettled`), by the scenario's own names.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its ``forcing``, ``model`` and ``severity`` sections.
+    span : Span
+        The line simulated (the truth).
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    InputError
+        Where the self-limiting wind cannot hold the energy balance.
+
+    Examples
+    --------
+    >>> import powerline_control as plc
+    >>> oxlip = plc.Span.at_rts_fraction(40.0, "oxlip", 0.2)
+    >>> self_limiting_physics(load_scenario("drake-300m"), oxlip)
+    Traceback (most recent call last):
+      ...
+    powerline_control.errors.InputError: robot.wind = "self_limiting" cannot simulate this \
+line: the [forcing] wind speed 3 m/s sustains only ...
+    """
+    unsettled = _unsettled(scenario, span)
+    if unsettled:
+        raise InputError(f'robot.wind = "self_limiting" cannot simulate this line: {unsettled}, '
+                         'or set robot.wind = "fixed_lift".')
+    return wind_physics(scenario, span)
 
 
 def _unsettled(scenario: Scenario, span) -> str:
