@@ -78,10 +78,12 @@ def test_a_wind_that_cannot_sustain_vibration_lets_it_die_out():
     # Oxlip (AAC, 10.5 mm) at 20 % RTS: the energy balance's 5 m/s amplitude is Y/D = 3e-4, a
     # balance of the self-damping with the CIGRE cubic's constant term at Y = 0, below any
     # measured power curve point; the wind's negative damping, capped at Y/D = 1e-3, cannot
-    # hold the line there, and the run ends with the vibration gone.
+    # hold the line there, and the run ends with the vibration gone, saying why.
     span = _span("oxlip", 50.0)
-    run = simulate_aeolian(span, 5.0)
+    with pytest.warns(TruncationWarning, match="5 m/s sustains only .* far below"):
+        run = simulate_aeolian(span, 5.0)
     assert run.settled and run.amplitude < 1e-3 * run.balance_amplitude
+    assert "wind damping ratio" in run.unreachable
     assert run.balance_amplitude / span.conductor.diameter < 1e-3
 
 
@@ -215,7 +217,12 @@ def test_settling_balance_tells_where_the_run_settles_at_the_balance(name, rts, 
 
     span = plc.Span.at_rts_fraction(40.0, name, rts)
     amplitude, problem = settling_balance(span, plc.AeolianForce(wind_speed), "pinned")
-    run = simulate_aeolian(span, wind_speed, bc="pinned", max_duration=900.0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run = simulate_aeolian(span, wind_speed, bc="pinned", max_duration=900.0)
     assert run.settled and run.balance_amplitude == pytest.approx(amplitude)
     assert (problem is None) is settles
+    # the run itself says so: its result and a warning carry the same reason
+    assert run.unreachable == problem
+    assert any(issubclass(w.category, TruncationWarning) for w in caught) is not settles
     assert (abs(run.relative_error) < 0.1) is settles

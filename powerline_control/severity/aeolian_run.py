@@ -31,7 +31,7 @@ from scipy.integrate import trapezoid  # numpy >= 1.26 is allowed: np.trapezoid 
 from .._threads import on_one_blas_thread
 from .._validation import check_real, read_only
 from ..errors import InputError, TruncationWarning
-from ..excitation import DEFAULT_STROUHAL
+from ..excitation import DEFAULT_STROUHAL, AeolianForce
 from ..fem import MDR, LineModel, damper_impedance
 from ..line import Span
 from ._common import MAX_WIND_SPEED, _check_span
@@ -44,6 +44,7 @@ from .modal import (
     limit_cycle,
 )
 from .self_damping import FotiMartinelli
+from .self_limiting import settling_balance
 from .wind import SelfDampingLaw, _curve
 
 __all__ = ["AeolianRun", "envelope_settled", "simulate_aeolian"]
@@ -109,6 +110,12 @@ class AeolianRun:
         Node positions, m.
     field_amplitude : ndarray
         Steady amplitude at each node, m.
+    unreachable : str or None
+        Why the simulated wind cannot hold the bare line's energy balance
+        (:func:`~powerline_control.severity.self_limiting.settling_balance`): the balance lies
+        far below the power curve's data, where the simulated wind's damping ratio is capped,
+        so ``amplitude`` settles far below ``balance_amplitude`` and ``relative_error`` measures
+        that cap, not the integration. None when it can.
 
     Examples
     --------
@@ -136,6 +143,7 @@ class AeolianRun:
     robot_impedance_ratio: float = 0.0
     x: np.ndarray = field(default=None, repr=False)
     field_amplitude: np.ndarray = field(default=None, repr=False)
+    unreachable: str | None = None
 
 
 @on_one_blas_thread
@@ -212,7 +220,9 @@ self_damping_exponents
     -----
     TruncationWarning
         When the run reaches ``max_duration`` before it settles (a very light damping: a low
-        wind on a long span); the result then has ``settled=False``.
+        wind on a long span); the result then has ``settled=False``. And when the simulated
+        wind cannot hold the energy balance at all (its reason in the result's
+        ``unreachable``): the run then settles far below the balance.
 
     Examples
     --------
@@ -244,6 +254,11 @@ self_damping_exponents
             f"The 'wind_speed' {speed:g} m/s drives the span past the {wind_curve!r} power "
             f"curve's data (Y/D > {_curve(wind_curve).max_reduced_amplitude:g}): the steady "
             "amplitude is unknown. Choose a wind_curve whose data reach further.")
+    _, unreachable = settling_balance(span, AeolianForce(speed, strouhal=strouhal), bc,
+                                      {**powers, **law})
+    if unreachable is not None:
+        warnings.warn(f"simulate_aeolian: the wind at {speed:g} m/s {unreachable}.",
+                      TruncationWarning, stacklevel=2)
     if start_amplitude is None:
         bare_balance = balance if robot is None else aeolian_severity(
             span, [speed], strouhal=strouhal, bc=bc, **powers, **law)
@@ -352,7 +367,7 @@ self_damping_exponents
         first_order_amplitude=float(balance.amplitude[0]),
         robot_impedance_ratio=0.0 if robot is None else abs(damper_impedance(robot, frequency))
         / math.sqrt(span.tension * mass), x=read_only(bare.node_positions.copy()),
-        field_amplitude=read_only(field_amplitude))
+        field_amplitude=read_only(field_amplitude), unreachable=unreachable)
 
 
 def _flow(a: np.ndarray, duration: float, z: np.ndarray) -> np.ndarray:
