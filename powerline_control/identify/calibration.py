@@ -16,9 +16,9 @@ bandwidths of ``f`` dominate; a bandwidth is the modal damping or the record's r
 enough channels (two more than the wave has shapes) on a taut line (bending a small part of the
 stiffness at the line's wavenumber), each line is also explained by the steady field's own shape
 at ``f``, the taut beam's standing wave of wavenumber ``k(T, EI)`` between
-the supports (:func:`_wave_loglik`): where a forced tone sits between two modes, a few modes fit
-its shape at many tensions, the wave at one; its likelihood is the mixture of both, so a load
-between the channels, which breaks the local wave, falls back on the modes. A tension that puts
+the supports, under a load distributed as the wave or a point load between two channels
+(:func:`_wave_loglik`): where a forced tone sits between two modes, a few modes fit its shape at
+many tensions, the wave at one; its likelihood is the mixture of both. A tension that puts
 a mode of the right shape at every line scores high; one whose modes sit between the lines, or
 whose shapes the channels contradict, scores low. The product over lines with a log-normal prior
 around the nominal gives the posterior; its spread is the calibration's uncertainty, and a
@@ -374,33 +374,54 @@ def _wavenumber(tension: np.ndarray, ei: np.ndarray, mass: float, frequency: flo
     return np.sqrt((np.sqrt(tension**2 + 4 * ei * mass * omega2) - tension) / (2 * ei))
 
 
-def _wave_loglik(k: np.ndarray, u: np.ndarray, sigma2: float, positions: np.ndarray,
-                 length: float, robot_at: float | None) -> np.ndarray:
-    """Log-likelihood of one line's phasors ``u`` under the steady field's own shape at every
-    wavenumber ``k`` of the grid.
+def _wave_loglik(k_range: tuple[float, float], u: np.ndarray, sigma2: float,
+                 positions: np.ndarray, length: float, robot_at: float | None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Log-likelihood of one line's phasors ``u`` under the steady field's own shape, on a grid
+    of wavenumbers over ``k_range``: (grid, log-likelihood), to interpolate at any (T, EI).
 
     Between the supports, a steady field at the line's frequency solves ``EI w_xxxx - T w_xx =
     m omega^2 w`` with the load on the right: unloaded, a wave ``A sin(k x) + B cos(k x)`` (the
     evanescent part decays within ``sqrt(EI / T)``, a few centimetres, of a support or a load);
-    under a load distributed as the wave itself (wind in lock-in), also ``x sin(k x)`` and
-    ``x cos(k x)``; a parked robot, a point load, adds its kink ``sin(k |x - x_r|)``; the field
-    is zero at both supports. The shape depends on (T, EI) only through ``k``: it is evaluated on
-    a wavenumber grid fine enough to resolve the phase at the far support (WAVE_PHASE_STEP) and
-    interpolated."""
-    k_lo, k_hi = float(k.min()), float(k.max())
+    a parked robot, a point load, adds its kink ``sin(k |x - x_r|)``; the field is zero at both
+    supports. The load is one of two kinds, equally likely:
+
+    - distributed as the wave itself (wind in lock-in): it adds ``x sin(k x)`` and
+      ``x cos(k x)``;
+    - a point load at an unknown position (a shaker, a forced tone between two modes): its kink
+      lies between two channels (or beyond the outermost), each place equally likely, and the
+      field is a wave from each support up to it, the two waves' amplitudes independent (the
+      field's continuity at the unknown position is not imposed). Without it a forced tone
+      between two modes, read by the distributed kind, is taken for the nearest mode whose
+      shape fits the channels on the load's larger side, a tension several per cent off.
+
+    The shape depends on (T, EI) only through ``k``: the grid is fine enough to resolve the
+    phase at the far support (WAVE_PHASE_STEP)."""
+    k_lo, k_hi = k_range
     n_k = int(np.clip(np.ceil(length * (k_hi - k_lo) / WAVE_PHASE_STEP), 2, 20_000))
     grid = np.linspace(k_lo, k_hi, n_k)
     x = np.concatenate([positions, [0.0, length]])
     phase = grid[:, None] * x                                             # (n_k, p + 2)
-    basis = [np.sin(phase), np.cos(phase), x / length * np.sin(phase),
-             x / length * np.cos(phase)]
-    if robot_at is not None:
-        basis.append(np.sin(grid[:, None] * np.abs(x - robot_at)))
-    basis = np.stack(basis, axis=-1)                                      # (n_k, p + 2, q)
-    # the combinations zero at both supports: the null space of the two support rows
+    sin, cos = np.sin(phase), np.cos(phase)
+    robot = [] if robot_at is None else [np.sin(grid[:, None] * np.abs(x - robot_at))]
+    distributed = [sin, cos, x / length * sin, x / length * cos, *robot]
+    channels = np.sort(positions)
+    cuts = np.concatenate([[0.5 * channels[0]], 0.5 * (channels[:-1] + channels[1:]),
+                           [0.5 * (channels[-1] + length)]])
+    kinds = [distributed] + [[sin * (x < cut), cos * (x < cut), sin * (x > cut),
+                              cos * (x > cut), *robot] for cut in cuts]
+    log_weights = np.log(np.concatenate([[0.5], np.full(cuts.size, 0.5 / cuts.size)]))
+    loglik = [_profiled_shape_loglik(_zero_at_supports(np.stack(kind, axis=-1)), None, u,
+                                     sigma2) for kind in kinds]
+    return grid, np.logaddexp.reduce(np.stack(loglik) + log_weights[:, None], axis=0)
+
+
+def _zero_at_supports(basis: np.ndarray) -> np.ndarray:
+    """The combinations of ``basis`` (n_k, p + 2, q: the channels, then the two supports) that
+    are zero at both supports, at the channels (n_k, p, q - 2): the null space of the supports'
+    rows."""
     _, _, vt = np.linalg.svd(basis[:, -2:, :])
-    rows = basis[:, :-2, :] @ np.swapaxes(vt[:, 2:, :], -1, -2)          # (n_k, p, q - 2)
-    return np.interp(k, grid, _profiled_shape_loglik(rows, None, u, sigma2))
+    return basis[:, :-2, :] @ np.swapaxes(vt[:, 2:, :], -1, -2)
 
 
 def _profiled_shape_loglik(rows: np.ndarray, power: np.ndarray | None, u: np.ndarray,
@@ -594,9 +615,22 @@ def calibrate_span(
     strong = int(np.sum(velocity_power >= STRONG_LINE * velocity_power.max()))
     wave_dims = (5 if robot is not None else 4) - 2
     use_wave = positions.size >= wave_dims + 2 and strong <= WAVE_MAX_LINES
+
+    def wave(f: float, u: np.ndarray, variance: float) -> tuple | None:
+        """The line's wave reading over every (T, EI) of the grids (None where the wave does
+        not read it): the wavenumber falls with T and with EI."""
+        k0 = float(_wavenumber(np.array(tension0), np.array(ei0), mass, f))
+        if not (use_wave and ei0 * k0**2 < WAVE_BENDING * tension0):
+            return None
+        k_range = tuple(float(_wavenumber(np.array(tension0 * a), np.array(ei0 * b), mass, f))
+                        for a, b in ((t_hi, e_hi), (t_lo, e_lo)))
+        return _wave_loglik(k_range, u, WAVE_SHAPE_ERROR * float(np.vdot(u, u).real) / u.size
+                            + variance, positions, length, robot_at)
+
     evidence = [(float(f), u, float(zeta_floor),
                  float(np.hypot(PEAK_ACCURACY / duration, 0.5 * width)
-                       + FREQUENCY_MODEL_ERROR * f), float(variance))
+                       + FREQUENCY_MODEL_ERROR * f), float(variance),
+                 wave(float(f), u, float(variance)))
                 for f, u, zeta_floor, width, variance in zip(lines, phasors, zeta_floors, widths,
                                                              noise, strict=True)]
 
@@ -606,14 +640,10 @@ def calibrate_span(
         log_post = (-0.5 * (np.log(tau)[:, None] / tension_prior) ** 2
                     - 0.5 * (np.log(eta)[None, :] / ei_prior) ** 2)
         tension, ei = tension0 * tau[:, None], ei0 * eta[None, :]
-        for f, u, zeta_floor, frequency_std, variance in evidence:
+        for f, u, zeta_floor, frequency_std, variance, wave_table in evidence:
             sigma2 = shape_error * float(np.vdot(u, u).real) / u.size + variance
-            k0 = float(_wavenumber(np.array(tension0), np.array(ei0), mass, f))
-            taut = ei0 * k0**2 < WAVE_BENDING * tension0
-            wave_ll = None if not (use_wave and taut) else _wave_loglik(
-                _wavenumber(tension, ei, mass, f), u,
-                WAVE_SHAPE_ERROR * float(np.vdot(u, u).real) / u.size + variance, positions,
-                length, robot_at)
+            wave_ll = None if wave_table is None else np.interp(
+                _wavenumber(tension, ei, mass, f), *wave_table)
             log_post = log_post + _line_loglik(omega2, modes, u, f, zeta_floor, sigma2,
                                                frequency_std, wave_ll)
         return log_post
