@@ -79,13 +79,26 @@ def test_bending_stiffness_is_identified_where_the_dispersion_shows_it():
     assert abs(cal.tension - truth.tension) <= 2 * cal.tension_std
 
 
-def test_a_tone_forced_between_two_modes_is_read_from_its_wavelength():
-    # One line, no free ringing: wind in lock-in forcing a 300 m pinned string with the wave of
-    # its own wavenumber, sin(k x), at 36.3 fundamentals (between modes 36 and 37). The closed
-    # form of w'' + k^2 w = -sin(k x), w(0) = w(L) = 0:
-    #     w = -(L / 2k) cot(k L) sin(k x) + (x / 2k) cos(k x).
-    # Its frequency puts no mode on the line; only the shape at the sensors (the wavelength)
-    # tells the tension. Nearest-mode readings are 1.7 % (mode 36) and 3.9 % (37) off.
+def _lock_in_shape(x, k, length):
+    """Wind in lock-in forcing a pinned string with the wave of its own wavenumber, sin(k x):
+    the closed form of w'' + k^2 w = -sin(k x), w(0) = w(L) = 0."""
+    return -(length / (2 * k)) / np.tan(k * length) * np.sin(k * x) + x / (2 * k) * np.cos(k * x)
+
+
+def _shaker_shape(x, k, length, load_at=200.0):
+    """A point load at ``load_at`` (between the last two sensors): the string's Green's
+    function, w'' + k^2 w = -delta(x - a), w(0) = w(L) = 0. The load bends the field there, so
+    the wave of a distributed load fits only a mode's wavelength."""
+    return np.where(x < load_at, np.sin(k * x) * np.sin(k * (length - load_at)),
+                    np.sin(k * load_at) * np.sin(k * (length - x))) / (k * np.sin(k * length))
+
+
+@pytest.mark.parametrize("shape_of", [_lock_in_shape, _shaker_shape])
+def test_a_tone_forced_between_two_modes_is_read_from_its_wavelength(shape_of):
+    # One line, no free ringing: a 300 m pinned string forced at 36.3 fundamentals (between
+    # modes 36 and 37), in lock-in or by a shaker. Its frequency puts no mode on the line; only
+    # the shape at the sensors (the wavelength) tells the tension. Nearest-mode readings are
+    # 1.7 % (mode 36) and 3.9 % (37) off.
     length = 300.0
     nominal = plc.Span(length, 28_000.0, NOMINAL.conductor)
     truth = 0.95 * nominal.tension
@@ -93,9 +106,8 @@ def test_a_tone_forced_between_two_modes_is_read_from_its_wavelength():
     frequency = 36.3 * speed / (2 * length)
     k = 2 * np.pi * frequency / speed
     x = np.array([23.0, 61.0, 97.5, 152.0, 241.0])
-    shape = -(length / (2 * k)) / np.tan(k * length) * np.sin(k * x) + x / (2 * k) * np.cos(k * x)
     t = 0.01 * np.arange(3001)
-    values = np.outer(shape, np.sin(2 * np.pi * frequency * t))
+    values = np.outer(shape_of(x, k, length), np.sin(2 * np.pi * frequency * t))
     values += 0.01 * values.std() * np.random.default_rng(0).standard_normal(values.shape)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CalibrationWarning)    # one line: it says so
@@ -103,32 +115,6 @@ def test_a_tone_forced_between_two_modes_is_read_from_its_wavelength():
     assert abs(cal.tension - truth) <= 2 * cal.tension_std
     assert abs(cal.tension / truth - 1) < 0.01 and cal.tension_std / truth < 0.01
     assert not cal.ambiguous and cal.peak_share > 0.95
-
-
-def test_a_point_load_between_two_modes_is_read_from_its_wavelength():
-    # One line, no free ringing: a shaker at 200 m on the same 300 m pinned string, at 36.3
-    # fundamentals. The closed form (the string's Green's function, w'' + k^2 w = -delta(x - a)):
-    #     w = sin(k x) sin(k (L - a)) / (k sin kL)   for x < a,
-    #     w = sin(k a) sin(k (L - x)) / (k sin kL)   for x > a.
-    # The load between the last two sensors bends the field there, so the wave of a distributed
-    # load fits only a mode's wavelength: read so, the nearest modes are 1.7 % and 3.9 % off.
-    length, load_at = 300.0, 200.0
-    nominal = plc.Span(length, 28_000.0, NOMINAL.conductor)
-    truth = 0.95 * nominal.tension
-    speed = np.sqrt(truth / NOMINAL.conductor.mass_per_length)
-    frequency = 36.3 * speed / (2 * length)
-    k = 2 * np.pi * frequency / speed
-    x = np.array([23.0, 61.0, 97.5, 152.0, 241.0])
-    shape = np.where(x < load_at, np.sin(k * x) * np.sin(k * (length - load_at)),
-                     np.sin(k * load_at) * np.sin(k * (length - x))) / (k * np.sin(k * length))
-    t = 0.01 * np.arange(3001)
-    values = np.outer(shape, np.sin(2 * np.pi * frequency * t))
-    values += 0.01 * values.std() * np.random.default_rng(0).standard_normal(values.shape)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", CalibrationWarning)    # one line: it says so
-        cal = plc.calibrate_span(plc.Record(t, x, values), nominal)
-    assert abs(cal.tension - truth) <= 2 * cal.tension_std
-    assert abs(cal.tension / truth - 1) < 0.01 and cal.tension_std / truth < 0.01
 
 
 def test_nan_gaps_leave_the_calibration_as_it_was():
