@@ -236,21 +236,39 @@ class SensorRecord:
     dt: float                   # sample interval, s
 
 
+def longest_still(path: np.ndarray) -> tuple[int, int]:
+    """The first and last sample of the longest stretch over which the robot's position
+    ``path`` (m, one per sample) does not change; the latest of equally long ones.
+
+    Examples
+    --------
+    >>> longest_still(np.array([2.0, 2.0, 2.0, 2.1, 2.2, 2.2]))
+    (0, 2)
+    >>> longest_still(np.array([2.0, 2.1, 2.2, 2.2]))
+    (2, 3)
+    """
+    breaks = np.flatnonzero(np.diff(path) != 0.0)       # the robot moves after these samples
+    firsts = np.concatenate(([0], breaks + 1))
+    lasts = np.concatenate((breaks, [path.size - 1]))
+    longest = lasts.size - 1 - int(np.argmax((lasts - firsts)[::-1]))
+    return int(firsts[longest]), int(lasts[longest])
+
+
 class BeliefTracker:
     """The controller's belief over a run (a class with evolving state).
 
     It starts from the nominal span's :class:`Belief`; at each :meth:`update` (after the
     calibration window, then at each decision of the policy) it calibrates the span on the
-    sensors' whole record so far, and the robot's own while it has not moved
+    longest stretch of the record so far over which the robot stood still (:func:`longest_still`),
+    the sensors' records and the robot's own
     (:func:`~powerline_control.identify.calibrate_span`, the nominal model as prior, the robot
-    parked where it spent most of the record) and rebuilds the
+    parked where it stood) and rebuilds the
     Belief from the calibrated span when its tension differs from the believed one by more than
     ``settings.belief_tolerance`` of it (a rebuild costs a modal plant). A calibration whose main
     peak holds less than ``settings.trusted_share`` of its posterior (several tensions explain
     the record) moves nothing: its highest peak may be a neighbouring mode's; nor does one
-    ``settings.less_certain`` times less certain than the one believed (a record over which the
-    robot moved tells less); nor one on fewer than ``settings.min_cycles`` cycles of the
-    fundamental.
+    ``settings.less_certain`` times less certain than the one believed; nor one on fewer than
+    ``settings.min_cycles`` cycles of the fundamental.
     """
 
     def __init__(self, nominal: Belief, *, robot: MDR, n_modes, dt: float,
@@ -303,23 +321,26 @@ class BeliefTracker:
     def _update(self, seen, k: int, band) -> str | None:
         """:meth:`update`'s calibration and rebuild (timed by it)."""
         now = float(seen.t[k])
-        fundamental = float(self.nominal.span.pinned_frequencies(1)[0])
         policy = self.settings
-        if (now - float(seen.t[0])) * fundamental < policy.min_cycles:
-            return (f"belief kept at tension {self.belief.span.tension:.5g} N: the record "
-                    f"({now - float(seen.t[0]):.3g} s) is shorter than {policy.min_cycles:g} "
-                    "cycles of "
-                    f"the fundamental ({fundamental:.3g} Hz), too short to separate the modes "
-                    "beside the tone")
-        positions, values = seen.sensor_positions, seen.sensors[:, : k + 1]
-        path = seen.position[: k + 1]
-        parked = replace(self._robot, position=self.nominal.inside(float(np.median(path))))
-        if np.ptp(path) == 0.0 and not np.any(np.isclose(positions, parked.position)):
-            # parked all along: the robot's own measurement of the line is one more channel
+        # The record over which the robot moved is no steady state of one line with the robot
+        # at one place: it smears a mode into two lines (closed_loop_off_nominal.md, seed 837).
+        # The longest stretch it stood still is read, whether before or after its moves.
+        first, last = longest_still(seen.position[: k + 1])
+        stood = slice(first, last + 1)
+        duration = float(seen.t[last] - seen.t[first])
+        fundamental = float(self.nominal.span.pinned_frequencies(1)[0])
+        if duration * fundamental < policy.min_cycles:
+            return (f"belief kept at tension {self.belief.span.tension:.5g} N: the longest "
+                    f"stretch the robot stood still ({duration:.3g} s) is shorter than "
+                    f"{policy.min_cycles:g} cycles of the fundamental ({fundamental:.3g} Hz), "
+                    "too short to separate the modes beside the tone")
+        parked = replace(self._robot, position=self.nominal.inside(float(seen.position[first])))
+        positions, values = seen.sensor_positions, seen.sensors[:, stood]
+        if not np.any(np.isclose(positions, parked.position)):
+            # the robot's own measurement of the line is one more channel
             positions = np.append(positions, parked.position)
-            values = np.vstack([values, seen.robot[None, : k + 1]])
-        record = SensorRecord(t=seen.t[: k + 1], positions=positions, values=values,
-                              dt=self._dt)
+            values = np.vstack([values, seen.robot[None, stood]])
+        record = SensorRecord(t=seen.t[stood], positions=positions, values=values, dt=self._dt)
         try:
             with warnings.catch_warnings():
                 # what the record cannot tell is kept on the calibration (its ``warnings``)
@@ -336,9 +357,9 @@ class BeliefTracker:
                     f"{calibration.duration:.3g} s) cannot tell between tensions "
                     f"{calibration.tension:.5g} +- {calibration.tension_std:.2g} N")
         if self.trusted and calibration.tension_std > policy.less_certain * self._believed_std:
-            # the record grew but tells much less: the robot moved during it, its field is no
-            # longer one steady state; the calibration believed stands (a new tone's
-            # calibration, after a wind change, is about as certain as the last)
+            # this stretch tells much less than the one believed (a wind change within it: no
+            # single steady state); the calibration believed stands (a new tone's calibration,
+            # after a wind change, is about as certain as the last)
             return (f"belief kept at tension {believed:.5g} N: the record's calibration "
                     f"({calibration.tension:.5g} +- {calibration.tension_std:.2g} N) is less "
                     f"certain than the one believed (+- {self._believed_std:.2g} N)")

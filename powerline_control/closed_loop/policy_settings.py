@@ -149,12 +149,12 @@ class PolicySettings:
         certainty holds still at its start, often near a node (closed_loop_off_nominal.md).
     less_certain : float
         2.0. A calibration this many times less certain than the one believed moves nothing (a
-        record over which the robot moved tells less); 1 was measured on the tuning seeds and
-        lost (closed_loop_off_nominal.md, seed 243).
+        stretch of record with a wind change in it tells less); 1 was measured on the tuning
+        seeds and lost (closed_loop_off_nominal.md, seed 243).
     min_cycles : float
-        2.0. The span is calibrated on records of at least this many cycles of the nominal
-        fundamental: shorter ones cannot tell neighbouring modes apart (a record resolves
-        lines about 2 / duration apart; closed_loop_off_nominal.md).
+        2.0. The span is calibrated on stretches of record (the robot still) of at least this
+        many cycles of the nominal fundamental: shorter ones cannot tell neighbouring modes
+        apart (a record resolves lines about 2 / duration apart; closed_loop_off_nominal.md).
 
     Raises
     ------
