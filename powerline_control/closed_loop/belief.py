@@ -259,10 +259,12 @@ class BeliefTracker:
 
     It starts from the nominal span's :class:`Belief`; at each :meth:`update` (after the
     calibration window, then at each decision of the policy) it calibrates the span on the
-    longest stretch of the record so far over which the robot stood still (:func:`longest_still`),
-    the sensors' records and the robot's own
+    sensors' whole record so far, and the robot's own while it has not moved
     (:func:`~powerline_control.identify.calibrate_span`, the nominal model as prior, the robot
-    parked where it stood) and rebuilds the
+    parked where it spent most of the record); once the robot has moved, it also calibrates the
+    longest stretch it stood still in (:func:`longest_still`) and believes that one where the
+    two disagree by more than ``settings.moved_record_z`` combined standard deviations. It
+    rebuilds the
     Belief from the calibrated span when its tension differs from the believed one by more than
     ``settings.belief_tolerance`` of it (a rebuild costs a modal plant). A calibration whose main
     peak holds less than ``settings.trusted_share`` of its posterior (several tensions explain
@@ -318,37 +320,51 @@ class BeliefTracker:
         finally:
             self.cpu += time.process_time() - started
 
-    def _update(self, seen, k: int, band) -> str | None:
-        """:meth:`update`'s calibration and rebuild (timed by it)."""
-        now = float(seen.t[k])
-        policy = self.settings
-        # The record over which the robot moved is no steady state of one line with the robot
-        # at one place: it smears a mode into two lines (closed_loop_off_nominal.md, seed 837).
-        # The longest stretch it stood still is read, whether before or after its moves.
-        first, last = longest_still(seen.position[: k + 1])
-        stood = slice(first, last + 1)
-        duration = float(seen.t[last] - seen.t[first])
-        fundamental = float(self.nominal.span.pinned_frequencies(1)[0])
-        if duration * fundamental < policy.min_cycles:
-            return (f"belief kept at tension {self.belief.span.tension:.5g} N: the longest "
-                    f"stretch the robot stood still ({duration:.3g} s) is shorter than "
-                    f"{policy.min_cycles:g} cycles of the fundamental ({fundamental:.3g} Hz), "
-                    "too short to separate the modes beside the tone")
-        parked = replace(self._robot, position=self.nominal.inside(float(seen.position[first])))
-        positions, values = seen.sensor_positions, seen.sensors[:, stood]
-        if not np.any(np.isclose(positions, parked.position)):
-            # the robot's own measurement of the line is one more channel
+    def _calibrated(self, seen, first: int, last: int, band):
+        """calibrate_span on the samples ``first`` to ``last`` of the measurements ``seen``, the
+        robot parked where it spent them (its own record one more channel when it did not move
+        in them); the error in words when the record cannot be calibrated."""
+        path = seen.position[first : last + 1]
+        parked = replace(self._robot, position=self.nominal.inside(float(np.median(path))))
+        positions, values = seen.sensor_positions, seen.sensors[:, first : last + 1]
+        if np.ptp(path) == 0.0 and not np.any(np.isclose(positions, parked.position)):
             positions = np.append(positions, parked.position)
-            values = np.vstack([values, seen.robot[None, stood]])
-        record = SensorRecord(t=seen.t[stood], positions=positions, values=values, dt=self._dt)
+            values = np.vstack([values, seen.robot[None, first : last + 1]])
+        record = SensorRecord(t=seen.t[first : last + 1], positions=positions, values=values,
+                              dt=self._dt)
         try:
             with warnings.catch_warnings():
                 # what the record cannot tell is kept on the calibration (its ``warnings``)
                 warnings.simplefilter("ignore", CalibrationWarning)
-                calibration = calibrate_span(record, self.nominal.bare, robot=parked,
-                                             band=_within_nyquist(band, self._dt))
+                return calibrate_span(record, self.nominal.bare, robot=parked,
+                                      band=_within_nyquist(band, self._dt))
         except (InputError, IdentificationError) as error:
-            return f"belief kept at tension {self.belief.span.tension:.5g} N: {error}"
+            return str(error)
+
+    def _update(self, seen, k: int, band) -> str | None:
+        """:meth:`update`'s calibration and rebuild (timed by it)."""
+        now = float(seen.t[k])
+        fundamental = float(self.nominal.span.pinned_frequencies(1)[0])
+        policy = self.settings
+        if (now - float(seen.t[0])) * fundamental < policy.min_cycles:
+            return (f"belief kept at tension {self.belief.span.tension:.5g} N: the record "
+                    f"({now - float(seen.t[0]):.3g} s) is shorter than {policy.min_cycles:g} "
+                    "cycles of "
+                    f"the fundamental ({fundamental:.3g} Hz), too short to separate the modes "
+                    "beside the tone")
+        calibration = self._calibrated(seen, 0, k, band)
+        if isinstance(calibration, str):
+            return f"belief kept at tension {self.belief.span.tension:.5g} N: {calibration}"
+        first, last = longest_still(seen.position[: k + 1])
+        if (last - first) < k and (seen.t[last] - seen.t[first]) * fundamental >= policy.min_cycles:
+            # The robot moved during the record: a move can smear a mode into two lines
+            # (closed_loop_off_nominal.md, seed 837). Where the longest stretch it stood still
+            # tells another tension beyond both readings' uncertainty, that stretch is believed.
+            still = self._calibrated(seen, first, last, band)
+            if (not isinstance(still, str) and still.peak_share >= policy.trusted_share
+                    and abs(still.tension - calibration.tension) > policy.moved_record_z
+                    * np.hypot(still.tension_std, calibration.tension_std)):
+                calibration = still
         self.calibrations.append((now, calibration))
         believed = self.belief.span.tension
         if calibration.peak_share < policy.trusted_share:
@@ -357,9 +373,9 @@ class BeliefTracker:
                     f"{calibration.duration:.3g} s) cannot tell between tensions "
                     f"{calibration.tension:.5g} +- {calibration.tension_std:.2g} N")
         if self.trusted and calibration.tension_std > policy.less_certain * self._believed_std:
-            # this stretch tells much less than the one believed (a wind change within it: no
-            # single steady state); the calibration believed stands (a new tone's calibration,
-            # after a wind change, is about as certain as the last)
+            # the record grew but tells much less: the robot moved during it, its field is no
+            # longer one steady state; the calibration believed stands (a new tone's
+            # calibration, after a wind change, is about as certain as the last)
             return (f"belief kept at tension {believed:.5g} N: the record's calibration "
                     f"({calibration.tension:.5g} +- {calibration.tension_std:.2g} N) is less "
                     f"certain than the one believed (+- {self._believed_std:.2g} N)")

@@ -532,12 +532,13 @@ def run_closed_loop(
         own span, mesh and damping (the controller told the truth, and nothing to calibrate).
     calibrate : bool
         With a ``nominal``: after the calibration window and again at each decision of the
-        policy, calibrate the span from the longest stretch of the record so far over which
-        the robot stood still, the sensors' records and its own
+        policy, calibrate the span from the sensors' whole record so far
         (:func:`~powerline_control.identify.calibrate_span`, the nominal as prior) and predict
         with the calibrated span once its tension moves from the believed one by more than 0.1 %
         (``ClosedLoopResult.calibrations``; records of at least two cycles of the
-        fundamental in that stretch). The robot holds at its start until a calibration tells
+        fundamental; once the robot has moved, the longest stretch it stood still in where
+        the two disagree: ``settings.moved_record_z``). The robot holds at its start until a
+        calibration tells
         the tension (one whose main peak holds less than 80 % of its posterior, or twice as
         uncertain as the one believed, moves nothing). False: the controller predicts with the
         nominal as told. (0.1 %, two cycles, 80 % and twice: ``settings.belief_tolerance``,

@@ -149,12 +149,20 @@ class PolicySettings:
         certainty holds still at its start, often near a node (closed_loop_off_nominal.md).
     less_certain : float
         2.0. A calibration this many times less certain than the one believed moves nothing (a
-        stretch of record with a wind change in it tells less); 1 was measured on the tuning
-        seeds and lost (closed_loop_off_nominal.md, seed 243).
+        record over which the robot moved tells less); 1 was measured on the tuning seeds and
+        lost (closed_loop_off_nominal.md, seed 243).
     min_cycles : float
-        2.0. The span is calibrated on stretches of record (the robot still) of at least this
-        many cycles of the nominal fundamental: shorter ones cannot tell neighbouring modes
-        apart (a record resolves lines about 2 / duration apart; closed_loop_off_nominal.md).
+        2.0. The span is calibrated on records (and stretches of record the robot stood still
+        in) of at least this many cycles of the nominal fundamental: shorter ones cannot tell
+        neighbouring modes apart (a record resolves lines about 2 / duration apart;
+        closed_loop_off_nominal.md).
+    moved_record_z : float
+        2.0. Once the robot has moved, a calibration of the whole record that differs from the
+        one of the longest stretch the robot stood still in by more than this many combined
+        standard deviations gives way to the latter: a move can smear a mode into two lines
+        (seed 837: 31 415 +- 355 N over a 6.8 m move, 33 050 +- 622 N before it; the line shows
+        32 982 N; closed_loop_off_nominal.md). The whole record is believed otherwise: it is
+        longer and tells the tension more surely.
 
     Raises
     ------
@@ -227,6 +235,7 @@ in [0, 1) (the predicted relative drop of the span's RMS a move must bring). Got
                                  low_inclusive=True)
     min_cycles: float = _field(2.0, "a number >= 0 (cycles of the fundamental)", 0.0,
                                low_inclusive=True)
+    moved_record_z: float = _field(2.0, "a number > 0 (combined standard deviations)", 0.0)
 
     def __post_init__(self) -> None:
         for item in dataclasses.fields(self):
