@@ -264,13 +264,12 @@ class BeliefTracker:
     parked where it spent most of the record); once the robot has moved, it also calibrates the
     longest stretch it stood still in (:func:`longest_still`) and believes that one where the
     two disagree by more than ``settings.moved_record_z`` combined standard deviations. It
-    rebuilds the
-    Belief from the calibrated span when its tension differs from the believed one by more than
-    ``settings.belief_tolerance`` of it (a rebuild costs a modal plant). A calibration whose main
-    peak holds less than ``settings.trusted_share`` of its posterior (several tensions explain
-    the record) moves nothing: its highest peak may be a neighbouring mode's; nor does one
-    ``settings.less_certain`` times less certain than the one believed; nor one on fewer than
-    ``settings.min_cycles`` cycles of the fundamental.
+    rebuilds the Belief from the calibrated span when its tension differs from the believed one
+    by more than ``settings.belief_tolerance`` of it (a rebuild costs a modal plant). A
+    calibration whose main peak holds less than ``settings.trusted_share`` of its posterior
+    (several tensions explain the record) moves nothing: its highest peak may be a neighbouring
+    mode's; nor does one ``settings.less_certain`` times less certain than the one believed; nor
+    one on fewer than ``settings.min_cycles`` cycles of the fundamental.
     """
 
     def __init__(self, nominal: Belief, *, robot: MDR, n_modes, dt: float,
