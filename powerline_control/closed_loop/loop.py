@@ -538,11 +538,10 @@ def run_closed_loop(
         (``ClosedLoopResult.calibrations``; records of at least two cycles of the
         fundamental; once the robot has moved, the longest stretch it stood still in where
         the two disagree: ``settings.moved_record_z``). The robot holds at its start until a
-        calibration tells
-        the tension (one whose main peak holds less than 80 % of its posterior, or twice as
-        uncertain as the one believed, moves nothing). False: the controller predicts with the
-        nominal as told. (0.1 %, two cycles, 80 % and twice: ``settings.belief_tolerance``,
-        ``min_cycles``, ``trusted_share``, ``less_certain``.)
+        calibration tells the tension (one whose main peak holds less than 80 % of its
+        posterior, or twice as uncertain as the one believed, moves nothing). False: the
+        controller predicts with the nominal as told. (0.1 %, two cycles, 80 % and twice:
+        ``settings.belief_tolerance``, ``min_cycles``, ``trusted_share``, ``less_certain``.)
     settings : PolicySettings or None
         The policy's settings (:class:`~powerline_control.closed_loop.PolicySettings`: each with
         its value, what it guards and the evidence for it). None (default): the tuned values.
